@@ -1,0 +1,102 @@
+"""Elementwise helpers that work unchanged on a Python float and on a NumPy array.
+
+The model functions in this package are written with plain arithmetic (``+ - * /``) and the
+helpers below, so one instance inside an FMU runs them on floats with the standard library only,
+and the batch engine runs the very same code on arrays of Monte-Carlo runs.  Every operation used
+is correctly rounded in IEEE 754 double precision (``sqrt`` included), so both paths give
+bit-identical results for the same inputs.  NumPy is imported lazily, only when an array arrives.
+"""
+import math
+
+
+def is_scalar(x):
+    """True for a Python number (NumPy's ``float64`` scalar counts: it subclasses ``float``)."""
+    return isinstance(x, (int, float))
+
+
+def _np():
+    import numpy
+    return numpy
+
+
+def sqrt(x):
+    """Correctly rounded square root of a float or an array."""
+    if is_scalar(x):
+        return math.sqrt(x)
+    return _np().sqrt(x)
+
+
+def floor(x):
+    """Floor of a float (as float) or an array."""
+    if is_scalar(x):
+        return float(math.floor(x))
+    return _np().floor(x)
+
+
+def frexp(x):
+    """Mantissa in [0.5, 1) and integer exponent, exactly, of a float or an array."""
+    if is_scalar(x):
+        return math.frexp(x)
+    return _np().frexp(x)
+
+
+def where(cond, a, b):
+    """``a`` where ``cond`` holds, else ``b``: a plain choice for scalars, elementwise for arrays."""
+    if is_scalar(cond) or isinstance(cond, bool):
+        return a if cond else b
+    return _np().where(cond, a, b)
+
+
+def all_finite(*values):
+    """True when every value (float or array) is finite."""
+    for v in values:
+        if is_scalar(v):
+            if not math.isfinite(v):
+                return False
+        elif not _np().all(_np().isfinite(v)):
+            return False
+    return True
+
+
+LN2 = 0.6931471805599453
+SQRT_HALF = 0.7071067811865476
+
+
+def log(x):
+    """Natural logarithm of a positive float or array, by arithmetic only.
+
+    ``x = m 2^e`` exactly (``frexp``), ``m`` moved into [sqrt(1/2), sqrt(2)), then
+    ``ln m = 2 atanh(s)``, ``s = (m - 1)/(m + 1)``, summed to ``s^21`` (truncation below 1e-17).
+    Unlike ``math.log`` and ``numpy.log``, which may differ in the last bit, this gives the same
+    bits on both paths.  Accuracy: a few ulp.
+    """
+    m, e = frexp(x)
+    low = m < SQRT_HALF
+    m = where(low, m * 2.0, m)
+    e = where(low, e - 1, e)
+    s = (m - 1.0) / (m + 1.0)
+    s2 = s * s
+    poly = 1.0 / 21.0
+    for k in (19, 17, 15, 13, 11, 9, 7, 5, 3, 1):
+        poly = poly * s2 + 1.0 / k
+    return e * LN2 + 2.0 * s * poly
+
+
+def sin2pi(cycles):
+    """``sin(2 pi c)`` of a float or an array, by arithmetic only (same bits on both paths).
+
+    The argument is reduced exactly to ``r = c - floor(c)`` in [0, 1), folded onto [0, 1/4] by the
+    symmetries of the sine, and the Taylor series of ``sin`` is summed to degree 23 on
+    [0, pi/2] (truncation below 1e-16).
+    """
+    r = cycles - floor(cycles)
+    sign = where(r >= 0.5, -1.0, 1.0)
+    r = where(r >= 0.5, r - 0.5, r)
+    r = where(r > 0.25, 0.5 - r, r)
+    t = 2.0 * math.pi * r
+    t2 = t * t
+    # Horner form of t - t^3/3! + t^5/5! - ... + t^23/23!
+    poly = 0.0
+    for n in range(23, 0, -2):
+        poly = poly * t2 + (1.0 if (n // 2) % 2 == 0 else -1.0) / math.factorial(n)
+    return sign * t * poly

@@ -1,0 +1,78 @@
+"""The whole measurement chain, excitation -> sensor -> EKF -> drift estimators.
+
+:func:`estimator_step` is what the DriftEstimator FMU runs on each sample; :func:`simulate` runs
+the chain sample by sample through the same functions as the three FMUs, on floats (one run, the
+reference that the co-simulation is checked against) or on arrays of seeds (a batch of runs).
+"""
+from collections import namedtuple
+
+from . import drift, ekf, excitation, sensor
+from .noise import STREAM_MEASUREMENT, STREAM_PROCESS, normal
+
+#: Filter state after ``drift.k`` samples: posterior mean and variance, estimator sums.
+EstimatorState = namedtuple("EstimatorState", "x P drift")
+
+COLUMNS = ("time", "x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
+           "dc_realised", "dc_expected", "z_comp")
+
+
+def estimator_init(x0, P0):
+    """Filter state before the first sample."""
+    return EstimatorState(x0, P0, drift.initial_state())
+
+
+def estimator_step(state, z, a0, a1, a2, A, Q, R):
+    """One EKF predict/update with ``z`` and the three drift estimators folded forward."""
+    x, P = ekf.step(state.x, state.P, z, a0, a1, a2, A, Q, R)
+    return EstimatorState(x, P, drift.update(state.drift, x, P, a2))
+
+
+def compensate(z, dc):
+    """Drift-compensated sensor output ``z - dc``."""
+    return z - dc
+
+
+def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
+             Ts=1e-3, estimator=1, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0,
+             filter_A=None, filter_Q=None, measure_noise=True):
+    """Run the chain for samples ``k = 1..n``; return a dict of the results columns.
+
+    ``seed`` is an int (one run; each column a list of floats) or a ``uint64`` array of shape
+    ``(runs,)`` (each column an array ``(runs, n)``).  The sensor and the filter share the model
+    ``a0, a1, a2, R``; the excitation is Gauss-Markov ``(A, Q)`` or ``X sin(2 pi f t + phi)``.
+    The filter's process model is ``(filter_A, filter_Q)``, by default the excitation's.
+    ``P0`` defaults to the stationary variance ``Q / (1 - A^2)``.
+    """
+    fA = A if filter_A is None else filter_A
+    fQ = Q if filter_Q is None else filter_Q
+    if P0 is None:
+        P0 = fQ / (1.0 - fA * fA)
+    var_x = excitation.stationary_variance(kind, A=A, Q=Q, X=X)
+    dc_expected = sensor.drift(a2, var_x)
+    scalar = isinstance(seed, int)
+    cols = {c: [] for c in COLUMNS}
+    x = x0
+    est = estimator_init(x0, P0)
+    zbar = 0.0
+    x2bar = 0.0
+    for k in range(1, n + 1):
+        if kind == excitation.GAUSSIAN:
+            x = excitation.gauss_markov(x, A, Q, normal(seed, STREAM_PROCESS, k))
+        else:
+            x = excitation.sine(k, X, f, Ts, phi)
+        v = normal(seed, STREAM_MEASUREMENT, k) if measure_noise else 0.0
+        z = sensor.measure(x, a0, a1, a2, R, v)
+        est = estimator_step(est, z, a0, a1, a2, fA, fQ, R)
+        dcs = drift.estimates(est.drift, a2)
+        zbar = drift.running_mean(zbar, z, k)
+        x2bar = drift.running_mean(x2bar, x * x, k)
+        row = ((k - 1) * Ts, x, z, est.x, est.P, dcs[0], dcs[1], dcs[2], zbar - a0,
+               a2 * x2bar, dc_expected, compensate(z, drift.select(dcs, estimator)))
+        for c, value in zip(COLUMNS, row):
+            cols[c].append(value)
+    if not scalar:
+        import numpy as np
+        for c in COLUMNS:
+            cols[c] = np.stack([np.broadcast_to(np.asarray(v, dtype=float), seed.shape)
+                                for v in cols[c]], axis=-1)
+    return cols

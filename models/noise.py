@@ -1,0 +1,106 @@
+"""Counter-based Gaussian noise: a pure function of (seed, stream, sample index).
+
+Sample ``k`` of stream ``s`` under seed ``seed`` is computed from those three integers alone, so
+the same noise comes out of one FMU instance stepping sample by sample, out of a batch of
+Monte-Carlo runs computed at once, after an FMU state restore, and at any communication step
+size.  Nothing here keeps state.
+
+Bits: SplitMix64 (Steele, Lea and Flood, 2014) finaliser over a key derived from (seed, stream)
+plus ``k`` times the golden-ratio increment.  Uniform: the top 52 bits, centred, in (0, 1).
+Normal: Acklam's rational approximation of the inverse normal CDF (relative error below
+1.2e-9), evaluated with the arithmetic-only ``log`` of :mod:`models._ops` so that Python floats
+and NumPy arrays give the same bits.
+
+Integers: Python ``int`` for one instance; NumPy ``uint64`` arrays (seed per run, index per
+sample, broadcast against each other) for a batch.
+"""
+from . import _ops
+
+MASK64 = 0xFFFFFFFFFFFFFFFF
+GOLDEN = 0x9E3779B97F4A7C15
+_M1 = 0xBF58476D1CE4E5B9
+_M2 = 0x94D049BB133111EB
+
+#: Streams: one per noise source, so sources never share a sequence under one seed.
+STREAM_PROCESS = 1      # w_k of the Gauss-Markov excitation
+STREAM_MEASUREMENT = 2  # v_k of the sensor
+STREAM_SENSOR_Y = 3     # second-axis excitation of the accelerometer
+STREAM_PHASE = 4        # random phase / amplitude draws of an experiment
+
+
+def _mix(z):
+    """SplitMix64 finaliser of a 64-bit integer (Python int or uint64 array)."""
+    z = ((z ^ (z >> 30)) * _M1) & MASK64
+    z = ((z ^ (z >> 27)) * _M2) & MASK64
+    return z ^ (z >> 31)
+
+
+def _as_uint64(v):
+    if _ops.is_scalar(v):
+        return int(v) & MASK64
+    return _ops._np().asarray(v).astype(_ops._np().uint64)
+
+
+def key(seed, stream):
+    """64-bit key of a (seed, stream) pair."""
+    seed = _as_uint64(seed)
+    return _mix(_mix(seed) ^ ((stream * GOLDEN) & MASK64))
+
+
+def bits(seed, stream, k):
+    """64 random bits for sample ``k`` (``k >= 1``) of ``stream`` under ``seed``."""
+    k = _as_uint64(k)
+    return _mix((key(seed, stream) + ((k * GOLDEN) & MASK64)) & MASK64)
+
+
+def uniform(seed, stream, k):
+    """Uniform draw in the open interval (0, 1), on a grid of 2^-52."""
+    return ((bits(seed, stream, k) >> 12) + 0.5) * 2.0 ** -52
+
+
+# Acklam's coefficients for the inverse of the standard normal CDF.
+_A = (-3.969683028665376e+01, 2.209460984245205e+02, -2.759285104469687e+02,
+      1.383577518672690e+02, -3.066479806614716e+01, 2.506628277459239e+00)
+_B = (-5.447609879822406e+01, 1.615858368580409e+02, -1.556989798598866e+02,
+      6.680131188771972e+01, -1.328068155288572e+01)
+_C = (-7.784894002430293e-03, -3.223964580411365e-01, -2.400758277161838e+00,
+      -2.549732539343734e+00, 4.374664141464968e+00, 2.938163982698783e+00)
+_D = (7.784695709041462e-03, 3.224671290700398e-01, 2.445134137142996e+00,
+      3.754408661907416e+00)
+P_LOW = 0.02425
+
+
+def _central(p):
+    q = p - 0.5
+    r = q * q
+    num = (((((_A[0] * r + _A[1]) * r + _A[2]) * r + _A[3]) * r + _A[4]) * r + _A[5]) * q
+    den = ((((_B[0] * r + _B[1]) * r + _B[2]) * r + _B[3]) * r + _B[4]) * r + 1.0
+    return num / den
+
+
+def _lower_tail(p):
+    q = _ops.sqrt(-2.0 * _ops.log(p))
+    num = ((((_C[0] * q + _C[1]) * q + _C[2]) * q + _C[3]) * q + _C[4]) * q + _C[5]
+    den = (((_D[0] * q + _D[1]) * q + _D[2]) * q + _D[3]) * q + 1.0
+    return num / den
+
+
+def inverse_normal_cdf(p):
+    """Standard normal quantile of ``p`` in (0, 1) (Acklam; relative error < 1.2e-9)."""
+    if _ops.is_scalar(p):
+        if p < P_LOW:
+            return _lower_tail(p)
+        if p > 1.0 - P_LOW:
+            return -_lower_tail(1.0 - p)
+        return _central(p)
+    out = _central(p)
+    lo = p < P_LOW
+    hi = p > 1.0 - P_LOW
+    out[lo] = _lower_tail(p[lo])
+    out[hi] = -_lower_tail(1.0 - p[hi])
+    return out
+
+
+def normal(seed, stream, k):
+    """Standard normal draw for sample ``k`` of ``stream`` under ``seed``."""
+    return inverse_normal_cdf(uniform(seed, stream, k))

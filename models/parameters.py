@@ -1,0 +1,87 @@
+"""Every model parameter once: paper name, default, allowed range, unit and meaning.
+
+The FMUs take their start values, ``min``/``max`` and descriptions from here, the command line
+takes its options and checks from here, and :func:`check` words every range error the same way
+for both.  Defaults are the letter's simulation settings (Sec. III).
+"""
+import math
+from collections import namedtuple
+
+Param = namedtuple("Param", "name default low high low_open high_open unit description")
+
+
+def _p(name, default, low=None, high=None, unit="1", description="", low_open=False,
+       high_open=False):
+    return Param(name, default, low, high, low_open, high_open, unit, description)
+
+
+PARAMETERS = {p.name: p for p in (
+    _p("a0", 0.0, unit="V", description="sensor offset a0 of z = a0 + a1 x + a2 x^2 + v"),
+    _p("a1", 1.0, unit="V/g", description="sensor sensitivity a1 (must not be 0)"),
+    _p("a2", 0.01, unit="V/g2", description="second-order coefficient a2; its drift is a2 E[x^2]"),
+    _p("A", 0.0, -1.0, 1.0, description="state transition x_k = A x_{k-1} + w_k", low_open=True,
+       high_open=True),
+    _p("Q", 0.01, 0.0, unit="g2", description="process noise variance Q of w_k"),
+    _p("R", 1e-4, 0.0, unit="V2", description="measurement noise variance R of v_k",
+       low_open=True),
+    _p("x0", 0.0, unit="g", description="initial state x_0 (before sample 1)"),
+    _p("P0", 0.01, 0.0, unit="g2", description="initial error variance P_0 of the filter"),
+    _p("Ts", 1e-3, 0.0, unit="s", description="sample period (one sample per Ts)",
+       low_open=True),
+    _p("X", 1.0, 0.0, unit="g", description="amplitude X of the sinusoidal excitation"),
+    _p("f", 150.0, 0.0, unit="Hz", description="frequency f of the sinusoidal excitation"),
+    _p("phi", 0.0, unit="rad", description="phase of the sinusoidal excitation"),
+    _p("seed", 1, 0, 2 ** 31 - 1, description="seed of the counter-based noise generator"),
+    _p("n", 2000, 1, unit="1", description="number of samples"),
+    _p("runs", 1, 1, unit="1", description="number of Monte-Carlo runs"),
+)}
+
+
+def allowed(name):
+    """Human-readable allowed range of parameter ``name``, e.g. ``'R > 0'``."""
+    p = PARAMETERS[name]
+    parts = []
+    if p.low is not None:
+        parts.append("%s %s %g" % (name, ">" if p.low_open else ">=", p.low))
+    if p.high is not None:
+        parts.append("%s %s %g" % (name, "<" if p.high_open else "<=", p.high))
+    if name == "a1":
+        parts.append("a1 != 0")
+    return " and ".join(parts) if parts else "any finite value"
+
+
+def problem(name, value):
+    """Why ``value`` is not allowed for parameter ``name``, or None when it is."""
+    p = PARAMETERS[name]
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        return "%s = %r is not a number; allowed: %s" % (name, value, allowed(name))
+    bad = not math.isfinite(v)
+    if not bad and p.low is not None:
+        bad = v <= p.low if p.low_open else v < p.low
+    if not bad and p.high is not None:
+        bad = v >= p.high if p.high_open else v > p.high
+    if not bad and name == "a1":
+        bad = v == 0.0
+    if not bad and isinstance(p.default, int) and v != int(v):
+        bad = True
+    if bad:
+        return "%s = %r is out of range; allowed: %s" % (name, value, allowed(name))
+    return None
+
+
+def check(values):
+    """Problems of a mapping of parameter values (names not listed here are ignored)."""
+    out = []
+    for name, value in values.items():
+        if name in PARAMETERS:
+            msg = problem(name, value)
+            if msg:
+                out.append(msg)
+    return out
+
+
+def defaults(*names):
+    """Default values of the named parameters."""
+    return {n: PARAMETERS[n].default for n in names}
