@@ -1,0 +1,61 @@
+"""DriftEstimator FMU: scalar EKF with the letter's EKF1/EKF2/EKF3 drift estimators."""
+from pythonfmu import Fmi2Slave  # noqa: F401  (pythonfmu's builder looks for Fmi2Slave here)
+
+from fmu_src.slave_base import SlaveBase, default_experiment, var
+from models import chain, drift, ekf
+
+
+class DriftEstimator(SlaveBase):
+    """EKF estimate of x from z and the state-dependent drift a2 E[x^2] (EKF1, EKF2, EKF3), subtracted from z."""
+
+    VARIABLES = (
+        var("a0", "parameter"),
+        var("a1", "parameter"),
+        var("a2", "parameter"),
+        var("A", "parameter"),
+        var("Q", "parameter"),
+        var("R", "parameter"),
+        var("x0", "parameter"),
+        var("P0", "parameter"),
+        var("Ts", "parameter"),
+        var("estimator", "parameter", start=1, type="Integer", low=1, high=3,
+            description="drift estimator that feeds z_comp: 1 EKF1, 2 EKF2, 3 EKF3"),
+        var("z", "input", start=0.0, unit="V", description="sensor output z_k"),
+        var("x_hat", "output", start=0.0, unit="g", description="a-posteriori estimate x+_k"),
+        var("P", "output", start=0.0, unit="g2", description="a-posteriori error variance P+_k"),
+        var("dc_ekf1", "output", start=0.0, unit="V", description="drift estimate of EKF1"),
+        var("dc_ekf2", "output", start=0.0, unit="V", description="drift estimate of EKF2"),
+        var("dc_ekf3", "output", start=0.0, unit="V", description="drift estimate of EKF3"),
+        var("dc", "output", start=0.0, unit="V",
+            description="drift estimate of the selected estimator"),
+        var("z_comp", "output", start=0.0, unit="V",
+            description="drift-compensated sensor output z_k - dc_k"),
+    )
+    DEPENDENCIES = {name: ["z"] for name in
+                    ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp")}
+    HIDDEN = ("_state", "_pending")
+    default_experiment = default_experiment(2000, 1e-3)
+
+    def start(self):
+        self._state = chain.estimator_init(self.x0, self.P0)
+        self._pending = self._state
+
+    def compute(self):
+        self._pending = chain.estimator_step(self._state, self.z, self.a0, self.a1, self.a2,
+                                             self.A, self.Q, self.R)
+        self.x_hat, self.P = self._pending.x, self._pending.P
+        dcs = drift.estimates(self._pending.drift, self.a2)
+        self.dc_ekf1, self.dc_ekf2, self.dc_ekf3 = dcs
+        self.dc = drift.select(dcs, self.estimator)
+        self.z_comp = chain.compensate(self.z, self.dc)
+
+    def advance(self, m):
+        x, P = self._pending.x, self._pending.P
+        for _ in range(m - 1):  # samples between communication points carry no measurement
+            x, P = ekf.predict(x, P, self.A, self.Q)
+        self._state = chain.EstimatorState(x, P, self._pending.drift)
+
+    def restore_hidden(self):
+        for name in self.HIDDEN:
+            x, P, d = getattr(self, name)
+            setattr(self, name, chain.EstimatorState(x, P, drift.DriftState(*d)))

@@ -1,0 +1,43 @@
+"""Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal."""
+from pythonfmu import Fmi2Slave  # noqa: F401  (pythonfmu's builder looks for Fmi2Slave here)
+
+from fmu_src.slave_base import SlaveBase, default_experiment, var
+from models import excitation
+
+
+class Excitation(SlaveBase):
+    """True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + w_k, w_k ~ N(0, Q), or X sin(2 pi f t + phi)."""
+
+    VARIABLES = (
+        var("kind", "parameter", start=excitation.GAUSSIAN, type="Integer", low=1, high=2,
+            description="excitation: 1 Gaussian (Gauss-Markov), 2 sinusoidal"),
+        var("A", "parameter"),
+        var("Q", "parameter"),
+        var("x0", "parameter"),
+        var("X", "parameter"),
+        var("f", "parameter"),
+        var("phi", "parameter"),
+        var("Ts", "parameter"),
+        var("seed", "parameter", type="Integer"),
+        var("x", "output", start=0.0, unit="g", description="true acceleration x_k"),
+    )
+    default_experiment = default_experiment(2000, 1e-3)
+
+    def check_parameters(self):
+        problems = super().check_parameters()
+        if self.kind == excitation.SINUSOIDAL and self.f >= 0.5 / self.Ts:
+            problems.append("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; "
+                            "allowed: f < %r Hz" % (self.f, 0.5 / self.Ts, 0.5 / self.Ts))
+        return problems
+
+    def _sample(self, x_prev, k):
+        if self.kind == excitation.GAUSSIAN:
+            return excitation.gaussian_sample(x_prev, self.A, self.Q, self.seed, k)
+        return excitation.sine(k, self.X, self.f, self.Ts, self.phi)
+
+    def start(self):
+        self.x = self._sample(self.x0, 1)
+
+    def advance(self, m):
+        for i in range(1, m + 1):
+            self.x = self._sample(self.x, self.k + i)

@@ -1,0 +1,5 @@
+"""pythonfmu slave classes (one per file) and the FMU builder.
+
+Each slave is a thin adapter over :mod:`models`: it reads inputs, calls one models/ function and
+stores outputs.  The FMI plumbing they share lives once in :mod:`fmu_src.slave_base`.
+"""

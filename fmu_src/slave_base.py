@@ -1,0 +1,219 @@
+"""What the three slaves share: variables from one table, checks, sampling and hidden state.
+
+A slave lists its variables once in ``VARIABLES`` (name, type, causality, variability, start,
+unit, min, max, description); this base registers them with pythonfmu, and the builder writes
+units, ranges, dependencies and InitialUnknowns into the model description from the same table.
+
+Timing: sample ``k = 1, 2, ...`` sits at ``t_k = t_start + (k - 1) Ts``.  After initialisation the
+FMU is at sample 1; every ``fmi2DoStep`` of ``h = m Ts`` advances ``m`` samples.  Outputs that
+depend on inputs (``DEPENDENCIES``) are computed from the inputs set at the current
+communication point, when they are read or when the step commits them, so a master that sets
+inputs in the order of the connections gets ``z_k`` from ``x_k`` with no hidden one-step lag.
+
+Errors: a bad parameter, a non-finite input or a step that is not a whole number of sample
+periods is logged with status error (naming the variable, the value and what is allowed) and
+reported to the host as fmi2Error; the host process is never brought down.
+
+This module runs inside the FMU: standard library and pythonfmu only.
+"""
+import math
+
+from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
+from pythonfmu.enums import Fmi2Status
+from pythonfmu.default_experiment import DefaultExperiment
+
+from models import parameters
+
+_TYPES = {"Real": Real, "Integer": Integer}
+
+
+class ModelError(Exception):
+    """A problem the host must hear about: logged, then turned into fmi2Error."""
+
+
+def var(name, causality, start=None, unit=None, description=None, type="Real",
+        variability=None, low=None, high=None):
+    """One row of a slave's ``VARIABLES`` table.
+
+    Parameters named as in :data:`models.parameters.PARAMETERS` take their start value, unit,
+    range and description from there unless given here.
+    """
+    p = parameters.PARAMETERS.get(name)
+    if p is not None:
+        start = p.default if start is None else start
+        unit = p.unit if unit is None else unit
+        description = p.description if description is None else description
+        low = p.low if low is None else low
+        high = p.high if high is None else high
+    if variability is None:
+        variability = "fixed" if causality == "parameter" else "continuous"
+    if type == "Integer" and unit == "1":
+        unit = None
+    return {"name": name, "type": type, "causality": causality, "variability": variability,
+            "start": start, "unit": unit, "min": low, "max": high,
+            "description": "%s [%s]" % (description, unit or "1")}
+
+
+class SlaveBase(Fmi2Slave):
+    """Base of the Excitation, Accelerometer and DriftEstimator slaves."""
+
+    author = "driftfmu contributors"
+    license = "MIT"
+    version = "0.1.0"
+    VARIABLES = ()
+    DEPENDENCIES = {}
+    CAN_HANDLE_VARIABLE_STEP = True
+    #: Relative tolerance when checking that a step is a whole number of sample periods.
+    STEP_TOLERANCE = 1e-9
+
+    def __init__(self, **kwargs):
+        super().__init__(**kwargs)
+        self.description = self.__class__.__doc__.strip().splitlines()[0]
+        self.k = 1
+        self._dirty = True
+        self._initialised = False
+        for spec in self.VARIABLES:
+            setattr(self, spec["name"], spec["start"] if spec["start"] is not None else 0.0)
+            self.register_variable(self._make_variable(spec))
+
+    # -- registration -----------------------------------------------------------------------
+    def _make_variable(self, spec):
+        name = spec["name"]
+        kind = _TYPES[spec["type"]]
+        causality = getattr(Fmi2Causality, spec["causality"])
+        variability = getattr(Fmi2Variability, spec["variability"])
+        if spec["causality"] == "output":
+            getter = lambda: self._read_output(name)
+            setter = None
+        else:
+            getter = lambda: getattr(self, name)
+            setter = lambda value: self._write(spec, value)
+        return kind(name, causality=causality, variability=variability,
+                    description=spec["description"], getter=getter, setter=setter)
+
+    def _read_output(self, name):
+        if self._dirty and self._initialised:
+            self._guard(self._refresh)
+        return getattr(self, name)
+
+    def _write(self, spec, value):
+        name = spec["name"]
+        if spec["type"] == "Real" and not math.isfinite(value):
+            self._fail("%s = %r is not finite; %s accepts finite values only"
+                       % (name, value, spec["causality"]))
+        if spec["causality"] == "parameter" and self._initialised:
+            self._fail("%s is a fixed parameter and cannot be changed after initialisation"
+                       % name)
+        setattr(self, name, value)
+        self._dirty = True
+
+    # -- errors -----------------------------------------------------------------------------
+    def _fail(self, message):
+        """Log ``message`` with status error, then raise so that the call returns fmi2Error."""
+        self.log("%s: %s" % (self.instance_name, message), Fmi2Status.error)
+        raise ModelError(message)
+
+    def _guard(self, action, *args):
+        """Run ``action``; turn any unexpected exception into a logged ModelError."""
+        try:
+            return action(*args)
+        except ModelError:
+            raise
+        except Exception as exc:  # a bug must reach the host's log, not vanish
+            self._fail("internal error in %s: %s: %s"
+                       % (getattr(action, "__name__", "step"), type(exc).__name__, exc))
+
+    def parameter_values(self):
+        """The current values of all parameters, by name."""
+        return {s["name"]: getattr(self, s["name"]) for s in self.VARIABLES
+                if s["causality"] == "parameter"}
+
+    def check_parameters(self):
+        """Problems of the parameter values (one readable line each); extended by subclasses."""
+        problems = parameters.check(self.parameter_values())
+        for s in self.VARIABLES:
+            if s["causality"] == "parameter" and s["name"] not in parameters.PARAMETERS:
+                v = getattr(self, s["name"])
+                low, high = s["min"], s["max"]
+                if (low is not None and v < low) or (high is not None and v > high):
+                    problems.append("%s = %r is out of range; allowed: %s <= %s <= %s"
+                                    % (s["name"], v, low, s["name"], high))
+        return problems
+
+    # -- FMI calls --------------------------------------------------------------------------
+    def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self.start_time = start_time
+
+    def exit_initialization_mode(self):
+        problems = self.check_parameters()
+        for msg in problems[:-1]:
+            self.log("%s: %s" % (self.instance_name, msg), Fmi2Status.error)
+        if problems:
+            self._fail(problems[-1])
+        self.k = 1
+        self._guard(self.start)
+        self._initialised = True
+        self._dirty = True
+
+    def do_step(self, current_time, step_size):
+        try:
+            m = self._samples_in(step_size)
+            if self._dirty:
+                self._guard(self._refresh)
+            self._guard(self.advance, m)
+            self.k += m
+            self._dirty = True
+            return True
+        except ModelError:
+            return False
+
+    def _samples_in(self, h):
+        Ts = self.Ts
+        m = round(h / Ts)
+        if m < 1 or abs(h - m * Ts) > self.STEP_TOLERANCE * max(h, Ts):
+            self._fail("communication step %r s is not a whole number of sample periods "
+                       "Ts = %r s; allowed: h = m Ts with m = 1, 2, ..." % (h, Ts))
+        return m
+
+    def _refresh(self):
+        self.compute()
+        self._dirty = False
+
+    # -- hooks for the slaves ---------------------------------------------------------------
+    def start(self):
+        """Set the hidden state for sample 1 (after the parameters are checked)."""
+
+    def compute(self):
+        """Compute the outputs at sample ``self.k`` from the inputs and the committed state."""
+
+    def advance(self, m):
+        """Commit sample ``self.k`` and move the hidden state on by ``m`` samples."""
+
+    HIDDEN = ()
+
+    # -- FMU state: variables plus hidden state ---------------------------------------------
+    def _get_fmu_state(self):
+        state = {s["name"]: getattr(self, s["name"]) for s in self.VARIABLES}
+        for name in ("k", "_dirty", "_initialised") + tuple(self.HIDDEN):
+            state[name] = _plain(getattr(self, name))
+        return state
+
+    def _set_fmu_state(self, state):
+        for name, value in state.items():
+            setattr(self, name, value)
+        self.restore_hidden()
+
+    def restore_hidden(self):
+        """Turn hidden state read back from JSON into its working types (hook)."""
+
+
+def default_experiment(n_samples, Ts):
+    """DefaultExperiment of ``n_samples`` samples at period ``Ts``, samples at 0..(n-1) Ts."""
+    return DefaultExperiment(start_time=0.0, stop_time=(n_samples - 1) * Ts, step_size=Ts)
+
+
+def _plain(value):
+    """JSON-ready copy of hidden state (namedtuples become nested lists)."""
+    if isinstance(value, tuple):
+        return [_plain(v) for v in value]
+    return value
