@@ -11,8 +11,11 @@ communication point, when they are read or when the step commits them, so a mast
 inputs in the order of the connections gets ``z_k`` from ``x_k`` with no hidden one-step lag.
 
 Errors: a bad parameter, a non-finite input or a step that is not a whole number of sample
-periods is logged with status error (naming the variable, the value and what is allowed) and
-reported to the host as fmi2Error; the host process is never brought down.
+periods is logged with status error, naming the variable, the value and what is allowed, and the
+call changes nothing (a rejected input keeps its previous value).  No Python exception leaves an
+FMI entry point: pythonfmu would turn it into fmi2Fatal and show its text only with debug logging
+on.  The FMU's loader shim (fmu_src/loader) sees the error log line and returns fmi2Error for
+the call, and forwards error lines to the host's logger even when debug logging is off.
 
 This module runs inside the FMU: standard library and pythonfmu only.
 """
@@ -87,13 +90,13 @@ class SlaveBase(Fmi2Slave):
             setter = None
         else:
             getter = lambda: getattr(self, name)
-            setter = lambda value: self._write(spec, value)
+            setter = lambda value: self._call(self._write, spec, value)
         return kind(name, causality=causality, variability=variability,
                     description=spec["description"], getter=getter, setter=setter)
 
     def _read_output(self, name):
         if self._dirty and self._initialised:
-            self._guard(self._refresh)
+            self._call(self._refresh)
         return getattr(self, name)
 
     def _write(self, spec, value):
@@ -109,19 +112,22 @@ class SlaveBase(Fmi2Slave):
 
     # -- errors -----------------------------------------------------------------------------
     def _fail(self, message):
-        """Log ``message`` with status error, then raise so that the call returns fmi2Error."""
+        """Log ``message`` with status error and abandon the current FMI call."""
         self.log("%s: %s" % (self.instance_name, message), Fmi2Status.error)
         raise ModelError(message)
 
-    def _guard(self, action, *args):
-        """Run ``action``; turn any unexpected exception into a logged ModelError."""
+    def _call(self, action, *args):
+        """Run the body of an FMI call; return True, or False after logging what went wrong."""
         try:
-            return action(*args)
+            action(*args)
+            return True
         except ModelError:
-            raise
-        except Exception as exc:  # a bug must reach the host's log, not vanish
-            self._fail("internal error in %s: %s: %s"
-                       % (getattr(action, "__name__", "step"), type(exc).__name__, exc))
+            return False
+        except Exception as exc:  # a bug must reach the host's log, not crash or vanish
+            self.log("%s: internal error in %s: %s: %s"
+                     % (self.instance_name, getattr(action, "__name__", "call"),
+                        type(exc).__name__, exc), Fmi2Status.error)
+            return False
 
     def parameter_values(self):
         """The current values of all parameters, by name."""
@@ -145,27 +151,30 @@ class SlaveBase(Fmi2Slave):
         self.start_time = start_time
 
     def exit_initialization_mode(self):
+        self._initialised = self._call(self._initialise)
+
+    def _initialise(self):
         problems = self.check_parameters()
         for msg in problems[:-1]:
             self.log("%s: %s" % (self.instance_name, msg), Fmi2Status.error)
         if problems:
             self._fail(problems[-1])
         self.k = 1
-        self._guard(self.start)
-        self._initialised = True
+        self.start()
         self._dirty = True
 
     def do_step(self, current_time, step_size):
-        try:
-            m = self._samples_in(step_size)
-            if self._dirty:
-                self._guard(self._refresh)
-            self._guard(self.advance, m)
-            self.k += m
-            self._dirty = True
-            return True
-        except ModelError:
-            return False
+        return self._call(self._step, step_size)
+
+    def _step(self, step_size):
+        if not self._initialised:
+            self._fail("cannot step: initialisation did not complete (see the errors above)")
+        m = self._samples_in(step_size)
+        if self._dirty:
+            self._refresh()
+        self.advance(m)
+        self.k += m
+        self._dirty = True
 
     def _samples_in(self, h):
         Ts = self.Ts
