@@ -12,8 +12,11 @@ from .noise import STREAM_MEASUREMENT, STREAM_PROCESS, normal
 #: Filter state after ``drift.k`` samples: posterior mean and variance, estimator sums.
 EstimatorState = namedtuple("EstimatorState", "x P drift")
 
+#: Columns of a results table, in order.
 COLUMNS = ("time", "x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
            "dc_realised", "dc_expected", "z_comp")
+#: The columns that come out of the FMUs (the others are references the master computes).
+FMU_COLUMNS = ("time", "x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
 
 
 def estimator_init(x0, P0):
@@ -53,8 +56,6 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
     cols = {c: [] for c in COLUMNS}
     x = x0
     est = estimator_init(x0, P0)
-    zbar = 0.0
-    x2bar = 0.0
     for k in range(1, n + 1):
         if kind == excitation.GAUSSIAN:
             x = excitation.gauss_markov(x, A, Q, normal(seed, STREAM_PROCESS, k))
@@ -64,12 +65,12 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
         z = sensor.measure(x, a0, a1, a2, R, v)
         est = estimator_step(est, z, a0, a1, a2, fA, fQ, R)
         dcs = drift.estimates(est.drift, a2)
-        zbar = drift.running_mean(zbar, z, k)
-        x2bar = drift.running_mean(x2bar, x * x, k)
-        row = ((k - 1) * Ts, x, z, est.x, est.P, dcs[0], dcs[1], dcs[2], zbar - a0,
-               a2 * x2bar, dc_expected, compensate(z, drift.select(dcs, estimator)))
-        for c, value in zip(COLUMNS, row):
+        row = ((k - 1) * Ts, x, z, est.x, est.P, dcs[0], dcs[1], dcs[2],
+               compensate(z, drift.select(dcs, estimator)))
+        for c, value in zip(FMU_COLUMNS, row):
             cols[c].append(value)
+    cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
+        cols["x"], cols["z"], a0, a2, dc_expected)
     if not scalar:
         import numpy as np
         for c in COLUMNS:

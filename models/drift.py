@@ -67,3 +67,22 @@ def expected_gap_db(a1, Q, R):
     """Stationary EKF1-EKF2 gap for a white state (``A = 0``): ``10 log10(1 + R / (a1^2 Q))``."""
     import math
     return 10.0 * math.log10(1.0 + R / (a1 * a1 * Q))
+
+
+def references(xs, zs, a0, a2, dc_expected):
+    """Running drift references over samples ``k = 1..n`` of ``x_k`` and ``z_k``.
+
+    Returns three lists, one value per sample: the empirical drift ``z̄_k - a0``, the realised
+    drift ``a2 (1/k) sum x_i^2`` and the expected drift (constant ``dc_expected``).  Elements of
+    ``xs`` and ``zs`` are floats (one run) or arrays (a batch of runs).
+    """
+    empirical, realised, expected = [], [], []
+    zbar = 0.0
+    x2bar = 0.0
+    for k, (x, z) in enumerate(zip(xs, zs), start=1):
+        zbar = running_mean(zbar, z, k)
+        x2bar = running_mean(x2bar, x * x, k)
+        empirical.append(zbar - a0)
+        realised.append(a2 * x2bar)
+        expected.append(dc_expected)
+    return empirical, realised, expected

@@ -1,0 +1,141 @@
+"""The letter's Gaussian simulation (Sec. III, Fig. 1) as an FMU co-simulation.
+
+Excitation (Gaussian) -> Accelerometer -> DriftEstimator, fixed step ``Ts``, one row per sample.
+The master checks the FMUs against :func:`models.chain.simulate` on the same seed, sample by
+sample, and reports the drift estimates against the three references.
+"""
+import math
+from pathlib import Path
+
+from models import chain, drift, excitation, parameters
+from simulations import output
+from simulations.cosim import cosimulate
+
+FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
+CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
+               ("Accelerometer", "z", "DriftEstimator", "z"))
+#: Largest difference allowed between an FMU output and models/ run directly.
+TOLERANCE = 1e-12
+#: "Within 10 % of the realised drift".
+SETTLE_BAND = 0.10
+
+
+class ValidationError(RuntimeError):
+    """The co-simulation's outputs disagree with models/ run directly."""
+
+
+def fmu_paths(fmu_dir):
+    """Paths of the three FMUs in ``fmu_dir``; build them first when any is missing."""
+    fmu_dir = Path(fmu_dir)
+    paths = {n: fmu_dir / ("%s.fmu" % n) for n in FMU_NAMES}
+    if not all(p.is_file() for p in paths.values()):
+        from fmu_src.builder import build_fmus
+        build_fmus(fmu_dir)
+    return paths
+
+
+def settled_from(estimate, reference, band=SETTLE_BAND):
+    """First sample (1-based) from which ``|estimate - reference| <= band |reference|`` holds
+    to the end, or None when the last sample is outside the band."""
+    last_out = 0
+    for k, (e, r) in enumerate(zip(estimate, reference), start=1):
+        if abs(e - r) > band * abs(r):
+            last_out = k
+    return None if last_out == len(estimate) else last_out + 1
+
+
+def compare(cols, ref, names=chain.FMU_COLUMNS, tolerance=TOLERANCE):
+    """Largest absolute difference per column; the names of the columns over ``tolerance``."""
+    diffs = {c: max(abs(a - b) for a, b in zip(cols[c], ref[c])) for c in names}
+    bad = [c for c, d in diffs.items() if not d <= tolerance]
+    return diffs, bad
+
+
+def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=2000, seed=1,
+                 Ts=1e-3, x0=0.0, P0=None, estimator=1, fmu_dir="build/fmus", progress=None,
+                 plot=True):
+    """Co-simulate the three FMUs under Gaussian excitation; optionally write the results.
+
+    Parameters are the letter's names (defaults: its Sec. III settings, 2000 samples).  ``P0``
+    defaults to the stationary variance ``Q / (1 - A^2)``.  With ``out`` set, ``results.csv``,
+    ``summary.json`` and ``drift.png`` are written there, all of them or none.
+
+    Returns
+    -------
+    dict
+        ``columns`` (the results table as lists) and ``summary``.
+
+    Raises
+    ------
+    ValueError
+        A parameter is out of range (the message says which and what is allowed).
+    ValidationError
+        An FMU output differs from models/ by more than ``TOLERANCE`` (nothing is written).
+    """
+    params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, x0=x0)
+    if P0 is None:
+        P0 = Q / (1.0 - A * A)
+    params["P0"] = P0
+    problems = parameters.check(params)
+    if problems:
+        raise ValueError("; ".join(problems))
+    if estimator not in (1, 2, 3):
+        raise ValueError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
+    model = dict(a0=a0, a1=a1, a2=a2, R=R)
+    start = {
+        "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed),
+        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
+        "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator),
+    }
+    record = {"Excitation": ["x"], "Accelerometer": ["z"],
+              "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
+    raw = cosimulate(fmu_paths(fmu_dir), CONNECTIONS, n, Ts, start_values=start, record=record,
+                     progress=progress)
+    cols = {"time": raw["time"]}
+    for name, names in record.items():
+        for v in names:
+            cols[v] = raw["%s.%s" % (name, v)]
+    dc_expected = a2 * excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q)
+    cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
+        cols["x"], cols["z"], a0, a2, dc_expected)
+
+    ref = chain.simulate(n, seed, a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0, P0=P0, Ts=Ts,
+                         estimator=estimator)
+    diffs, bad = compare(cols, ref)
+    summary = summarise(cols, params, a1=a1, Q=Q, R=R, A=A)
+    summary["estimator"] = estimator
+    summary["validation"] = {"reference": "models.chain.simulate, same seed",
+                             "tolerance": TOLERANCE, "max_abs_diff": diffs,
+                             "passed": not bad}
+    if bad:
+        raise ValidationError(
+            "FMU outputs differ from models/ run directly: %s (tolerance %g)"
+            % (", ".join("%s by %.3g" % (c, diffs[c]) for c in bad), TOLERANCE))
+    if out is not None:
+        with output.staged(out) as stage:
+            output.write_csv(stage / "results.csv", cols, chain.COLUMNS)
+            output.write_json(stage / "summary.json", summary)
+            if plot:
+                output.plot_drift(stage / "drift.png", cols,
+                                  "Gaussian x: a1=%g, a2=%g, Q=%g, R=%g, A=%g, seed %d"
+                                  % (a1, a2, Q, R, A, seed))
+    return {"columns": cols, "summary": summary}
+
+
+def summarise(cols, params, a1, Q, R, A):
+    """Final drifts, the EKF1-EKF2 gap and when each estimator settles (vs. realised drift)."""
+    final = {c: cols[c][-1] for c in ("dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
+                                      "dc_realised", "dc_expected")}
+    gap = drift.gap_db(final["dc_ekf1"], final["dc_ekf2"])
+    summary = {"parameters": params, "final": final, "ekf1_ekf2_gap_db": gap}
+    if A == 0.0:
+        expected = drift.expected_gap_db(a1, Q, R)
+        summary["ekf1_ekf2_gap_db_expected"] = expected
+        summary["ekf1_ekf2_gap_rel_error"] = gap / expected - 1.0 if expected else math.nan
+    summary["settled_from_sample"] = {
+        "reference": "realised drift a2 mean(x^2), band %g %%" % (100 * SETTLE_BAND),
+        "ekf1": settled_from(cols["dc_ekf1"], cols["dc_realised"]),
+        "ekf2": settled_from(cols["dc_ekf2"], cols["dc_realised"]),
+        "ekf3": settled_from(cols["dc_ekf3"], cols["dc_realised"]),
+    }
+    return summary
