@@ -42,12 +42,16 @@ def allowed(name):
     p = PARAMETERS[name]
     parts = []
     if p.low is not None:
-        parts.append("%s %s %g" % (name, ">" if p.low_open else ">=", p.low))
+        parts.append("%s %s %s" % (name, ">" if p.low_open else ">=", _fmt(p.low)))
     if p.high is not None:
-        parts.append("%s %s %g" % (name, "<" if p.high_open else "<=", p.high))
+        parts.append("%s %s %s" % (name, "<" if p.high_open else "<=", _fmt(p.high)))
     if name == "a1":
         parts.append("a1 != 0")
     return " and ".join(parts) if parts else "any finite value"
+
+
+def _fmt(v):
+    return str(v) if isinstance(v, int) else "%g" % v
 
 
 def problem(name, value):

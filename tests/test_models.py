@@ -1,0 +1,165 @@
+"""models/: closed forms first, then agreement between the float and array paths, then seeded
+statistics with tolerances derived from the sample size."""
+import math
+
+import numpy as np
+import pytest
+
+from models import _ops, chain, drift, ekf, excitation, noise, parameters, sensor
+
+
+# -- arithmetic-only special functions --------------------------------------------------------
+def test_log_matches_libm_to_a_few_ulp():
+    xs = np.random.default_rng(0).uniform(1e-300, 1.0, 5000)
+    for x in xs:
+        got, want = _ops.log(float(x)), math.log(x)
+        assert abs(got - want) <= 4 * math.ulp(want)
+
+
+def test_sin2pi_matches_libm():
+    cs = np.random.default_rng(1).uniform(-3.0, 3.0, 5000)
+    for c in cs:
+        assert abs(_ops.sin2pi(float(c)) - math.sin(2 * math.pi * c)) < 1e-14
+
+
+@pytest.mark.parametrize("fn", [_ops.log, _ops.sin2pi])
+def test_special_functions_same_bits_on_floats_and_arrays(fn):
+    xs = np.random.default_rng(2).uniform(1e-6, 0.999, 2000)
+    assert np.array_equal(fn(xs), np.array([fn(float(x)) for x in xs]))
+
+
+# -- noise ------------------------------------------------------------------------------------
+def test_noise_is_a_pure_function_of_seed_stream_and_index():
+    a = [noise.normal(5, noise.STREAM_PROCESS, k) for k in range(1, 100)]
+    b = [noise.normal(5, noise.STREAM_PROCESS, k) for k in range(1, 100)]
+    assert a == b
+    assert a != [noise.normal(6, noise.STREAM_PROCESS, k) for k in range(1, 100)]
+    assert a != [noise.normal(5, noise.STREAM_MEASUREMENT, k) for k in range(1, 100)]
+
+
+def test_noise_same_bits_for_scalars_and_batches():
+    k = np.arange(1, 3001, dtype=np.uint64)
+    seeds = np.array([0, 1, 2 ** 31 - 1], dtype=np.uint64)
+    batch = noise.normal(seeds[:, None], noise.STREAM_MEASUREMENT, k[None, :])
+    for i, s in enumerate((0, 1, 2 ** 31 - 1)):
+        single = [noise.normal(s, noise.STREAM_MEASUREMENT, int(j)) for j in k]
+        assert np.array_equal(batch[i], single)
+
+
+def test_normal_moments_within_sampling_error():
+    n = 400_000
+    v = noise.normal(np.uint64(3) + np.zeros(1, dtype=np.uint64), 1,
+                     np.arange(1, n + 1, dtype=np.uint64))
+    # 5-sigma bands of the sample mean, variance and kurtosis of N(0, 1) for n draws
+    assert abs(v.mean()) < 5 / math.sqrt(n)
+    assert abs(v.var() - 1.0) < 5 * math.sqrt(2.0 / n)
+    assert abs((v ** 4).mean() - 3.0) < 5 * math.sqrt(96.0 / n)
+
+
+def test_normal_distribution_passes_ks_at_fixed_seed():
+    from scipy import stats
+    n = 100_000
+    v = noise.normal(np.zeros(1, dtype=np.uint64), 2, np.arange(1, n + 1, dtype=np.uint64))
+    d = stats.kstest(v, "norm").statistic
+    assert d < 1.63 / math.sqrt(n)  # 1 % critical value of the KS statistic
+
+
+def test_inverse_normal_cdf_accuracy():
+    from scipy import stats
+    p = np.concatenate([np.logspace(-15, -1, 200), np.linspace(0.01, 0.99, 200)])
+    got = np.array([noise.inverse_normal_cdf(float(q)) for q in p])
+    assert np.allclose(got, stats.norm.ppf(p), rtol=1.2e-9, atol=0)
+
+
+# -- sensor, EKF, drift estimators: closed forms ----------------------------------------------
+def test_sensor_characteristic_and_slope():
+    assert sensor.h(0.5, 0.1, 2.0, 0.3) == pytest.approx(0.1 + 1.0 + 0.075)
+    assert sensor.dh_dx(0.5, 2.0, 0.3) == pytest.approx(2.3)
+    assert sensor.measure(0.5, 0.1, 2.0, 0.3, 0.04, 1.5) == pytest.approx(1.175 + 0.3)
+
+
+def test_joseph_form_equals_standard_form_for_the_optimal_gain():
+    for x_pred, P_pred, a2 in [(0.3, 0.02, 0.01), (-1.0, 0.5, 0.2), (0.0, 1e-3, 0.0)]:
+        x, P = ekf.update(x_pred, P_pred, 0.1, 0.0, 1.0, a2, 1e-4)
+        H = 1.0 + 2 * a2 * x_pred
+        K = P_pred * H / (H * H * P_pred + 1e-4)
+        assert P == pytest.approx((1 - K * H) * P_pred, rel=1e-12)
+
+
+def test_linear_sensor_white_state_posterior_variance_closed_form():
+    # a2 = 0, A = 0: P- = Q every step, so P+ = Q R / (a1^2 Q + R) exactly
+    a1, Q, R = 2.0, 0.01, 1e-3
+    x, P = 0.0, 5.0
+    for z in (0.1, -0.3, 0.2):
+        x, P = ekf.step(x, P, z, 0.0, a1, 0.0, 0.0, Q, R)
+        assert P == pytest.approx(Q * R / (a1 * a1 * Q + R), rel=1e-14)
+
+
+def test_drift_estimators_follow_the_letters_recursions():
+    xs, Ps, a2 = [0.1, -0.2, 0.4], [0.01, 0.02, 0.03], 0.5
+    st = drift.initial_state()
+    for x, P in zip(xs, Ps):
+        st = drift.update(st, x, P, a2)
+    dc1, dc2, dc3 = drift.estimates(st, a2)
+    x2 = [x * x for x in xs]
+    assert dc1 == pytest.approx(a2 * sum(x + p for x, p in zip(x2, Ps)) / 3)
+    assert dc2 == pytest.approx(a2 * sum(x2) / 3)
+    s3 = [x2[0], (x2[0] + x2[1]) / 2, sum(x2) / 3]
+    assert dc3 == pytest.approx(a2 * sum(s3) / 3)
+    assert dc1 - dc2 == pytest.approx(a2 * sum(Ps) / 3)  # EKF2 is low by a2 mean(P)
+
+
+def test_expected_gap_at_the_letters_settings():
+    assert drift.expected_gap_db(1.0, 0.01, 1e-4) == pytest.approx(0.0432, abs=1e-4)
+
+
+def test_stationary_variance():
+    assert excitation.stationary_variance(excitation.GAUSSIAN, A=0.5, Q=0.03) == pytest.approx(0.04)
+    assert excitation.stationary_variance(excitation.SINUSOIDAL, X=2.0) == 2.0
+    with pytest.raises(ValueError, match="kind"):
+        excitation.stationary_variance(7)
+
+
+# -- the chain --------------------------------------------------------------------------------
+def test_chain_batch_equals_single_runs_bit_for_bit():
+    seeds = np.array([1, 2, 9], dtype=np.uint64)
+    for kind in (excitation.GAUSSIAN, excitation.SINUSOIDAL):
+        batch = chain.simulate(120, seeds, kind=kind, A=0.3, f=40.0)
+        for i, s in enumerate((1, 2, 9)):
+            one = chain.simulate(120, s, kind=kind, A=0.3, f=40.0)
+            for c in chain.COLUMNS:
+                assert np.array_equal(batch[c][i], np.asarray(one[c], dtype=float)), c
+
+
+def test_letters_claims_hold_for_the_default_seed():
+    r = chain.simulate(2000, 1)
+    gap = drift.gap_db(r["dc_ekf1"][-1], r["dc_ekf2"][-1])
+    assert gap == pytest.approx(drift.expected_gap_db(1.0, 0.01, 1e-4), rel=0.10)
+    band = [abs(e - ref) <= 0.1 * ref for e, ref in zip(r["dc_ekf1"], r["dc_realised"])]
+    assert all(band[249:])
+
+
+def test_ekf1_is_unbiased_over_seeds():
+    # mean of EKF1 / realised drift over runs: its spread shrinks as 1/sqrt(runs)
+    seeds = np.arange(100, 300, dtype=np.uint64)
+    r = chain.simulate(500, seeds)
+    ratio = r["dc_ekf1"][:, -1] / r["dc_realised"][:, -1]
+    assert abs(ratio.mean() - 1.0) < 5 * ratio.std() / math.sqrt(len(seeds))
+
+
+# -- parameters -------------------------------------------------------------------------------
+@pytest.mark.parametrize("name,value,text", [
+    ("R", 0.0, "R = 0.0 is out of range; allowed: R > 0"),
+    ("Q", -1.0, "Q = -1.0 is out of range; allowed: Q >= 0"),
+    ("A", 1.0, "allowed: A > -1 and A < 1"),
+    ("a1", 0.0, "allowed: a1 != 0"),
+    ("a2", float("nan"), "a2 = nan is out of range"),
+    ("n", 2.5, "n = 2.5 is out of range; allowed: n >= 1"),
+    ("seed", "x", "seed = 'x' is not a number"),
+])
+def test_parameter_problems_name_value_and_range(name, value, text):
+    assert text in parameters.problem(name, value)
+
+
+def test_good_parameters_have_no_problem():
+    assert parameters.check(parameters.defaults(*parameters.PARAMETERS)) == []

@@ -1,0 +1,154 @@
+"""The slave classes, exercised in Python without building FMUs (as PythonFMU tests its own)."""
+import json
+import math
+
+import pytest
+
+from fmu_src.Accelerometer import Accelerometer
+from fmu_src.DriftEstimator import DriftEstimator
+from fmu_src.Excitation import Excitation
+from models import chain
+
+OUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
+
+
+class Chain:
+    """The three slaves wired as the master wires the FMUs."""
+
+    def __init__(self, start=None):
+        self.e = Excitation(instance_name="e")
+        self.a = Accelerometer(instance_name="a")
+        self.d = DriftEstimator(instance_name="d")
+        for s in self.slaves:
+            for name, value in (start or {}).get(s.instance_name, {}).items():
+                set_var(s, name, value)
+            s.setup_experiment(0.0)
+            s.enter_initialization_mode()
+            s.exit_initialization_mode()
+
+    @property
+    def slaves(self):
+        return (self.e, self.a, self.d)
+
+    def propagate(self):
+        set_var(self.a, "x", get(self.e, "x"))
+        set_var(self.d, "z", get(self.a, "z"))
+        return (get(self.e, "x"), get(self.a, "z")) + tuple(get(self.d, n) for n in OUTS)
+
+    def step(self, t, h):
+        return [s.do_step(t, h) for s in self.slaves]
+
+
+def vr(slave, name):
+    return next(v.value_reference for v in slave.vars.values() if v.name == name)
+
+
+def get(slave, name):
+    v = slave.vars[vr(slave, name)]
+    return (slave.get_real if type(v).__name__ == "Real" else slave.get_integer)([v.value_reference])[0]
+
+
+def set_var(slave, name, value):
+    v = slave.vars[vr(slave, name)]
+    (slave.set_real if type(v).__name__ == "Real" else slave.set_integer)([v.value_reference], [value])
+
+
+def messages(slave):
+    out = [m.msg for m in slave.log_queue]
+    slave.log_queue.clear()
+    return out
+
+
+def run(c, n, Ts=1e-3):
+    rows = [c.propagate()]
+    for k in range(2, n + 1):
+        assert c.step((k - 2) * Ts, Ts) == [True, True, True]
+        rows.append(c.propagate())
+    return rows
+
+
+def test_slaves_equal_models_sample_by_sample():
+    rows = run(Chain(), 400)
+    ref = chain.simulate(400, 1)
+    for i, col in enumerate(("x", "z") + OUTS):
+        assert [r[i] for r in rows] == ref[col], col
+
+
+def test_variables_table_is_complete():
+    for cls in (Excitation, Accelerometer, DriftEstimator):
+        for spec in cls.VARIABLES:
+            assert spec["description"] and "[" in spec["description"], spec["name"]
+        names = {s["name"] for s in cls.VARIABLES}
+        for out, deps in cls.DEPENDENCIES.items():
+            assert out in names and set(deps) <= names
+
+
+@pytest.mark.parametrize("slave_cls,name,value,text", [
+    (DriftEstimator, "R", -1.0, "R = -1.0 is out of range; allowed: R > 0"),
+    (DriftEstimator, "Q", -0.5, "Q = -0.5 is out of range; allowed: Q >= 0"),
+    (DriftEstimator, "estimator", 4, "estimator = 4 is out of range; allowed: 1 <= estimator <= 3"),
+    (Accelerometer, "a1", 0.0, "a1 = 0.0 is out of range; allowed: a1 != 0"),
+    (Excitation, "A", 1.5, "A = 1.5 is out of range; allowed: A > -1 and A < 1"),
+    (Excitation, "Ts", 0.0, "Ts = 0.0 is out of range; allowed: Ts > 0"),
+])
+def test_bad_parameter_is_logged_at_end_of_initialisation(slave_cls, name, value, text):
+    s = slave_cls(instance_name="s")
+    set_var(s, name, value)
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    assert any(text in m for m in messages(s))
+    assert s.do_step(0.0, 1e-3) is False
+    assert "initialisation did not complete" in messages(s)[0]
+
+
+def test_nyquist_is_checked_for_the_sinusoid():
+    s = Excitation(instance_name="s")
+    set_var(s, "kind", 2)
+    set_var(s, "f", 600.0)
+    s.exit_initialization_mode()
+    assert any("at or above the Nyquist rate" in m and "f = 600.0" in m for m in messages(s))
+
+
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
+def test_non_finite_input_is_rejected_and_outputs_stay_finite(value):
+    c = Chain()
+    c.propagate()
+    before = get(c.d, "z")
+    set_var(c.d, "z", value)
+    assert "z = %r is not finite" % value in messages(c.d)[0]
+    assert get(c.d, "z") == before
+    assert all(math.isfinite(get(c.d, n)) for n in OUTS)
+
+
+def test_parameter_cannot_change_after_initialisation():
+    c = Chain()
+    set_var(c.a, "R", 0.5)
+    assert "R is a fixed parameter" in messages(c.a)[0]
+    assert get(c.a, "R") == 1e-4
+
+
+def test_step_must_be_whole_sample_periods():
+    c = Chain()
+    assert c.step(0.0, 1.5e-3) == [False, False, False]
+    assert "not a whole number of sample periods Ts = 0.001" in messages(c.e)[0]
+
+
+def test_fmu_state_restores_hidden_state_bit_for_bit():
+    c = Chain()
+    run(c, 50)
+    states = [json.loads(json.dumps(s._get_fmu_state())) for s in c.slaves]  # as serialised
+    after = [c.step(0.049 + i * 1e-3, 1e-3) and c.propagate() for i in range(30)]
+    for s, st in zip(c.slaves, states):
+        s._set_fmu_state(st)
+    again = [c.step(0.049 + i * 1e-3, 1e-3) and c.propagate() for i in range(30)]
+    assert again == after
+
+
+def test_multi_sample_step_advances_the_sample_index():
+    c = Chain()
+    c.propagate()
+    assert c.step(0.0, 5e-3) == [True, True, True]
+    x, z = c.propagate()[:2]
+    ref = chain.simulate(6, 1)
+    assert (x, z) == (ref["x"][5], ref["z"][5])
