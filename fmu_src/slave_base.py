@@ -78,6 +78,13 @@ class SlaveBase(Fmi2Slave):
         for spec in self.VARIABLES:
             setattr(self, spec["name"], spec["start"] if spec["start"] is not None else 0.0)
             self.register_variable(self._make_variable(spec))
+        # value reference -> name of the Real variables and of the Real inputs: the fast path
+        # of get_real / set_real, called on every sample (value reference = table index)
+        self._real_names = {vr: s["name"] for vr, s in enumerate(self.VARIABLES)
+                            if s["type"] == "Real"}
+        self._real_inputs = {vr: s["name"] for vr, s in enumerate(self.VARIABLES)
+                             if s["type"] == "Real" and s["causality"] == "input"}
+        self._last_step = None
 
     # -- registration -----------------------------------------------------------------------
     def _make_variable(self, spec):
@@ -85,19 +92,32 @@ class SlaveBase(Fmi2Slave):
         kind = _TYPES[spec["type"]]
         causality = getattr(Fmi2Causality, spec["causality"])
         variability = getattr(Fmi2Variability, spec["variability"])
-        if spec["causality"] == "output":
-            getter = lambda: self._read_output(name)
-            setter = None
-        else:
-            getter = lambda: getattr(self, name)
-            setter = lambda value: self._call(self._write, spec, value)
+        getter = lambda: getattr(self, name)
+        setter = None if spec["causality"] == "output" else \
+            (lambda value: self._call(self._write, spec, value))
         return kind(name, causality=causality, variability=variability,
                     description=spec["description"], getter=getter, setter=setter)
 
-    def _read_output(self, name):
+    def get_real(self, vrs):
         if self._dirty and self._initialised:
-            self._call(self._refresh)
-        return getattr(self, name)
+            self._call(self._refresh)  # outputs at this communication point, from its inputs
+        names = self._real_names
+        try:
+            return [float(getattr(self, names[vr])) for vr in vrs]
+        except KeyError:
+            return super().get_real(vrs)  # raises pythonfmu's own error for a bad reference
+
+    def set_real(self, vrs, values):
+        inputs = self._real_inputs
+        for vr, value in zip(vrs, values):
+            name = inputs.get(vr)
+            if name is not None and math.isfinite(value):  # the per-sample fast path
+                setattr(self, name, value)
+                self._dirty = True
+            elif vr in self._real_names:
+                self._call(self._write, self.VARIABLES[vr], value)
+            else:
+                self._call(self._fail, "value reference %r is not a Real variable" % (vr,))
 
     def _write(self, spec, value):
         name = spec["name"]
@@ -177,11 +197,14 @@ class SlaveBase(Fmi2Slave):
         self._dirty = True
 
     def _samples_in(self, h):
+        if self._last_step is not None and self._last_step[0] == h:
+            return self._last_step[1]
         Ts = self.Ts
         m = round(h / Ts)
         if m < 1 or abs(h - m * Ts) > self.STEP_TOLERANCE * max(h, Ts):
             self._fail("communication step %r s is not a whole number of sample periods "
                        "Ts = %r s; allowed: h = m Ts with m = 1, 2, ..." % (h, Ts))
+        self._last_step = (h, m)
         return m
 
     def _refresh(self):

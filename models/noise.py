@@ -14,6 +14,8 @@ and NumPy arrays give the same bits.
 Integers: Python ``int`` for one instance; NumPy ``uint64`` arrays (seed per run, index per
 sample, broadcast against each other) for a batch.
 """
+import functools
+
 from . import _ops
 
 MASK64 = 0xFFFFFFFFFFFFFFFF
@@ -43,7 +45,14 @@ def _as_uint64(v):
 
 def key(seed, stream):
     """64-bit key of a (seed, stream) pair."""
-    seed = _as_uint64(seed)
+    if _ops.is_scalar(seed):
+        return _key_int(int(seed) & MASK64, stream)
+    return _mix(_mix(_as_uint64(seed)) ^ ((stream * GOLDEN) & MASK64))
+
+
+@functools.lru_cache(maxsize=256)
+def _key_int(seed, stream):
+    # one FMU instance asks for the same key at every sample: computed once
     return _mix(_mix(seed) ^ ((stream * GOLDEN) & MASK64))
 
 
