@@ -1,0 +1,200 @@
+"""``driftfmu doctor FMU``: will this FMU run on this host, and if not, why.
+
+It reads the FMU (model description, the build record the driftfmu builder leaves in
+``resources/driftfmu_build.json``, the binary for this platform, the bundled Python code) and
+checks, in plain words: is there a binary for this platform; which libpython it needs and which
+ones this host's loader can find; which Python version the bundled code was built with; which
+modules that code imports, and whether each is in the standard library or bundled.  Finally it
+loads and instantiates the FMU in a separate process, so a crash cannot take this one down.
+"""
+import ast
+import ctypes
+import ctypes.util
+import json
+import platform
+import subprocess
+import sys
+import sysconfig
+import tempfile
+import zipfile
+from pathlib import Path
+
+OK, WARN, FAIL = "ok", "warning", "problem"
+
+
+def _platform_dir():
+    bits = "64" if sys.maxsize > 2 ** 32 else "32"
+    return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(
+        platform.system(), "unknown") + bits
+
+
+def _stdlib_names():
+    names = set(getattr(sys, "stdlib_module_names", ()))
+    return names or set(sys.builtin_module_names)
+
+
+def _imports(source):
+    """Top-level modules imported by ``source``: ``(at import time, only inside functions)``."""
+    eager, lazy = set(), set()
+
+    def visit(node, inside_function):
+        for child in ast.iter_child_nodes(node):
+            names = ()
+            if isinstance(child, ast.Import):
+                names = [a.name.split(".")[0] for a in child.names]
+            elif isinstance(child, ast.ImportFrom) and child.level == 0 and child.module:
+                names = [child.module.split(".")[0]]
+            (lazy if inside_function else eager).update(names)
+            visit(child, inside_function or isinstance(
+                child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
+    visit(ast.parse(source), False)
+    return eager, lazy - eager
+
+
+def _loadable(soname):
+    """True when the dynamic loader of this host finds and loads ``soname``."""
+    code = "import ctypes,sys; ctypes.CDLL(sys.argv[1])"
+    return subprocess.run([sys.executable, "-c", code, soname], capture_output=True,
+                          timeout=30).returncode == 0
+
+
+def _libpython_candidates(record):
+    first = [record["libpython"]] if record.get("libpython") else []
+    others = ["libpython3.%d.so.1.0" % m for m in range(14, 7, -1)] + ["libpython3.so"]
+    return first + [s for s in others if s not in first]
+
+
+def diagnose(fmu):
+    """List of ``(level, message)`` about running ``fmu`` on this host."""
+    fmu = Path(fmu)
+    out = []
+    if not fmu.is_file():
+        return [(FAIL, "%s does not exist or is not a file" % fmu)]
+    try:
+        zf = zipfile.ZipFile(fmu)
+    except zipfile.BadZipFile:
+        return [(FAIL, "%s is not an FMU: not a zip archive" % fmu)]
+    names = set(zf.namelist())
+    if "modelDescription.xml" not in names:
+        return [(FAIL, "%s has no modelDescription.xml" % fmu)]
+    from fmpy import read_model_description
+    md = read_model_description(str(fmu))
+    if md.coSimulation is None:
+        return [(FAIL, "the FMU has no co-simulation interface")]
+    ident = md.coSimulation.modelIdentifier
+    out.append((OK, "FMI %s co-simulation FMU '%s' (%s)" % (md.fmiVersion, md.modelName,
+                                                          md.generationTool)))
+    plat = _platform_dir()
+    ext = {"linux": ".so", "darwi": ".dylib", "win": ".dll"}.get(plat[:5].rstrip("36"),
+                                                                   ".so")
+    binary = "binaries/%s/%s%s" % (plat, ident, ext)
+    present = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and
+                      n.count("/") >= 2})
+    if binary in names:
+        out.append((OK, "it has a binary for this platform (%s)" % binary))
+    else:
+        out.append((FAIL, "it has no binary for this platform (%s); it has: %s"
+                    % (plat, ", ".join(present) or "none")))
+    record = {}
+    if "resources/driftfmu_build.json" in names:
+        record = json.loads(zf.read("resources/driftfmu_build.json"))
+        out.append((OK, "built by driftfmu with Python %s (%s loader)"
+                    % (record.get("python_version", "?"), record.get("loader", "?"))))
+    host_py = "%d.%d" % sys.version_info[:2]
+    built_py = ".".join(str(record.get("python_version", "")).split(".")[:2])
+    if built_py and built_py != host_py:
+        out.append((OK, "this process runs Python %s; the FMU was built with %s — fine for "
+                        "Python hosts, whose own interpreter runs the FMU's code"
+                    % (host_py, built_py)))
+    # libpython for hosts that are not Python
+    found = [s for s in _libpython_candidates(record) if _loadable(s)]
+    if found:
+        out.append((OK, "a host that is not Python will load %s (the first of the libpython "
+                        "versions the FMU tries that this host's loader finds)" % found[0]))
+    else:
+        libdir = sysconfig.get_config_var("LIBDIR")
+        out.append((WARN, "no libpython is on this host's library path, so a host that is "
+                          "not Python (C, Java, Rust) cannot run the FMU; add the folder of "
+                          "libpython3.X.so.1.0 to LD_LIBRARY_PATH (here: %s) or set "
+                          "DRIFTFMU_LIBPYTHON to its path. Python hosts are not affected."
+                    % libdir))
+    # the bundled Python code
+    pyfiles = [n for n in names if n.startswith("resources/") and n.endswith(".py")]
+    bundled = {n.split("/")[1].rsplit(".py", 1)[0] for n in pyfiles}
+    eager, lazy = set(), set()
+    for n in pyfiles:
+        try:
+            e, l = _imports(zf.read(n).decode("utf-8"))
+        except SyntaxError as exc:
+            out.append((FAIL, "%s does not parse on Python %s: %s" % (n, host_py, exc)))
+            continue
+        eager |= e
+        lazy |= l
+    stdlib = _stdlib_names() | {"__future__"}
+    foreign = sorted(m for m in eager if m not in bundled and m not in stdlib)
+    optional = sorted(m for m in lazy - eager if m not in bundled and m not in stdlib)
+    if foreign:
+        missing = [m for m in foreign if not _importable(m)]
+        out.append((FAIL if missing else WARN,
+                    "the FMU's code needs modules that are neither bundled nor in the standard "
+                    "library: %s%s" % (", ".join(foreign), "; not installed here: "
+                                       + ", ".join(missing) if missing else "")))
+    else:
+        out.append((OK, "the FMU's code needs only the standard library and its bundled "
+                        "modules (%s): any host with a matching libpython runs it"
+                    % ", ".join(sorted(bundled))))
+    if optional:
+        out.append((OK, "imported only inside functions that the FMU does not call: %s "
+                        "(not needed)" % ", ".join(optional)))
+    out.append(_try_instantiate(fmu))
+    return out
+
+
+def _importable(module):
+    import importlib.util
+    return importlib.util.find_spec(module) is not None
+
+
+def _try_instantiate(fmu):
+    code = ("import sys\nfrom fmpy import read_model_description, extract\n"
+            "from fmpy.fmi2 import FMU2Slave\n"
+            "md = read_model_description(sys.argv[1]); d = extract(sys.argv[1])\n"
+            "s = FMU2Slave(guid=md.guid, unzipDirectory=d, "
+            "modelIdentifier=md.coSimulation.modelIdentifier, instanceName='doctor')\n"
+            "s.instantiate(); s.setupExperiment(startTime=0.0)\n"
+            "s.enterInitializationMode(); s.exitInitializationMode()\n"
+            "s.terminate(); s.freeInstance()\n")
+    try:
+        r = subprocess.run([sys.executable, "-c", code, str(fmu)], capture_output=True,
+                           text=True, timeout=120)
+    except subprocess.TimeoutExpired:
+        return (FAIL, "instantiating the FMU in a Python host did not finish in 120 s")
+    if r.returncode == 0:
+        return (OK, "it instantiates and initialises in a Python host (fmpy) on this machine")
+    last = (r.stderr.strip().splitlines() or ["exit status %d" % r.returncode])[-1]
+    return (FAIL, "instantiating it in a Python host (fmpy) failed: %s" % last)
+
+
+def report(fmu):
+    """Print the diagnosis; return 0 when nothing is a problem, 1 otherwise."""
+    findings = diagnose(fmu)
+    mark = {OK: "  ok  ", WARN: " warn ", FAIL: "PROBLEM"}
+    print("driftfmu doctor: %s" % fmu)
+    for level, msg in findings:
+        print("[%s] %s" % (mark[level], msg))
+    bad = [m for lvl, m in findings if lvl == FAIL]
+    print("verdict: %s" % ("this FMU will run on this host" if not bad else
+                           "this FMU will NOT run on this host as it is"))
+    return 1 if bad else 0
+
+
+def add_cli(groups):
+    p = groups["top"].add_parser("doctor", help="tell whether and why an FMU will run on this "
+                                 "host (libpython, Python version, imports)")
+    p.add_argument("fmu", metavar="FMU", help="path of the .fmu file")
+    p.set_defaults(func=lambda args: _exit(report(args.fmu)))
+
+
+def _exit(code):
+    if code:
+        raise SystemExit(code)
