@@ -20,6 +20,7 @@ the call, and forwards error lines to the host's logger even when debug logging 
 This module runs inside the FMU: standard library and pythonfmu only.
 """
 import math
+import sys
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
@@ -71,6 +72,7 @@ class SlaveBase(Fmi2Slave):
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
+        _drop_duplicate_path(self.resources)
         self.description = self.__class__.__doc__.strip().splitlines()[0]
         self.k = 1
         self._dirty = True
@@ -237,6 +239,14 @@ class SlaveBase(Fmi2Slave):
 
     def restore_hidden(self):
         """Turn hidden state read back from JSON into its working types (hook)."""
+
+
+def _drop_duplicate_path(path):
+    """pythonfmu 0.7.0 puts the resources folder at the front of sys.path on every
+    instantiation; keep one entry, so that sys.path (and import time) do not grow."""
+    if path:
+        while sys.path.count(path) > 1:
+            sys.path.remove(path)
 
 
 def default_experiment(n_samples, Ts):
