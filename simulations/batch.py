@@ -1,0 +1,431 @@
+"""Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
+
+Runs sit on the leading axis of NumPy arrays.  Sample ``k`` of every run is computed by calling
+:mod:`models.excitation`, :mod:`models.sensor`, :mod:`models.chain` (EKF and drift estimators)
+and :func:`models.drift.running_mean` on arrays of shape ``(runs,)``, exactly as one FMU calls
+them on floats.  Every operation in those functions is correctly rounded IEEE arithmetic, so run
+``r`` of a batch gives bit for bit the outputs of the FMU co-simulation of that run.  The noise
+is counter-based (:mod:`models.noise`), a pure function of (seed, stream, sample), so it is
+generated in blocks of ``(block, runs)`` samples at once and still equals what the FMUs draw.
+
+Seeds: run ``r`` of a batch under ``--seed S`` uses the FMU seed :func:`run_seed` ``(S, r) =
+S + r`` for both the Excitation and the Accelerometer.
+
+Parallel: :func:`run_tasks` maps a task function over chunks of runs on local worker processes
+(``concurrent.futures``) or on a Dask distributed cluster (``scheduler=ADDRESS``); the FMU
+engine (:func:`fmu_task`) is fanned out the same way.
+"""
+import math
+import os
+import time
+
+import numpy as np
+
+from models import chain, drift, excitation, noise, parameters, sensor
+
+#: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
+SEED_MAX = parameters.PARAMETERS["seed"].high
+#: Trajectories the batch engine can record, each ``(runs, n)``.
+TRAJECTORIES = ("x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
+                "dc_realised")
+#: Final-sample values every run returns, each ``(runs,)``, under ``"final_<name>"``: the
+#: filter state, the three drift estimates, the empirical drift ``z̄ - a0`` and the mean square
+#: state ``mean(x^2)``.
+FINALS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "zbar", "x2bar")
+#: Samples of noise generated per block (rows of a ``(block, runs)`` array).
+BLOCK = 32
+#: Runs per task handed to a worker (large enough for NumPy to be efficient, small enough to
+#: stay in cache and to give the progress bar some steps).
+CHUNK = 4096
+#: Seconds to wait for a Dask scheduler before giving up.
+CONNECT_TIMEOUT = 3
+
+
+# -- seeds and checks -----------------------------------------------------------------------
+def run_seed(seed, r):
+    """FMU seed of run ``r`` (0-based) of a batch under ``seed``: ``seed + r``.
+
+    Used for the Excitation's and the Accelerometer's ``seed`` parameter alike, by the batch
+    engine and by the FMU engine.  Works on ints and on integer arrays.
+    """
+    return seed + r
+
+
+def run_seeds(seed, runs):
+    """The ``uint64`` array of FMU seeds of runs ``0 .. runs-1`` under ``seed``."""
+    check_runs(runs)
+    seed = int(seed)
+    last = run_seed(seed, runs - 1)
+    if seed < 0 or last > SEED_MAX:
+        raise ValueError("seed = %r with runs = %d needs FMU seeds %d..%d; allowed: "
+                         "0 <= seed and seed + runs - 1 <= %d" % (seed, runs, seed, last,
+                                                                  SEED_MAX))
+    return run_seed(np.uint64(seed), np.arange(runs, dtype=np.uint64))
+
+
+def check_runs(runs):
+    """Raise ValueError unless ``runs`` is an integer >= 1."""
+    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
+        raise ValueError("runs = %r is not allowed; allowed: an integer runs >= 1" % (runs,))
+
+
+def check_parameters(values):
+    """Raise ValueError naming every parameter (scalar or array of per-run values) out of range."""
+    problems = []
+    for name, value in values.items():
+        if name not in parameters.PARAMETERS or value is None:
+            continue
+        arr = np.asarray(value)
+        if arr.size == 0:
+            problems.append("%s is empty; allowed: at least one value, %s"
+                            % (name, parameters.allowed(name)))
+            continue
+        for v in np.unique(arr):
+            msg = parameters.problem(name, v.item())
+            if msg:
+                problems.append(msg)
+                break
+    if problems:
+        raise ValueError("; ".join(problems))
+
+
+def default_P0(A, Q):
+    """The filter's initial variance when none is given: the stationary ``Q / (1 - A^2)``."""
+    return Q / (1.0 - A * A)
+
+
+def sine_phase(seed):
+    """Random phase in [0, 2 pi) of a sinusoidal run: ``2 pi u`` with ``u`` the first draw of
+    stream ``STREAM_PHASE`` under the run's seed (int or ``uint64`` array)."""
+    return 2.0 * math.pi * noise.uniform(seed, noise.STREAM_PHASE, 1)
+
+
+# -- the engine -----------------------------------------------------------------------------
+def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
+             Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
+             filter_Q=None, record=(), block=BLOCK, progress=None):
+    """Run ``len(seeds)`` Monte-Carlo runs of the chain for samples ``k = 1..n`` at once.
+
+    Run ``r`` is the co-simulation of Excitation -> Accelerometer -> DriftEstimator with both
+    FMU seeds ``seeds[r]``: the same functions on arrays, so the same bits.
+
+    Parameters
+    ----------
+    n : int
+        Samples per run.
+    seeds : array of uint64, shape (runs,)
+        FMU seed of each run (see :func:`run_seeds`).
+    a0, a1, a2, A, Q, R, x0, P0, Ts, X, f, phi : float or array (runs,)
+        The letter's parameters, one value for all runs or one per run.  ``P0`` defaults to
+        ``filter_Q / (1 - filter_A^2)``.
+    kind : int
+        ``excitation.GAUSSIAN`` (``x_k = A x_{k-1} + w_k``) or ``excitation.SINUSOIDAL``
+        (``x_k = X sin(2 pi f (k-1) Ts + phi)``).
+    filter_A, filter_Q : float or array, optional
+        The filter's process model, by default the excitation's ``A`` and ``Q``.
+    record : sequence of str
+        Names out of :data:`TRAJECTORIES` to return as ``(runs, n)`` arrays.
+    block : int
+        Samples of noise generated at once.
+    progress : callable, optional
+        Called with the number of samples done after each block.
+
+    Returns
+    -------
+    dict
+        ``"final_<name>"`` for the :data:`FINALS` after sample ``n``, each ``(runs,)``, and
+        the recorded trajectories by name, each ``(runs, n)``.
+    """
+    seeds = np.asarray(seeds, dtype=np.uint64)
+    runs = seeds.shape[0]
+    unknown = set(record) - set(TRAJECTORIES)
+    if unknown:
+        raise ValueError("cannot record %s; allowed: %s" % (sorted(unknown),
+                                                            ", ".join(TRAJECTORIES)))
+    fA = A if filter_A is None else filter_A
+    fQ = Q if filter_Q is None else filter_Q
+    if P0 is None:
+        P0 = default_P0(fA, fQ)
+    shape = (runs,)
+    x = np.broadcast_to(np.asarray(x0, dtype=float), shape).copy()
+    est = chain.estimator_init(x.copy(), np.broadcast_to(np.asarray(P0, dtype=float),
+                                                         shape).copy())
+    zbar = 0.0
+    x2bar = 0.0
+    traj = {name: np.empty((n, runs)) for name in record}
+    gaussian = kind == excitation.GAUSSIAN
+    row = seeds[None, :]
+    for k0 in range(1, n + 1, block):
+        ks = np.arange(k0, min(k0 + block, n + 1), dtype=np.uint64)[:, None]
+        if gaussian:
+            W = noise.normal(row, noise.STREAM_PROCESS, ks)
+        V = sensor.measurement_noise(row, ks)
+        for i in range(ks.shape[0]):
+            k = k0 + i
+            if gaussian:
+                x = excitation.gauss_markov(x, A, Q, W[i])
+            else:
+                x = excitation.sine(k, X, f, Ts, phi)
+            z = sensor.measure(x, a0, a1, a2, R, V[i])
+            est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R)
+            zbar = drift.running_mean(zbar, z, k)
+            x2bar = drift.running_mean(x2bar, x * x, k)
+            if traj:
+                _record(traj, k - 1, x, z, est, zbar, x2bar, a0, a2)
+        if progress is not None:
+            progress(k0 - 1 + ks.shape[0])
+    dc1, dc2, dc3 = drift.estimates(est.drift, a2)
+    out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
+           "zbar": zbar - a0, "x2bar": x2bar}
+    out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), shape).copy()
+           for key, v in out.items()}
+    for name, arr in traj.items():
+        out[name] = np.ascontiguousarray(arr.T)
+    return out
+
+
+def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
+    """Store sample ``j`` (0-based) of the recorded trajectories."""
+    values = {"x": lambda: x, "z": lambda: z, "x_hat": lambda: est.x, "P": lambda: est.P,
+              "dc_ekf1": lambda: drift.estimates(est.drift, a2)[0],
+              "dc_ekf2": lambda: est.drift.dc2, "dc_ekf3": lambda: est.drift.dc3,
+              "dc_empirical": lambda: zbar - a0, "dc_realised": lambda: a2 * x2bar}
+    for name, arr in traj.items():
+        arr[j] = values[name]()
+
+
+# -- the FMU engine -------------------------------------------------------------------------
+def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
+                 Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
+                 filter_Q=None, fmu_dir="build/fmus", record=()):
+    """One run co-simulated with the three FMUs (FMU seed ``seed``); same outputs as one row of
+    :func:`simulate`: the :data:`FINALS` as floats and the recorded trajectories as arrays.
+
+    Gaussian runs go through :func:`simulations.gaussian.run_gaussian` (which also checks the
+    FMUs against models/); sinusoidal runs through :func:`simulations.cosim.cosimulate` with the
+    same connections, the Excitation set to ``kind = 2``.
+    """
+    from simulations import gaussian
+    fA = A if filter_A is None else filter_A
+    fQ = Q if filter_Q is None else filter_Q
+    if P0 is None:
+        P0 = default_P0(fA, fQ)
+    if kind == excitation.GAUSSIAN and (fA, fQ) == (A, Q):
+        cols = gaussian.run_gaussian(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed,
+                                     Ts=Ts, x0=x0, P0=P0, fmu_dir=fmu_dir, plot=False)["columns"]
+    elif kind == excitation.SINUSOIDAL:
+        cols = _cosimulate_sine(n, seed, a0, a1, a2, R, Ts, X, f, phi, fA, fQ, x0, P0, fmu_dir)
+    else:
+        raise ValueError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
+                         "the Gaussian excitation with the filter's A and Q equal to the "
+                         "excitation's, or the sinusoidal one" % (kind, fA, fQ))
+    zbar, x2bar = 0.0, 0.0
+    for k, (x, z) in enumerate(zip(cols["x"], cols["z"]), start=1):
+        zbar = drift.running_mean(zbar, z, k)
+        x2bar = drift.running_mean(x2bar, x * x, k)
+    out = {"final_" + name: cols[name][-1]
+           for name in ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3")}
+    out["final_zbar"] = zbar - a0
+    out["final_x2bar"] = x2bar
+    for name in record:
+        out[name] = np.asarray(cols[name], dtype=float)
+    return out
+
+
+def _cosimulate_sine(n, seed, a0, a1, a2, R, Ts, X, f, phi, filter_A, filter_Q, x0, P0,
+                     fmu_dir):
+    """Columns of one sinusoidal co-simulation, with the drift references."""
+    from simulations.cosim import cosimulate
+    from simulations.gaussian import CONNECTIONS, fmu_paths
+    model = dict(a0=a0, a1=a1, a2=a2, R=R)
+    start = {
+        "Excitation": dict(kind=excitation.SINUSOIDAL, X=X, f=f, phi=phi, Ts=Ts),
+        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
+        "DriftEstimator": dict(model, A=filter_A, Q=filter_Q, x0=x0, P0=P0, Ts=Ts),
+    }
+    rec = {"Excitation": ["x"], "Accelerometer": ["z"],
+           "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3"]}
+    raw = cosimulate(fmu_paths(fmu_dir), CONNECTIONS, n, Ts, start_values=start, record=rec)
+    cols = {v: raw["%s.%s" % (name, v)] for name, names in rec.items() for v in names}
+    cols["dc_empirical"], cols["dc_realised"], _ = drift.references(
+        cols["x"], cols["z"], a0, a2, 0.0)
+    return cols
+
+
+# -- tasks: chunks of runs for workers ------------------------------------------------------
+def make_tasks(n, seeds, per_run, common, record=(), chunk=CHUNK, engine="batch",
+               fmu_dir=None):
+    """Split runs into tasks of at most ``chunk`` runs.
+
+    ``seeds`` (runs,) and the arrays in ``per_run`` (each (runs,)) are sliced; ``common`` holds
+    keyword arguments shared by all runs.  The FMU engine uses chunks of a few runs.
+    """
+    runs = len(seeds)
+    tasks = []
+    for lo in range(0, runs, chunk):
+        hi = min(lo + chunk, runs)
+        kw = dict(common)
+        kw.update({name: np.asarray(v)[lo:hi] for name, v in per_run.items()})
+        tasks.append({"engine": engine, "n": n, "seeds": np.asarray(seeds[lo:hi]),
+                      "kwargs": kw, "record": tuple(record), "fmu_dir": fmu_dir})
+    return tasks
+
+
+def run_task(task):
+    """Run one task on a worker; return ``(outputs, seconds)``.
+
+    The batch engine runs the chunk at once; the FMU engine co-simulates its runs one by one.
+    """
+    t0 = time.perf_counter()
+    if task["engine"] == "batch":
+        out = simulate(task["n"], task["seeds"], record=task["record"], **task["kwargs"])
+    elif task["engine"] == "fmu":
+        out = fmu_task(task)
+    else:
+        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'"
+                         % (task["engine"],))
+    return out, time.perf_counter() - t0
+
+
+def fmu_task(task):
+    """The FMU engine over one task's runs: :func:`fmu_simulate` per run, stacked like
+    :func:`simulate`'s outputs."""
+    kw = task["kwargs"]
+    rows = []
+    for r, seed in enumerate(task["seeds"]):
+        one = {key: (v[r].item() if isinstance(v, np.ndarray) else v) for key, v in kw.items()}
+        rows.append(fmu_simulate(task["n"], int(seed), fmu_dir=task["fmu_dir"],
+                                 record=task["record"], **one))
+    return {key: np.stack([np.asarray(row[key], dtype=float) for row in rows])
+            for key in rows[0]}
+
+
+def workers_default():
+    """Local worker processes by default: one per core."""
+    return max(1, os.cpu_count() or 1)
+
+
+def connect(scheduler, timeout=CONNECT_TIMEOUT):
+    """A ``dask.distributed.Client`` of the cluster at ``scheduler``; a clear error within
+    ``timeout`` seconds when nothing answers there."""
+    try:
+        from dask.distributed import Client
+    except ImportError as exc:  # pragma: no cover - dask[distributed] is a dependency
+        raise RuntimeError("--scheduler needs dask[distributed]: %s" % exc) from exc
+    def fail(why, exc):
+        raise ConnectionError("no Dask scheduler answered at %r (%s); allowed: the address of "
+                              "a running dask scheduler, e.g. tcp://host:8786"
+                              % (scheduler, why)) from exc
+
+    if not isinstance(scheduler, str) or not scheduler.strip():
+        fail("not an address", None)
+    try:
+        _probe(scheduler, timeout)
+    except (OSError, ValueError) as exc:
+        fail(_first_line(exc), exc)
+    try:
+        return Client(scheduler, timeout="%ss" % timeout)
+    except (OSError, TimeoutError) as exc:
+        fail(_first_line(exc), exc)
+    except Exception as exc:  # something answered, but not a Dask scheduler
+        fail("something answered but not as a Dask scheduler: %s" % _first_line(exc), exc)
+
+
+def _first_line(exc):
+    text = str(exc).strip()
+    return text.splitlines()[0] if text else type(exc).__name__
+
+
+def _probe(address, timeout):
+    """For a tcp:// or tls:// address, open and close a TCP connection: a refused or unknown
+    address fails at once instead of after the whole connection timeout."""
+    import socket
+    from distributed.comm.addressing import parse_address, parse_host_port
+    scheme, loc = parse_address(address)
+    if scheme not in ("tcp", "tls"):
+        return
+    host, port = parse_host_port(loc)
+    with socket.create_connection((host, port), timeout=timeout):
+        pass
+
+
+def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
+    """Run ``tasks`` with :func:`run_task`; return their outputs in task order.
+
+    Parameters
+    ----------
+    scheduler : str, optional
+        Address of a Dask scheduler; the tasks then run on that cluster.
+    client : dask.distributed.Client, optional
+        An existing client (used instead of ``scheduler``).
+    workers : int, optional
+        Local worker processes (default: one per core); 1 runs in this process.
+    progress : callable, optional
+        Called with the number of runs done whenever a task finishes.
+    """
+    results = [None] * len(tasks)
+    done = 0
+
+    def finished(i, res):
+        nonlocal done
+        results[i] = res[0]
+        done += len(tasks[i]["seeds"])
+        if progress is not None:
+            progress(done)
+
+    if scheduler is not None or client is not None:
+        own = client is None
+        client = connect(scheduler) if own else client
+        try:
+            from dask.distributed import as_completed
+            futures = client.map(run_task, tasks, pure=False)
+            index = {f.key: i for i, f in enumerate(futures)}
+            for fut in as_completed(futures):
+                finished(index[fut.key], fut.result())
+        finally:
+            if own:
+                client.close()
+        return results
+    workers = workers_default() if workers is None else workers
+    if workers < 1:
+        raise ValueError("workers = %r is not allowed; allowed: workers >= 1" % (workers,))
+    if workers == 1 or len(tasks) == 1:
+        for i, task in enumerate(tasks):
+            finished(i, run_task(task))
+        return results
+    from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
+        futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
+        for fut in cf_completed(futures):
+            finished(futures[fut], fut.result())
+    return results
+
+
+def gather(results):
+    """Concatenate task outputs along the run axis."""
+    return {key: np.concatenate([r[key] for r in results]) for key in results[0]}
+
+
+# -- command line ---------------------------------------------------------------------------
+def add_engine_options(p):
+    """``--engine``, ``--scheduler`` and ``--workers`` (shared with ``driftfmu montecarlo``)."""
+    p.add_argument("--engine", choices=("batch", "fmu"), default="batch",
+                   help="batch: many runs at once through models/ (default); fmu: every run "
+                        "co-simulated with the three FMUs")
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="run on the Dask distributed cluster at ADDRESS (e.g. "
+                        "tcp://host:8786); default: local worker processes")
+    p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+                   help="local worker processes (default: one per core)")
+
+
+def _positive_int(text):
+    import argparse
+    try:
+        v = int(text)
+    except ValueError:
+        v = 0
+    if v < 1:
+        raise argparse.ArgumentTypeError("workers = %r is not allowed; allowed: an integer "
+                                         ">= 1" % text)
+    return v
