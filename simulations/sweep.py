@@ -1,0 +1,235 @@
+"""The letter's Figs. 2 and 3: drift error over a grid of a2 and R, averaged over many runs.
+
+For every grid point ``(a2_i, R_j)`` and run ``r`` (FMU seed ``seed + r``, the same seeds at every
+grid point) the Gaussian chain runs ``n`` samples; the final-sample drift estimates of EKF1-3 are
+compared with the three references of ``shared/paper/NOTES.md``:
+
+- empirical ``z̄_n - a0`` (the letter's reference; carries the linear term ``a1 x̄_n``),
+- realised ``a2 (1/n) sum x_k^2`` (simulation only),
+- expected ``a2 Q / (1 - A^2)``.
+
+The whole grid runs as one batch (``len(a2) * len(R) * runs`` runs on the leading axis, ``a2``
+and ``R`` per run), split over local worker processes or a Dask cluster.
+"""
+import time
+
+import numpy as np
+
+from models import excitation, sensor
+from simulations import batch, output
+
+DEFAULT_A2 = tuple(np.logspace(-3, -0.5, 6))
+DEFAULT_R = tuple(np.logspace(-6, -2, 5))
+ESTIMATORS = ("ekf1", "ekf2", "ekf3")
+REFERENCES = ("empirical", "realised", "expected")
+#: Columns of ``sweep.csv``.
+CSV_COLUMNS = (("a2", "R", "dc_expected")
+               + tuple("mean_dc_%s" % e for e in ESTIMATORS)
+               + tuple("mae_%s_%s" % (e, ref) for e in ESTIMATORS for ref in REFERENCES))
+
+
+def check_grid(name, values):
+    """The grid of ``name`` as a 1-D float array; ValueError when empty or out of range."""
+    arr = np.atleast_1d(np.asarray(values, dtype=float))
+    if arr.ndim != 1 or arr.size == 0:
+        raise ValueError("the %s grid is empty; allowed: one or more values of %s"
+                         % (name, name))
+    batch.check_parameters({name: arr})
+    return arr
+
+
+def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000,
+          seed=1, Ts=1e-3, engine="batch", scheduler=None, client=None, workers=None,
+          chunk=None, fmu_dir="build/fmus", out=None, plot=True, progress=None):
+    """Run the grid; return the arrays of ``sweep.npz`` and the rows of ``sweep.csv``.
+
+    Parameters
+    ----------
+    a2, R : sequence of float
+        The grid (defaults: ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)``).
+    a0, a1, Q, A, Ts : float
+        The other model parameters, shared by all grid points (the letter: a1 = 1, Q = 0.01).
+    runs, n, seed : int
+        Monte-Carlo runs per grid point, samples per run; run ``r`` uses FMU seed ``seed + r``.
+    engine : {"batch", "fmu"}
+        The batch engine, or the FMUs co-simulated run by run.
+    scheduler : str, optional
+        Address of a Dask scheduler; by default local worker processes (``workers``, one per
+        core by default).
+    out : path, optional
+        Folder for ``sweep.npz``, ``sweep.csv``, ``fig2.png``, ``fig3.png`` (all or none).
+    progress : callable, optional
+        Called with the number of runs done.
+
+    Returns
+    -------
+    dict
+        ``grid_a2``, ``grid_R``, ``grid_dc1``, ``grid_dc2``, ``grid_dc3``, ``grid_zbar``,
+        ``grid_x2bar`` (each ``(len(a2), len(R), runs)``), ``table`` (CSV columns -> arrays of
+        one value per grid point) and ``seconds`` (wall time of the runs).
+    """
+    a2 = check_grid("a2", a2)
+    R = check_grid("R", R)
+    batch.check_runs(runs)
+    batch.check_parameters(dict(a0=a0, a1=a1, Q=Q, A=A, n=n, Ts=Ts))
+    if engine not in ("batch", "fmu"):
+        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+    seeds1 = batch.run_seeds(seed, runs)
+    points = len(a2) * len(R)
+    seeds = np.tile(seeds1, points)
+    per_run = {"a2": np.repeat(a2, len(R) * runs), "R": np.tile(np.repeat(R, runs), len(a2))}
+    common = dict(a0=a0, a1=a1, Q=Q, A=A, Ts=Ts)
+    if engine == "fmu":
+        from simulations.gaussian import fmu_paths
+        fmu_paths(fmu_dir)  # build once here, not in every worker
+    total = len(seeds)
+    if chunk is None:
+        chunk = default_chunk(total, engine, workers)
+    tasks = batch.make_tasks(n, seeds, per_run, common, chunk=chunk, engine=engine,
+                             fmu_dir=fmu_dir)
+    t0 = time.perf_counter()
+    res = batch.gather(batch.run_tasks(tasks, scheduler=scheduler, client=client,
+                                       workers=workers, progress=progress))
+    seconds = time.perf_counter() - t0
+    shape = (len(a2), len(R), runs)
+    result = {"grid_a2": a2, "grid_R": R,
+              "grid_dc1": res["final_dc_ekf1"].reshape(shape),
+              "grid_dc2": res["final_dc_ekf2"].reshape(shape),
+              "grid_dc3": res["final_dc_ekf3"].reshape(shape),
+              "grid_zbar": res["final_zbar"].reshape(shape),
+              "grid_x2bar": res["final_x2bar"].reshape(shape)}
+    result["table"] = table(result, Q=Q, A=A)
+    result["seconds"] = seconds
+    result["parameters"] = dict(a0=a0, a1=a1, Q=Q, A=A, runs=runs, n=n, seed=seed, Ts=Ts,
+                                engine=engine)
+    if out is not None:
+        write(out, result, plot=plot)
+    return result
+
+
+def default_chunk(total, engine, workers=None):
+    """Runs per task: a few tasks per worker (batch), a few runs per task (FMU)."""
+    if engine == "fmu":
+        return max(1, min(8, total // (4 * batch.workers_default())))
+    w = batch.workers_default() if workers is None else max(1, workers)
+    return max(256, min(batch.CHUNK, -(-total // (2 * w))))
+
+
+def references(result, Q, A):
+    """The three drift references per grid point and run, each ``(len(a2), len(R), runs)``."""
+    a2 = result["grid_a2"][:, None, None]
+    shape = result["grid_dc1"].shape
+    expected = sensor.drift(a2, excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q))
+    return {"empirical": result["grid_zbar"],
+            "realised": a2 * result["grid_x2bar"],
+            "expected": np.broadcast_to(expected, shape)}
+
+
+def table(result, Q, A):
+    """``sweep.csv`` as columns: one row per grid point, ``a2`` slowest."""
+    refs = references(result, Q, A)
+    na2, nR = len(result["grid_a2"]), len(result["grid_R"])
+    cols = {"a2": np.repeat(result["grid_a2"], nR), "R": np.tile(result["grid_R"], na2),
+            "dc_expected": refs["expected"][:, :, 0].ravel()}
+    for e, key in zip(ESTIMATORS, ("grid_dc1", "grid_dc2", "grid_dc3")):
+        dc = result[key]
+        cols["mean_dc_%s" % e] = dc.mean(axis=2).ravel()
+        for ref in REFERENCES:
+            cols["mae_%s_%s" % (e, ref)] = np.abs(dc - refs[ref]).mean(axis=2).ravel()
+    return cols
+
+
+def write(out, result, plot=True):
+    """Write ``sweep.npz``, ``sweep.csv`` and the two figures into ``out``, all or none."""
+    arrays = {k: v for k, v in result.items() if k.startswith("grid_")}
+    with output.staged(out) as stage:
+        np.savez(stage / "sweep.npz", **arrays)
+        output.write_csv(stage / "sweep.csv", result["table"], CSV_COLUMNS)
+        if plot:
+            p = result["parameters"]
+            for name, est in (("fig2.png", "ekf1"), ("fig3.png", "ekf3")):
+                plot_grid(stage / name, result, est, "a1 = %g, Q = %g, A = %g; %d runs of "
+                          "n = %d samples per point" % (p["a1"], p["Q"], p["A"], p["runs"],
+                                                        p["n"]))
+
+
+def plot_grid(path, result, estimator, subtitle):
+    """Mean absolute error of one estimator over the (a2, R) grid: against the realised drift
+    (left) and against the letter's empirical drift ``z̄ - a0`` (right), one line per R."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    t = result["table"]
+    a2, R = result["grid_a2"], result["grid_R"]
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), sharex=True)
+    for ax, ref in zip(axes, ("realised", "empirical")):
+        mae = t["mae_%s_%s" % (estimator, ref)].reshape(len(a2), len(R))
+        for j, r in enumerate(R):
+            ax.loglog(a2, mae[:, j], marker="o", lw=1.2, color=plt.cm.viridis(j / max(1, len(R) - 1)),
+                      label="R = %.0e" % r)
+        ax.loglog(a2, t["dc_expected"].reshape(len(a2), len(R))[:, 0], color="k", ls=":",
+                  lw=1.0, label="drift a2 Q/(1-A²)")
+        ax.set_xlabel("a2 [V/g²]")
+        ax.set_ylabel("mean |dc_%s - dc_%s| [V]" % (estimator, ref))
+        ax.set_title("%s against the %s drift" % (estimator.upper(), ref), fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].legend(fontsize=8)
+    fig.suptitle(subtitle, fontsize=9)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# -- command line ---------------------------------------------------------------------------
+def add_cli(groups):
+    """``driftfmu sweep``."""
+    from simulations import cli
+    p = groups["top"].add_parser(
+        "sweep", help="drift error over a grid of a2 and R, many runs per point "
+                      "(the letter's Figs. 2 and 3)")
+    p.add_argument("--a2", type=cli.param_type("a2"), nargs="+", default=list(DEFAULT_A2),
+                   metavar="A2", help="grid of a2 [V/g2] (default: logspace(-3, -0.5, 6))")
+    p.add_argument("--R", type=cli.param_type("R"), nargs="+", default=list(DEFAULT_R),
+                   metavar="R", help="grid of R [V2]; allowed: R > 0 "
+                                     "(default: logspace(-6, -2, 5))")
+    cli.add_params(p, ("a0", "a1", "A", "Q", "runs", "n", "seed", "Ts"), runs=1000, n=1000)
+    batch.add_engine_options(p)
+    cli.add_out(p, "results/sweep")
+    cli.add_fmu_dir(p)
+    p.set_defaults(func=cmd_sweep)
+
+
+def cmd_sweep(args):
+    from simulations import cli
+    total = len(args.a2) * len(args.R) * args.runs
+    update, bar = cli.progress_bar(total, "sweep (%s engine)" % args.engine)
+    t0 = time.perf_counter()
+    try:
+        res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
+                    runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, engine=args.engine,
+                    scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
+                    out=args.out, progress=update)
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = time.perf_counter() - t0
+    print_table(res)
+    sample_runs = total * args.n
+    print("%d x %d grid, %d runs of n = %d: %.3g sample-runs in %.2f s (%.0f ns per "
+          "sample-run; %.2f s wall with writing)" % (len(args.a2), len(args.R), args.runs,
+                                                     args.n, sample_runs, res["seconds"],
+                                                     1e9 * res["seconds"] / sample_runs, wall))
+    print("wrote %s/sweep.npz, sweep.csv, fig2.png, fig3.png" % args.out)
+
+
+def print_table(res):
+    """Mean absolute error of EKF1 and EKF3 per grid point against the three references."""
+    t = res["table"]
+    print("%9s %9s %10s | %-30s | %-30s" % ("a2", "R", "drift", "EKF1 MAE vs real/emp/exp",
+                                            "EKF3 MAE vs real/emp/exp"))
+    for i in range(len(t["a2"])):
+        print("%9.3g %9.3g %10.3g | %9.3g %9.3g %9.3g  | %9.3g %9.3g %9.3g"
+              % (t["a2"][i], t["R"][i], t["dc_expected"][i],
+                 t["mae_ekf1_realised"][i], t["mae_ekf1_empirical"][i],
+                 t["mae_ekf1_expected"][i], t["mae_ekf3_realised"][i],
+                 t["mae_ekf3_empirical"][i], t["mae_ekf3_expected"][i]))
