@@ -99,7 +99,7 @@ def cmd_run_gaussian(args):
 
 #: Modules that add their own sub-commands: each has ``add_cli(groups)`` taking the dict
 #: ``{"top": <sub-parsers of driftfmu>, "run": <sub-parsers of driftfmu run>}``.
-PLUGINS = ("simulations.doctor", "simulations.sweep")
+PLUGINS = ("simulations.doctor", "simulations.sweep", "simulations.montecarlo")
 
 
 def make_parser():

@@ -1,0 +1,281 @@
+"""Monte-Carlo populations of whole trajectories: the letter's Fig. 1 claims over many runs.
+
+``driftfmu montecarlo gaussian`` runs the Gaussian chain (Sec. III) ``runs`` times, run ``r`` with
+FMU seed ``seed + r``, and keeps every trajectory; ``driftfmu montecarlo sinusoidal`` does the
+same for ``x_k = X sin(2 pi f t_k + phi_r)`` with a random phase per run (the first draw of
+stream ``STREAM_PHASE`` under the run's seed), estimated with the same scalar Gauss-Markov EKF
+(filter model ``A = 0``, ``Q = X^2 / 2`` by default).
+
+The summary gives, per estimator, the fraction of runs that have settled by sample 250 (within
+10 % of the reference from that sample on, as in :func:`simulations.gaussian.settled_from`) and
+the EKF1-EKF2 gap ``10 log10(dc1 / dc2)`` at the last sample over the runs.
+"""
+import math
+import time
+
+import numpy as np
+
+from models import drift, excitation
+from simulations import batch, output
+from simulations.gaussian import SETTLE_BAND
+
+#: The letter's claim: EKF1 and EKF2 settle in under 250 samples.
+SETTLE_BY = 250
+RECORD = ("x", "z", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical", "dc_realised")
+#: ``montecarlo.npz`` keys: name in the file -> trajectory name.
+GAUSSIAN_KEYS = {"fig1_x": "x", "fig1_z": "z", "fig1_dc1": "dc_ekf1", "fig1_dc2": "dc_ekf2",
+                 "fig1_dc3": "dc_ekf3", "fig1_dc_empirical": "dc_empirical",
+                 "fig1_dc_realised": "dc_realised"}
+SINE_KEYS = {"sine_x": "x", "sine_z": "z", "sine_dc1": "dc_ekf1", "sine_dc2": "dc_ekf2",
+             "sine_dc3": "dc_ekf3", "sine_dc_empirical": "dc_empirical",
+             "sine_dc_realised": "dc_realised"}
+
+
+def settled_from(estimate, reference, band=SETTLE_BAND):
+    """First sample (1-based) from which ``|estimate - reference| <= band |reference|`` holds to
+    the end, per run (rows of ``(runs, n)`` arrays); ``n + 1`` when the last sample is outside.
+
+    The batch form of :func:`simulations.gaussian.settled_from` (which returns None for
+    ``n + 1``).
+    """
+    estimate, reference = np.atleast_2d(estimate), np.atleast_2d(reference)
+    n = estimate.shape[1]
+    outside = np.abs(estimate - reference) > band * np.abs(reference)
+    # last sample outside the band (0 when none), from the reversed rows
+    last_out = np.where(outside.any(axis=1), n - np.argmax(outside[:, ::-1], axis=1), 0)
+    return last_out + 1
+
+
+def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTLE_BY,
+              band=SETTLE_BAND):
+    """Fractions of runs settled by ``settle_by`` per estimator and reference; EKF1-EKF2 gap."""
+    summary = {"runs": int(traj["dc_ekf1"].shape[0]), "n": int(traj["dc_ekf1"].shape[1]),
+               "settle_by": settle_by, "band": band, "settled_fraction": {},
+               "median_settled_from": {}}
+    for ref in references:
+        r = traj["dc_%s" % ref]
+        summary["settled_fraction"][ref] = {}
+        summary["median_settled_from"][ref] = {}
+        for e in ("ekf1", "ekf2", "ekf3"):
+            s = settled_from(traj["dc_%s" % e], r, band)
+            summary["settled_fraction"][ref][e] = float(np.mean(s <= settle_by))
+            summary["median_settled_from"][ref][e] = float(np.median(s))
+    d1, d2 = traj["dc_ekf1"][:, -1], traj["dc_ekf2"][:, -1]
+    with np.errstate(divide="ignore", invalid="ignore"):
+        gaps = 10.0 * np.log10(d1 / d2)
+    gaps = gaps[np.isfinite(gaps)]
+    summary["ekf1_ekf2_gap_db"] = {"mean": float(np.mean(gaps)) if gaps.size else math.nan,
+                                   "std": float(np.std(gaps)) if gaps.size else math.nan,
+                                   "max_abs": float(np.max(np.abs(gaps))) if gaps.size
+                                   else math.nan,
+                                   "of_means": float(10.0 * np.log10(np.mean(d1) /
+                                                                     np.mean(d2)))}
+    if A == 0.0 and None not in (a1, Q, R):
+        summary["ekf1_ekf2_gap_db"]["expected"] = drift.expected_gap_db(a1, Q, R)
+    return summary
+
+
+def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu_dir,
+         progress):
+    seeds = batch.run_seeds(seed, runs)
+    per_run = {k: v(seeds) if callable(v) else v for k, v in per_run.items()}
+    if engine not in ("batch", "fmu"):
+        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+    if engine == "fmu":
+        from simulations.gaussian import fmu_paths
+        fmu_paths(fmu_dir)
+        chunk = max(1, min(8, runs // (4 * batch.workers_default())))
+    else:
+        w = batch.workers_default() if workers is None else max(1, workers)
+        chunk = max(64, min(batch.CHUNK, -(-runs // (2 * w))))
+    tasks = batch.make_tasks(n, seeds, per_run, common, record=RECORD, chunk=chunk,
+                             engine=engine, fmu_dir=fmu_dir)
+    t0 = time.perf_counter()
+    res = batch.gather(batch.run_tasks(tasks, scheduler=scheduler, client=client,
+                                       workers=workers, progress=progress))
+    return res, time.perf_counter() - t0
+
+
+def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4,
+                        seed=1, Ts=1e-3, x0=0.0, P0=None, engine="batch", scheduler=None,
+                        client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
+                        progress=None):
+    """``runs`` Gaussian runs of ``n`` samples (the letter's Fig. 1 as a population).
+
+    Returns the ``montecarlo.npz`` arrays (``fig1_x``, ``fig1_z``, ``fig1_dc1``, ``fig1_dc2``,
+    ``fig1_dc3``, ``fig1_dc_empirical``, ``fig1_dc_realised``, each ``(runs, n)``), ``summary``
+    (settled fractions against the realised and empirical drift, EKF1-EKF2 gap) and
+    ``seconds``.  With ``out``: ``montecarlo.npz``, ``summary.json`` and ``fig1.png``.
+    """
+    batch.check_runs(runs)
+    params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, x0=x0, P0=P0)
+    batch.check_parameters(params)
+    common = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, Ts=Ts, x0=x0, P0=P0)
+    res, seconds = _run(n, runs, seed, {}, common, engine, scheduler, client, workers,
+                        fmu_dir, progress)
+    result = {key: res[name] for key, name in GAUSSIAN_KEYS.items()}
+    summary = summarise(res, ("realised", "empirical"), a1=a1, Q=Q, R=R, A=A)
+    summary["parameters"] = dict(params, runs=runs, engine=engine,
+                                 P0=batch.default_P0(A, Q) if P0 is None else P0)
+    summary["dc_expected"] = a2 * excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q)
+    summary["seconds"] = seconds
+    result["summary"] = summary
+    if out is not None:
+        _write(out, result, GAUSSIAN_KEYS, "fig1.png",
+               "Gaussian x, %d runs: a1=%g, a2=%g, Q=%g, R=%g, A=%g" % (runs, a1, a2, Q, R, A))
+    return result
+
+
+def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=1.0, f=150.0,
+                          Ts=1e-3, seed=1, A=0.0, Q=None, engine="batch", scheduler=None,
+                          client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
+                          progress=None):
+    """``runs`` sinusoidal runs ``x_k = X sin(2 pi f (k-1) Ts + phi_r)`` of ``n`` samples.
+
+    ``phi_r`` is :func:`simulations.batch.sine_phase` of the run's seed; the filter is the
+    scalar Gauss-Markov EKF with ``A`` (default 0) and ``Q`` (default ``X^2 / 2``).  Returns
+    ``sine_dc1`` ``(runs, n)`` and the other ``sine_*`` trajectories, ``sine_phi``,
+    ``summary`` and ``seconds``; with ``out``: ``montecarlo.npz``, ``summary.json`` and
+    ``sine.png``.
+    """
+    batch.check_runs(runs)
+    if Q is None:
+        Q = excitation.stationary_variance(excitation.SINUSOIDAL, X=X)
+    params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, X=X, f=f)
+    batch.check_parameters(params)
+    if not f < 0.5 / Ts:
+        raise ValueError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
+                         "f < %r Hz" % (f, 0.5 / Ts, 0.5 / Ts))
+    common = dict(a0=a0, a1=a1, a2=a2, R=R, Ts=Ts, X=X, f=f, kind=excitation.SINUSOIDAL,
+                  filter_A=A, filter_Q=Q)
+    res, seconds = _run(n, runs, seed, {"phi": batch.sine_phase}, common, engine, scheduler,
+                        client, workers, fmu_dir, progress)
+    result = {key: res[name] for key, name in SINE_KEYS.items()}
+    result["sine_phi"] = batch.sine_phase(batch.run_seeds(seed, runs))
+    summary = summarise(res, ("empirical", "realised"))
+    summary["parameters"] = dict(params, runs=runs, engine=engine,
+                                 filter="Gauss-Markov EKF, A = %g, Q = %g" % (A, Q))
+    summary["dc_expected"] = a2 * excitation.stationary_variance(excitation.SINUSOIDAL, X=X)
+    summary["seconds"] = seconds
+    result["summary"] = summary
+    if out is not None:
+        _write(out, result, SINE_KEYS, "sine.png",
+               "sinusoidal x, %d runs: X=%g, f=%g Hz, a1=%g, a2=%g, R=%g; filter A=%g, Q=%g"
+               % (runs, X, f, a1, a2, R, A, Q))
+    return result
+
+
+def _write(out, result, keys, figure, title):
+    arrays = {k: v for k, v in result.items() if isinstance(v, np.ndarray)}
+    with output.staged(out) as stage:
+        np.savez(stage / "montecarlo.npz", **arrays)
+        output.write_json(stage / "summary.json", result["summary"])
+        prefix = next(iter(keys)).split("_")[0]
+        plot_population(stage / figure, result, prefix, title)
+
+
+def plot_population(path, result, prefix, title):
+    """Median and 5-95 % band over the runs of each estimator's error against the realised
+    (top) and the empirical (bottom) drift, per sample."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    dcs = [result["%s_dc%d" % (prefix, i)] for i in (1, 2, 3)]
+    n = dcs[0].shape[1]
+    k = np.arange(1, n + 1)
+    fig, axes = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
+    for ax, ref in zip(axes, ("realised", "empirical")):
+        r = result["%s_dc_%s" % (prefix, ref)]
+        for i, (dc, color) in enumerate(zip(dcs, ("C0", "C1", "C2")), start=1):
+            err = dc - r
+            lo, med, hi = np.percentile(err, [5, 50, 95], axis=0)
+            ax.fill_between(k, lo, hi, color=color, alpha=0.2 if i != 2 else 0.1, lw=0)
+            ax.plot(k, med, color=color, lw=1.2, ls="--" if i == 2 else "-",
+                    label="EKF%d - %s (median, 5-95 %%)" % (i, ref))
+        ax.axhline(0.0, color="k", lw=0.8)
+        ax.axvline(SETTLE_BY, color="0.5", lw=0.8, ls=":")
+        ax.set_ylabel("drift error [V]")
+        ax.grid(True, alpha=0.3)
+        ax.legend(fontsize=8, loc="upper right")
+    axes[0].set_title(title, fontsize=9)
+    axes[1].set_xlabel("sample k")
+    axes[1].set_xlim(1, n)
+    fig.tight_layout()
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+# -- command line ---------------------------------------------------------------------------
+def add_cli(groups):
+    """``driftfmu montecarlo gaussian`` and ``driftfmu montecarlo sinusoidal``."""
+    from simulations import cli
+    mc = groups["top"].add_parser("montecarlo", help="many runs of whole trajectories "
+                                  "(the letter's Fig. 1 claims over a population)")
+    sub = mc.add_subparsers(dest="experiment", metavar="EXPERIMENT", parser_class=type(mc))
+    sub.required = True
+    g = sub.add_parser("gaussian", help="Gaussian excitation (Sec. III, Fig. 1)")
+    cli.add_params(g, ("a0", "a1", "a2", "A", "Q", "R", "runs", "n", "seed", "Ts"), runs=1000,
+                   n=1000)
+    g.add_argument("--P0", type=cli.param_type("P0"), default=None, metavar="P0",
+                   help="initial error variance of the filter [g2] (default: Q / (1 - A^2))")
+    batch.add_engine_options(g)
+    cli.add_out(g, "results/montecarlo/gaussian")
+    cli.add_fmu_dir(g)
+    g.set_defaults(func=cmd_gaussian)
+
+    s = sub.add_parser("sinusoidal", help="x = X sin(2 pi f t + phi), random phase per run")
+    cli.add_params(s, ("a0", "a1", "a2", "R", "X", "f", "runs", "n", "seed", "Ts"), runs=1000,
+                   n=1000)
+    s.add_argument("--A", type=cli.param_type("A"), default=0.0, metavar="A",
+                   help="the filter's state transition (default: 0, a white-state model)")
+    s.add_argument("--Q", type=cli.param_type("Q"), default=None, metavar="Q",
+                   help="the filter's process noise variance [g2] (default: X^2 / 2)")
+    batch.add_engine_options(s)
+    cli.add_out(s, "results/montecarlo/sinusoidal")
+    cli.add_fmu_dir(s)
+    s.set_defaults(func=cmd_sinusoidal)
+
+
+def _with_bar(args, fn, **kw):
+    from simulations import cli
+    update, bar = cli.progress_bar(args.runs, "montecarlo (%s engine)" % args.engine)
+    try:
+        return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
+                  a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
+                  scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
+                  out=args.out, progress=update, **kw)
+    finally:
+        if bar is not None:
+            bar.close()
+
+
+def cmd_gaussian(args):
+    res = _with_bar(args, montecarlo_gaussian, P0=args.P0)
+    print_summary(res["summary"], ("realised", "empirical"))
+    print("wrote %s/montecarlo.npz, summary.json, fig1.png" % args.out)
+
+
+def cmd_sinusoidal(args):
+    res = _with_bar(args, montecarlo_sinusoidal, X=args.X, f=args.f)
+    print_summary(res["summary"], ("empirical", "realised"))
+    print("wrote %s/montecarlo.npz, summary.json, sine.png" % args.out)
+
+
+def print_summary(s, references):
+    """The summary table: runs settled by sample 250, per estimator and reference; the gap."""
+    print("%d runs of n = %d samples in %.2f s; settled = within %g %% of the reference from "
+          "that sample to the end" % (s["runs"], s["n"], s["seconds"], 100 * s["band"]))
+    print("%-10s" % "estimator" + "".join(" | settled by %d vs %-9s" % (s["settle_by"], ref)
+                                          for ref in references))
+    for e in ("ekf1", "ekf2", "ekf3"):
+        print("%-10s" % e.upper() + "".join(
+            " | %5.1f %% (median k %6g)   " % (100 * s["settled_fraction"][ref][e],
+                                              s["median_settled_from"][ref][e])
+            for ref in references))
+    g = s["ekf1_ekf2_gap_db"]
+    line = ("EKF1-EKF2 gap at the last sample: mean %.4f dB, std %.4f dB, max |gap| %.4f dB "
+            "over the runs; of the run means %.4f dB" % (g["mean"], g["std"], g["max_abs"],
+                                                          g["of_means"]))
+    if "expected" in g:
+        line += " (expected 10 log10(1 + R/(a1^2 Q)) = %.4f dB)" % g["expected"]
+    print(line)

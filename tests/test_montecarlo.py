@@ -1,0 +1,112 @@
+"""``driftfmu montecarlo``: trajectories per run equal the batch engine, the settle statistic
+equals the single-run one, the letter's Fig. 1 claims over a population, files and errors."""
+import math
+
+import numpy as np
+import pytest
+
+from models import drift
+from simulations import batch, gaussian, montecarlo
+from simulations.cli import main
+
+RUNS = 50
+N = 300
+KEYS = ("fig1_x", "fig1_z", "fig1_dc1", "fig1_dc2", "fig1_dc3")
+
+
+@pytest.fixture(scope="module")
+def gauss():
+    return montecarlo.montecarlo_gaussian(runs=RUNS, n=N, seed=2, workers=2)
+
+
+@pytest.fixture(scope="module")
+def sine():
+    return montecarlo.montecarlo_sinusoidal(runs=RUNS, n=N, seed=2, workers=2)
+
+
+def test_gaussian_trajectories_are_the_batch_engines(gauss):
+    for key in KEYS:
+        assert gauss[key].shape == (RUNS, N), key
+    want = batch.simulate(N, batch.run_seeds(2, RUNS), record=montecarlo.RECORD)
+    for key, name in montecarlo.GAUSSIAN_KEYS.items():
+        assert np.array_equal(gauss[key], want[name]), key
+
+
+def test_settled_from_equals_the_single_run_statistic(gauss):
+    est, ref = gauss["fig1_dc3"][:10], gauss["fig1_dc_realised"][:10]
+    # add a row that never settles and one that is always inside the band
+    est = np.vstack([est, 2 * ref[0], ref[0]])
+    ref = np.vstack([ref, ref[0], ref[0]])
+    got = montecarlo.settled_from(est, ref)
+    want = [gaussian.settled_from(list(e), list(r)) for e, r in zip(est, ref)]
+    assert [None if g == N + 1 else int(g) for g in got] == want
+    assert want[-2] is None and want[-1] == 1
+
+
+def test_letters_fig1_claims_over_the_population(gauss):
+    s = gauss["summary"]
+    assert s["settled_fraction"]["realised"]["ekf1"] == 1.0
+    assert s["settled_fraction"]["realised"]["ekf2"] == 1.0
+    assert s["settled_fraction"]["realised"]["ekf3"] < 1.0
+    # the gap: 10 log10(1 + R/(a1^2 Q)) to within 5 standard errors over the runs plus the
+    # finite-n bias of a ratio of running means (a few per cent at n = 300)
+    g = s["ekf1_ekf2_gap_db"]
+    expected = drift.expected_gap_db(1.0, 0.01, 1e-4)
+    assert g["expected"] == expected
+    assert abs(g["mean"] - expected) < 5 * g["std"] / math.sqrt(RUNS) + 0.05 * expected
+    assert g["max_abs"] < 0.05 * 2  # "< 0.05 dB", with room for the spread of single runs
+
+
+def test_sinusoidal_runs(sine):
+    assert sine["sine_dc1"].shape == (RUNS, N)
+    phi = sine["sine_phi"]
+    assert np.all((0.0 <= phi) & (phi < 2 * math.pi)) and len(np.unique(phi)) == RUNS
+    assert phi[3] == batch.sine_phase(batch.run_seed(2, 3))
+    want = batch.simulate(N, batch.run_seeds(2, RUNS), kind=2, phi=phi, filter_A=0.0,
+                          filter_Q=0.5, record=("dc_ekf1",))
+    assert np.array_equal(sine["sine_dc1"], want["dc_ekf1"])
+    s = sine["summary"]
+    assert s["settled_fraction"]["realised"]["ekf1"] == 1.0
+    # EKF1 against the expected drift a2 X^2 / 2 at the last sample: within 5 % on every run
+    assert np.all(np.abs(sine["sine_dc1"][:, -1] / s["dc_expected"] - 1.0) < 0.05)
+
+
+def test_bad_input():
+    with pytest.raises(ValueError, match="runs = 0 is not allowed"):
+        montecarlo.montecarlo_gaussian(runs=0)
+    with pytest.raises(ValueError, match="R = 0 is out of range"):
+        montecarlo.montecarlo_gaussian(runs=2, n=5, R=0)
+    with pytest.raises(ValueError, match="Nyquist"):
+        montecarlo.montecarlo_sinusoidal(runs=2, n=5, f=600.0)
+
+
+@pytest.mark.integration
+def test_fmu_engine_equals_batch_engine(built_fmus):
+    kw = dict(runs=2, n=40, seed=9, fmu_dir=built_fmus["Excitation"].parent)
+    for fn in (montecarlo.montecarlo_gaussian, montecarlo.montecarlo_sinusoidal):
+        fmu = fn(engine="fmu", workers=2, **kw)
+        want = fn(**kw)
+        for key in want:
+            if isinstance(want[key], np.ndarray):
+                assert np.array_equal(fmu[key], want[key]), (fn.__name__, key)
+
+
+@pytest.mark.parametrize("kind, files", [("gaussian", "fig1.png"), ("sinusoidal", "sine.png")])
+def test_cli_writes_files_and_prints_the_summary(kind, files, tmp_path, capsys):
+    out = tmp_path / kind
+    assert main(["montecarlo", kind, "--runs", "20", "--n", "260", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "settled by 250" in text and "EKF1-EKF2 gap" in text
+    assert sorted(p.name for p in out.iterdir()) == sorted(["montecarlo.npz", "summary.json",
+                                                            files])
+    with np.load(out / "montecarlo.npz") as z:
+        key = "fig1_dc1" if kind == "gaussian" else "sine_dc1"
+        assert z[key].shape == (20, 260)
+
+
+@pytest.mark.parametrize("argv", [["gaussian", "--runs", "0"], ["sinusoidal", "--R", "0"],
+                                  ["gaussian", "--engine", "gpu"]])
+def test_cli_bad_options_exit_2(argv, capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["montecarlo"] + argv)
+    assert exc.value.code == 2
