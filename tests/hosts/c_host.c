@@ -1,0 +1,100 @@
+/*
+ * c_host.c - a minimal FMI 2.0 co-simulation host that is not a Python process.
+ *
+ * usage: c_host FMU_DIR MODEL_IDENTIFIER GUID VALUE_REFERENCE STEPS STEP_SIZE
+ *
+ * Loads FMU_DIR/binaries/linux64/MODEL_IDENTIFIER.so, instantiates it with debug logging off,
+ * sets up at t = 0, initialises, does STEPS steps of STEP_SIZE and prints the Real
+ * VALUE_REFERENCE as "VALUE <number>".  Log messages are printed as "LOG <status> <category>:
+ * <message>".  Exit codes: 0 ok, 2 fmi2Instantiate returned NULL, 3 a call failed, 4 the
+ * library or a function could not be loaded.
+ */
+#include <dlfcn.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+
+#include "fmi2Functions.h"
+
+static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
+                   fmi2String category, fmi2String message, ...)
+{
+    (void)env;
+    (void)name;
+    va_list args;
+    va_start(args, message);
+    printf("LOG %d %s: ", (int)status, category ? category : "");
+    vprintf(message, args);
+    printf("\n");
+    va_end(args);
+    fflush(stdout);
+}
+
+static void *lookup(void *lib, const char *name)
+{
+    void *f = dlsym(lib, name);
+    if (!f) {
+        printf("MISSING %s\n", name);
+        exit(4);
+    }
+    return f;
+}
+
+static void check(const char *call, fmi2Status status)
+{
+    if (status > fmi2Warning) {
+        printf("CALL %s returned %d\n", call, (int)status);
+        exit(3);
+    }
+}
+
+int main(int argc, char **argv)
+{
+    if (argc != 7) {
+        fprintf(stderr, "usage: %s FMU_DIR MODEL_IDENTIFIER GUID VR STEPS STEP_SIZE\n", argv[0]);
+        return 1;
+    }
+    const char *dir = argv[1], *id = argv[2], *guid = argv[3];
+    fmi2ValueReference vr = (fmi2ValueReference)strtoul(argv[4], NULL, 10);
+    int steps = atoi(argv[5]);
+    double h = strtod(argv[6], NULL);
+
+    char path[4096], resources[4096];
+    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, id);
+    snprintf(resources, sizeof resources, "file://%s/resources", dir);
+    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
+    if (!lib) {
+        printf("DLOPEN %s\n", dlerror());
+        return 4;
+    }
+    fmi2InstantiateTYPE *instantiate = lookup(lib, "fmi2Instantiate");
+    fmi2SetupExperimentTYPE *setup = lookup(lib, "fmi2SetupExperiment");
+    fmi2EnterInitializationModeTYPE *enter = lookup(lib, "fmi2EnterInitializationMode");
+    fmi2ExitInitializationModeTYPE *exit_init = lookup(lib, "fmi2ExitInitializationMode");
+    fmi2DoStepTYPE *do_step = lookup(lib, "fmi2DoStep");
+    fmi2GetRealTYPE *get_real = lookup(lib, "fmi2GetReal");
+    fmi2TerminateTYPE *terminate = lookup(lib, "fmi2Terminate");
+    fmi2FreeInstanceTYPE *free_instance = lookup(lib, "fmi2FreeInstance");
+
+    fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+    fmi2Component c = instantiate("c_host", fmi2CoSimulation, guid, resources, &callbacks,
+                                  fmi2False, fmi2False);
+    if (!c) {
+        printf("INSTANTIATE FAILED\n");
+        return 2;
+    }
+    check("fmi2SetupExperiment", setup(c, fmi2False, 0.0, 0.0, fmi2False, 0.0));
+    check("fmi2EnterInitializationMode", enter(c));
+    check("fmi2ExitInitializationMode", exit_init(c));
+    double t = 0.0;
+    for (int i = 0; i < steps; i++) {
+        check("fmi2DoStep", do_step(c, t, h, fmi2True));
+        t += h;
+    }
+    fmi2Real value;
+    check("fmi2GetReal", get_real(c, &vr, 1, &value));
+    printf("VALUE %.17g\n", value);
+    check("fmi2Terminate", terminate(c));
+    free_instance(c);
+    return 0;
+}
