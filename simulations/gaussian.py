@@ -44,8 +44,10 @@ def settled_from(estimate, reference, band=SETTLE_BAND):
     return None if last_out == len(estimate) else last_out + 1
 
 
-def compare(cols, ref, names=chain.FMU_COLUMNS, tolerance=TOLERANCE):
-    """Largest absolute difference per column; the names of the columns over ``tolerance``."""
+def compare(cols, ref, names=chain.FMU_COLUMNS, tolerance=None):
+    """Largest absolute difference per column; the names of the columns over ``tolerance``
+    (default :data:`TOLERANCE`)."""
+    tolerance = TOLERANCE if tolerance is None else tolerance
     diffs = {c: max(abs(a - b) for a, b in zip(cols[c], ref[c])) for c in names}
     bad = [c for c, d in diffs.items() if not d <= tolerance]
     return diffs, bad
