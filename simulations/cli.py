@@ -7,6 +7,7 @@ standard error and exit status 2; a failed run with one line and exit status 1.
 """
 import argparse
 import sys
+from pathlib import Path
 
 from models import parameters
 
@@ -65,8 +66,14 @@ def progress_bar(total, desc):
 
 def cmd_build(args):
     from fmu_src.builder import build_fmus
-    for path in build_fmus(args.out):
+    paths = build_fmus(args.out)
+    for path in paths:
         print(path)
+    fmus = {p.stem: p for p in map(Path, paths)}
+    if args.cross_check:
+        from fmu_src.crosscheck import write_cross_check
+        for d in write_cross_check(fmus, args.cross_check):
+            print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
 
 
 def cmd_run_gaussian(args):
@@ -113,6 +120,10 @@ def make_parser():
                        "DriftEstimator.fmu (validated with fmpy)")
     p.add_argument("--out", default="build/fmus", metavar="DIR",
                    help="output folder for the FMUs (default: build/fmus)")
+    p.add_argument("--cross-check", nargs="?", const="build/cross-check", default=None,
+                   metavar="DIR", help="also write FMI cross-check folders (FMU, input, "
+                   "reference result, options, ReadMe) under DIR/fmus/2.0/cs/linux64/driftfmu/ "
+                   "(DIR default: build/cross-check)")
     p.set_defaults(func=cmd_build)
 
     run = sub.add_parser("run", help="co-simulate the FMUs with an fmpy master")
