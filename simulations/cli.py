@@ -74,6 +74,10 @@ def cmd_build(args):
         from fmu_src.crosscheck import write_cross_check
         for d in write_cross_check(fmus, args.cross_check):
             print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
+    if args.ssp:
+        from fmu_src.ssp import build_ssp
+        print("%s (SSP: the wired chain, start values of the letter's Gaussian run)"
+              % build_ssp(fmus, args.ssp))
 
 
 def cmd_run_gaussian(args):
@@ -124,6 +128,9 @@ def make_parser():
                    metavar="DIR", help="also write FMI cross-check folders (FMU, input, "
                    "reference result, options, ReadMe) under DIR/fmus/2.0/cs/linux64/driftfmu/ "
                    "(DIR default: build/cross-check)")
+    p.add_argument("--ssp", nargs="?", const="build/DriftChain.ssp", default=None,
+                   metavar="FILE", help="also write the wired chain as an SSP archive "
+                   "(default: build/DriftChain.ssp)")
     p.set_defaults(func=cmd_build)
 
     run = sub.add_parser("run", help="co-simulate the FMUs with an fmpy master")

@@ -1,0 +1,218 @@
+"""The wired chain Excitation -> Accelerometer -> DriftEstimator as an SSP 1.0 archive.
+
+``DriftChain.ssp`` holds ``SystemStructure.ssd`` and the three FMUs under ``resources/``.  The
+SSD declares each FMU's outputs, its connected inputs and its bound parameters as connectors
+(unconnected inputs keep their start values and get no connector), the two
+connections of the master (``Excitation.x -> Accelerometer.x``, ``Accelerometer.z ->
+DriftEstimator.z``), the start values of the letter's Gaussian run as an inline parameter set
+on each component (SSV 1.0), and the default experiment (``stopTime = (n - 1) Ts``).  SSP has no
+standard element for the communication step: use ``Ts`` (the ``description`` of the system
+says so).
+
+Stepping in an SSP master.  fmpy's ``fmpy.ssp.simulation.simulate_ssp`` (like libcosim's and
+Ecos' fixed-step algorithms) is a Jacobi master: every FMU is stepped with the inputs copied at
+the previous point, its outputs are read right after its step, and only then are outputs copied
+along the connections.  Each connection therefore delays its signal by one communication step
+(zero-order hold), which our own master avoids by copying outputs along the connections in
+order at each point (simulations/cosim.py).  For this chain the delay is not a plain shift of
+our master's rows: the sensor's noise follows the FMU's own sample counter while its input
+arrives one step late.  Row ``i`` of ``simulate_ssp`` (time label ``t_i``; the values are those
+after the step from ``t_i``) holds exactly, with ``x_k`` and ``v_k`` the excitation and
+measurement-noise samples of our master:
+
+* ``Excitation.x = x_{i+2}`` (our master's row ``i + 1``);
+* ``Accelerometer.z = a0 + a1 u + a2 u^2 + sqrt(R) v_{i+2}`` with ``u = x_{i+1}`` (``u = 0``,
+  the connectors' initial value, in row 0);
+* the DriftEstimator has been updated with the measurements ``0, z~_0, z~_1, ...`` (``z~_i`` the
+  Accelerometer's row ``i``), one row late, and shows the next update with the last one held.
+
+:func:`jacobi_reference` computes these rows from models/; tests/test_ssp.py checks
+``simulate_ssp`` against it to 1e-12 and the ``x`` column against our master's rows shifted by
+one.  To get our master's results from the same FMUs, run ``driftfmu run gaussian`` (or any
+master that propagates outputs along the connections in order before reading them).
+"""
+import shutil
+import tempfile
+import xml.etree.ElementTree as ET
+import zipfile
+from pathlib import Path
+
+from models import chain, drift, excitation, sensor
+
+NS = {
+    "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
+    "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
+    "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+}
+SYSTEM = "DriftChain"
+FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
+CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
+               ("Accelerometer", "z", "DriftEstimator", "z"))
+DRIFT_OUTPUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp")
+
+for _prefix, _uri in NS.items():
+    ET.register_namespace(_prefix, _uri)
+
+
+def chain_start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,
+                       x0=0.0, P0=None, estimator=1):
+    """Start values of the three FMUs for the letter's Gaussian run, as our master sets them
+    (simulations/gaussian.py); ``P0`` defaults to ``Q / (1 - A^2)``."""
+    if P0 is None:
+        P0 = Q / (1.0 - A * A)
+    model = dict(a0=a0, a1=a1, a2=a2, R=R)
+    return {
+        "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed),
+        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
+        "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator),
+    }
+
+
+def _q(prefix, tag):
+    return "{%s}%s" % (NS[prefix], tag)
+
+
+def system_structure(fmus, start_values, n, Ts):
+    """The ``SystemStructure.ssd`` element tree of the chain."""
+    from fmpy import read_model_description
+
+    root = ET.Element(_q("ssd", "SystemStructureDescription"),
+                      {"version": "1.0", "name": SYSTEM})
+    system = ET.SubElement(root, _q("ssd", "System"), {
+        "name": SYSTEM,
+        "description": "Excitation -> Accelerometer -> DriftEstimator (Chorti et al. 2006), "
+                       "fixed communication step Ts = %r s" % Ts})
+    elements = ET.SubElement(system, _q("ssd", "Elements"))
+    for name in FMU_NAMES:
+        md = read_model_description(str(fmus[name]))
+        types = {v.name: v.type for v in md.modelVariables}
+        starts = start_values.get(name, {})
+        comp = ET.SubElement(elements, _q("ssd", "Component"), {
+            "name": name, "type": "application/x-fmu-sharedlibrary",
+            "source": "resources/%s.fmu" % name})
+        connectors = ET.SubElement(comp, _q("ssd", "Connectors"))
+        wired = {(d, i) for _, _, d, i in CONNECTIONS}
+        for v in md.modelVariables:
+            # an input no connection feeds gets no connector: fmpy (0.3.32) would wire it to
+            # the source of the previous input (get_connections keeps a stale start path)
+            if v.causality == "output" or v.name in starts or (name, v.name) in wired:
+                c = ET.SubElement(connectors, _q("ssd", "Connector"),
+                                  {"name": v.name, "kind": v.causality})
+                ET.SubElement(c, _q("ssc", v.type))
+        if starts:
+            binding = ET.SubElement(ET.SubElement(comp, _q("ssd", "ParameterBindings")),
+                                    _q("ssd", "ParameterBinding"))
+            pset = ET.SubElement(ET.SubElement(binding, _q("ssd", "ParameterValues")),
+                                 _q("ssv", "ParameterSet"), {"version": "1.0", "name": name})
+            params = ET.SubElement(pset, _q("ssv", "Parameters"))
+            for var, value in starts.items():
+                p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": var})
+                text = str(int(value)) if types[var] == "Integer" else repr(float(value))
+                ET.SubElement(p, _q("ssv", types[var]), {"value": text})
+    conns = ET.SubElement(system, _q("ssd", "Connections"))
+    for s, o, d, i in CONNECTIONS:
+        ET.SubElement(conns, _q("ssd", "Connection"), {
+            "startElement": s, "startConnector": o, "endElement": d, "endConnector": i})
+    ET.SubElement(root, _q("ssd", "DefaultExperiment"),
+                  {"startTime": "0.0", "stopTime": repr((n - 1) * Ts)})
+    return ET.ElementTree(root)
+
+
+def build_ssp(fmus, out="build/DriftChain.ssp", start_values=None, n=2000, Ts=1e-3):
+    """Write the SSP archive of the chain; return its path.
+
+    Parameters
+    ----------
+    fmus : dict
+        FMU name -> path of the built ``.fmu`` (Excitation, Accelerometer, DriftEstimator).
+    out : path
+        The ``.ssp`` to write (replaced whole: written to a temporary file, then moved).
+    start_values : dict, optional
+        FMU name -> {parameter: value}; default :func:`chain_start_values`.
+    n, Ts : int, float
+        Samples and sample period of the default experiment.
+    """
+    out = Path(out)
+    out.parent.mkdir(parents=True, exist_ok=True)
+    start_values = chain_start_values(Ts=Ts) if start_values is None else start_values
+    tree = system_structure(fmus, start_values, n, Ts)
+    with tempfile.NamedTemporaryFile(dir=out.parent, suffix=".ssp.part", delete=False) as tmp:
+        part = Path(tmp.name)
+    try:
+        with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
+            z.writestr("SystemStructure.ssd",
+                       ET.tostring(tree.getroot(), encoding="utf-8", xml_declaration=True))
+            for name in FMU_NAMES:
+                z.write(fmus[name], "resources/%s.fmu" % name)
+        shutil.move(str(part), str(out))
+    finally:
+        part.unlink(missing_ok=True)
+    return out
+
+
+def parameter_set(ssp):
+    """The SSD's inline start values as one fmpy ``ParameterSet`` named ``<Component>.<var>``.
+
+    fmpy reads the SSD's ParameterBindings but ``simulate_ssp`` applies only a parameter set
+    passed to it, with names prefixed by the component: this builds that set.
+    """
+    from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
+
+    ssd = read_ssd(str(ssp))
+    merged = ParameterSet(name=SYSTEM)
+    for comp in find_components(ssd.system):
+        for binding in comp.parameterBindings:
+            for pset in binding.parameterValues:
+                for p in pset.parameters:
+                    q = Parameter(name="%s.%s" % (comp.name, p.name))
+                    q.type, q.value = p.type, p.value
+                    merged.parameters.append(q)
+    return merged
+
+
+def simulate(ssp, n, Ts=1e-3):
+    """Simulate ``n`` rows of the archive with ``fmpy.ssp.simulation.simulate_ssp``, its start
+    values applied; returns fmpy's structured array (columns ``<Component>.<connector>``)."""
+    from fmpy.ssp.simulation import simulate_ssp
+
+    # simulate_ssp makes rows at t = 0, Ts, ... while t < stop_time (t summed step by step)
+    return simulate_ssp(str(ssp), start_time=0.0, stop_time=(n - 0.5) * Ts, step_size=Ts,
+                        parameter_set=parameter_set(ssp))
+
+
+def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,
+                     x0=0.0, P0=None, estimator=1):
+    """What a Jacobi master such as fmpy's ``simulate_ssp`` shows for the chain, from models/.
+
+    Returns ``{"time", "<Component>.<connector>": list}`` for the rows ``i = 0 .. n-1`` (see
+    the module docstring for the timing): the Excitation's ``x``, the Accelerometer's input
+    ``x`` and output ``z``, the DriftEstimator's input ``z`` and its outputs.
+    """
+    if P0 is None:
+        P0 = Q / (1.0 - A * A)
+    xs = chain.simulate(n + 1, seed, a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0, P0=P0,
+                        Ts=Ts)["x"]          # x_1 .. x_{n+1}
+    cols = {c: [] for c in ("time", "Excitation.x", "Accelerometer.x", "Accelerometer.z",
+                            "DriftEstimator.z") + tuple("DriftEstimator." + c
+                                                        for c in DRIFT_OUTPUTS)}
+    u_acc = u_est = 0.0                      # the connectors start at 0
+    committed = chain.estimator_init(x0, P0)
+    t = 0.0
+    for i in range(n):
+        x = xs[i + 1]                        # x_{i+2}
+        z = sensor.measure(u_acc, a0, a1, a2, R, sensor.measurement_noise(seed, i + 2))
+        committed = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R)
+        shown = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R)
+        dcs = drift.estimates(shown.drift, a2)
+        dc = drift.select(dcs, estimator)
+        values = (shown.x, shown.P) + tuple(dcs) + (dc, chain.compensate(u_est, dc))
+        u_acc, u_est = x, z                  # the connections, after every FMU has stepped
+        cols["time"].append(t)
+        cols["Excitation.x"].append(x)
+        cols["Accelerometer.x"].append(u_acc)
+        cols["Accelerometer.z"].append(z)
+        cols["DriftEstimator.z"].append(u_est)
+        for c, v in zip(DRIFT_OUTPUTS, values):
+            cols["DriftEstimator." + c].append(v)
+        t += Ts                              # as simulate_ssp advances its clock
+    return cols

@@ -1,0 +1,77 @@
+"""The chain as an SSP archive: schema-valid, loaded and simulated by fmpy's SSP support.
+
+fmpy's ``simulate_ssp`` is a Jacobi master (each connection delays its signal by one step, see
+fmu_src/ssp.py); its rows are compared to 1e-12 with :func:`fmu_src.ssp.jacobi_reference`, and
+the signal no connection feeds (the excitation) with our master's rows shifted by one.
+"""
+import zipfile
+
+import pytest
+
+from fmu_src import ssp
+from simulations.cli import main
+from simulations.gaussian import run_gaussian
+
+pytestmark = pytest.mark.integration
+
+N = 200
+TOLERANCE = 1e-12
+
+
+@pytest.fixture(scope="module")
+def archive(built_fmus, tmp_path_factory):
+    return ssp.build_ssp(built_fmus, tmp_path_factory.mktemp("ssp") / "DriftChain.ssp", n=N)
+
+
+def _max_diff(a, b):
+    assert len(a) == len(b), (len(a), len(b))
+    return max(abs(float(x) - float(y)) for x, y in zip(a, b))
+
+
+def test_archive_is_schema_valid_and_holds_the_wired_chain(archive):
+    from fmpy.ssp.ssd import find_components, get_connections, read_ssd
+    ssd = read_ssd(str(archive))                       # validates against the SSP 1.0 schema
+    comps = find_components(ssd.system)
+    assert [c.name for c in comps] == list(ssp.FMU_NAMES)
+    assert [c.source for c in comps] == ["resources/%s.fmu" % n for n in ssp.FMU_NAMES]
+    links = {(a.parent.name, a.name, b.parent.name, b.name)
+             for a, b in get_connections(ssd.system)}
+    assert links == set(ssp.CONNECTIONS)
+    with zipfile.ZipFile(archive) as z:
+        assert {"resources/%s.fmu" % n for n in ssp.FMU_NAMES} <= set(z.namelist())
+    values = {p.name: p.value for p in ssp.parameter_set(archive).parameters}
+    assert values["Excitation.seed"] == "1" and float(values["DriftEstimator.P0"]) == 0.01
+
+
+def test_fmpy_simulates_the_archive_as_the_jacobi_reference(archive, built_fmus):
+    res = ssp.simulate(archive, N)
+    ref = ssp.jacobi_reference(N)
+    assert len(res) == N
+    diffs = {c: _max_diff(res[c], ref[c]) for c in ref}
+    assert max(diffs.values()) <= TOLERANCE, diffs
+    # the excitation is fed by no connection: our master's rows, one row later
+    master = run_gaussian(n=N + 1, fmu_dir=built_fmus["Excitation"].parent,
+                          plot=False)["columns"]
+    assert _max_diff(res["Excitation.x"], master["x"][1:]) <= TOLERANCE
+    # the connections delay z by one step: not our master's z (documented, not hidden)
+    assert _max_diff(res["Accelerometer.z"], master["z"][1:]) > 1e-6
+
+
+def test_start_values_in_the_archive_are_applied(built_fmus, tmp_path):
+    params = dict(a2=0.02, A=0.5, Q=0.02, R=2e-4, seed=7, estimator=2)
+    path = ssp.build_ssp(built_fmus, tmp_path / "other.ssp", n=50,
+                         start_values=ssp.chain_start_values(**params))
+    res = ssp.simulate(path, 50)
+    ref = ssp.jacobi_reference(50, **params)
+    diffs = {c: _max_diff(res[c], ref[c]) for c in ref}
+    assert max(diffs.values()) <= TOLERANCE, diffs
+    assert _max_diff(res["Excitation.x"], ssp.jacobi_reference(50)["Excitation.x"]) > 1e-3
+
+
+def test_cli_build_writes_the_archive(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    assert main(["build", "--out", "fmus", "--ssp"]) == 0
+    assert (tmp_path / "build" / "DriftChain.ssp").is_file()
+    assert main(["build", "--out", "fmus", "--ssp", "chain.ssp"]) == 0
+    assert (tmp_path / "chain.ssp").is_file()
+    assert "SSP" in capsys.readouterr().out
