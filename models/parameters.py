@@ -34,6 +34,26 @@ PARAMETERS = {p.name: p for p in (
     _p("seed", 1, 0, 2 ** 31 - 1, description="seed of the counter-based noise generator"),
     _p("n", 2000, 1, unit="1", description="number of samples"),
     _p("runs", 1, 1, unit="1", description="number of Monte-Carlo runs"),
+    # -- sinusoidal excitation's second axis, the ADXL203 stand-in, the harmonic filter -------
+    _p("Xy", 0.0, 0.0, unit="g", description="amplitude of the second-axis acceleration "
+       "y = Xy sin(2 pi f t + phiy)"),
+    _p("phiy", 0.0, unit="rad", description="phase of the second-axis acceleration"),
+    _p("a3", 0.0, unit="V/g3", description="third-order coefficient a3 of the accelerometer "
+       "(0: off)"),
+    _p("cross", 0.0, -1.0, 1.0, description="cross-axis coupling: each axis senses its own "
+       "acceleration plus cross times the other's (0: off)"),
+    _p("fc", 0.0, 0.0, unit="Hz", description="output low-pass bandwidth f-3dB = 5 uF / C "
+       "(0: off)"),
+    _p("Vs", 0.0, 0.0, 6.0, unit="V", description="supply voltage of the ratiometric output: "
+       "zero-g Vs/2, sensitivity scaled like the datasheet's (0: off, a0 and a1 as given)"),
+    _p("bits", 0, 0, 24, description="ADC resolution over [0, Vs) or [0, 5 V) (0: off)"),
+    _p("density", 0.0, 0.0, unit="g/sqrt(Hz)", description="noise density; sigma = density "
+       "sqrt(fs/2) replaces R (0: off, noise from R)"),
+    _p("axes", 1, 1, 2, description="accelerometer axes: 1 x only, 2 x and y"),
+    _p("process", 1, 1, 2, description="process model of the filter: 1 Gauss-Markov "
+       "(A, Q), 2 harmonic oscillator at f (Qh)"),
+    _p("Qh", 1e-8, 0.0, unit="g2", description="process noise variance per component and "
+       "sample of the harmonic oscillator model"),
 )}
 
 

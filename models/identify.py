@@ -1,0 +1,183 @@
+"""Identification of the filter's 2nd-order model ``a0, a1, a2, R`` from sets with a known drive.
+
+Method: harmonic analysis (linear least squares on the harmonics of the drive), not a least-squares
+fit of ``z`` on ``x`` sample by sample.  For each set of samples ``(t_k, x_k, z_k)`` over a whole
+number of periods of the drive frequency ``f``:
+
+1. the drive: ``x_k ~ X sin(theta_k)``, ``theta_k = 2 pi f t_k + phi``, by least squares on
+   ``(sin, cos)(2 pi f t_k)`` -- amplitude ``X`` and phase ``phi``;
+2. the output: ``z_k ~ c_0 + sum_{j=1,2} (alpha_j sin(j theta_k) + beta_j cos(j theta_k))`` by
+   least squares (over whole periods the regressors are orthogonal, so this is the DFT at the
+   harmonics);
+3. for ``z = a0 + a1 x + a2 x^2`` with ``x = X sin(theta)``,
+   ``z = a0 + a2 X^2/2 + a1 X sin(theta) - (a2 X^2/2) cos(2 theta)``; a delay between drive
+   and output (the part's output filter, the mount) rotates harmonic ``j`` by ``j phi_1``, where
+   ``phi_1 = atan2(-beta_1, alpha_1)`` is the measured lag of the fundamental.  So
+
+   .. math::
+
+       a_1 = \\sqrt{\\alpha_1^2 + \\beta_1^2} / X, \\qquad
+       a_2 = -\\frac{2}{X^2} (\\beta_2 \\cos 2\\phi_1 + \\alpha_2 \\sin 2\\phi_1), \\qquad
+       a_0 = c_0 - a_2 X^2 / 2
+
+   (``a1`` taken positive: the lag is below 90 degrees);
+4. ``R`` = variance of the residual of that 2nd-order fit (``N - 5`` degrees of freedom): what the
+   2nd-order model leaves unexplained, noise and quantisation plus higher harmonics (a cubic
+   term's), is what the filter must treat as measurement noise.
+
+Why: (a) a delay ``phi_1`` between drive and output puts ``a1 X sin(phi_1)`` in quadrature with
+the drive; a sample-by-sample fit of ``z`` on ``x`` reads it as noise, inflating ``R`` by
+``(a1 X sin phi_1)^2 / 2`` (for the ADXL203 stand-in at 200 Hz behind its 1064 Hz filter that is
+over 1000 times the true noise variance) and biasing ``a1`` by ``cos phi_1``; per-harmonic
+amplitudes and phases are immune.  (b) With one drive amplitude, ``a0`` and ``a2 X^2/2`` both
+sit in the mean of ``z``; the second harmonic separates them.  (c) The errors are known in closed
+form: for white noise of variance ``s^2`` over ``N`` samples in whole periods,
+``var(c_0) = s^2/N`` and ``var(alpha_j) = var(beta_j) = 2 s^2/N``, hence
+``sd(a1) = sqrt(2/N) s / X``, ``sd(a2) = 2 sqrt(2/N) s / X^2``, ``sd(a0) = sqrt(3/N) s``,
+``sd(R) = sqrt(2/N) s^2`` (see :func:`standard_errors`), which the tests use as tolerances.
+
+Sets are fitted one by one and the fits averaged (the letter's "one averaged 2nd-order model").
+Runs on NumPy (it is analysis, not an FMU's step).
+"""
+import math
+from collections import namedtuple
+
+Fit = namedtuple("Fit", "a0 a1 a2 R X phi lag samples")
+
+#: Columns a recording must have.
+CSV_COLUMNS = ("time", "x", "z")
+
+
+def whole_periods(n, f, Ts, rtol=1e-9):
+    """Largest ``m <= n`` such that ``m`` samples span a whole number of periods of ``f``
+    (``m f Ts`` an integer to ``rtol``); when no such ``m`` exists (an irrational ratio), the
+    samples in ``floor(n f Ts)`` periods, rounded.  At least 1."""
+    periods_per_sample = f * Ts
+    for m in range(n, 0, -1):
+        p = m * periods_per_sample
+        if p >= 1.0 and abs(p - round(p)) <= rtol * max(1.0, p):
+            return m
+        if n - m > 1000 and p < math.floor(n * periods_per_sample):
+            break
+    whole = math.floor(n * periods_per_sample)
+    return max(1, min(n, int(round(whole / periods_per_sample)))) if whole else n
+
+
+def _basis(theta, harmonics):
+    import numpy as np
+    cols = [np.ones_like(theta)]
+    for j in range(1, harmonics + 1):
+        cols += [np.sin(j * theta), np.cos(j * theta)]
+    return np.column_stack(cols)
+
+
+def fit_set(t, x, z, f, skip=0):
+    """Harmonic analysis of one set: a :class:`Fit` of ``z = a0 + a1 x + a2 x^2 + v``.
+
+    ``t, x, z`` are sequences of equal length (``x`` the known drive, ``z`` the output), ``f``
+    the drive frequency [Hz].  The first ``skip`` samples are left out (a start transient, e.g.
+    of a simulated output filter; 0 for a recording of a part already running); of the rest,
+    only the samples in a whole number of periods are used.
+    """
+    import numpy as np
+    t, x, z = (np.asarray(a, dtype=float)[skip:] for a in (t, x, z))
+    Ts = (t[-1] - t[0]) / (len(t) - 1)
+    m = whole_periods(len(t), f, Ts)
+    t, x, z = t[:m], x[:m], z[:m]
+    w = 2.0 * math.pi * f * (t - t[0])
+    (s, c), *_ = np.linalg.lstsq(np.column_stack([np.sin(w), np.cos(w)]), x, rcond=None)
+    X = math.hypot(s, c)
+    if not X > 0.0:
+        raise ValueError("the drive x has no component at f = %r Hz; allowed: a sinusoidal "
+                         "drive at the given frequency" % (f,))
+    phi = math.atan2(c, s)
+    B = _basis(w + phi, 2)
+    coef, *_ = np.linalg.lstsq(B, z, rcond=None)
+    c0, al1, be1, al2, be2 = coef
+    lag = math.atan2(-be1, al1)
+    a1 = math.hypot(al1, be1) / X
+    a2 = -2.0 / (X * X) * (be2 * math.cos(2 * lag) + al2 * math.sin(2 * lag))
+    a0 = c0 - a2 * X * X / 2.0
+    resid = z - B @ coef
+    R = float(resid @ resid) / max(1, m - B.shape[1])
+    return Fit(float(a0), float(a1), float(a2), R, X, phi, lag, m)
+
+
+def average(fits):
+    """The averaged model ``{a0, a1, a2, R}`` of a list of :class:`Fit` (plain means), with the
+    spread (sample standard deviation) of each and the number of sets."""
+    import numpy as np
+    out = {"sets": len(fits)}
+    for name in ("a0", "a1", "a2", "R"):
+        v = np.array([getattr(fi, name) for fi in fits])
+        out[name] = float(v.mean())
+        out["sd_" + name] = float(v.std(ddof=1)) if len(v) > 1 else 0.0
+    return out
+
+
+def standard_errors(sigma, X, n):
+    """Standard errors of one set's fit for white noise ``sigma`` over ``n`` samples."""
+    return {"a0": math.sqrt(3.0 / n) * sigma, "a1": math.sqrt(2.0 / n) * sigma / X,
+            "a2": 2.0 * math.sqrt(2.0 / n) * sigma / (X * X),
+            "R": math.sqrt(2.0 / n) * sigma * sigma}
+
+
+def read_csv(path):
+    """A recording ``time, x, z`` (header row; extra columns ignored) as three float arrays.
+
+    Raises ValueError naming the file and the problem: missing columns, a value that is not a
+    finite number (row and column), fewer than 3 rows, or time not strictly increasing.
+    """
+    import csv
+
+    import numpy as np
+    path = str(path)
+    try:
+        with open(path, newline="") as fh:
+            rows = list(csv.reader(fh))
+    except OSError as exc:
+        raise ValueError("%s: cannot be read (%s)" % (path, exc.strerror or exc)) from None
+    if not rows:
+        raise ValueError("%s: empty file; allowed: a header row with columns %s, then numbers"
+                         % (path, ", ".join(CSV_COLUMNS)))
+    header = [h.strip() for h in rows[0]]
+    missing = [c for c in CSV_COLUMNS if c not in header]
+    if missing:
+        raise ValueError("%s: missing column(s) %s (found %s); allowed: a header with columns "
+                         "%s" % (path, ", ".join(missing), ", ".join(header) or "none",
+                                 ", ".join(CSV_COLUMNS)))
+    idx = [header.index(c) for c in CSV_COLUMNS]
+    data = []
+    for r, row in enumerate(rows[1:], start=2):
+        if not row or all(not cell.strip() for cell in row):
+            continue
+        values = []
+        for name, i in zip(CSV_COLUMNS, idx):
+            cell = row[i].strip() if i < len(row) else ""
+            try:
+                v = float(cell)
+            except ValueError:
+                v = math.nan
+            if not math.isfinite(v):
+                raise ValueError("%s: line %d, column %s: %r is not a finite number; allowed: "
+                                 "finite numbers only" % (path, r, name, cell))
+            values.append(v)
+        data.append(values)
+    if len(data) < 3:
+        raise ValueError("%s: %d data row(s); allowed: at least 3" % (path, len(data)))
+    arr = np.array(data)
+    if not np.all(np.diff(arr[:, 0]) > 0):
+        raise ValueError("%s: time is not strictly increasing; allowed: uniformly sampled, "
+                         "increasing time" % path)
+    return arr[:, 0], arr[:, 1], arr[:, 2]
+
+
+def sample_period(t, rtol=1e-6):
+    """The sample period of uniformly sampled times ``t``; ValueError when not uniform."""
+    import numpy as np
+    d = np.diff(np.asarray(t, dtype=float))
+    Ts = float(d.mean())
+    if np.max(np.abs(d - Ts)) > rtol * Ts + 1e-12:
+        raise ValueError("time is not uniformly sampled (steps from %g to %g s); allowed: "
+                         "uniform sampling" % (d.min(), d.max()))
+    return Ts
