@@ -1,4 +1,5 @@
-"""Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal."""
+"""Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
+second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; 0 when Gaussian)."""
 from pythonfmu import Fmi2Slave  # noqa: F401  (pythonfmu's builder looks for Fmi2Slave here)
 
 from fmu_src.slave_base import SlaveBase, default_experiment, var
@@ -17,9 +18,13 @@ class Excitation(SlaveBase):
         var("X", "parameter"),
         var("f", "parameter"),
         var("phi", "parameter"),
+        var("Xy", "parameter"),
+        var("phiy", "parameter"),
         var("Ts", "parameter"),
         var("seed", "parameter", type="Integer"),
         var("x", "output", start=0.0, unit="g", description="true acceleration x_k"),
+        var("y", "output", start=0.0, unit="g",
+            description="second-axis acceleration y_k = Xy sin(2 pi f t_k + phiy) (0 if Gaussian)"),
     )
     default_experiment = default_experiment(2000, 1e-3)
 
@@ -35,9 +40,16 @@ class Excitation(SlaveBase):
             return excitation.gaussian_sample(x_prev, self.A, self.Q, self.seed, k)
         return excitation.sine(k, self.X, self.f, self.Ts, self.phi)
 
+    def _sample_y(self, k):
+        if self.kind == excitation.GAUSSIAN:
+            return 0.0
+        return excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy)
+
     def start(self):
         self.x = self._sample(self.x0, 1)
+        self.y = self._sample_y(1)
 
     def advance(self, m):
         for i in range(1, m + 1):
             self.x = self._sample(self.x, self.k + i)
+        self.y = self._sample_y(self.k + m)
