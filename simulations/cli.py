@@ -110,7 +110,8 @@ def cmd_run_gaussian(args):
 
 #: Modules that add their own sub-commands: each has ``add_cli(groups)`` taking the dict
 #: ``{"top": <sub-parsers of driftfmu>, "run": <sub-parsers of driftfmu run>}``.
-PLUGINS = ("simulations.doctor", "simulations.sweep", "simulations.montecarlo")
+PLUGINS = ("simulations.doctor", "simulations.sweep", "simulations.montecarlo",
+           "simulations.sinusoidal", "simulations.adxl203")
 
 
 def make_parser():

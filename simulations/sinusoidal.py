@@ -1,0 +1,216 @@
+"""Sinusoidal excitation (the letter's Sec. IV drive) as an FMU co-simulation.
+
+Excitation (``x = X sin(2 pi f t + phi)``, and ``y`` for the second axis) -> Accelerometer ->
+DriftEstimator, fixed step ``Ts``, one row per sample.  The filter's process model is the letter's
+Gauss-Markov one (``process = 1``, ``A``, ``Q``) or a harmonic oscillator at ``f``
+(``process = 2``, ``Qh``).  With ``preset="adxl203"`` the accelerometer is the ADXL203 stand-in of
+:mod:`models.adxl203`, and the filter gets that part's nominal quadratic model.
+
+The master checks the FMUs against :func:`models.adxl203.simulate` on the same seed, sample by
+sample, and reports the drift estimates against the references: the expected drift
+``a2 E[u^2]`` (``a2 X^2 / 2`` for one axis), the realised drift and the empirical drift
+``z̄ - a0`` over the largest whole number of periods, which is the natural reference here.
+"""
+import math
+
+from models import adxl203, chain, drift, excitation, harmonic, identify, parameters
+from simulations import output
+from simulations.cosim import cosimulate
+from simulations.gaussian import TOLERANCE, ValidationError, compare, fmu_paths, settled_from
+
+CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
+               ("Excitation", "y", "Accelerometer", "y"),
+               ("Accelerometer", "z", "DriftEstimator", "z"))
+RECORD = {"Excitation": ["x", "y"], "Accelerometer": ["z", "z_y"],
+          "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
+FMU_COLUMNS = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
+               "z_comp")
+
+
+def check_frequency(f, Ts):
+    """ValueError unless ``0 < f < 1 / (2 Ts)``."""
+    nyquist = 0.5 / Ts
+    if not 0.0 < f < nyquist:
+        raise ValueError("f = %r Hz is not allowed at Ts = %r s; allowed: 0 < f < 1/(2 Ts) = "
+                         "%r Hz (the Nyquist rate)" % (f, Ts, nyquist))
+
+
+def nominal_model(sensor_values, Ts):
+    """The quadratic model ``a0, a1, a2, R`` a filter should use for a sensor: its effective
+    zero-g level and coefficients, and the output noise variance (behind the low-pass, plus the
+    ADC's ``lsb^2 / 12``)."""
+    cfg = adxl203.config(Ts=Ts, **{k: v for k, v in sensor_values.items() if k != "Ts"})
+    if cfg.plain:
+        return dict(a0=cfg.a0, a1=cfg.a1, a2=cfg.a2, R=cfg.R)
+    var = cfg.sigma ** 2
+    if cfg.alpha is not None:
+        var *= (1.0 - cfg.alpha) / (1.0 + cfg.alpha)
+    var += cfg.lsb ** 2 / 12.0
+    return dict(a0=cfg.a0, a1=cfg.a1, a2=cfg.a2, R=var)
+
+
+def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a0=0.0, a1=1.0,
+                   a2=0.01, R=1e-4, process=harmonic.HARMONIC, Qh=None, A=0.0, Q=None, P0=None,
+                   x0=0.0, estimator=1, preset=None, sensor=None, Xy=0.0, phiy=0.0,
+                   fmu_dir="build/fmus", progress=None, plot=True):
+    """Co-simulate the three FMUs under sinusoidal excitation; optionally write the results.
+
+    Parameters
+    ----------
+    X, f, phi : float
+        Amplitude [g], frequency [Hz] and phase [rad] of ``x``; ``Xy``, ``phiy`` of ``y``.
+    a0, a1, a2, R : float
+        The quadratic sensor, also the filter's model (ignored with ``preset``: the filter then
+        takes the preset part's nominal model, see :func:`nominal_model`).
+    process : int
+        Filter process model: 1 Gauss-Markov (``A``, ``Q``; ``Q`` defaults to ``X^2 / 2``),
+        2 harmonic at ``f`` (``Qh``, default from models.parameters).
+    P0 : float, optional
+        Initial error variance, default ``X^2 / 2``.
+    preset : str, optional
+        ``"adxl203"``: the accelerometer is the ADXL203 stand-in.
+    sensor : dict, optional
+        Further accelerometer parameters (``a3``, ``cross``, ``fc``, ``Vs``, ``bits``,
+        ``density``, ``axes``) over the preset.
+
+    Returns
+    -------
+    dict
+        ``columns`` (the results table as lists) and ``summary``.
+
+    Raises
+    ------
+    ValueError
+        A parameter is out of range or ``f`` is at or above the Nyquist rate; nothing is written.
+    ValidationError
+        An FMU output differs from models/ by more than ``TOLERANCE``; nothing is written.
+    """
+    Qh = parameters.PARAMETERS["Qh"].default if Qh is None else Qh
+    Q = X * X / 2.0 if Q is None else Q
+    P0 = X * X / 2.0 if P0 is None else P0
+    sp = dict(a0=a0, a1=a1, a2=a2, R=R)
+    if preset is not None:
+        if preset not in adxl203.PRESETS:
+            raise ValueError("preset = %r is not known; allowed: %s"
+                             % (preset, ", ".join(sorted(adxl203.PRESETS))))
+        sp.update(adxl203.PRESETS[preset])
+    sp.update(sensor or {})
+    sp.update(seed=seed, Ts=Ts, noise=1)
+    params = dict(X=X, f=f, phi=phi, Xy=Xy, phiy=phiy, Ts=Ts, n=n, seed=seed, Qh=Qh, A=A, Q=Q,
+                  P0=P0, x0=x0, process=process)
+    problems = parameters.check(params) + adxl203.check(sp)
+    if problems:
+        raise ValueError("; ".join(problems))
+    if estimator not in (1, 2, 3):
+        raise ValueError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
+    check_frequency(f, Ts)
+    model = nominal_model(sp, Ts) if preset is not None else dict(a0=a0, a1=a1, a2=a2, R=R)
+    start = {
+        "Excitation": dict(kind=excitation.SINUSOIDAL, X=X, f=f, phi=phi, Xy=Xy, phiy=phiy,
+                           Ts=Ts, seed=seed),
+        "Accelerometer": sp,
+        "DriftEstimator": dict(model, process=process, f=f, Qh=Qh, A=A, Q=Q, x0=x0, P0=P0,
+                               Ts=Ts, estimator=estimator),
+    }
+    raw = cosimulate(fmu_paths(fmu_dir), CONNECTIONS, n, Ts, start_values=start, record=RECORD,
+                     progress=progress)
+    cols = {"time": raw["time"]}
+    for name, names in RECORD.items():
+        for v in names:
+            cols[v] = raw["%s.%s" % (name, v)]
+    ref = adxl203.simulate(n, start["Excitation"], sp, start["DriftEstimator"], Ts)
+    diffs, bad = compare(cols, ref, names=FMU_COLUMNS)
+
+    cfg = adxl203.config(**sp)
+    u = [xi + cfg.cross * yi for xi, yi in zip(cols["x"], cols["y"])]
+    mean_u2 = (X * X + cfg.cross ** 2 * Xy * Xy
+               + 2.0 * cfg.cross * X * Xy * math.cos(phi - phiy)) / 2.0
+    dc_expected = cfg.a2 * mean_u2
+    cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
+        u, cols["z"], cfg.a0, cfg.a2, dc_expected)
+    m = identify.whole_periods(n, f, Ts)
+    dc_whole = sum(cols["z"][:m]) / m - cfg.a0
+
+    final = {c: cols[c][-1] for c in ("dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
+                                      "dc_realised", "dc_expected")}
+    final["dc_empirical_whole_periods"] = dc_whole
+    summary = {
+        "parameters": params, "sensor": sp, "filter_model": model,
+        "process": harmonic.PROCESSES[process], "estimator": estimator, "final": final,
+        "whole_periods": {"samples": m, "periods": round(m * f * Ts, 6)},
+        "ekf1_rel_error": {"vs_expected": final["dc_ekf1"] / dc_expected - 1.0
+                           if dc_expected else math.nan,
+                           "vs_empirical_whole_periods": final["dc_ekf1"] / dc_whole - 1.0
+                           if dc_whole else math.nan},
+        "settled_from_sample": {
+            "reference": "realised drift a2 mean(u^2), band 10 %",
+            "ekf1": settled_from(cols["dc_ekf1"], cols["dc_realised"]),
+            "ekf2": settled_from(cols["dc_ekf2"], cols["dc_realised"]),
+            "ekf3": settled_from(cols["dc_ekf3"], cols["dc_realised"])},
+        "validation": {"reference": "models.adxl203.simulate, same seed",
+                       "tolerance": TOLERANCE, "max_abs_diff": diffs, "passed": not bad},
+    }
+    if bad:
+        raise ValidationError(
+            "FMU outputs differ from models/ run directly: %s (tolerance %g)"
+            % (", ".join("%s by %.3g" % (c, diffs[c]) for c in bad), TOLERANCE))
+    if out is not None:
+        names = chain.COLUMNS + (("y", "z_y") if sp.get("axes", 1) == 2 else ())
+        with output.staged(out) as stage:
+            output.write_csv(stage / "results.csv", cols, names)
+            output.write_json(stage / "summary.json", summary)
+            if plot:
+                output.plot_drift(stage / "drift.png", cols,
+                                  "Sinusoidal x: X=%g g, f=%g Hz, %s filter%s, seed %d"
+                                  % (X, f, harmonic.PROCESSES[process],
+                                     ", %s" % preset if preset else "", seed))
+    return {"columns": cols, "summary": summary}
+
+
+def add_cli(groups):
+    """``driftfmu run sinusoidal``."""
+    from simulations import cli
+    g = groups["run"].add_parser("sinusoidal", help="sinusoidal excitation (the letter's Sec. IV "
+                                 "drive), Gauss-Markov or harmonic filter, optional ADXL203")
+    cli.add_params(g, ("X", "f", "phi", "a0", "a1", "a2", "R", "n", "seed", "Ts", "process",
+                       "Qh", "A"), process=harmonic.HARMONIC)
+    g.add_argument("--Q", type=cli.param_type("Q"), default=None, metavar="Q",
+                   help="process noise of the Gauss-Markov filter [g2] (default: X^2 / 2)")
+    g.add_argument("--P0", type=cli.param_type("P0"), default=None, metavar="P0",
+                   help="initial error variance of the filter [g2] (default: X^2 / 2)")
+    g.add_argument("--estimator", type=int, choices=(1, 2, 3), default=1,
+                   help="estimator whose drift is subtracted in z_comp (default: 1, EKF1)")
+    g.add_argument("--preset", choices=sorted(adxl203.PRESETS), default=None,
+                   help="accelerometer preset (the filter then uses its nominal model; "
+                        "a0, a1, a2, R are ignored)")
+    cli.add_params(g, ("Xy", "phiy"))
+    cli.add_out(g, "results/sinusoidal")
+    cli.add_fmu_dir(g)
+    g.set_defaults(func=_cmd)
+
+
+def _cmd(args):
+    from simulations import cli
+    update, bar = cli.progress_bar(args.n, "co-simulation")
+    try:
+        res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
+                             n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,
+                             R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
+                             P0=args.P0, estimator=args.estimator, preset=args.preset,
+                             Xy=args.Xy, phiy=args.phiy, fmu_dir=args.fmu_dir,
+                             progress=update)
+    finally:
+        if bar is not None:
+            bar.close()
+    s = res["summary"]
+    f = s["final"]
+    print("wrote %s/results.csv, summary.json, drift.png" % args.out)
+    print("final drift: EKF1 %.5g, EKF2 %.5g, EKF3 %.5g | expected %.5g, empirical over %d whole "
+          "periods %.5g, realised %.5g" % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"],
+                                           f["dc_expected"], s["whole_periods"]["periods"],
+                                           f["dc_empirical_whole_periods"], f["dc_realised"]))
+    e = s["ekf1_rel_error"]
+    print("EKF1 (%s filter) vs expected %+.3f %%, vs empirical %+.3f %%"
+          % (s["process"], 100 * e["vs_expected"], 100 * e["vs_empirical_whole_periods"]))
+    print("validation: FMU outputs equal models/ (max |diff| %.3g, tolerance %g)"
+          % (max(s["validation"]["max_abs_diff"].values()), s["validation"]["tolerance"]))
