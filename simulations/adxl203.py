@@ -88,12 +88,18 @@ def _run_set(task):
            "dc_true": adxl203.config(**sp).a2 * (ex["X"] ** 2 + (sp["cross"] * ex["Xy"]) ** 2
                                               + 2 * sp["cross"] * ex["X"] * ex["Xy"]
                                               * math.cos(ex["phi"] - ex["phiy"])) / 2.0,
-           "trace": raw["DriftEstimator.dc_ekf1"][::max(1, n // 500)]}
+           "trace": [(k, raw["DriftEstimator.dc_ekf1"][k - 1]) for k in _log_samples(n)]}
     if validate:
         ref = adxl203.simulate(n, ex, sp, es, Ts)
         res["max_abs_diff"] = max(max(abs(a - b) for a, b in zip(raw["%s.%s" % (fmu, v)], ref[v]))
                                   for fmu, names in record.items() for v in names)
     return res
+
+
+def _log_samples(n, points=400):
+    """About ``points`` sample numbers from 1 to ``n``, spaced evenly on a log scale."""
+    ks = sorted({int(round(n ** (i / (points - 1)))) for i in range(points)})
+    return [k for k in ks if 1 <= k <= n]
 
 
 def _mp_context():
@@ -247,11 +253,11 @@ def plot_fig4(path, p, traces, train, n, Ts):
     ax.grid(True, alpha=0.3)
     ax.legend()
     for i, tr in enumerate(traces):
-        t = np.arange(len(tr)) * (n / len(tr)) * Ts
-        ax2.plot(t, 1e3 * np.array(tr), lw=1, color="C%d" % i, label="set %d" % sets[i])
+        k, dc = np.array(tr).T
+        ax2.semilogx(k, 1e3 * dc, lw=1, color="C%d" % i, label="set %d" % sets[i])
         ax2.axhline(1e3 * p["dc_empirical"][i], color="C%d" % i, lw=0.8, ls=":")
     ax2.set_ylim(0, 2 * 1e3 * max(p["dc_empirical"]))
-    ax2.set_xlabel("time [s]")
+    ax2.set_xlabel("sample k (fs = %g kHz)" % (1e-3 / Ts))
     ax2.set_ylabel("EKF1 drift [mV]")
     ax2.set_title("EKF1 running estimate (dotted: empirical)")
     ax2.grid(True, alpha=0.3)
@@ -270,7 +276,7 @@ def plot_fig5(path, per):
     f = np.array([p["frequency"] for p in per])
     drift = np.array([abs(p["drift_mean"]) for p in per])
     diff = np.array([p["difference_rms"] for p in per])
-    fig, ax = plt.subplots(figsize=(6, 4))
+    fig, ax = plt.subplots(figsize=(6, 4.5))
     ax.plot(f, 10 * np.log10(drift), "ks-", label="drift (empirical)")
     ax.plot(f, 10 * np.log10(diff), "o--", color="C3", label="difference EKF1 - empirical (rms)")
     for fi, a, b in zip(f, drift, diff):
@@ -281,7 +287,7 @@ def plot_fig5(path, per):
     ax.set_title("ADXL203 stand-in: drift vs estimation difference")
     ax.set_xticks(f)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8)
+    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
