@@ -394,11 +394,28 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
             finished(i, run_task(task))
         return results
     from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks))) as pool:
+    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)),
+                             mp_context=_mp_context()) as pool:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
         for fut in cf_completed(futures):
             finished(futures[fut], fut.result())
     return results
+
+
+def _mp_context():
+    """Worker processes by ``fork`` (fast: NumPy and the models are already imported) while this
+    process runs a single thread; by ``forkserver`` (or the platform's default) when other
+    threads run, e.g. a progress bar's monitor, since forking a threaded process can deadlock."""
+    import multiprocessing
+    import threading
+    methods = multiprocessing.get_all_start_methods()
+    if threading.active_count() == 1 and "fork" in methods:
+        return multiprocessing.get_context("fork")
+    if "forkserver" in methods:
+        ctx = multiprocessing.get_context("forkserver")
+        ctx.set_forkserver_preload(["simulations.batch"])
+        return ctx
+    return multiprocessing.get_context()
 
 
 def gather(results):
@@ -407,6 +424,18 @@ def gather(results):
 
 
 # -- command line ---------------------------------------------------------------------------
+def progress_bar(total, desc):
+    """:func:`simulations.cli.progress_bar` without tqdm's monitor thread, so that this process
+    stays single-threaded and local workers can be forked (see :func:`_mp_context`)."""
+    from simulations import cli
+    try:
+        import tqdm
+        tqdm.tqdm.monitor_interval = 0
+    except ImportError:  # pragma: no cover - tqdm is a dependency
+        pass
+    return cli.progress_bar(total, desc)
+
+
 def add_engine_options(p):
     """``--engine``, ``--scheduler`` and ``--workers`` (shared with ``driftfmu montecarlo``)."""
     p.add_argument("--engine", choices=("batch", "fmu"), default="batch",

@@ -58,7 +58,9 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
         summary["median_settled_from"][ref] = {}
         for e in ("ekf1", "ekf2", "ekf3"):
             s = settled_from(traj["dc_%s" % e], r, band)
-            summary["settled_fraction"][ref][e] = float(np.mean(s <= settle_by))
+            # n + 1: not settled by the last sample, whatever settle_by is
+            summary["settled_fraction"][ref][e] = float(np.mean((s <= settle_by) &
+                                                                (s <= summary["n"])))
             summary["median_settled_from"][ref][e] = float(np.median(s))
     d1, d2 = traj["dc_ekf1"][:, -1], traj["dc_ekf2"][:, -1]
     with np.errstate(divide="ignore", invalid="ignore"):
@@ -237,8 +239,7 @@ def add_cli(groups):
 
 
 def _with_bar(args, fn, **kw):
-    from simulations import cli
-    update, bar = cli.progress_bar(args.runs, "montecarlo (%s engine)" % args.engine)
+    update, bar = batch.progress_bar(args.runs, "montecarlo (%s engine)" % args.engine)
     try:
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
                   a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,

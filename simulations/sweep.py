@@ -200,9 +200,8 @@ def add_cli(groups):
 
 
 def cmd_sweep(args):
-    from simulations import cli
     total = len(args.a2) * len(args.R) * args.runs
-    update, bar = cli.progress_bar(total, "sweep (%s engine)" % args.engine)
+    update, bar = batch.progress_bar(total, "sweep (%s engine)" % args.engine)
     t0 = time.perf_counter()
     try:
         res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,

@@ -43,6 +43,14 @@ def test_settled_from_equals_the_single_run_statistic(gauss):
     assert want[-2] is None and want[-1] == 1
 
 
+def test_runs_shorter_than_the_settle_sample_are_not_counted_as_settled():
+    est = np.array([[1.0, 1.0, 1.0], [5.0, 1.0, 1.0], [1.0, 1.0, 5.0]])
+    ref = np.ones_like(est)
+    traj = {"dc_ekf1": est, "dc_ekf2": est, "dc_ekf3": est, "dc_realised": ref}
+    s = montecarlo.summarise(traj, ("realised",))
+    assert s["settled_fraction"]["realised"]["ekf1"] == pytest.approx(2 / 3)
+
+
 def test_letters_fig1_claims_over_the_population(gauss):
     s = gauss["summary"]
     assert s["settled_fraction"]["realised"]["ekf1"] == 1.0
