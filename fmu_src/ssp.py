@@ -28,7 +28,10 @@ measurement-noise samples of our master:
 
 :func:`jacobi_reference` computes these rows from models/; tests/test_ssp.py checks
 ``simulate_ssp`` against it to 1e-12 and the ``x`` column against our master's rows shifted by
-one.  To get our master's results from the same FMUs, run ``driftfmu run gaussian`` (or any
+one.  libcosim's own SSP loader (libcosimpy ``CosimExecution.from_ssp_file`` on the unpacked
+archive) applies the parameter bindings and gives the same rows except that it copies the
+outputs read after initialisation along the connections before the first step
+(``jacobi_reference(..., initial="outputs")``).  To get our master's results from the same FMUs, run ``driftfmu run gaussian`` (or any
 master that propagates outputs along the connections in order before reading them).
 """
 import shutil
@@ -181,12 +184,18 @@ def simulate(ssp, n, Ts=1e-3):
 
 
 def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,
-                     x0=0.0, P0=None, estimator=1):
+                     x0=0.0, P0=None, estimator=1, initial="zero"):
     """What a Jacobi master such as fmpy's ``simulate_ssp`` shows for the chain, from models/.
 
     Returns ``{"time", "<Component>.<connector>": list}`` for the rows ``i = 0 .. n-1`` (see
     the module docstring for the timing): the Excitation's ``x``, the Accelerometer's input
-    ``x`` and output ``z``, the DriftEstimator's input ``z`` and its outputs.
+    ``x`` and output ``z``, the DriftEstimator's input ``z`` and its outputs, all read after
+    the step from ``t_i``.
+
+    ``initial`` is what the connected inputs hold for the first step: ``"zero"`` (fmpy: the
+    connectors start at 0) or ``"outputs"`` (libcosim: the outputs read after initialisation
+    are copied along the connections, ``x_1`` and the Accelerometer's ``z`` of its start
+    input 0).
     """
     if P0 is None:
         P0 = Q / (1.0 - A * A)
@@ -195,7 +204,14 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
     cols = {c: [] for c in ("time", "Excitation.x", "Accelerometer.x", "Accelerometer.z",
                             "DriftEstimator.z") + tuple("DriftEstimator." + c
                                                         for c in DRIFT_OUTPUTS)}
-    u_acc = u_est = 0.0                      # the connectors start at 0
+    if initial == "zero":
+        u_acc = u_est = 0.0                  # fmpy: the connectors start at 0
+    elif initial == "outputs":
+        u_acc = xs[0]                        # x_1, and z of sample 1 with the start input 0
+        u_est = sensor.measure(0.0, a0, a1, a2, R, sensor.measurement_noise(seed, 1))
+    else:
+        raise ValueError("initial = %r is not allowed; allowed: 'zero' or 'outputs'"
+                         % (initial,))
     committed = chain.estimator_init(x0, P0)
     t = 0.0
     for i in range(n):

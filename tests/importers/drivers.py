@@ -168,6 +168,41 @@ def run_libcosim(fmu, name, steps, step, inputs=None, record=(), lookahead=False
     return cols
 
 
+
+def run_libcosim_ssp(ssp, workdir, steps, step, record):
+    """Load an SSP archive with libcosim's own SSP parser (connections and parameter bindings
+    from the SSD) and run it; return ``{"<Component>.<var>": [...]}`` for the rows after the
+    steps from ``t_0 .. t_{steps-1}`` (rows as fmpy's ``simulate_ssp`` labels them)."""
+    import zipfile
+    from fmpy import read_model_description
+
+    CosimExecution, _, CosimObserver, _ = libcosim()
+    unpacked = Path(workdir) / "ssp"
+    with zipfile.ZipFile(ssp) as z:
+        z.extractall(unpacked)
+    ex = CosimExecution.from_ssp_file(str(unpacked), step_size=int(round(step * 1e9)))
+    index = {i.name.decode(): i.index for i in ex.slave_infos()}
+    observer = CosimObserver.create_time_series(buffer_size=steps + 10)
+    ex.add_observer(observer)
+    vrs = {}
+    for name, names in record.items():
+        md = read_model_description(str(unpacked / "resources" / ("%s.fmu" % name)))
+        refs = {v.name: v.valueReference for v in md.modelVariables}
+        for var in names:
+            vrs[name, var] = refs[var]
+            observer.start_time_series(index[name], refs[var], _real_type())
+    if not ex.step(steps):
+        raise RuntimeError("libcosim failed to step %s: %s" % (ssp, ex.status()))
+    cols = {}
+    for (name, var), vr in vrs.items():
+        _, _, values = observer.time_series_real_samples(index[name], vr, from_step=1,
+                                                         sample_count=steps)
+        if len(values) != steps:
+            raise RuntimeError("libcosim recorded %d of %d samples of %s.%s"
+                               % (len(values), steps, name, var))
+        cols["%s.%s" % (name, var)] = [float(v) for v in values]
+    return cols
+
 def _real_type():
     from libcosimpy.CosimEnums import CosimVariableType
     return CosimVariableType.REAL
