@@ -58,6 +58,23 @@ static struct {
 static pthread_mutex_t load_lock = PTHREAD_MUTEX_INITIALIZER;
 static int loaded = 0;
 
+/*
+ * pythonfmu's library keeps its interpreter guard in a global std::shared_ptr and resets it
+ * again from an __attribute__((destructor)).  At process exit the shared_ptr's own destructor
+ * (an atexit handler) runs first, and the later reset releases the freed control block a second
+ * time: a heap corruption that glibc reports as "corrupted double-linked list" (or not at all).
+ * The shim registers, after loading that library, an exit handler that calls its exported
+ * finalizePythonInterpreter() first: exit handlers run in reverse order of registration, so the
+ * guard is released once, properly, and both later resets find it empty.
+ */
+static void (*inner_finalize)(void);
+
+static void finalize_inner_at_exit(void)
+{
+    if (inner_finalize)
+        inner_finalize();
+}
+
 /* One model instance: pythonfmu's component and what the shim needs to filter its messages. */
 typedef struct {
     fmi2Component inner;
@@ -168,6 +185,11 @@ static int load_inner(char *err)
     }
     FORWARDED(LOOKUP)
 #undef LOOKUP
+    inner_finalize = (void (*)(void))dlsym(handle, "finalizePythonInterpreter");
+    if (inner_finalize)
+        atexit(finalize_inner_at_exit);
+    /* Stay loaded until exit, like pythonfmu's library: the exit handler lives in this file. */
+    dlopen(self, RTLD_NOW | RTLD_NOLOAD | RTLD_NODELETE);
     return 1;
 }
 
