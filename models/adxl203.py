@@ -33,10 +33,7 @@ import math
 from collections import namedtuple
 
 from . import _ops, excitation, parameters, sensor
-from .noise import STREAM_MEASUREMENT, normal
-
-#: Noise stream of the second axis (streams 1-4 are taken, see models.noise).
-STREAM_MEASUREMENT_Y = 5
+from .noise import STREAM_MEASUREMENT, STREAM_MEASUREMENT_Y, normal
 
 #: Nominal supply of the datasheet's headline figures [V].
 VS_NOMINAL = 5.0

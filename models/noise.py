@@ -28,6 +28,7 @@ STREAM_PROCESS = 1      # w_k of the Gauss-Markov excitation
 STREAM_MEASUREMENT = 2  # v_k of the sensor
 STREAM_SENSOR_Y = 3     # second-axis excitation of the accelerometer
 STREAM_PHASE = 4        # random phase / amplitude draws of an experiment
+STREAM_MEASUREMENT_Y = 5  # v_k of the accelerometer's second axis
 
 
 def _mix(z):
