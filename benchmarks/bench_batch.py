@@ -27,6 +27,8 @@ import numpy as np
 from models import drift
 from simulations import batch, sweep
 
+from machine import cpu
+
 P = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4)
 
 
@@ -111,7 +113,7 @@ def main(argv=None):
     t_fp, diff = bench_filterpy(args.filterpy_n, args.repeats)
 
     print("machine: %s, %s, %d cores, Python %s, NumPy %s"
-          % (platform.machine(), _cpu(), os.cpu_count() or 0, platform.python_version(),
+          % (platform.machine(), cpu(), os.cpu_count() or 0, platform.python_version(),
              np.__version__))
     print("%-58s %12s" % ("", "ns/sample-run"))
     print("%-58s %12.1f" % ("batch engine, 1 process (%d runs x %d samples)"
@@ -128,16 +130,6 @@ def main(argv=None):
           "(goal >= 300)" % (t_fp / t_batch, t_fp / t_sweep))
     print("FMU (per additional sample) / batch (1 process): %.0f x;  filterpy and the batch "
           "engine agree on the final drift estimates to %.1e V" % (t_fmu_step / t_batch, diff))
-
-
-def _cpu():
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 if __name__ == "__main__":

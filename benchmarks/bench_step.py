@@ -17,6 +17,8 @@ from pythonfmu import FmuBuilder
 from simulations.cosim import cosimulate
 from simulations.gaussian import CONNECTIONS, fmu_paths
 
+from machine import cpu
+
 HERE = Path(__file__).parent
 RECORD = {"Excitation": ["x"], "Accelerometer": ["z"],
           "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
@@ -50,20 +52,10 @@ def main(argv=None):
             t_base.append(per_step(base, args.steps))
             t_ours.append(per_step(ours, args.steps))
     b, o = min(t_base), min(t_ours)
-    print("machine: %s, %s, Python %s" % (platform.machine(), _cpu(), platform.python_version()))
+    print("machine: %s, %s, Python %s" % (platform.machine(), cpu(), platform.python_version()))
     print("pass-through pythonfmu FMUs: %8.1f us per co-simulation step" % (b * 1e6))
     print("driftfmu FMUs:               %8.1f us per co-simulation step" % (o * 1e6))
     print("ratio driftfmu / pass-through: %.2f (goal <= 1.5)" % (o / b))
-
-
-def _cpu():
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown CPU"
 
 
 if __name__ == "__main__":

@@ -28,7 +28,7 @@ from concurrent.futures import ProcessPoolExecutor, as_completed
 
 from models import adxl203, excitation, harmonic, identify, parameters
 from models.noise import STREAM_PHASE, normal, uniform
-from simulations import output
+from simulations import batch, output
 from simulations.gaussian import TOLERANCE, ValidationError, fmu_paths
 from simulations.sinusoidal import CONNECTIONS, check_frequency
 
@@ -102,21 +102,6 @@ def _log_samples(n, points=400):
     return [k for k in ks if 1 <= k <= n]
 
 
-def _mp_context():
-    """``fork`` while this process runs one thread; ``forkserver`` when others run (a progress
-    bar's monitor thread), since forking a threaded process can deadlock."""
-    import multiprocessing
-    import threading
-    methods = multiprocessing.get_all_start_methods()
-    if threading.active_count() == 1 and "fork" in methods:
-        return multiprocessing.get_context("fork")
-    if "forkserver" in methods:
-        ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["simulations.adxl203"])
-        return ctx
-    return multiprocessing.get_context()
-
-
 def check_settings(freqs, sets, held_out, n, Ts):
     """ValueError (value and what is allowed) for bad experiment settings."""
     if not freqs:
@@ -157,7 +142,8 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
     fits = {f: [None] * train for f in freqs}
     tests = {f: [None] * held_out for f in freqs}
     models = {}
-    with ProcessPoolExecutor(max_workers=workers, mp_context=_mp_context()) as pool:
+    context = batch.mp_context("simulations.adxl203")
+    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
         for fut in as_completed(futs):

@@ -395,17 +395,18 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
         return results
     from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
     with ProcessPoolExecutor(max_workers=min(workers, len(tasks)),
-                             mp_context=_mp_context()) as pool:
+                             mp_context=mp_context()) as pool:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
         for fut in cf_completed(futures):
             finished(futures[fut], fut.result())
     return results
 
 
-def _mp_context():
+def mp_context(preload="simulations.batch"):
     """Worker processes by ``fork`` (fast: NumPy and the models are already imported) while this
     process runs a single thread; by ``forkserver`` (or the platform's default) when other
-    threads run, e.g. a progress bar's monitor, since forking a threaded process can deadlock."""
+    threads run, e.g. a progress bar's monitor, since forking a threaded process can deadlock.
+    ``preload`` is the module the fork server imports once for all its workers."""
     import multiprocessing
     import threading
     methods = multiprocessing.get_all_start_methods()
@@ -413,7 +414,7 @@ def _mp_context():
         return multiprocessing.get_context("fork")
     if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
-        ctx.set_forkserver_preload(["simulations.batch"])
+        ctx.set_forkserver_preload([preload])
         return ctx
     return multiprocessing.get_context()
 
@@ -426,7 +427,7 @@ def gather(results):
 # -- command line ---------------------------------------------------------------------------
 def progress_bar(total, desc):
     """:func:`simulations.cli.progress_bar` without tqdm's monitor thread, so that this process
-    stays single-threaded and local workers can be forked (see :func:`_mp_context`)."""
+    stays single-threaded and local workers can be forked (see :func:`mp_context`)."""
     from simulations import cli
     try:
         import tqdm
