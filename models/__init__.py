@@ -1,0 +1,8 @@
+"""The math of driftfmu, written once (Chorti et al., Sensor Letters 4(4):377-379, 2006).
+
+Plain arithmetic on Python floats (inside an FMU, standard library only) and on NumPy arrays (a
+batch of Monte-Carlo runs) alike, with the same bits on both paths.  Modules: ``noise``
+(counter-based Gaussian noise), ``excitation``, ``sensor``, ``ekf``, ``drift`` (EKF1-3 and the
+references), ``chain`` (the whole measurement chain), ``harmonic`` (2-state process model),
+``adxl203`` (the accelerometer stand-in), ``identify`` and ``parameters``.
+"""
