@@ -6,6 +6,11 @@ stepped and their outputs copied along the connections in the order the connecti
 the same communication point.  With the chain Excitation -> Accelerometer -> DriftEstimator,
 row ``k`` of the result therefore holds ``x_k``, the measurement ``z_k`` of ``x_k`` and the
 estimator's ``k``-th update with ``z_k``; there is no one-step lag.
+
+``coupling="jacobi"`` steps the FMUs the way fixed-step SSP masters do (fmpy's ``simulate_ssp``,
+libcosim): every FMU steps with the inputs of the previous point, outputs are read right after
+the steps, and only then copied along the connections, so each connection delays its signal by
+one step.  It is there to compare with such masters, not to get the letter's results.
 """
 import ctypes
 import shutil
@@ -68,8 +73,11 @@ class Instance:
             shutil.rmtree(self.unzipdir, ignore_errors=True)
 
 
+COUPLINGS = ("gauss-seidel", "jacobi")
+
+
 def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=None,
-               start_time=0.0, progress=None, logging_on=False):
+               start_time=0.0, progress=None, logging_on=False, coupling="gauss-seidel"):
     """Run FMUs wired by ``connections`` for ``n_steps`` communication points.
 
     Parameters
@@ -88,6 +96,10 @@ def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=
         Instance name -> list of variables to record (default: every output).
     progress : callable, optional
         Called with the number of steps done, every 1 % or so.
+    coupling : {"gauss-seidel", "jacobi"}
+        Gauss-Seidel (default): outputs copied along the connections in order, then recorded;
+        no lag.  Jacobi: outputs recorded right after the steps, then copied; inputs start at
+        their start values; one step of delay per connection.
 
     Returns
     -------
@@ -99,6 +111,9 @@ def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=
     CoSimulationError
         When an FMU call fails; the message holds the FMUs' log.
     """
+    if coupling not in COUPLINGS:
+        raise ValueError("coupling = %r is not allowed; allowed: %s" % (coupling, COUPLINGS))
+    jacobi = coupling == "jacobi"
     start_values = start_values or {}
     insts = {}
     try:
@@ -127,14 +142,20 @@ def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=
                 for inst in insts.values():
                     inst.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=step_size)
                 t = start_time + i * step_size
-            for src, ovr, dst, ivr in links:
-                dst.setReal([ivr], src.getReal([ovr]))
+            if not jacobi:
+                for src, ovr, dst, ivr in links:
+                    dst.setReal([ivr], src.getReal([ovr]))
+            else:
+                copied = [(dst, ivr, src.getReal([ovr])) for src, ovr, dst, ivr in links]
             out["time"].append(t)
             j = 0
             for fmu, vrs in reads:
                 for value in fmu.getReal(vrs):
                     columns[j].append(value)
                     j += 1
+            if jacobi and i:  # the first step runs on the start values of the inputs
+                for dst, ivr, value in copied:
+                    dst.setReal([ivr], value)
             if progress is not None and (i + 1) % every == 0:
                 progress(i + 1)
         return out

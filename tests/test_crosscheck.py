@@ -4,7 +4,6 @@ import pytest
 
 from fmu_src import crosscheck
 from importers import drivers
-from importers.drivers import report  # noqa: F401  (fixture)
 from simulations.cli import main
 
 pytestmark = pytest.mark.integration

@@ -85,19 +85,19 @@ def _run(built_fmus, start, n=5, step=1e-3):
      "estimator = 7 is out of range; allowed: 1 <= estimator <= 3"),
     ({"Accelerometer": {"x": math.nan}}, "x = nan is not finite"),
 ])
-def test_bad_value_gives_fmi2error_with_log_message(built_fmus, start, text):
+def test_bad_value_gives_fmi2error_with_log_message(built_fmus, start, text, report):
     with pytest.raises(CoSimulationError) as info:
         _run(built_fmus, start)
     msg = str(info.value)
-    print(msg)  # the error text, for the test log
+    report("BAD INPUT %s -> %s" % (start, " | ".join(msg.splitlines())))
     assert "status 3 (error)" in msg
     assert text in msg
 
 
-def test_step_that_is_not_whole_sample_periods_is_an_error(built_fmus):
+def test_step_that_is_not_whole_sample_periods_is_an_error(built_fmus, report):
     with pytest.raises(CoSimulationError) as info:
         _run(built_fmus, {}, step=1.5e-3)
-    print(info.value)
+    report("BAD STEP h = 1.5e-3 s -> %s" % " | ".join(str(info.value).splitlines()))
     assert "status 3 (error)" in str(info.value)
     assert "not a whole number of sample periods" in str(info.value)
 
@@ -110,11 +110,12 @@ def test_step_that_is_not_whole_sample_periods_is_an_error(built_fmus):
     (["run", "gaussian", "--bogus"], "unrecognized arguments: --bogus"),
     (["frobnicate"], "invalid choice: 'frobnicate'"),
 ])
-def test_cli_bad_option_is_one_line_and_exit_2(argv, text, capsys):
+def test_cli_bad_option_is_one_line_and_exit_2(argv, text, capsys, report):
     with pytest.raises(SystemExit) as info:
         main(argv)
     err = capsys.readouterr().err
-    print(err)
+    report("BAD OPTION driftfmu %s -> exit %s: %s" % (" ".join(argv), info.value.code,
+                                                       err.strip()))
     assert info.value.code == 2
     assert len(err.strip().splitlines()) == 1
     assert text in err

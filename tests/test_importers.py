@@ -16,7 +16,6 @@ import pytest
 from fmu_src import crosscheck
 from fmu_src.ssp import CONNECTIONS, DRIFT_OUTPUTS, chain_start_values
 from importers import drivers
-from importers.drivers import report  # noqa: F401  (fixture)
 from models import chain
 from simulations.gaussian import run_gaussian
 

@@ -142,7 +142,7 @@ def _rss_bytes():
 
 
 @pytest.mark.parametrize("name", FMU_NAMES)
-def test_thousand_instantiate_free_cycles_leave_memory_flat(built_fmus, name):
+def test_thousand_instantiate_free_cycles_leave_memory_flat(built_fmus, name, report):
     inst = Instance(name, built_fmus[name])
     fmu = inst.fmu
 
@@ -163,8 +163,8 @@ def test_thousand_instantiate_free_cycles_leave_memory_flat(built_fmus, name):
     gc.collect()
     growth = _rss_bytes() - before
     bound = 8 * 1024 * 1024  # 8 KiB a cycle at most: a leak of one instance would exceed it
-    print("%s: resident memory grew %.1f KiB over 1000 instantiate/free cycles (bound %d KiB)"
-          % (name, growth / 1024, bound // 1024))
+    report("MEMORY %s: resident memory grew %.1f KiB over 1000 instantiate/free cycles "
+           "(bound %d KiB)" % (name, growth / 1024, bound // 1024))
     assert growth < bound
     inst.free()
 

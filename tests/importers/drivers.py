@@ -14,7 +14,6 @@ import subprocess
 import sysconfig
 from pathlib import Path
 
-import pytest
 
 HERE = Path(__file__).resolve().parent
 JAVAFMI_DIR = HERE / "javafmi"
@@ -206,22 +205,3 @@ def run_libcosim_ssp(ssp, workdir, steps, step, record):
 def _real_type():
     from libcosimpy.CosimEnums import CosimVariableType
     return CosimVariableType.REAL
-
-
-# -- reporting ----------------------------------------------------------------------------------
-@pytest.fixture
-def report(request):
-    """``report(line)``: write a line to the terminal past pytest's output capture, so the CI
-    log shows which importer stepped the FMUs (``pytest -ra`` hides passing tests' output)."""
-    plugins = request.config.pluginmanager
-    reporter = plugins.get_plugin("terminalreporter")
-    capture = plugins.get_plugin("capturemanager")
-
-    def write(line):
-        if reporter is None or capture is None:
-            print(line)
-            return
-        with capture.global_and_fixture_disabled():
-            reporter.ensure_newline()
-            reporter.write_line(line)
-    return write
