@@ -66,9 +66,7 @@ def progress_bar(total, desc):
 
 def cmd_build(args):
     from fmu_src.builder import build_fmus
-    paths = build_fmus(args.out)
-    for path in paths:
-        print(path)
+    paths = build_fmus(args.out)  # logs one line per FMU
     fmus = {p.stem: p for p in map(Path, paths)}
     if args.cross_check:
         from fmu_src.crosscheck import write_cross_check
