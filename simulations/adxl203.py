@@ -402,14 +402,10 @@ def add_cli(groups):
 def _cmd_experiment(args):
     from simulations import cli
     total = len(args.freqs) * args.sets
-    update, bar = cli.progress_bar(total, "sets")
-    try:
+    with cli.progress(total, "sets") as update:
         s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=args.held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
                         workers=args.workers, progress=update)
-    finally:
-        if bar is not None:
-            bar.close()
     print("wrote %s/adxl203.csv, adxl203.json, adxl203.npz, fig4.png, fig5.png" % args.out)
     for p in s["per_frequency"]:
         m = p["model"]

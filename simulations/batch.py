@@ -425,18 +425,6 @@ def gather(results):
 
 
 # -- command line ---------------------------------------------------------------------------
-def progress_bar(total, desc):
-    """:func:`simulations.cli.progress_bar` without tqdm's monitor thread, so that this process
-    stays single-threaded and local workers can be forked (see :func:`mp_context`)."""
-    from simulations import cli
-    try:
-        import tqdm
-        tqdm.tqdm.monitor_interval = 0
-    except ImportError:  # pragma: no cover - tqdm is a dependency
-        pass
-    return cli.progress_bar(total, desc)
-
-
 def add_engine_options(p):
     """``--engine``, ``--scheduler`` and ``--workers`` (shared with ``driftfmu montecarlo``)."""
     p.add_argument("--engine", choices=("batch", "fmu"), default="batch",

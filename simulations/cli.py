@@ -6,6 +6,7 @@ missing; results written whole or not at all).  A bad option is answered with on
 standard error and exit status 2; a failed run with one line and exit status 1.
 """
 import argparse
+import contextlib
 import sys
 from pathlib import Path
 
@@ -52,16 +53,22 @@ def add_params(parser, names, **defaults):
                                  % (p.description, p.unit, parameters.allowed(name), default))
 
 
-def progress_bar(total, desc):
-    """A tqdm progress bar as a callable(done), or None when stderr is not a terminal."""
+@contextlib.contextmanager
+def progress(total, desc, monitor=True):
+    """A tqdm progress bar over ``total`` units as ``update(done)``; None when stderr is not a
+    terminal.  ``monitor=False`` keeps tqdm from starting its monitor thread, so that the process
+    stays single-threaded and worker processes can be forked."""
     if not sys.stderr.isatty():
-        return None, None
-    from tqdm import tqdm
-    bar = tqdm(total=total, desc=desc, unit="step", leave=False)
-
-    def update(done):
-        bar.update(done - bar.n)
-    return update, bar
+        yield None
+        return
+    import tqdm
+    if not monitor:
+        tqdm.tqdm.monitor_interval = 0
+    bar = tqdm.tqdm(total=total, desc=desc, unit="step", leave=False)
+    try:
+        yield lambda done: bar.update(done - bar.n)
+    finally:
+        bar.close()
 
 
 def cmd_build(args):
@@ -80,15 +87,11 @@ def cmd_build(args):
 
 def cmd_run_gaussian(args):
     from simulations.gaussian import run_gaussian
-    update, bar = progress_bar(args.n, "co-simulation")
-    try:
+    with progress(args.n, "co-simulation") as update:
         res = run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
                            Q=args.Q, R=args.R, n=args.n, seed=args.seed, Ts=args.Ts,
                            P0=args.P0, estimator=args.estimator, fmu_dir=args.fmu_dir,
                            progress=update)
-    finally:
-        if bar is not None:
-            bar.close()
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)

@@ -239,15 +239,13 @@ def add_cli(groups):
 
 
 def _with_bar(args, fn, **kw):
-    update, bar = batch.progress_bar(args.runs, "montecarlo (%s engine)" % args.engine)
-    try:
+    from simulations import cli
+    desc = "montecarlo (%s engine)" % args.engine
+    with cli.progress(args.runs, desc, monitor=False) as update:
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
                   a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
                   scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
                   out=args.out, progress=update, **kw)
-    finally:
-        if bar is not None:
-            bar.close()
 
 
 def cmd_gaussian(args):

@@ -191,17 +191,13 @@ def add_cli(groups):
 
 def _cmd(args):
     from simulations import cli
-    update, bar = cli.progress_bar(args.n, "co-simulation")
-    try:
+    with cli.progress(args.n, "co-simulation") as update:
         res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
                              P0=args.P0, estimator=args.estimator, preset=args.preset,
                              Xy=args.Xy, phiy=args.phiy, fmu_dir=args.fmu_dir,
                              progress=update)
-    finally:
-        if bar is not None:
-            bar.close()
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)

@@ -202,16 +202,14 @@ def add_cli(groups):
 
 def cmd_sweep(args):
     total = len(args.a2) * len(args.R) * args.runs
-    update, bar = batch.progress_bar(total, "sweep (%s engine)" % args.engine)
     t0 = time.perf_counter()
-    try:
+    from simulations import cli
+    desc = "sweep (%s engine)" % args.engine
+    with cli.progress(total, desc, monitor=False) as update:
         res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
                     runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, engine=args.engine,
                     scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
                     out=args.out, progress=update)
-    finally:
-        if bar is not None:
-            bar.close()
     wall = time.perf_counter() - t0
     print_table(res)
     sample_runs = total * args.n
