@@ -1,7 +1,6 @@
 """Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + v, and the richer
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
 noise density) of :mod:`models.adxl203`, every extra off by default."""
-from pythonfmu import Fmi2Slave  # noqa: F401  (pythonfmu's builder looks for Fmi2Slave here)
 
 from fmu_src.slave_base import SlaveBase, default_experiment, var
 from models import adxl203

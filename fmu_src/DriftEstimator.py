@@ -1,6 +1,5 @@
 """DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
 Gauss-Markov (the letter's scalar filter) or a harmonic oscillator at a known frequency."""
-from pythonfmu import Fmi2Slave  # noqa: F401  (pythonfmu's builder looks for Fmi2Slave here)
 
 from fmu_src.slave_base import SlaveBase, default_experiment, var
 from models import chain, drift, harmonic

@@ -1,6 +1,5 @@
 """Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; 0 when Gaussian)."""
-from pythonfmu import Fmi2Slave  # noqa: F401  (pythonfmu's builder looks for Fmi2Slave here)
 
 from fmu_src.slave_base import SlaveBase, default_experiment, var
 from models import excitation

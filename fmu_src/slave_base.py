@@ -101,13 +101,48 @@ class SlaveBase(Fmi2Slave):
                     description=spec["description"], getter=getter, setter=setter)
 
     def get_real(self, vrs):
-        if self._dirty and self._initialised:
+        if self._dirty and self._initialised and self.DEPENDENCIES:
             self._call(self._refresh)  # outputs at this communication point, from its inputs
         names = self._real_names
         try:
             return [float(getattr(self, names[vr])) for vr in vrs]
         except KeyError:
-            return super().get_real(vrs)  # raises pythonfmu's own error for a bad reference
+            self._call(self._fail, "value references %s are not Real variables"
+                       % sorted(set(vrs) - set(names)))
+            return [float(getattr(self, names[vr])) if vr in names else math.nan
+                    for vr in vrs]
+
+    # pythonfmu's own accessors raise on a bad value reference or type; an exception in a
+    # pythonfmu 0.7.0 call releases the instance's Python objects twice (a crash later), so
+    # every other accessor is guarded: the problem is logged and the call returns fmi2Error.
+    def get_integer(self, vrs):
+        return self._guarded("fmi2GetInteger", super().get_integer, [0] * len(vrs), vrs)
+
+    def get_boolean(self, vrs):
+        return self._guarded("fmi2GetBoolean", super().get_boolean, [False] * len(vrs), vrs)
+
+    def get_string(self, vrs):
+        return self._guarded("fmi2GetString", super().get_string, [""] * len(vrs), vrs)
+
+    def set_integer(self, vrs, values):
+        self._guarded("fmi2SetInteger", super().set_integer, None, vrs, values)
+
+    def set_boolean(self, vrs, values):
+        self._guarded("fmi2SetBoolean", super().set_boolean, None, vrs, values)
+
+    def set_string(self, vrs, values):
+        self._guarded("fmi2SetString", super().set_string, None, vrs, values)
+
+    def _guarded(self, what, call, fallback, vrs, *args):
+        try:
+            return call(vrs, *args)
+        except KeyError as exc:
+            problem = "value reference %s does not exist" % (exc.args[0],)
+        except Exception as exc:
+            problem = str(exc)
+        self.log("%s: %s%r: %s" % (self.instance_name, what, tuple(vrs), problem),
+                 Fmi2Status.error)
+        return fallback
 
     def set_real(self, vrs, values):
         inputs = self._real_inputs
@@ -123,6 +158,8 @@ class SlaveBase(Fmi2Slave):
 
     def _write(self, spec, value):
         name = spec["name"]
+        if spec["causality"] == "output":
+            self._fail("%s is an output; only parameters and inputs can be set" % name)
         if spec["type"] == "Real" and not math.isfinite(value):
             self._fail("%s = %r is not finite; %s accepts finite values only"
                        % (name, value, spec["causality"]))
@@ -192,7 +229,7 @@ class SlaveBase(Fmi2Slave):
         if not self._initialised:
             self._fail("cannot step: initialisation did not complete (see the errors above)")
         m = self._samples_in(step_size)
-        if self._dirty:
+        if self._dirty and self.DEPENDENCIES:
             self._refresh()
         self.advance(m)
         self.k += m
@@ -233,9 +270,24 @@ class SlaveBase(Fmi2Slave):
         return state
 
     def _set_fmu_state(self, state):
+        self._call(self._restore, state)
+
+    def _restore(self, state):
+        if not isinstance(state, dict) or "k" not in state:
+            self._fail("not an FMU state of %s: %.80r" % (type(self).__name__, state))
         for name, value in state.items():
             setattr(self, name, value)
+        self._last_step = None
         self.restore_hidden()
+
+    @staticmethod
+    def _fmu_state_from_bytes(data):
+        """The state in ``data``, or None (which fmi2SetFMUstate then refuses with an error)
+        when ``data`` is not a serialised state: an exception here would crash pythonfmu."""
+        try:
+            return Fmi2Slave._fmu_state_from_bytes(data)
+        except Exception:
+            return None
 
     def restore_hidden(self):
         """Turn hidden state read back from JSON into its working types (hook)."""

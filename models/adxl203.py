@@ -97,7 +97,7 @@ def problems(p):
     if Vs != 0.0 and not VS_RANGE[0] <= Vs <= VS_RANGE[1]:
         out.append("Vs = %r V is not allowed; allowed: Vs = 0 (ratiometric output off) or "
                    "%g <= Vs <= %g" % (Vs, VS_RANGE[0], VS_RANGE[1]))
-    fc, Ts = p.get("fc", 0.0), p.get("Ts", 1e-3)
+    fc = p.get("fc", 0.0)
     if fc > MAX_BANDWIDTH:
         out.append("fc = %r Hz is not allowed; allowed: fc = 0 (low-pass off) or "
                    "0 < fc <= %g Hz (datasheet maximum)" % (fc, MAX_BANDWIDTH))

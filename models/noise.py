@@ -59,6 +59,9 @@ def _key_int(seed, stream):
 
 def bits(seed, stream, k):
     """64 random bits for sample ``k`` (``k >= 1``) of ``stream`` under ``seed``."""
+    if _ops.is_scalar(k) and _ops.is_scalar(seed):  # one FMU instance, every sample: the short way
+        return _mix((_key_int(int(seed) & MASK64, stream) + ((int(k) * GOLDEN) & MASK64))
+                    & MASK64)
     k = _as_uint64(k)
     return _mix((key(seed, stream) + ((k * GOLDEN) & MASK64)) & MASK64)
 

@@ -12,7 +12,6 @@ libcosim): every FMU steps with the inputs of the previous point, outputs are re
 the steps, and only then copied along the connections, so each connection delays its signal by
 one step.  It is there to compare with such masters, not to get the letter's results.
 """
-import ctypes
 import shutil
 
 from fmpy import extract, read_model_description

@@ -8,14 +8,11 @@ modules that code imports, and whether each is in the standard library or bundle
 loads and instantiates the FMU in a separate process, so a crash cannot take this one down.
 """
 import ast
-import ctypes
-import ctypes.util
 import json
 import platform
 import subprocess
 import sys
 import sysconfig
-import tempfile
 import zipfile
 from pathlib import Path
 

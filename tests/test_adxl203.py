@@ -111,8 +111,8 @@ def test_preset_accelerometer_fmu_equals_models(built_fmus, tmp_path):
 
 @pytest.mark.integration
 def test_experiment_at_tiny_size_writes_everything(built_fmus, tmp_path):
-    s = experiment.run_adxl203(out=tmp_path, freqs=(100.0, 200.0), sets=5, held_out=2, n=3000,
-                               fmu_dir=built_fmus["Excitation"].parent, workers=2)
+    experiment.run_adxl203(out=tmp_path, freqs=(100.0, 200.0), sets=5, held_out=2, n=3000,
+                           fmu_dir=built_fmus["Excitation"].parent, workers=2)
     assert {p.name for p in tmp_path.iterdir()} == {"adxl203.csv", "adxl203.json",
                                                      "adxl203.npz", "fig4.png", "fig5.png"}
     npz = np.load(tmp_path / "adxl203.npz")

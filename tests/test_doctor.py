@@ -1,5 +1,4 @@
 """``driftfmu doctor``: plain-words diagnosis of whether an FMU runs on this host."""
-import shutil
 import zipfile
 
 import pytest

@@ -1,6 +1,5 @@
 """What real masters do to an FMU: reset, many instances, state save/restore, long steps,
 thousands of instantiations, and errors that must reach the host's logger."""
-import ctypes
 import gc
 import os
 
@@ -187,3 +186,36 @@ def test_info_messages_stay_quiet_with_debug_logging_off(built_fmus):
     w.run(10)
     assert all(not i.messages for i in w.inst.values())
     w.free()
+
+
+@pytest.mark.parametrize("call", ["getReal", "getInteger", "setInteger", "getBoolean"])
+def test_bad_value_reference_is_an_error_not_a_crash(built_fmus, call, report):
+    inst = Instance("badref", built_fmus["Accelerometer"])
+    fmu = inst.fmu
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    args = {"getReal": ([999],), "getInteger": ([999],), "setInteger": ([999], [1]),
+            "getBoolean": ([0],)}[call]  # 0 is the Real a0: not a Boolean
+    with pytest.raises(Exception, match="status 3"):
+        getattr(fmu, call)(*args)
+    report("BAD REFERENCE %s%s -> %s" % (call, args, inst.messages[-1]))
+    assert inst.messages and "[error]" in inst.messages[-1]
+    # the instance is still usable, and freeing it is safe
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    assert fmu.getReal([inst.vrs["R"]]) == [1e-4]
+    inst.free()
+
+
+def test_garbage_serialised_state_is_refused(built_fmus):
+    inst = Instance("garbage", built_fmus["DriftEstimator"])
+    fmu = inst.fmu
+    fmu.setupExperiment(startTime=0.0)
+    fmu.enterInitializationMode()
+    fmu.exitInitializationMode()
+    state = fmu.deSerializeFMUstate(b"not a state")
+    with pytest.raises(Exception, match="status 3"):
+        fmu.setFMUstate(state)
+    assert "not an FMU state of DriftEstimator" in inst.messages[-1]
+    fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
+    inst.free()

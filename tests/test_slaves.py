@@ -152,3 +152,9 @@ def test_multi_sample_step_advances_the_sample_index():
     x, z = c.propagate()[:2]
     ref = chain.simulate(6, 1)
     assert (x, z) == (ref["x"][5], ref["z"][5])
+
+
+def test_output_cannot_be_set():
+    c = Chain()
+    set_var(c.a, "z", 1.0)
+    assert "z is an output; only parameters and inputs can be set" in messages(c.a)[0]
