@@ -40,7 +40,8 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-from models import chain, drift, excitation, sensor
+from models import chain, drift, sensor
+from simulations.gaussian import start_values as chain_start_values
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
@@ -55,20 +56,6 @@ DRIFT_OUTPUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp")
 
 for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)
-
-
-def chain_start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,
-                       x0=0.0, P0=None, estimator=1):
-    """Start values of the three FMUs for the letter's Gaussian run, as our master sets them
-    (simulations/gaussian.py); ``P0`` defaults to ``Q / (1 - A^2)``."""
-    if P0 is None:
-        P0 = Q / (1.0 - A * A)
-    model = dict(a0=a0, a1=a1, a2=a2, R=R)
-    return {
-        "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed),
-        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
-        "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator),
-    }
 
 
 def _q(prefix, tag):

@@ -53,6 +53,23 @@ def compare(cols, ref, names=chain.FMU_COLUMNS, tolerance=None):
     return diffs, bad
 
 
+def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3, x0=0.0,
+                 P0=None, estimator=1):
+    """Start values of the three FMUs for the Gaussian run: {FMU name: {variable: value}}.
+
+    The sensor and the filter share the model ``a0, a1, a2, R``; the filter's process model is
+    the excitation's ``(A, Q)``; ``P0`` defaults to ``Q / (1 - A^2)``.
+    """
+    if P0 is None:
+        P0 = Q / (1.0 - A * A)
+    model = dict(a0=a0, a1=a1, a2=a2, R=R)
+    return {
+        "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed),
+        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
+        "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator),
+    }
+
+
 def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=2000, seed=1,
                  Ts=1e-3, x0=0.0, P0=None, estimator=1, fmu_dir="build/fmus", progress=None,
                  plot=True):
@@ -83,12 +100,8 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
         raise ValueError("; ".join(problems))
     if estimator not in (1, 2, 3):
         raise ValueError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
-    model = dict(a0=a0, a1=a1, a2=a2, R=R)
-    start = {
-        "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed),
-        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
-        "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator),
-    }
+    start = start_values(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, seed=seed, Ts=Ts, x0=x0, P0=P0,
+                         estimator=estimator)
     record = {"Excitation": ["x"], "Accelerometer": ["z"],
               "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
     raw = cosimulate(fmu_paths(fmu_dir), CONNECTIONS, n, Ts, start_values=start, record=record,

@@ -67,8 +67,7 @@ def test_fmpy_ssp_equals_our_master_with_the_same_coupling(archive, built_fmus, 
     from simulations.cosim import cosimulate
 
     res = ssp.simulate(archive, N)
-    start = {n: {k: v for k, v in values.items()}
-             for n, values in ssp.chain_start_values().items()}
+    start = ssp.chain_start_values()
     record = {"Excitation": ["x"], "Accelerometer": ["z"],
               "DriftEstimator": list(ssp.DRIFT_OUTPUTS)}
     ours = cosimulate({n: built_fmus[n] for n in ssp.FMU_NAMES}, ssp.CONNECTIONS, N + 1, 1e-3,
