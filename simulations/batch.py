@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from models import chain, drift, excitation, noise, parameters, sensor
+from models import chain, drift, excitation, harmonic, noise, parameters, sensor
 
 #: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
 SEED_MAX = parameters.PARAMETERS["seed"].high
@@ -201,9 +201,9 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
     """One run co-simulated with the three FMUs (FMU seed ``seed``); same outputs as one row of
     :func:`simulate`: the :data:`FINALS` as floats and the recorded trajectories as arrays.
 
-    Gaussian runs go through :func:`simulations.gaussian.run_gaussian` (which also checks the
-    FMUs against models/); sinusoidal runs through :func:`simulations.cosim.cosimulate` with the
-    same connections, the Excitation set to ``kind = 2``.
+    Gaussian runs go through :func:`simulations.gaussian.run_gaussian`, sinusoidal ones through
+    :func:`simulations.sinusoidal.run_sinusoidal` with the Gauss-Markov filter; both also check
+    the FMUs against models/.
     """
     from simulations import gaussian
     fA = A if filter_A is None else filter_A
@@ -214,7 +214,10 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
         cols = gaussian.run_gaussian(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed,
                                      Ts=Ts, x0=x0, P0=P0, fmu_dir=fmu_dir, plot=False)["columns"]
     elif kind == excitation.SINUSOIDAL:
-        cols = _cosimulate_sine(n, seed, a0, a1, a2, R, Ts, X, f, phi, fA, fQ, x0, P0, fmu_dir)
+        from simulations.sinusoidal import run_sinusoidal
+        cols = run_sinusoidal(X=X, f=f, phi=phi, Ts=Ts, n=n, seed=seed, a0=a0, a1=a1, a2=a2,
+                              R=R, process=harmonic.GAUSS_MARKOV, A=fA, Q=fQ, P0=P0, x0=x0,
+                              fmu_dir=fmu_dir, plot=False)["columns"]
     else:
         raise ValueError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
                          "the Gaussian excitation with the filter's A and Q equal to the "
@@ -230,26 +233,6 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
     for name in record:
         out[name] = np.asarray(cols[name], dtype=float)
     return out
-
-
-def _cosimulate_sine(n, seed, a0, a1, a2, R, Ts, X, f, phi, filter_A, filter_Q, x0, P0,
-                     fmu_dir):
-    """Columns of one sinusoidal co-simulation, with the drift references."""
-    from simulations.cosim import cosimulate
-    from simulations.gaussian import CONNECTIONS, fmu_paths
-    model = dict(a0=a0, a1=a1, a2=a2, R=R)
-    start = {
-        "Excitation": dict(kind=excitation.SINUSOIDAL, X=X, f=f, phi=phi, Ts=Ts),
-        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
-        "DriftEstimator": dict(model, A=filter_A, Q=filter_Q, x0=x0, P0=P0, Ts=Ts),
-    }
-    rec = {"Excitation": ["x"], "Accelerometer": ["z"],
-           "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3"]}
-    raw = cosimulate(fmu_paths(fmu_dir), CONNECTIONS, n, Ts, start_values=start, record=rec)
-    cols = {v: raw["%s.%s" % (name, v)] for name, names in rec.items() for v in names}
-    cols["dc_empirical"], cols["dc_realised"], _ = drift.references(
-        cols["x"], cols["z"], a0, a2, 0.0)
-    return cols
 
 
 # -- tasks: chunks of runs for workers ------------------------------------------------------
