@@ -47,17 +47,6 @@ def where(cond, a, b):
     return _np().where(cond, a, b)
 
 
-def all_finite(*values):
-    """True when every value (float or array) is finite."""
-    for v in values:
-        if is_scalar(v):
-            if not math.isfinite(v):
-                return False
-        elif not _np().all(_np().isfinite(v)):
-            return False
-    return True
-
-
 LN2 = 0.6931471805599453
 SQRT_HALF = 0.7071067811865476
 
