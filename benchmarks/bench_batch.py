@@ -24,8 +24,8 @@ import time
 
 import numpy as np
 
-from models import drift
-from simulations import batch, sweep
+from driftfmu.models import drift
+from driftfmu.simulations import batch, sweep
 
 from machine import cpu
 
@@ -104,7 +104,7 @@ def main(argv=None):
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--fmu-dir", default="build/fmus")
     args = ap.parse_args(argv)
-    from simulations.gaussian import fmu_paths
+    from driftfmu.simulations.gaussian import fmu_paths
     fmu_paths(args.fmu_dir)
 
     t_batch = bench_batch(args.runs, args.n, args.repeats)

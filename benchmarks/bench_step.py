@@ -19,8 +19,8 @@ from pathlib import Path
 
 from pythonfmu import FmuBuilder
 
-from simulations.cosim import cosimulate
-from simulations.gaussian import CONNECTIONS, fmu_paths
+from driftfmu.simulations.cosim import cosimulate
+from driftfmu.simulations.gaussian import CONNECTIONS, fmu_paths
 
 from machine import cpu
 

@@ -2,8 +2,8 @@
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
 noise density) of :mod:`models.adxl203`, every extra off by default."""
 
-from fmu_src.slave_base import SlaveBase, default_experiment, var
-from models import adxl203
+from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+from driftfmu.models import adxl203
 
 
 class Accelerometer(SlaveBase):

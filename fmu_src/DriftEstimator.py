@@ -1,8 +1,8 @@
 """DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
 Gauss-Markov (the letter's scalar filter) or a harmonic oscillator at a known frequency."""
 
-from fmu_src.slave_base import SlaveBase, default_experiment, var
-from models import chain, drift, harmonic
+from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+from driftfmu.models import chain, drift, harmonic
 
 
 class DriftEstimator(SlaveBase):

@@ -1,8 +1,8 @@
 """Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; 0 when Gaussian)."""
 
-from fmu_src.slave_base import SlaveBase, default_experiment, var
-from models import excitation
+from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+from driftfmu.models import excitation
 
 
 class Excitation(SlaveBase):

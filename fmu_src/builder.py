@@ -37,6 +37,8 @@ from fractions import Fraction
 from pathlib import Path
 from xml.etree import ElementTree as ET
 
+from driftfmu import __version__
+
 SRC_DIR = Path(__file__).resolve().parent
 NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
 LOADER_SOURCE = SRC_DIR / "loader" / "fmi2_shim.c"
@@ -154,8 +156,9 @@ def libpython_soname():
 def rewrite_imports(source, package):
     """Point a slave script's project imports at the bundled package ``package``.
 
-    ``models`` and ``models.*`` become ``<package>.models...``; ``fmu_src.slave_base`` becomes
-    ``<package>.slave_base``.  Other imports, relative ones included, stay as they are.
+    ``driftfmu.models`` and ``driftfmu.models.*`` become ``<package>.models...``;
+    ``driftfmu.fmu_src.slave_base`` becomes ``<package>.slave_base`` (``import
+    driftfmu.models.x`` binds ``driftfmu`` to the bundle).  Other imports, relative ones included, stay as they are.
 
     Parameters
     ----------
@@ -173,7 +176,7 @@ def rewrite_imports(source, package):
     Raises
     ------
     BuildError
-        For a project import that cannot be bundled (another ``fmu_src`` module) or that
+        For a project import that cannot be bundled (another ``driftfmu`` module) or that
         shares its line with other code.
     """
     tree = ast.parse(source)
@@ -198,13 +201,13 @@ def rewrite_imports(source, package):
 
 def _bundled_name(module, package):
     """Name of project module ``module`` inside ``package``, or None if not a project module."""
-    if module == "models" or module.startswith("models."):
-        return "%s.%s" % (package, module)
-    if module == "fmu_src.slave_base" or module.startswith("fmu_src.slave_base."):
-        return package + module[len("fmu_src"):]
-    if module == "fmu_src" or module.startswith("fmu_src."):
-        raise BuildError("%s is not bundled into the FMU; a slave may import models and "
-                         "fmu_src.slave_base only" % module)
+    if module == "driftfmu.models" or module.startswith("driftfmu.models."):
+        return "%s.%s" % (package, module[len("driftfmu."):])
+    if module == "driftfmu.fmu_src.slave_base" or module.startswith("driftfmu.fmu_src.slave_base."):
+        return package + module[len("driftfmu.fmu_src"):]
+    if module == "driftfmu" or module.startswith("driftfmu."):
+        raise BuildError("%s is not bundled into the FMU; a slave may import driftfmu.models and "
+                         "driftfmu.fmu_src.slave_base only" % module)
     return None
 
 
@@ -218,9 +221,14 @@ def _rewritten(node, package):
         if node.level:
             return None
         names = ", ".join(_alias(a) for a in node.names)
-        if node.module == "fmu_src":
+        if node.module == "driftfmu.fmu_src":
             if any(a.name != "slave_base" for a in node.names):
-                raise BuildError("line %d: only fmu_src.slave_base is bundled" % node.lineno)
+                raise BuildError("line %d: only driftfmu.fmu_src.slave_base is bundled"
+                                 % node.lineno)
+            return ["from %s import %s" % (package, names)]
+        if node.module == "driftfmu":
+            if any(a.name != "models" for a in node.names):
+                raise BuildError("line %d: only driftfmu.models is bundled" % node.lineno)
             return ["from %s import %s" % (package, names)]
         target = _bundled_name(node.module, package)
         return None if target is None else ["from %s import %s" % (target, names)]
@@ -233,13 +241,12 @@ def _rewritten(node, package):
             statements.append("import " + _alias(alias))
         elif alias.asname:
             statements.append("import %s as %s" % (target, alias.asname))
-        elif alias.name.split(".")[0] == "models":
-            if alias.name != "models":
-                statements.append("import " + target)
-            statements.append("from %s import models" % package)
+        elif alias.name.startswith("driftfmu.models"):
+            statements.append("import " + target)
+            statements.append("import %s as driftfmu" % package)
         else:
-            raise BuildError("line %d: write `from fmu_src.slave_base import ...` instead of "
-                             "`import %s`" % (node.lineno, alias.name))
+            raise BuildError("line %d: write `from driftfmu.fmu_src.slave_base import ...` "
+                             "instead of `import %s`" % (node.lineno, alias.name))
     return statements
 
 
@@ -247,7 +254,7 @@ def _stage(name, src_dir, digest, stage):
     """Write the bundled package and the renamed slave script into ``stage``; return the script.
 
     Every bundled file goes through :func:`rewrite_imports`, so no bundled code can reach a
-    ``models`` or ``fmu_src`` that happens to be importable where the FMU runs.
+    ``driftfmu`` that happens to be importable where the FMU runs.
     """
     package = stage / ("drift_" + digest)
     root = src_dir.parent
@@ -545,6 +552,7 @@ def _build_one(name, out_dir, src_dir, loader, log):
         script = _stage(name, src_dir, digest, stage)
         with _importable(stage, script.stem, package):
             slave = get_model_class(script)
+            slave.version = __version__  # into the model description
             built = FmuBuilder.build_FMU(script, dest=work / "pythonfmu",
                                          project_files=[stage / package])
         with zipfile.ZipFile(built) as archive:

@@ -34,8 +34,8 @@ import importlib
 import shutil
 from pathlib import Path
 
-from models import chain, drift, sensor
-from models.parameters import PARAMETERS
+from driftfmu.models import chain, drift, sensor
+from driftfmu.models.parameters import PARAMETERS
 
 #: Tool ID and version in the cross-check tree.
 TOOL_ID = "driftfmu"
@@ -248,9 +248,9 @@ def write_cross_check(fmus, out_dir="build/cross-check", n=N_SAMPLES, version=No
         :data:`TOLERANCE` (nothing is left half-written for that model).
     """
     import fmpy
-    from fmu_src.slave_base import SlaveBase
+    from driftfmu import __version__
 
-    version = version or SlaveBase.version
+    version = version or __version__
     Ts = defaults()["Ts"]
     master = chain_columns(n)
     written = []
@@ -278,7 +278,7 @@ def write_cross_check(fmus, out_dir="build/cross-check", n=N_SAMPLES, version=No
         (d / ("%s_ref.opt" % name)).write_text(
             "StartTime,%r\nStopTime,%r\nStepSize,%r\nRelTol,%r\n"
             % (0.0, (n - 1) * Ts, Ts, REL_TOL))
-        doc = getattr(importlib.import_module("fmu_src.%s" % name), name).__doc__.strip()
+        doc = getattr(importlib.import_module("driftfmu.fmu_src.%s" % name), name).__doc__.strip()
         (d / "ReadMe.txt").write_text(README.format(
             name=name, doc=doc.splitlines()[0], version=version, fmpy=fmpy.__version__,
             inputs=("input %s per sample, from the wired chain Excitation -> Accelerometer ->\n"

@@ -26,7 +26,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
-from models import parameters
+from driftfmu.models import parameters
 
 _TYPES = {"Real": Real, "Integer": Integer}
 
@@ -63,7 +63,8 @@ class SlaveBase(Fmi2Slave):
 
     author = "driftfmu contributors"
     license = "MIT"
-    version = "0.1.0"
+    #: Set by the builder from ``driftfmu.__version__`` (the one place the version is written).
+    version = None
     VARIABLES = ()
     DEPENDENCIES = {}
     CAN_HANDLE_VARIABLE_STEP = True

@@ -40,8 +40,8 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-from models import chain, drift, sensor
-from simulations.gaussian import start_values as chain_start_values
+from driftfmu.models import chain, drift, sensor
+from driftfmu.simulations.gaussian import start_values as chain_start_values
 
 NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",

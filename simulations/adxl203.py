@@ -26,11 +26,11 @@ import os
 import time
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
-from models import adxl203, excitation, harmonic, identify, parameters
-from models.noise import STREAM_PHASE, normal, uniform
-from simulations import batch, output
-from simulations.gaussian import TOLERANCE, ValidationError, fmu_paths
-from simulations.sinusoidal import CONNECTIONS, check_frequency
+from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
+from driftfmu.models.noise import STREAM_PHASE, normal, uniform
+from driftfmu.simulations import batch, output
+from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, fmu_paths
+from driftfmu.simulations.sinusoidal import CONNECTIONS, check_frequency
 
 FREQS = (100.0, 125.0, 150.0, 175.0, 200.0)
 SETS = 30
@@ -63,7 +63,7 @@ def set_drive(seed, f):
 
 def _run_set(task):
     """Worker: co-simulate one set.  Training: fit the model.  Held out: EKF1 and references."""
-    from simulations.cosim import cosimulate
+    from driftfmu.simulations.cosim import cosimulate
     paths, f, seed, n, Ts, model, validate = task
     ex = dict(set_drive(seed, f), Ts=Ts)
     sp = dict(adxl203.ADXL203, seed=seed, Ts=Ts, noise=1)
@@ -142,7 +142,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
     fits = {f: [None] * train for f in freqs}
     tests = {f: [None] * held_out for f in freqs}
     models = {}
-    context = batch.mp_context("simulations.adxl203")
+    context = batch.mp_context("driftfmu.simulations.adxl203")
     with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
@@ -365,7 +365,7 @@ def _positive_int(name):
 
 def add_cli(groups):
     """``driftfmu experiment adxl203`` and ``driftfmu identify``."""
-    from simulations import cli
+    from driftfmu.simulations import cli
     top = groups["top"]
     exp = top.add_parser("experiment", help="the letter's experiments on the FMUs")
     sub = exp.add_subparsers(dest="experiment", metavar="EXPERIMENT",
@@ -400,7 +400,7 @@ def add_cli(groups):
 
 
 def _cmd_experiment(args):
-    from simulations import cli
+    from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
     with cli.progress(total, "sets") as update:
         s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=args.held_out,

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from models import chain, drift, excitation, harmonic, noise, parameters, sensor
+from driftfmu.models import chain, drift, excitation, harmonic, noise, parameters, sensor
 
 #: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
 SEED_MAX = parameters.PARAMETERS["seed"].high
@@ -205,7 +205,7 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
     :func:`simulations.sinusoidal.run_sinusoidal` with the Gauss-Markov filter; both also check
     the FMUs against models/.
     """
-    from simulations import gaussian
+    from driftfmu.simulations import gaussian
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
@@ -214,7 +214,7 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
         cols = gaussian.run_gaussian(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed,
                                      Ts=Ts, x0=x0, P0=P0, fmu_dir=fmu_dir, plot=False)["columns"]
     elif kind == excitation.SINUSOIDAL:
-        from simulations.sinusoidal import run_sinusoidal
+        from driftfmu.simulations.sinusoidal import run_sinusoidal
         cols = run_sinusoidal(X=X, f=f, phi=phi, Ts=Ts, n=n, seed=seed, a0=a0, a1=a1, a2=a2,
                               R=R, process=harmonic.GAUSS_MARKOV, A=fA, Q=fQ, P0=P0, x0=x0,
                               fmu_dir=fmu_dir, plot=False)["columns"]
@@ -385,7 +385,7 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
     return results
 
 
-def mp_context(preload="simulations.batch"):
+def mp_context(preload="driftfmu.simulations.batch"):
     """Worker processes by ``fork`` (fast: NumPy and the models are already imported) while this
     process runs a single thread; by ``forkserver`` (or the platform's default) when other
     threads run, e.g. a progress bar's monitor, since forking a threaded process can deadlock.

@@ -10,7 +10,7 @@ import contextlib
 import sys
 from pathlib import Path
 
-from models import parameters
+from driftfmu.models import parameters
 
 EXIT_FAILED = 1
 EXIT_USAGE = 2
@@ -72,21 +72,21 @@ def progress(total, desc, monitor=True):
 
 
 def cmd_build(args):
-    from fmu_src.builder import build_fmus
+    from driftfmu.fmu_src.builder import build_fmus
     paths = build_fmus(args.out)  # logs one line per FMU
     fmus = {p.stem: p for p in map(Path, paths)}
     if args.cross_check:
-        from fmu_src.crosscheck import write_cross_check
+        from driftfmu.fmu_src.crosscheck import write_cross_check
         for d in write_cross_check(fmus, args.cross_check):
             print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
     if args.ssp:
-        from fmu_src.ssp import build_ssp
+        from driftfmu.fmu_src.ssp import build_ssp
         print("%s (SSP: the wired chain, start values of the letter's Gaussian run)"
               % build_ssp(fmus, args.ssp))
 
 
 def cmd_run_gaussian(args):
-    from simulations.gaussian import run_gaussian
+    from driftfmu.simulations.gaussian import run_gaussian
     with progress(args.n, "co-simulation") as update:
         res = run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
                            Q=args.Q, R=args.R, n=args.n, seed=args.seed, Ts=args.Ts,
@@ -111,8 +111,8 @@ def cmd_run_gaussian(args):
 
 #: Modules that add their own sub-commands: each has ``add_cli(groups)`` taking the dict
 #: ``{"top": <sub-parsers of driftfmu>, "run": <sub-parsers of driftfmu run>}``.
-PLUGINS = ("simulations.doctor", "simulations.sweep", "simulations.montecarlo",
-           "simulations.sinusoidal", "simulations.adxl203")
+PLUGINS = ("driftfmu.simulations.doctor", "driftfmu.simulations.sweep", "driftfmu.simulations.montecarlo",
+           "driftfmu.simulations.sinusoidal", "driftfmu.simulations.adxl203")
 
 
 def make_parser():

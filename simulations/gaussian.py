@@ -7,9 +7,9 @@ sample, and reports the drift estimates against the three references.
 import math
 from pathlib import Path
 
-from models import chain, drift, excitation, parameters
-from simulations import output
-from simulations.cosim import cosimulate
+from driftfmu.models import chain, drift, excitation, parameters
+from driftfmu.simulations import output
+from driftfmu.simulations.cosim import cosimulate
 
 FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
@@ -29,7 +29,7 @@ def fmu_paths(fmu_dir):
     fmu_dir = Path(fmu_dir)
     paths = {n: fmu_dir / ("%s.fmu" % n) for n in FMU_NAMES}
     if not all(p.is_file() for p in paths.values()):
-        from fmu_src.builder import build_fmus
+        from driftfmu.fmu_src.builder import build_fmus
         build_fmus(fmu_dir)
     return paths
 

@@ -15,9 +15,9 @@ import time
 
 import numpy as np
 
-from models import drift, excitation
-from simulations import batch, output
-from simulations.gaussian import SETTLE_BAND
+from driftfmu.models import drift, excitation
+from driftfmu.simulations import batch, output
+from driftfmu.simulations.gaussian import SETTLE_BAND
 
 #: The letter's claim: EKF1 and EKF2 settle in under 250 samples.
 SETTLE_BY = 250
@@ -84,7 +84,7 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
     if engine not in ("batch", "fmu"):
         raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     if engine == "fmu":
-        from simulations.gaussian import fmu_paths
+        from driftfmu.simulations.gaussian import fmu_paths
         fmu_paths(fmu_dir)
         chunk = max(1, min(8, runs // (4 * batch.workers_default())))
     else:
@@ -210,7 +210,7 @@ def plot_population(path, result, prefix, title):
 # -- command line ---------------------------------------------------------------------------
 def add_cli(groups):
     """``driftfmu montecarlo gaussian`` and ``driftfmu montecarlo sinusoidal``."""
-    from simulations import cli
+    from driftfmu.simulations import cli
     mc = groups["top"].add_parser("montecarlo", help="many runs of whole trajectories "
                                   "(the letter's Fig. 1 claims over a population)")
     sub = mc.add_subparsers(dest="experiment", metavar="EXPERIMENT", parser_class=type(mc))
@@ -239,7 +239,7 @@ def add_cli(groups):
 
 
 def _with_bar(args, fn, **kw):
-    from simulations import cli
+    from driftfmu.simulations import cli
     desc = "montecarlo (%s engine)" % args.engine
     with cli.progress(args.runs, desc, monitor=False) as update:
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,

@@ -13,10 +13,10 @@ sample, and reports the drift estimates against the references: the expected dri
 """
 import math
 
-from models import adxl203, chain, drift, excitation, harmonic, identify, parameters
-from simulations import output
-from simulations.cosim import cosimulate
-from simulations.gaussian import TOLERANCE, ValidationError, compare, fmu_paths, settled_from
+from driftfmu.models import adxl203, chain, drift, excitation, harmonic, identify, parameters
+from driftfmu.simulations import output
+from driftfmu.simulations.cosim import cosimulate
+from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, compare, fmu_paths, settled_from
 
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Excitation", "y", "Accelerometer", "y"),
@@ -169,7 +169,7 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
 
 def add_cli(groups):
     """``driftfmu run sinusoidal``."""
-    from simulations import cli
+    from driftfmu.simulations import cli
     g = groups["run"].add_parser("sinusoidal", help="sinusoidal excitation (the letter's Sec. IV "
                                  "drive), Gauss-Markov or harmonic filter, optional ADXL203")
     cli.add_params(g, ("X", "f", "phi", "a0", "a1", "a2", "R", "n", "seed", "Ts", "process",
@@ -190,7 +190,7 @@ def add_cli(groups):
 
 
 def _cmd(args):
-    from simulations import cli
+    from driftfmu.simulations import cli
     with cli.progress(args.n, "co-simulation") as update:
         res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,

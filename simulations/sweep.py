@@ -15,8 +15,8 @@ import time
 
 import numpy as np
 
-from models import excitation, sensor
-from simulations import batch, output
+from driftfmu.models import excitation, sensor
+from driftfmu.simulations import batch, output
 
 DEFAULT_A2 = tuple(np.logspace(-3, -0.5, 6))
 DEFAULT_R = tuple(np.logspace(-6, -2, 5))
@@ -80,7 +80,7 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
     per_run = {"a2": np.repeat(a2, len(R) * runs), "R": np.tile(np.repeat(R, runs), len(a2))}
     common = dict(a0=a0, a1=a1, Q=Q, A=A, Ts=Ts)
     if engine == "fmu":
-        from simulations.gaussian import fmu_paths
+        from driftfmu.simulations.gaussian import fmu_paths
         fmu_paths(fmu_dir)  # build once here, not in every worker
     total = len(seeds)
     if chunk is None:
@@ -184,7 +184,7 @@ def plot_grid(path, result, estimator, subtitle):
 # -- command line ---------------------------------------------------------------------------
 def add_cli(groups):
     """``driftfmu sweep``."""
-    from simulations import cli
+    from driftfmu.simulations import cli
     p = groups["top"].add_parser(
         "sweep", help="drift error over a grid of a2 and R, many runs per point "
                       "(the letter's Figs. 2 and 3)")
@@ -203,7 +203,7 @@ def add_cli(groups):
 def cmd_sweep(args):
     total = len(args.a2) * len(args.R) * args.runs
     t0 = time.perf_counter()
-    from simulations import cli
+    from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine
     with cli.progress(total, desc, monitor=False) as update:
         res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,

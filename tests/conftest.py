@@ -1,7 +1,7 @@
 """Fixtures shared by the test modules."""
 import pytest
 
-from fmu_src.builder import NAMES, build_fmus
+from driftfmu.fmu_src.builder import NAMES, build_fmus
 
 
 @pytest.fixture(scope="session")

@@ -6,9 +6,9 @@ import math
 import numpy as np
 import pytest
 
-from models import adxl203, sensor
-from simulations import adxl203 as experiment
-from simulations.sinusoidal import nominal_model, run_sinusoidal
+from driftfmu.models import adxl203, sensor
+from driftfmu.simulations import adxl203 as experiment
+from driftfmu.simulations.sinusoidal import nominal_model, run_sinusoidal
 
 
 def _z(cfg, xs, ys=None, vs=None):
@@ -140,7 +140,7 @@ def test_bad_experiment_settings_fail_before_anything_is_written(tmp_path, kwarg
 
 
 def test_cli_reports_a_frequency_above_nyquist_in_one_line(tmp_path, capsys):
-    from simulations.cli import main
+    from driftfmu.simulations.cli import main
     rc = main(["experiment", "adxl203", "--freqs", "100,6000", "--out", str(tmp_path / "o"),
                "--fmu-dir", str(tmp_path / "f")])
     err = capsys.readouterr().err

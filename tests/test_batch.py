@@ -5,8 +5,8 @@ import time
 import numpy as np
 import pytest
 
-from models import chain, excitation
-from simulations import batch
+from driftfmu.models import chain, excitation
+from driftfmu.simulations import batch
 
 N = 200
 

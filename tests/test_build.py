@@ -21,8 +21,8 @@ import fmpy
 import pytest
 from fmpy.validation import validate_fmu
 
-from fmu_src import builder
-from fmu_src.builder import (NAMES, BuildError, build_fmus, rewrite_imports, source_hash,
+from driftfmu.fmu_src import builder
+from driftfmu.fmu_src.builder import (NAMES, BuildError, build_fmus, rewrite_imports, source_hash,
                              unit_definition)
 
 HOSTS = Path(__file__).parent / "hosts"
@@ -134,7 +134,7 @@ TOY_SLAVE_BASE = '''\
 """Toy slave base: registers a slave's VARIABLES with pythonfmu."""
 from pythonfmu import Fmi2Causality, Fmi2Variability, Integer, Real
 
-from models.helpers import gained
+from driftfmu.models.helpers import gained
 
 TYPES = {"Real": Real, "Integer": Integer}
 
@@ -158,8 +158,8 @@ from pythonfmu import Fmi2Slave
 from pythonfmu.default_experiment import DefaultExperiment
 from pythonfmu.enums import Fmi2Status
 
-from fmu_src.slave_base import output, register_all
-from models import constants
+from driftfmu.fmu_src.slave_base import output, register_all
+from driftfmu.models import constants
 
 
 def _var(name, type, causality, variability, start, unit=None, low=None, high=None):
@@ -244,7 +244,7 @@ def test_real_fmus_validate_clean(built_fmus, name):
 @integration
 @pytest.mark.parametrize("name", NAMES)
 def test_model_description_follows_the_slave_tables(built_fmus, name):
-    slave = getattr(importlib.import_module("fmu_src." + name), name)
+    slave = getattr(importlib.import_module("driftfmu.fmu_src." + name), name)
     md = fmpy.read_model_description(str(built_fmus[name]))
     assert md.coSimulation.modelIdentifier == name
     assert md.coSimulation.canGetAndSetFMUstate and md.coSimulation.canSerializeFMUstate
@@ -294,17 +294,17 @@ def test_unit_definitions():
 def test_rewrite_imports_points_project_imports_at_the_bundle():
     source = textwrap.dedent("""\
         import os
-        from models import sensor, ekf as filters  # noqa: F401
-        from models.noise import (normal,
+        from driftfmu.models import sensor, ekf as filters  # noqa: F401
+        from driftfmu.models.noise import (normal,
                                   STREAM)
-        import models.chain
-        import models.drift as drift, json
-        from fmu_src.slave_base import SlaveBase
-        from fmu_src import slave_base
+        import driftfmu.models.chain
+        import driftfmu.models.drift as drift, json
+        from driftfmu.fmu_src.slave_base import SlaveBase
+        from driftfmu.fmu_src import slave_base
 
 
         def f():
-            from models import late
+            from driftfmu.models import late
             return late
         """)
     assert rewrite_imports(source, "drift_0123456789") == textwrap.dedent("""\
@@ -312,7 +312,7 @@ def test_rewrite_imports_points_project_imports_at_the_bundle():
         from drift_0123456789.models import sensor, ekf as filters  # noqa: F401
         from drift_0123456789.models.noise import normal, STREAM
         import drift_0123456789.models.chain
-        from drift_0123456789 import models
+        import drift_0123456789 as driftfmu
         import drift_0123456789.models.drift as drift
         import json
         from drift_0123456789.slave_base import SlaveBase
@@ -325,9 +325,10 @@ def test_rewrite_imports_points_project_imports_at_the_bundle():
         """)
 
 
-@pytest.mark.parametrize("source", ["from fmu_src.builder import NAMES\n",
-                                    "import fmu_src.slave_base\n",
-                                    "import os; from models import sensor\n"])
+@pytest.mark.parametrize("source", ["from driftfmu.fmu_src.builder import NAMES\n",
+                                    "import driftfmu.fmu_src.slave_base\n",
+                                    "from driftfmu import simulations\n",
+                                    "import os; from driftfmu.models import sensor\n"])
 def test_rewrite_imports_rejects_what_cannot_be_bundled(source):
     with pytest.raises(BuildError):
         rewrite_imports(source, "drift_0123456789")

@@ -2,13 +2,12 @@
 and regenerated through two other importers (JavaFMI and libcosim) within the stated tolerance."""
 import pytest
 
-from fmu_src import crosscheck
+from driftfmu.fmu_src import crosscheck
 from importers import drivers
-from simulations.cli import main
+from driftfmu import __version__ as VERSION
+from driftfmu.simulations.cli import main
 
 pytestmark = pytest.mark.integration
-
-VERSION = "0.1.0"
 
 
 @pytest.fixture(scope="module")

@@ -3,8 +3,8 @@ import zipfile
 
 import pytest
 
-from simulations import doctor
-from simulations.cli import main
+from driftfmu.simulations import doctor
+from driftfmu.simulations.cli import main
 
 pytestmark = pytest.mark.integration
 

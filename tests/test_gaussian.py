@@ -4,10 +4,10 @@ import math
 
 import pytest
 
-from models import chain, drift
-from simulations import gaussian
-from simulations.cli import main
-from simulations.cosim import CoSimulationError, cosimulate
+from driftfmu.models import chain, drift
+from driftfmu.simulations import gaussian
+from driftfmu.simulations.cli import main
+from driftfmu.simulations.cosim import CoSimulationError, cosimulate
 
 pytestmark = pytest.mark.integration
 
@@ -34,12 +34,12 @@ def test_samples_line_up_without_a_one_step_lag(paper_run):
     _, res = paper_run
     c = res["columns"]
     # z_k is the measurement of x_k: with the noise known, z_k - h(x_k) is exactly sqrt(R) v_k
-    from models import sensor
+    from driftfmu.models import sensor
     for k in (1, 2, 500, N):
         v = sensor.measurement_noise(1, k)
         assert c["z"][k - 1] == sensor.measure(c["x"][k - 1], 0.0, 1.0, 0.01, 1e-4, v)
     # the k-th update uses z_k: the first posterior is the update of the prior with z_1
-    from models import ekf
+    from driftfmu.models import ekf
     x1, P1 = ekf.step(0.0, 0.01, c["z"][0], 0.0, 1.0, 0.01, 0.0, 0.01, 1e-4)
     assert (c["x_hat"][0], c["P"][0]) == (x1, P1)
 

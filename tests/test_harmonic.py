@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from models import _ops, adxl203, chain, drift, harmonic
+from driftfmu.models import _ops, adxl203, chain, drift, harmonic
 
 
 def test_rotation_is_cos_and_sin_of_the_step_angle():
@@ -93,7 +93,7 @@ def test_predict_only_keeps_the_drift_and_rotates_the_state():
 
 
 def test_state_round_trips_through_its_json_form():
-    from fmu_src.slave_base import _plain
+    from driftfmu.fmu_src.slave_base import _plain
     for st in (harmonic.estimator_init(1, 0.2, 0.5), harmonic.estimator_init(2, 0.2, 0.5)):
         assert harmonic.from_plain(_plain(st)) == st
 

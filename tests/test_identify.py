@@ -6,8 +6,8 @@ import math
 import numpy as np
 import pytest
 
-from models import adxl203, identify
-from simulations.adxl203 import run_identify
+from driftfmu.models import adxl203, identify
+from driftfmu.simulations.adxl203 import run_identify
 
 TRUE = dict(a0=0.3, a1=1.2, a2=0.05, R=0.01 ** 2)
 N, SETS, X, F, TS = 4000, 20, 1.0, 50.0, 1e-3
@@ -109,7 +109,7 @@ def test_bad_csv_is_refused_and_nothing_is_written(recordings, tmp_path, content
 
 
 def test_cli_identify_and_its_errors(recordings, tmp_path, capsys):
-    from simulations.cli import main
+    from driftfmu.simulations.cli import main
     c = recordings
     _write(tmp_path / "a.csv", c["time"][0], c["x"][0], c["z"][0])
     _write(tmp_path / "b.csv", c["time"][1], c["x"][1], c["z"][1])

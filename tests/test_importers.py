@@ -13,11 +13,11 @@ log shows that both importers stepped the FMUs.
 """
 import pytest
 
-from fmu_src import crosscheck
-from fmu_src.ssp import CONNECTIONS, DRIFT_OUTPUTS, chain_start_values
+from driftfmu.fmu_src import crosscheck
+from driftfmu.fmu_src.ssp import CONNECTIONS, DRIFT_OUTPUTS, chain_start_values
 from importers import drivers
-from models import chain
-from simulations.gaussian import run_gaussian
+from driftfmu.models import chain
+from driftfmu.simulations.gaussian import run_gaussian
 
 pytestmark = pytest.mark.integration
 

@@ -5,9 +5,9 @@ import os
 
 import pytest
 
-from models import chain
-from simulations.cosim import Instance
-from simulations.gaussian import CONNECTIONS, FMU_NAMES
+from driftfmu.models import chain
+from driftfmu.simulations.cosim import Instance
+from driftfmu.simulations.gaussian import CONNECTIONS, FMU_NAMES
 
 pytestmark = pytest.mark.integration
 OUTS = ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]
@@ -117,7 +117,7 @@ def test_communication_step_of_several_sample_periods(built_fmus):
     ref = reference(6)
     assert row[:2] == ref[5][:2]
     # the estimator saw z at samples 1 and 6 only; its state matches the filter run that way
-    from models import ekf
+    from driftfmu.models import ekf
     x, P = ekf.step(0.0, 0.01, ref[0][1], 0.0, 1.0, 0.01, 0.0, 0.01, 1e-4)
     for _ in range(4):
         x, P = ekf.predict(x, P, 0.0, 0.01)

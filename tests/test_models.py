@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from models import _ops, chain, drift, ekf, excitation, noise, parameters, sensor
+from driftfmu.models import _ops, chain, drift, ekf, excitation, noise, parameters, sensor
 
 
 # -- arithmetic-only special functions --------------------------------------------------------

@@ -5,9 +5,9 @@ import math
 import numpy as np
 import pytest
 
-from models import drift
-from simulations import batch, gaussian, montecarlo
-from simulations.cli import main
+from driftfmu.models import drift
+from driftfmu.simulations import batch, gaussian, montecarlo
+from driftfmu.simulations.cli import main
 
 RUNS = 50
 N = 300

@@ -4,9 +4,9 @@ import math
 
 import pytest
 
-from models import adxl203, harmonic
-from simulations import sinusoidal
-from simulations.cli import main
+from driftfmu.models import adxl203, harmonic
+from driftfmu.simulations import sinusoidal
+from driftfmu.simulations.cli import main
 
 pytestmark = pytest.mark.integration
 
@@ -67,7 +67,7 @@ def test_frequency_at_or_above_nyquist_is_refused_and_nothing_written(fmu_dir, t
 
 
 def test_fmu_refuses_a_harmonic_filter_above_nyquist(fmu_dir):
-    from simulations.cosim import CoSimulationError, cosimulate
+    from driftfmu.simulations.cosim import CoSimulationError, cosimulate
     with pytest.raises(CoSimulationError, match="Nyquist"):
         cosimulate({"DriftEstimator": fmu_dir / "DriftEstimator.fmu"}, (), 3, 1e-3,
                    start_values={"DriftEstimator": dict(process=2, f=600.0, Ts=1e-3)})

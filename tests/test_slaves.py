@@ -4,10 +4,10 @@ import math
 
 import pytest
 
-from fmu_src.Accelerometer import Accelerometer
-from fmu_src.DriftEstimator import DriftEstimator
-from fmu_src.Excitation import Excitation
-from models import chain
+from driftfmu.fmu_src.Accelerometer import Accelerometer
+from driftfmu.fmu_src.DriftEstimator import DriftEstimator
+from driftfmu.fmu_src.Excitation import Excitation
+from driftfmu.models import chain
 
 OUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
 

@@ -8,10 +8,10 @@ import zipfile
 
 import pytest
 
-from fmu_src import ssp
+from driftfmu.fmu_src import ssp
 from importers import drivers
-from simulations.cli import main
-from simulations.gaussian import run_gaussian
+from driftfmu.simulations.cli import main
+from driftfmu.simulations.gaussian import run_gaussian
 
 pytestmark = pytest.mark.integration
 
@@ -64,7 +64,7 @@ def test_fmpy_ssp_equals_our_master_with_the_same_coupling(archive, built_fmus, 
     """fmpy's SSP run of the archive and our fmpy master (simulations.cosim) run of the same
     FMUs with the same (Jacobi) coupling give the same rows; our master's row i + 1 is fmpy's row
     i, whose time label is the start of the step."""
-    from simulations.cosim import cosimulate
+    from driftfmu.simulations.cosim import cosimulate
 
     res = ssp.simulate(archive, N)
     start = ssp.chain_start_values()

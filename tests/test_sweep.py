@@ -6,8 +6,8 @@ import time
 import numpy as np
 import pytest
 
-from simulations import batch, sweep
-from simulations.cli import main
+from driftfmu.simulations import batch, sweep
+from driftfmu.simulations.cli import main
 
 A2 = [0.01, 0.1]
 R = [1e-4, 1e-2]

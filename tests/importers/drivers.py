@@ -98,7 +98,7 @@ def run_javafmi(classpath, workdir, fmus, steps, step, start=None, connections=(
     if proc.returncode:
         raise RuntimeError("JavaFMI host failed (exit %d):\n%s%s"
                            % (proc.returncode, proc.stdout[-4000:], proc.stderr[-4000:]))
-    from fmu_src.crosscheck import read_csv
+    from driftfmu.fmu_src.crosscheck import read_csv
     return read_csv(out), proc.stdout.strip().splitlines()[-1]
 
 

@@ -1,0 +1,7 @@
+"""``python -m driftfmu``: the ``driftfmu`` command."""
+import sys
+
+from driftfmu.simulations.cli import main
+
+if __name__ == "__main__":
+    sys.exit(main())
