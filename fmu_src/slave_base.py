@@ -408,18 +408,15 @@ class SlaveBase(Fmi2Slave):
         last = math.ceil(position - tol)      # index (k - 1) of the first instant at or after t+h
         m = max(0, last + 1 - k)              # instants in [t, t + h)
         at_sample = last <= position + tol    # t + h is that instant
-        if not m:  # no sample instant in the step: only the time moves on
-            self._elapsed, self._elapsed_c = elapsed, comp
-            return
         hidden, outputs, pending = self._hidden(), None, None
         first = True
-        if self._at_sample:  # sample k: committed with the inputs set at t
+        if m and self._at_sample:  # sample k: committed with the inputs set at t
             if self._dirty or self._pending is None:
                 hidden, outputs = self._samples(hidden, k, 1, True)
             else:
                 hidden = self._pending
             first = False
-        if m > 1 or not self._at_sample:  # the other instants: inputs held from t
+        if m > 1 or (m and not self._at_sample):  # the other instants: inputs held from t
             start = k + 1 if self._at_sample else k
             hidden, outputs = self._samples(hidden, start, k + m - start, first)
         if at_sample and not self.DEPENDENCIES:
