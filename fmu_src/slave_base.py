@@ -143,6 +143,7 @@ class SlaveBase(Fmi2Slave):
         super().__init__(**kwargs)
         _drop_duplicate_path(self.resources)
         cls = type(self)
+        self.version = cls.version  # (pythonfmu's __init__ sets None)
         # the same GUID at build time (into the model description) and in every instance
         self.guid = uuid.uuid5(GUID_NAMESPACE, "%s.%s %s" % (cls.__module__, cls.__name__,
                                                              self.version))
@@ -294,7 +295,11 @@ class SlaveBase(Fmi2Slave):
 
     # -- errors -----------------------------------------------------------------------------
     def _log_error(self, message):
-        self.log("%s: %s" % (self.instance_name, message), Fmi2Status.error, _ERROR_CATEGORY)
+        # pythonfmu 0.7.0 never releases a reference it takes to each message's text (about
+        # 120 bytes a line); interned, a message repeated (a host retrying a bad call) is kept
+        # once, not once per call
+        self.log(sys.intern("%s: %s" % (self.instance_name, message)), Fmi2Status.error,
+                 _ERROR_CATEGORY)
 
     def _fail(self, message):
         """Log ``message`` with status error and abandon the current FMI call."""
