@@ -76,7 +76,9 @@ _STATE_META = ("model", "guid", "version")
 _STATE_FIELDS = ("k", "time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
 _ARITHMETIC = (ArithmeticError, ValueError)
-_INF = math.inf  # overflow, 0/0, floor(nan) in the models
+_INF = math.inf
+_TERMINATED = ("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
+               "fmi2FreeInstance, the get functions and fmi2GetFMUstate/fmi2SetFMUstate")  # overflow, 0/0, floor(nan) in the models
 
 
 class ModelError(Exception):
@@ -190,16 +192,17 @@ class SlaveBase(Fmi2Slave):
 
     # -- getters ----------------------------------------------------------------------------
     def get_real(self, vrs):
-        if self._dirty and self._at_sample and (self._in_init or (
-                self._initialised and self.DEPENDENCIES)):
-            self._call(self._refresh)  # outputs at this communication point, from its inputs
         names = self._real_names
         try:
-            return [float(getattr(self, names[vr])) for vr in vrs]
-        except KeyError:
+            wanted = [names[vr] for vr in vrs]
+        except KeyError:  # the whole call is refused, and changes nothing
             self._call(self._fail, "fmi2GetReal: %s" % self._bad_refs(vrs, "Real"))
             return [float(getattr(self, names[vr])) if vr in names else math.nan
                     for vr in vrs]
+        if self._dirty and self._at_sample and (self._in_init or (
+                self._initialised and self.DEPENDENCIES)):
+            self._call(self._refresh)  # outputs at this communication point, from its inputs
+        return [float(getattr(self, name)) for name in wanted]
 
     def get_integer(self, vrs):
         return self._get_typed("fmi2GetInteger", "Integer", vrs, 0, int)
@@ -271,8 +274,7 @@ class SlaveBase(Fmi2Slave):
     def _set_checked(self, what, vrs, values, kind):
         problems = []
         if self._terminated:
-            problems.append("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
-                            "fmi2FreeInstance, the get functions and fmi2SetFMUstate")
+            problems.append(_TERMINATED)
         bad_refs = [vr for vr in vrs if vr not in self._specs or self._specs[vr]["type"] != kind]
         if bad_refs:
             problems.append(self._bad_refs(bad_refs, kind))
@@ -370,17 +372,22 @@ class SlaveBase(Fmi2Slave):
             self.start_time = start_time
 
     def enter_initialization_mode(self):
+        if self._terminated:
+            self._call(self._fail, "fmi2EnterInitializationMode: " + _TERMINATED)
+            return
         self._in_init = True
         self._dirty = True
 
     def exit_initialization_mode(self):
-        self._initialised = self._call(self._initialise)
-        self._in_init = False
+        if self._call(self._initialise):  # refused: still in Initialization Mode, unchanged
+            self._initialised, self._in_init = True, False
 
     def terminate(self):
         self._terminated = True
 
     def _initialise(self):
+        if self._terminated:
+            self._fail("fmi2ExitInitializationMode: " + _TERMINATED)
         self._check_and_prepare("")
         hidden = self.initial_hidden()
         outputs = pending = None
@@ -405,8 +412,7 @@ class SlaveBase(Fmi2Slave):
 
     def _step(self, h):
         if self._terminated:
-            self._fail("cannot step: the instance is terminated (fmi2Terminate); allowed: "
-                       "fmi2Reset, then initialise again")
+            self._fail("cannot step: " + _TERMINATED)
         if not self._initialised:
             self._fail("cannot step: initialisation did not complete (see the errors above)")
         if not (type(h) in (float, int) and 0.0 < h < _INF):
