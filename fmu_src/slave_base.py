@@ -75,10 +75,10 @@ STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep ac
 _STATE_META = ("model", "guid", "version")
 _STATE_FIELDS = ("k", "time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
-_ARITHMETIC = (ArithmeticError, ValueError)
+_ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
 _INF = math.inf
 _TERMINATED = ("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
-               "fmi2FreeInstance, the get functions and fmi2GetFMUstate/fmi2SetFMUstate")  # overflow, 0/0, floor(nan) in the models
+               "fmi2FreeInstance, the get functions and fmi2GetFMUstate/fmi2SetFMUstate")
 
 
 class ModelError(Exception):
