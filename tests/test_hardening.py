@@ -422,7 +422,11 @@ def test_fmu_state_before_initialisation_and_after_reset(built_fmus):
         after_reset = inst.fmu.getFMUstate()
         inst.fmu.setFMUstate(fresh)
         blob = inst.fmu.serializeFMUstate(after_reset)
-        assert json.loads(blob.decode())["flags"]["initialised"] is False
+        state = json.loads(blob.decode())
+        assert state["flags"]["initialised"] is False
+        # the state names the FMU it belongs to: the model description's GUID and version
+        assert (state["model"], state["guid"], state["version"]) == (
+            name, inst.md.guid, inst.md.version)
         inst.fmu.freeFMUstate(fresh)
         inst.fmu.freeFMUstate(after_reset)
         inst.free()
