@@ -536,6 +536,20 @@ class SlaveBase(Fmi2Slave):
         """Problems of a hidden state read back for the current parameters (hook)."""
         return []
 
+    def _timing_problems(self, k, time, at_sample):
+        """Whether sample index ``k`` and the at-a-sample flag agree with the time of a state
+        (as :meth:`_step` derives them: ``k - 1`` is the first instant at or after ``t``)."""
+        position = (time[1] + time[2]) / self.Ts
+        if not math.isfinite(position):
+            return ["time = %r is not a finite number of sample periods Ts = %r s"
+                    % (time, self.Ts)]
+        first = math.ceil(position - INSTANT_TOLERANCE)
+        if k - 1 != first or at_sample != (first <= position + INSTANT_TOLERANCE):
+            return ["k = %r and at_sample = %r do not match the time %r s after the start "
+                    "(the next sample there is k = %d)" % (k, at_sample, time[1] + time[2],
+                                                            first + 1)]
+        return []
+
     # -- FMU state: variables plus hidden state ---------------------------------------------
     def _identity(self):
         return {"model": type(self).__name__, "guid": str(self.guid), "version": self.version}
@@ -625,7 +639,8 @@ class SlaveBase(Fmi2Slave):
                            self.initial_hidden()[name] is not None):
                         bad = ["the hidden state of an initialised instance is missing"]
                     else:
-                        bad = self.hidden_problems(hidden)
+                        bad = self.hidden_problems(hidden) + self._timing_problems(
+                            k, time, flags["at_sample"])
             finally:
                 for name, value in saved.items():
                     setattr(self, name, value)
