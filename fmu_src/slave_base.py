@@ -139,7 +139,10 @@ class SlaveBase(Fmi2Slave):
     DEPENDENCIES = {}
     CAN_HANDLE_VARIABLE_STEP = True
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
-    #: Names of the hidden state (attributes; None before initialisation).
+    #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
+    #: before initialisation).  Slaves provide the hooks ``prepare``, ``initial_hidden``,
+    #: ``sample`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
+    #: ``hidden_problems``; the step rule, the checks and the FMU state are this class's.
     HIDDEN = ()
 
     def __init__(self, **kwargs):
