@@ -16,7 +16,9 @@ For each slave script ``fmu_src/<Name>.py`` :func:`build_fmus`
 4. validates the FMU with fmpy and moves it into place as ``<out_dir>/<Name>.fmu``.
 
 ``resources/driftfmu_build.json`` records the Python version, libpython soname, code hash and
-loader kind of the build.
+loader kind of the build.  The bundled package carries driftfmu's version, and the GUID is made
+from the module (with its code hash), the class and that version (``slave_base.GUID_NAMESPACE``),
+so the model description and every instance agree on it and FMU states can name their FMU.
 """
 import ast
 import contextlib
@@ -262,6 +264,10 @@ def _stage(name, src_dir, digest, stage):
         target = package / (source.name if source.parent == src_dir else source.relative_to(root))
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(rewrite_imports(source.read_text(), package.name))
+    # the FMU's own copy of driftfmu's version: the slaves put it (and a GUID made from it)
+    # into their FMU states, and the model description
+    (package / "__init__.py").write_text('"""driftfmu code bundled by build %s."""\n'
+                                         '__version__ = %r\n' % (digest, __version__))
     for folder in [package] + [p for p in package.rglob("*") if p.is_dir()]:
         init = folder / "__init__.py"
         if not init.exists():
