@@ -5,7 +5,12 @@
 
 double ops_sqrt(double x) { return sqrt(x); }
 
-double ops_floor(double x) { return floor(x); }
+/* float(math.floor(x)) goes through a Python int, so a zero result is +0.0 (floor(-0.0) too). */
+double ops_floor(double x)
+{
+    double r = floor(x);
+    return r == 0.0 ? 0.0 : r;
+}
 
 void ops_frexp(double x, double *m, int64_t *e)
 {

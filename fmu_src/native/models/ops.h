@@ -22,7 +22,7 @@
 
 /* Correctly rounded square root. */
 double ops_sqrt(double x);
-/* Floor (as a double). */
+/* Floor (as a double), as Python's float(math.floor(x)): floor(-0.0) is +0.0. */
 double ops_floor(double x);
 /* Mantissa in [0.5, 1) (*m) and integer exponent (*e), exactly: x = m 2^e. */
 void ops_frexp(double x, double *m, int64_t *e);
