@@ -650,6 +650,12 @@ def models(tmp_path_factory):
 TOL = 1e-6  # slave_base.INSTANT_TOLERANCE
 
 
+def neumaier(s, c, h):
+    """slave_base's running sum of the step sizes: ``(s + h, compensation)`` (Neumaier)."""
+    t = s + h
+    return t, c + (((s - t) + h) if abs(s) >= h else ((h - t) + s))
+
+
 class CSlave:
     """One native model driven through its hooks, with the plumbing's part (sample planning,
     feedthrough refresh, dirty and pending flags) done as slave_base does it."""
@@ -697,7 +703,7 @@ class CSlave:
     def step(self, h):
         """slave_base._step's planning; the hooks do the rest."""
         Ts, k = self.raw("Ts"), self.k
-        elapsed, comp = slave_base._add(self.elapsed, self.comp, h) if VARIABLE_STEPS else \
+        elapsed, comp = neumaier(self.elapsed, self.comp, h) if VARIABLE_STEPS else \
             (self.elapsed + h, 0.0)
         position = (elapsed + comp) / Ts
         last = math.ceil(position - TOL)
