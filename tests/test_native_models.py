@@ -565,7 +565,7 @@ def config_h(slave):
         from driftfmu.fmu_src import native_build
         if (NATIVE / "model.h").exists():
             return native_build.config_h(slave, "{test}", 2)
-    except ImportError:
+    except (ImportError, AttributeError, TypeError):  # not there (or another signature)
         pass
     lines = ["#include <stddef.h>", '#define MODEL_NAME "%s"' % slave.__name__,
              "#define N_VARIABLES %d" % len(slave.VARIABLES),
