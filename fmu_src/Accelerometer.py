@@ -1,9 +1,11 @@
 """Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + v, and the richer
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
-noise density) of :mod:`models.adxl203`, every extra off by default."""
+noise density) of :mod:`models.adxl203`, every extra off by default; or (``dual = 1``) the
+dual-axis bilinear sensor of :mod:`models.dualaxis`, z = a0 + a1 x + a2 x^2 + bx x y + v_x and
+z_y = a0y + a1y y + a2y y^2 + by x y + v_y."""
 
 from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
-from driftfmu.models import adxl203
+from driftfmu.models import adxl203, dualaxis
 
 
 class Accelerometer(SlaveBase):
@@ -29,7 +31,14 @@ class Accelerometer(SlaveBase):
         var("axes", "parameter", type="Integer"),
         var("y", "input", start=0.0, unit="g", description="second-axis acceleration y_k"),
         var("z_y", "output", start=0.0, unit="V",
-            description="second-axis output (axes = 2; 0 otherwise)"),
+            description="second-axis output (axes = 2 or dual = 1; 0 otherwise)"),
+        var("dual", "parameter", type="Integer"),
+        var("bx", "parameter"),
+        var("a0y", "parameter"),
+        var("a1y", "parameter"),
+        var("a2y", "parameter"),
+        var("by", "parameter"),
+        var("Ry", "parameter"),
     )
     DEPENDENCIES = {"z": ["x", "y"], "z_y": ["x", "y"]}
     #: Output filter states (None before the first sample): committed and pending, per axis.
@@ -37,16 +46,22 @@ class Accelerometer(SlaveBase):
     default_experiment = default_experiment(2000, 1e-3)
 
     def check_parameters(self):
-        return super().check_parameters() + adxl203.problems(self.parameter_values())
+        p = self.parameter_values()
+        return super().check_parameters() + adxl203.problems(p) + dualaxis.sensor_problems(p)
 
     def start(self):
         self._cfg = adxl203.config(**self.parameter_values())
+        self._axes = dualaxis.axes(self.parameter_values())
         self._lp = self._lp_pending = self._lpy = self._lpy_pending = None
 
     def _noise(self, k, axis):
         return adxl203.noise(self.seed, k, axis) if self.noise else 0.0
 
     def compute(self):
+        if self.dual:
+            self.z, self.z_y = dualaxis.measure(self.x, self.y, *self._axes,
+                                                self._noise(self.k, 1), self._noise(self.k, 2))
+            return
         self._lp_pending, self.z = adxl203.measure(self._lp, self.x, self.y,
                                                    self._noise(self.k, 1), self._cfg)
         if self.axes == 2:
@@ -54,6 +69,8 @@ class Accelerometer(SlaveBase):
                                                           self._noise(self.k, 2), self._cfg)
 
     def advance(self, m):
+        if self.dual:  # no output filter: nothing is held between communication points
+            return
         args = (self.seed, self.k, m, self._cfg)
         self._lp = adxl203.hold(self._lp_pending, self.x, self.y, *args, axis=1,
                                 noise_on=self.noise)
@@ -63,3 +80,4 @@ class Accelerometer(SlaveBase):
 
     def restore_hidden(self):
         self._cfg = adxl203.config(**self.parameter_values())
+        self._axes = dualaxis.axes(self.parameter_values())

@@ -1,5 +1,6 @@
 """Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
-second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; 0 when Gaussian)."""
+second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; when Gaussian a
+second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0)."""
 
 from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
 from driftfmu.models import excitation
@@ -23,7 +24,10 @@ class Excitation(SlaveBase):
         var("seed", "parameter", type="Integer"),
         var("x", "output", start=0.0, unit="g", description="true acceleration x_k"),
         var("y", "output", start=0.0, unit="g",
-            description="second-axis acceleration y_k = Xy sin(2 pi f t_k + phiy) (0 if Gaussian)"),
+            description="second-axis acceleration y_k = Xy sin(2 pi f t_k + phiy), or if "
+                        "Gaussian y_k = A y_{k-1} + w_y,k (0 while Qy = 0)"),
+        var("Qy", "parameter"),
+        var("rho", "parameter"),
     )
     default_experiment = default_experiment(2000, 1e-3)
 
@@ -34,21 +38,16 @@ class Excitation(SlaveBase):
                             "allowed: f < %r Hz" % (self.f, 0.5 / self.Ts, 0.5 / self.Ts))
         return problems
 
-    def _sample(self, x_prev, k):
+    def _sample(self, x_prev, y_prev, k):
         if self.kind == excitation.GAUSSIAN:
-            return excitation.gaussian_sample(x_prev, self.A, self.Q, self.seed, k)
-        return excitation.sine(k, self.X, self.f, self.Ts, self.phi)
-
-    def _sample_y(self, k):
-        if self.kind == excitation.GAUSSIAN:
-            return 0.0
-        return excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy)
+            return excitation.gaussian_pair(x_prev, y_prev, self.A, self.Q, self.Qy, self.rho,
+                                            self.seed, k)
+        return (excitation.sine(k, self.X, self.f, self.Ts, self.phi),
+                excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy))
 
     def start(self):
-        self.x = self._sample(self.x0, 1)
-        self.y = self._sample_y(1)
+        self.x, self.y = self._sample(self.x0, 0.0, 1)
 
     def advance(self, m):
         for i in range(1, m + 1):
-            self.x = self._sample(self.x, self.k + i)
-        self.y = self._sample_y(self.k + m)
+            self.x, self.y = self._sample(self.x, self.y, self.k + i)
