@@ -110,9 +110,11 @@ def cmd_run_gaussian(args):
 
 
 #: Modules that add their own sub-commands: each has ``add_cli(groups)`` taking the dict
-#: ``{"top": <sub-parsers of driftfmu>, "run": <sub-parsers of driftfmu run>}``.
+#: ``{"top": <sub-parsers of driftfmu>, "run": <sub-parsers of driftfmu run>}``; the module that
+#: adds ``driftfmu experiment`` puts its sub-parsers there as ``"experiment"`` for the later ones.
 PLUGINS = ("driftfmu.simulations.doctor", "driftfmu.simulations.sweep", "driftfmu.simulations.montecarlo",
-           "driftfmu.simulations.sinusoidal", "driftfmu.simulations.adxl203")
+           "driftfmu.simulations.sinusoidal", "driftfmu.simulations.adxl203",
+           "driftfmu.simulations.dual_axis")
 
 
 def make_parser():
@@ -149,8 +151,9 @@ def make_parser():
     g.set_defaults(func=cmd_run_gaussian)
 
     import importlib
+    groups = {"top": sub, "run": runs}
     for name in PLUGINS:
-        importlib.import_module(name).add_cli({"top": sub, "run": runs})
+        importlib.import_module(name).add_cli(groups)
     return parser
 
 
