@@ -5,7 +5,9 @@ process model Gauss-Markov over (x, y) or two harmonic oscillators at a known fr
 A new FMU rather than a mode of DriftEstimator: DriftEstimator's interface (its variables and
 value references) stays exactly as it is, and this one has a measurement vector (z_x, z_y)."""
 
-from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+import math
+
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import chain, drift, dualaxis, harmonic
 
 #: Outputs, each depending on both inputs.
@@ -65,8 +67,16 @@ class DualDriftEstimator(SlaveBase):
             description="drift-compensated output z_y,k - dc_y,k"),
     )
     DEPENDENCIES = {name: ["z_x", "z_y"] for name in OUTPUTS}
-    HIDDEN = ("_state", "_pending")
-    default_experiment = default_experiment(2000, 1e-3)
+    DESCRIPTION = ("EKF estimate of (x, y) from (z_x, z_y) of a dual-axis sensor with bilinear "
+                   "cross terms, and each axis's drift a2 E[x^2] + b E[x y] (EKF1, EKF2, EKF3), "
+                   "subtracted from z; process model Gauss-Markov over (x, y) or two harmonic "
+                   "oscillators. The first sample instant of a step takes the (z_x, z_y) held "
+                   "from its start as the measurement, further instants in the same step are "
+                   "predict-only")
+    #: The filter and drift-estimator state after the last sample (x0, y0, P0, P0y before the
+    #: first).
+    HIDDEN = ("_state",)
+    default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
         problems = super().check_parameters()
@@ -75,36 +85,61 @@ class DualDriftEstimator(SlaveBase):
                             "allowed: f < %r Hz" % (self.f, 0.5 / self.Ts, 0.5 / self.Ts))
         return problems
 
-    def _set_model(self):
-        p = self.parameter_values()
-        self._axes = dualaxis.axes(p)
+    def prepare(self):
+        self._axes = dualaxis.axes(self.parameter_values())
         self._model = dualaxis.model(self.process, A=self.A, Q=self.Q, Qy=self.Qy, rho=self.rho,
                                      f=self.f, Ts=self.Ts, Qh=self.Qh)
 
-    def start(self):
-        self._set_model()
-        self._state = dualaxis.estimator_init(self.process, self.x0, self.y0, self.P0, self.P0y)
-        self._pending = self._state
+    def initial_hidden(self):
+        return {"_state": dualaxis.estimator_init(self.process, self.x0, self.y0, self.P0,
+                                                  self.P0y)}
 
-    def compute(self):
-        self._pending = dualaxis.estimator_step(self._state, self.z_x, self.z_y, *self._axes,
-                                                self._model)
-        self.x_hat, self.y_hat, self.P_xx, self.P_xy, self.P_yy = dualaxis.moments(self._pending)
-        dx, dy = dualaxis.estimates(self._pending.drift, *self._axes)
-        self.dc_ekf1_x, self.dc_ekf2_x, self.dc_ekf3_x = dx
-        self.dc_ekf1_y, self.dc_ekf2_y, self.dc_ekf3_y = dy
-        self.dc_x = drift.select(dx, self.estimator)
-        self.dc_y = drift.select(dy, self.estimator)
-        self.z_comp_x = chain.compensate(self.z_x, self.dc_x)
-        self.z_comp_y = chain.compensate(self.z_y, self.dc_y)
+    def _outputs(self, state):
+        x_hat, y_hat, P_xx, P_xy, P_yy = dualaxis.moments(state)
+        dx, dy = dualaxis.estimates(state.drift, *self._axes)
+        dc_x, dc_y = drift.select(dx, self.estimator), drift.select(dy, self.estimator)
+        return {"x_hat": x_hat, "y_hat": y_hat, "P_xx": P_xx, "P_xy": P_xy, "P_yy": P_yy,
+                "dc_ekf1_x": dx[0], "dc_ekf2_x": dx[1], "dc_ekf3_x": dx[2],
+                "dc_ekf1_y": dy[0], "dc_ekf2_y": dy[1], "dc_ekf3_y": dy[2],
+                "dc_x": dc_x, "dc_y": dc_y, "z_comp_x": chain.compensate(self.z_x, dc_x),
+                "z_comp_y": chain.compensate(self.z_y, dc_y)}
 
-    def advance(self, m):
-        state = self._pending
-        for _ in range(m - 1):  # samples between communication points carry no measurement
+    def sample(self, hidden, k, first):
+        state = hidden["_state"]
+        if first:  # the measurement: (z_x, z_y) set at (or held from) the start of the step
+            state = dualaxis.estimator_step(state, self.z_x, self.z_y, *self._axes, self._model)
+        else:      # samples between communication points carry no measurement
             state = dualaxis.estimator_predict(state, self._model)
-        self._state = state
+        return {"_state": state}, self._outputs(state)
 
-    def restore_hidden(self):
-        self._set_model()
-        for name in self.HIDDEN:
-            setattr(self, name, dualaxis.from_plain(getattr(self, name)))
+    def hold(self, hidden, k0, n, first):
+        hidden, outputs = self.sample(hidden, k0, first)
+        if n > 1:
+            state = hidden["_state"]
+            for _ in range(n - 1):
+                state = dualaxis.estimator_predict(state, self._model)
+            hidden, outputs = {"_state": state}, self._outputs(state)
+        return hidden, outputs
+
+    def parse_hidden(self, name, value):
+        if value is None:
+            return None
+        sizes = (len(dualaxis.DualState._fields), len(dualaxis.DualHarmonicState._fields))
+        if not isinstance(value, list) or len(value) not in sizes:
+            raise ValueError("not a dual estimator state [x, y, Pxx, Pxy, Pyy, drift] or "
+                             "[x, dx, y, dy, P11 .. P24, drift]")
+        *head, d = value
+        if not (isinstance(d, list) and len(d) == len(dualaxis.DualDrift._fields)
+                and isinstance(d[0], int) and not isinstance(d[0], bool) and d[0] >= 0):
+            raise ValueError("not a dual drift-estimator state [k, s1xx, .., dc3y]")
+        for v in head + d[1:]:
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)):
+                raise ValueError("%r is not a finite number" % (v,))
+        return dualaxis.from_plain(value)
+
+    def hidden_problems(self, hidden):
+        state = hidden["_state"]
+        harmonic_state = isinstance(state, dualaxis.DualHarmonicState)
+        if harmonic_state != (self.process == harmonic.HARMONIC):
+            return ["the estimator state does not belong to process = %r" % (self.process,)]
+        return []

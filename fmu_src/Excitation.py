@@ -2,7 +2,7 @@
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; when Gaussian a
 second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0)."""
 
-from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import excitation
 
 
@@ -29,7 +29,12 @@ class Excitation(SlaveBase):
         var("Qy", "parameter"),
         var("rho", "parameter"),
     )
-    default_experiment = default_experiment(2000, 1e-3)
+    DESCRIPTION = ("True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + w_k, w_k ~ N(0, Q), "
+                   "or X sin(2 pi f t + phi); second axis y_k = Xy sin(2 pi f t_k + phiy), or "
+                   "Gauss-Markov y_k = A y_{k-1} + w_y,k with corr(w_x, w_y) = rho when Qy > 0")
+    #: x_{k-1} and y_{k-1}, the excitation before the next sample (x0 and 0 before sample 1).
+    HIDDEN = ("_x", "_y")
+    default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
         problems = super().check_parameters()
@@ -45,9 +50,18 @@ class Excitation(SlaveBase):
         return (excitation.sine(k, self.X, self.f, self.Ts, self.phi),
                 excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy))
 
-    def start(self):
-        self.x, self.y = self._sample(self.x0, 0.0, 1)
+    def initial_hidden(self):
+        return {"_x": self.x0, "_y": 0.0}
 
-    def advance(self, m):
-        for i in range(1, m + 1):
-            self.x, self.y = self._sample(self.x, self.y, self.k + i)
+    def sample(self, hidden, k, first):
+        x, y = self._sample(hidden["_x"], hidden["_y"], k)
+        return {"_x": x, "_y": y}, {"x": x, "y": y}
+
+    def hold(self, hidden, k0, n, first):
+        x, y = hidden["_x"], hidden["_y"]
+        if self.kind == excitation.GAUSSIAN:
+            for k in range(k0, k0 + n):
+                x, y = self._sample(x, y, k)
+        else:  # the sinusoid needs no history
+            x, y = self._sample(x, y, k0 + n - 1)
+        return {"_x": x, "_y": y}, {"x": x, "y": y}

@@ -453,3 +453,28 @@ def test_cli_batch_run_writes_and_reports(tmp_path, capsys):
     assert "batch engine" in text
     assert sorted(p.name for p in out.iterdir()) == ["dual_axis.csv", "dual_axis.json",
                                                      "dual_axis.png"]
+
+
+def test_second_gauss_markov_axis_under_any_step_is_the_sample_by_sample_run():
+    from driftfmu.fmu_src.Excitation import Excitation
+    e = Excitation(instance_name="e")
+    e.setup_experiment(0.0)
+    e.enter_initialization_mode()
+    vrs = {v.name: v.value_reference for v in e.vars.values()}
+    e.set_real([vrs["Qy"], vrs["rho"], vrs["A"]], [0.02, -0.7, 0.6])
+    e.exit_initialization_mode()
+    x = y = 0.0
+    want = []
+    for k in range(1, 31):
+        x, y = excitation.gaussian_pair(x, y, 0.6, 0.01, 0.02, -0.7, 1, k)
+        want.append((x, y))
+    checked, t = 1, 0.0
+    assert tuple(e.get_real([vrs["x"], vrs["y"]])) == want[0]
+    for h in [0.25e-3] * 8 + [2.5e-3, 0.5e-3] * 4 + [3e-3] * 3 + [1e-3] * 6:
+        assert e.do_step(t, h)
+        t += h
+        k = t / 1e-3  # samples since the start: at an instant, sample k + 1 is out
+        if abs(k - round(k)) < 1e-6:
+            assert tuple(e.get_real([vrs["x"], vrs["y"]])) == want[round(k)], k
+            checked += 1
+    assert checked > 15
