@@ -124,8 +124,8 @@ def make_parser():
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
-    p = sub.add_parser("build", help="build Excitation.fmu, Accelerometer.fmu and "
-                       "DriftEstimator.fmu (validated with fmpy)")
+    p = sub.add_parser("build", help="build Excitation.fmu, Accelerometer.fmu, "
+                       "DriftEstimator.fmu and DualDriftEstimator.fmu (validated with fmpy)")
     p.add_argument("--out", default="build/fmus", metavar="DIR",
                    help="output folder for the FMUs (default: build/fmus)")
     p.add_argument("--cross-check", nargs="?", const="build/cross-check", default=None,
