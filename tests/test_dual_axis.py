@@ -478,3 +478,42 @@ def test_second_gauss_markov_axis_under_any_step_is_the_sample_by_sample_run():
             assert tuple(e.get_real([vrs["x"], vrs["y"]])) == want[round(k)], k
             checked += 1
     assert checked > 15
+
+
+@pytest.mark.parametrize("process", [dualaxis.GAUSS_MARKOV, dualaxis.HARMONIC])
+def test_b_zero_dual_slave_under_any_step_is_two_single_axis_slaves(process):
+    """The step rule (zero-order hold, update at the first instant of a step, predict through
+    the others, feedthrough at instants) is the single-axis estimator's on each axis."""
+    import random
+    from driftfmu.fmu_src.DriftEstimator import DriftEstimator
+    from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
+
+    def ready(cls, **start):
+        s = cls(instance_name="s")
+        s.setup_experiment(0.0)
+        s.enter_initialization_mode()
+        vrs = {v.name: v.value_reference for v in s.vars.values()}
+        for name, value in start.items():
+            (s.set_integer if name == "process" else s.set_real)([vrs[name]], [value])
+        s.exit_initialization_mode()
+        assert not s.log_queue, [m.msg for m in s.log_queue]
+        return s, vrs
+
+    common = dict(process=process, f=123.0, Qh=1e-6, A=0.4)
+    d, dv = ready(DualDriftEstimator, a2=0.05, a2y=0.02, Q=0.02, Qy=0.03, P0=0.3, P0y=0.2,
+                  **common)
+    sx, xv = ready(DriftEstimator, a2=0.05, Q=0.02, P0=0.3, **common)
+    sy, yv = ready(DriftEstimator, a2=0.02, Q=0.03, P0=0.2, **common)
+    rng = random.Random(5)
+    t = 0.0
+    for i in range(120):
+        zx, zy = rng.uniform(-1, 1), rng.uniform(-1, 1)
+        d.set_real([dv["z_x"], dv["z_y"]], [zx, zy])
+        sx.set_real([xv["z"]], [zx])
+        sy.set_real([yv["z"]], [zy])
+        for axis, s, vrs in (("x", sx, xv), ("y", sy, yv)):
+            got = d.get_real([dv[n] for n in DUAL_OF[axis]])
+            assert got == s.get_real([vrs[n] for n in SINGLE_OUTS]), (i, axis)
+        h = rng.choice([0.25e-3, 1e-3, 2.5e-3, 0.3e-3, 3e-3, 1e-3 / 3])
+        assert d.do_step(t, h) and sx.do_step(t, h) and sy.do_step(t, h)
+        t += h
