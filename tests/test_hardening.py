@@ -18,7 +18,7 @@ from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
 from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
-from driftfmu.models import adxl203, excitation, parameters, sensor
+from driftfmu.models import parameters, sensor
 from driftfmu.simulations.cosim import Instance
 
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
