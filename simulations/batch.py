@@ -273,15 +273,18 @@ def make_tasks(n, seeds, per_run, common, record=(), chunk=CHUNK, engine="batch"
 def run_task(task):
     """Run one task on a worker; return ``(outputs, seconds)``.
 
-    The batch engine runs the chunk at once; the FMU engine co-simulates its runs one by one.
+    The batch engine runs the chunk at once; the FMU engine co-simulates its runs one by one;
+    ``"dual"`` runs the dual-axis chain's chunk at once (:func:`dual_simulate`).
     """
     t0 = time.perf_counter()
     if task["engine"] == "batch":
         out = simulate(task["n"], task["seeds"], record=task["record"], **task["kwargs"])
     elif task["engine"] == "fmu":
         out = fmu_task(task)
+    elif task["engine"] == "dual":  # the dual-axis chain (driftfmu experiment dual-axis)
+        out = dual_simulate(task["n"], task["seeds"], record=task["record"], **task["kwargs"])
     else:
-        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'"
+        raise ValueError("engine = %r is not allowed; allowed: 'batch', 'fmu' or 'dual'"
                          % (task["engine"],))
     return out, time.perf_counter() - t0
 

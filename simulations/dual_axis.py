@@ -155,12 +155,6 @@ def _fmu_task(task):
             for var, col in names.items()}
 
 
-def _batch_task(task):
-    """Worker: a chunk of runs of one sweep point at once (the batch engine); finals."""
-    ex, sp, es, n, Ts, seeds = task
-    return batch.dual_simulate(n, seeds, ex, sp, es, Ts)
-
-
 def _finals_of_columns(cols):
     """The finals and realised moments of one FMU run (as :func:`models.dualaxis.simulate`)."""
     mxx = mxy = myy = 0.0
@@ -176,7 +170,7 @@ def _finals_of_columns(cols):
 # -- the experiment -----------------------------------------------------------------------------
 
 def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_dir="build/fmus",
-                  workers=None, progress=None, plot=True, **settings):
+                  workers=None, scheduler=None, progress=None, plot=True, **settings):
     """Run both sweeps; with ``out`` write ``dual_axis.csv``, ``dual_axis.json`` and
     ``dual_axis.png`` (all or none).  Returns the summary (the JSON's content).
 
@@ -188,7 +182,9 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
         Runs per sweep point (default 4 with the FMU engine, 1000 with the batch engine).
     engine : {"fmu", "batch"}
         Co-simulate every run through the FMUs (checked against models/ bit for bit), or run
-        them at once through models/ (Monte-Carlo error bars).
+        them at once through models/ (Monte-Carlo error bars), in chunks of
+        ``batch.CHUNK`` runs on local worker processes or, with ``scheduler``, on a Dask cluster
+        (:func:`simulations.batch.run_tasks`).
     settings
         Overrides of :data:`DEFAULTS` (``n``, ``Ts``, ``f``, ``X``, ``Xy``, ``phi``, ``A``,
         ``Q``, ``Qy``, the sensor's ``a0 a1 a2 bx R a0y a1y a2y by Ry`` and ``Qh``).
@@ -215,10 +211,10 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
     finals = {}
     worst = 0.0
     done = 0
-    context = batch.mp_context("driftfmu.simulations.dual_axis")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
-        if engine == "fmu":
-            paths = fmu_paths(fmu_dir)
+    if engine == "fmu":
+        paths = fmu_paths(fmu_dir)
+        context = batch.mp_context("driftfmu.simulations.dual_axis")
+        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
             futs = {pool.submit(_fmu_task, (paths, *start_values(sw, v, s), n, Ts, int(sd))):
                     (i, r) for i, (sw, v) in enumerate(grid) for r, sd in enumerate(seeds)}
             cols = {}
@@ -227,30 +223,29 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
                 done += 1
                 if progress is not None:
                     progress(done)
-            for i, (sw, v) in enumerate(grid):
-                ex, sp, es = start_values(sw, v, s)
-                ref = batch.dual_simulate(n, seeds, ex, sp, es, Ts, record=dualaxis.COLUMNS)
-                for r in range(runs):
-                    for c, values in cols[(i, r)].items():
-                        d = float(np.max(np.abs(np.asarray(values) - ref[c][r])))
-                        worst = max(worst, d) if d == d else math.inf
-                one = [_finals_of_columns(cols[(i, r)]) for r in range(runs)]
-                finals[i] = {k: np.array([o[k] for o in one]) for k in one[0]}
-            if worst != 0.0:
-                raise ValidationError("FMU outputs differ from models/ run directly by %.3g; "
-                                      "allowed: equal bit for bit" % worst)
-        else:
-            chunks = [seeds[lo:lo + batch.CHUNK] for lo in range(0, runs, batch.CHUNK)]
-            futs = {pool.submit(_batch_task, (*start_values(sw, v, s), n, Ts, ch)): (i, j)
-                    for i, (sw, v) in enumerate(grid) for j, ch in enumerate(chunks)}
-            parts = {}
-            for fut in as_completed(futs):
-                parts[futs[fut]] = fut.result()
-                done += len(chunks[futs[fut][1]])
-                if progress is not None:
-                    progress(done)
-            for i in range(len(grid)):
-                finals[i] = batch.gather([parts[(i, j)] for j in range(len(chunks))])
+        for i, (sw, v) in enumerate(grid):
+            ex, sp, es = start_values(sw, v, s)
+            ref = batch.dual_simulate(n, seeds, ex, sp, es, Ts, record=dualaxis.COLUMNS)
+            for r in range(runs):
+                for c, values in cols[(i, r)].items():
+                    d = float(np.max(np.abs(np.asarray(values) - ref[c][r])))
+                    worst = max(worst, d) if d == d else math.inf
+            one = [_finals_of_columns(cols[(i, r)]) for r in range(runs)]
+            finals[i] = {k: np.array([o[k] for o in one]) for k in one[0]}
+        if worst != 0.0:
+            raise ValidationError("FMU outputs differ from models/ run directly by %.3g; "
+                                  "allowed: equal bit for bit" % worst)
+    else:
+        chunks = [seeds[lo:lo + batch.CHUNK] for lo in range(0, runs, batch.CHUNK)]
+        tasks = []
+        for sw, v in grid:
+            ex, sp, es = start_values(sw, v, s)
+            tasks += [{"engine": "dual", "n": n, "seeds": ch, "record": (),
+                       "kwargs": dict(excitation_values=ex, sensor_values=sp,
+                                      estimator_values=es, Ts=Ts)} for ch in chunks]
+        parts = batch.run_tasks(tasks, scheduler=scheduler, workers=workers, progress=progress)
+        for i in range(len(grid)):
+            finals[i] = batch.gather(parts[i * len(chunks):(i + 1) * len(chunks)])
     wall = time.perf_counter() - t0
 
     rows = [summarise_point(sw, v, s, finals[i]) for i, (sw, v) in enumerate(grid)]
@@ -420,6 +415,9 @@ def add_cli(groups):
                                                "a2", "bx", "R", "a2y", "by", "Ry")})
     g.add_argument("--workers", type=_int_at_least(1, "workers"), default=None,
                    help="parallel processes (default: the number of cores)")
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+                   help="batch engine: run on the Dask distributed cluster at ADDRESS (e.g. "
+                        "tcp://host:8786); default: local worker processes")
     cli.add_out(g, "results/dual_axis")
     cli.add_fmu_dir(g)
     g.set_defaults(func=_cmd)
@@ -443,13 +441,13 @@ def _int_at_least(low, name):
 def _cmd(args):
     from driftfmu.simulations import cli
     runs = RUNS[args.engine] if args.runs is None else args.runs
-    total = 2 * args.points * (runs if args.engine == "fmu" else runs)
+    total = 2 * args.points * runs
     settings = {k: getattr(args, k) for k in ("n", "Ts", "f", "X", "Xy", "phi", "A", "Q", "Qy",
                                               "a2", "bx", "R", "a2y", "by", "Ry")}
     with cli.progress(total, "runs", monitor=False) as update:
         s = run_dual_axis(out=args.out, points=args.points, runs=runs, engine=args.engine,
                           seed=args.seed, fmu_dir=args.fmu_dir, workers=args.workers,
-                          progress=update, **settings)
+                          scheduler=args.scheduler, progress=update, **settings)
     print("wrote %s/dual_axis.csv, dual_axis.json, dual_axis.png" % args.out)
     print("%-5s %9s %4s | %11s %11s | %12s %12s | %11s %s"
           % ("sweep", "parameter", "axis", "dc_true mV", "cross mV", "single err", "dual err",

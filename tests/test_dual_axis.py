@@ -517,3 +517,10 @@ def test_b_zero_dual_slave_under_any_step_is_two_single_axis_slaves(process):
         h = rng.choice([0.25e-3, 1e-3, 2.5e-3, 0.3e-3, 3e-3, 1e-3 / 3])
         assert d.do_step(t, h) and sx.do_step(t, h) and sy.do_step(t, h)
         t += h
+
+
+def test_batch_engine_on_an_unreachable_scheduler_fails_fast_and_writes_nothing(tmp_path):
+    with pytest.raises(ConnectionError, match="no Dask scheduler answered"):
+        dual_axis.run_dual_axis(out=tmp_path / "o", engine="batch", runs=2, points=2, n=10,
+                                scheduler="tcp://127.0.0.1:1")
+    assert not (tmp_path / "o").exists()
