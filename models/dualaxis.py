@@ -101,7 +101,7 @@ def sensor_problems(p):
         return []
     on = [n for n in EXTRAS if p.get(n, 0)]
     if on:
-        return ["dual = 1 with %s on is not allowed; allowed: dual = 1 with a3 = cross = fc = "
+        return ["dual = 1 is not allowed with %s; allowed: dual = 1 with a3 = cross = fc = "
                 "Vs = bits = density = 0 (the bilinear sensor has none of the ADXL203 extras)"
                 % ", ".join("%s = %r" % (n, p[n]) for n in on)]
     return []
