@@ -525,3 +525,17 @@ def test_batch_engine_on_an_unreachable_scheduler_fails_fast_and_writes_nothing(
         dual_axis.run_dual_axis(out=tmp_path / "o", engine="batch", runs=2, points=2, n=10,
                                 scheduler="tcp://127.0.0.1:1")
     assert not (tmp_path / "o").exists()
+
+
+def test_new_parameters_are_appended_and_off_by_default():
+    """Existing value references do not move, and the defaults are today's behaviour."""
+    from driftfmu.fmu_src.Accelerometer import Accelerometer
+    from driftfmu.fmu_src.Excitation import Excitation
+    new = {Excitation: ("Qy", "rho"),
+           Accelerometer: ("dual", "bx", "a0y", "a1y", "a2y", "by", "Ry")}
+    for cls, names in new.items():
+        table = [s["name"] for s in cls.VARIABLES]
+        assert tuple(table[-len(names):]) == names
+        starts = {s["name"]: s["start"] for s in cls.VARIABLES}
+    assert (starts["dual"], starts["bx"], starts["by"]) == (0, 0.0, 0.0)
+    assert {s["name"]: s["start"] for s in Excitation.VARIABLES}["Qy"] == 0.0
