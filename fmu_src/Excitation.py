@@ -57,8 +57,8 @@ class Excitation(SlaveBase):
         x, y = self._sample(hidden["_x"], hidden["_y"], k)
         return {"_x": x, "_y": y}, {"x": x, "y": y}
 
-    def hidden_finite(self, hidden):
-        return True  # the hidden x is the output x, checked by the base class
+    #: the hidden x is the output x, which the base class checks
+    hidden_finite = None
 
     def hold(self, hidden, k0, n, first):
         x, y = hidden["_x"], hidden["_y"]
