@@ -1,11 +1,13 @@
 """Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + v, and the richer
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
-noise density) of :mod:`models.adxl203`, every extra off by default."""
+noise density) of :mod:`models.adxl203`, every extra off by default; or (``dual = 1``) the
+dual-axis bilinear sensor of :mod:`models.dualaxis`, z = a0 + a1 x + a2 x^2 + bx x y + v_x and
+z_y = a0y + a1y y + a2y y^2 + by x y + v_y."""
 
 import math
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
-from driftfmu.models import adxl203
+from driftfmu.models import adxl203, dualaxis
 
 
 class Accelerometer(SlaveBase):
@@ -31,18 +33,28 @@ class Accelerometer(SlaveBase):
         var("axes", "parameter", type="Integer"),
         var("y", "input", start=0.0, unit="g", description="second-axis acceleration y_k"),
         var("z_y", "output", start=0.0, unit="V",
-            description="second-axis output (axes = 2; 0 otherwise)"),
+            description="second-axis output (axes = 2 or dual = 1; 0 otherwise)"),
+        var("dual", "parameter", type="Integer"),
+        var("bx", "parameter"),
+        var("a0y", "parameter"),
+        var("a1y", "parameter"),
+        var("a2y", "parameter"),
+        var("by", "parameter"),
+        var("Ry", "parameter"),
     )
     DEPENDENCIES = {"z": ["x", "y"], "z_y": ["x", "y"]}
     DESCRIPTION = ("Weakly nonlinear accelerometer z_k = a0 + a1 x_k + a2 x_k^2 + v_k, "
                    "v_k ~ N(0, R); optional ADXL203-like extras (cubic term, cross-axis, output "
-                   "low-pass, ratiometric supply, ADC, noise density, second axis)")
+                   "low-pass, ratiometric supply, ADC, noise density, second axis); or (dual = 1) the "
+                   "dual-axis bilinear sensor z_x = a0 + a1 x + a2 x^2 + bx x y + v_x, "
+                   "z_y = a0y + a1y y + a2y y^2 + by x y + v_y")
     #: Output filter states after the last sample (None before the first), per axis.
     HIDDEN = ("_lp", "_lpy")
     default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
-        problems = super().check_parameters() + adxl203.problems(self.parameter_values())
+        problems = (super().check_parameters() + adxl203.problems(self.parameter_values())
+                    + dualaxis.sensor_problems(self.parameter_values()))
         if not problems:
             cfg = adxl203.config(**self.parameter_values())
             for name in ("a0", "a1", "a2", "a3", "sigma"):
@@ -56,6 +68,7 @@ class Accelerometer(SlaveBase):
 
     def prepare(self):
         self._cfg = adxl203.config(**self.parameter_values())
+        self._axes = dualaxis.axes(self.parameter_values())
 
     def initial_hidden(self):
         return {"_lp": None, "_lpy": None}
@@ -69,7 +82,15 @@ class Accelerometer(SlaveBase):
             e = adxl203.lowpass(prev, adxl203.sense(own, other, v, cfg), cfg.alpha)
             self._not_finite(output, cfg.a0 + e, k)
 
+    def _dual(self, k):
+        v = (adxl203.noise(self.seed, k, 1), adxl203.noise(self.seed, k, 2)) if self.noise \
+            else (0.0, 0.0)
+        z, z_y = dualaxis.measure(self.x, self.y, *self._axes, *v)
+        return {"_lp": None, "_lpy": None}, {"z": z, "z_y": z_y}
+
     def sample(self, hidden, k, first):
+        if self.dual:
+            return self._dual(k)
         lp, z = self._axis(hidden["_lp"], self.x, self.y, k, 1, "z")
         if self.axes != 2:
             return {"_lp": lp, "_lpy": None}, {"z": z}

@@ -1,5 +1,6 @@
 """Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
-second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; 0 when Gaussian)."""
+second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; when Gaussian a
+second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0)."""
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import excitation
@@ -23,12 +24,16 @@ class Excitation(SlaveBase):
         var("seed", "parameter", type="Integer"),
         var("x", "output", start=0.0, unit="g", description="true acceleration x_k"),
         var("y", "output", start=0.0, unit="g",
-            description="second-axis acceleration y_k = Xy sin(2 pi f t_k + phiy) (0 if Gaussian)"),
+            description="second-axis acceleration y_k = Xy sin(2 pi f t_k + phiy), or if "
+                        "Gaussian y_k = A y_{k-1} + w_y,k (0 while Qy = 0)"),
+        var("Qy", "parameter"),
+        var("rho", "parameter"),
     )
     DESCRIPTION = ("True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + w_k, w_k ~ N(0, Q), "
-                   "or X sin(2 pi f t + phi); second axis y_k = Xy sin(2 pi f t_k + phiy)")
-    #: x_{k-1}, the excitation before the next sample (x0 before sample 1).
-    HIDDEN = ("_x",)
+                   "or X sin(2 pi f t + phi); second axis y_k = Xy sin(2 pi f t_k + phiy), or "
+                   "Gauss-Markov y_k = A y_{k-1} + w_y,k with corr(w_x, w_y) = rho when Qy > 0")
+    #: x_{k-1} and y_{k-1}, the excitation before the next sample (x0 and 0 before sample 1).
+    HIDDEN = ("_x", "_y")
     default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
@@ -38,31 +43,28 @@ class Excitation(SlaveBase):
                             "allowed: f < %r Hz" % (self.f, 0.5 / self.Ts, 0.5 / self.Ts))
         return problems
 
-    def _sample(self, x_prev, k):
+    def _sample(self, x_prev, y_prev, k):
         if self.kind == excitation.GAUSSIAN:
-            return excitation.gaussian_sample(x_prev, self.A, self.Q, self.seed, k)
-        return excitation.sine(k, self.X, self.f, self.Ts, self.phi)
-
-    def _sample_y(self, k):
-        if self.kind == excitation.GAUSSIAN:
-            return 0.0
-        return excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy)
+            return excitation.gaussian_pair(x_prev, y_prev, self.A, self.Q, self.Qy, self.rho,
+                                            self.seed, k)
+        return (excitation.sine(k, self.X, self.f, self.Ts, self.phi),
+                excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy))
 
     def initial_hidden(self):
-        return {"_x": self.x0}
+        return {"_x": self.x0, "_y": 0.0}
 
     def sample(self, hidden, k, first):
-        x = self._sample(hidden["_x"], k)
-        return {"_x": x}, {"x": x, "y": self._sample_y(k)}
+        x, y = self._sample(hidden["_x"], hidden["_y"], k)
+        return {"_x": x, "_y": y}, {"x": x, "y": y}
 
     #: the hidden x is the output x, which the base class checks
     hidden_finite = None
 
     def hold(self, hidden, k0, n, first):
-        x = hidden["_x"]
+        x, y = hidden["_x"], hidden["_y"]
         if self.kind == excitation.GAUSSIAN:
             for k in range(k0, k0 + n):
-                x = self._sample(x, k)
+                x, y = self._sample(x, y, k)
         else:  # the sinusoid needs no history
-            x = self._sample(x, k0 + n - 1)
-        return {"_x": x}, {"x": x, "y": self._sample_y(k0 + n - 1)}
+            x, y = self._sample(x, y, k0 + n - 1)
+        return {"_x": x, "_y": y}, {"x": x, "y": y}

@@ -42,7 +42,7 @@ from xml.etree import ElementTree as ET
 from driftfmu import __version__
 
 SRC_DIR = Path(__file__).resolve().parent
-NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
+NAMES = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
 LOADER_SOURCE = SRC_DIR / "loader" / "fmi2_shim.c"
 BUILD_INFO = "resources/driftfmu_build.json"
 HASH_LENGTH = 10

@@ -9,9 +9,12 @@ Gaussian (the letter's Sec. III): a Gauss-Markov process
 white for ``A = 0``; stationary variance ``Q / (1 - A^2)`` for ``|A| < 1``.
 
 Sinusoidal (Sec. IV): ``x_k = X sin(2 pi f t_k + phi)``, variance ``X^2 / 2`` over whole periods.
+
+Two axes (:mod:`models.dualaxis`): a second Gauss-Markov axis ``y`` whose process noise is
+correlated with ``x``'s (:func:`gaussian_pair`), or a second sinusoid at the same frequency.
 """
 from . import _ops
-from .noise import STREAM_PROCESS, normal
+from .noise import STREAM_PROCESS, STREAM_SENSOR_Y, normal
 
 GAUSSIAN = 1
 SINUSOIDAL = 2
@@ -26,6 +29,25 @@ def gauss_markov(x_prev, A, Q, w):
 def gaussian_sample(x_prev, A, Q, seed, k):
     """Sample ``k`` of the Gauss-Markov excitation under ``seed`` (process-noise stream)."""
     return gauss_markov(x_prev, A, Q, normal(seed, STREAM_PROCESS, k))
+
+
+def gaussian_pair(x_prev, y_prev, A, Q, Qy, rho, seed, k):
+    """Sample ``k`` of the 2-D Gauss-Markov excitation under ``seed``.
+
+    .. math:: x_k = A x_{k-1} + \\sqrt{Q}\\, w_1, \\qquad
+              y_k = A y_{k-1} + \\sqrt{Q_y} \\big(\\rho\\, w_1 + \\sqrt{1 - \\rho^2}\\, w_2\\big)
+
+    with ``w_1`` the process-noise stream (so ``x`` is :func:`gaussian_sample`, same bits) and
+    ``w_2`` the second-axis stream; the noises have correlation ``rho`` and the stationary
+    covariance is ``E[x y] = rho sqrt(Q Qy) / (1 - A^2)``.  ``Qy = 0`` gives ``y = 0``.
+    """
+    w1 = normal(seed, STREAM_PROCESS, k)
+    x = gauss_markov(x_prev, A, Q, w1)
+    if _ops.is_scalar(Qy) and Qy == 0.0:
+        return x, 0.0
+    w2 = normal(seed, STREAM_SENSOR_Y, k)
+    y = A * y_prev + _ops.sqrt(Qy) * (rho * w1 + _ops.sqrt(1.0 - rho * rho) * w2)
+    return x, y
 
 
 def sine(k, X, f, Ts, phi=0.0):

@@ -61,6 +61,21 @@ PARAMETERS = {p.name: p for p in (
        "(A, Q), 2 harmonic oscillator at f (Qh)"),
     _p("Qh", 1e-8, 0.0, unit="g2", description="process noise variance per component and "
        "sample of the harmonic oscillator model"),
+    # -- the dual-axis sensor with a bilinear cross term (models.dualaxis) ------------------------
+    _p("dual", 0, 0, 1, description="dual-axis bilinear sensor z_x = a0 + a1 x + a2 x^2 + bx x y "
+       "+ v_x, z_y = a0y + a1y y + a2y y^2 + by x y + v_y (1: on, 0: off)"),
+    _p("bx", 0.0, unit="V/g2", description="cross term bx of z_x; its drift is bx E[x y]"),
+    _p("by", 0.0, unit="V/g2", description="cross term by of z_y; its drift is by E[x y]"),
+    _p("a0y", 0.0, unit="V", description="offset a0y of the second axis z_y"),
+    _p("a1y", 1.0, unit="V/g", description="sensitivity a1y of the second axis (must not be 0)"),
+    _p("a2y", 0.01, unit="V/g2", description="second-order coefficient a2y of the second axis"),
+    _p("Ry", 1e-4, 0.0, unit="V2", description="measurement noise variance Ry of v_y",
+       low_open=True),
+    _p("Qy", 0.0, 0.0, unit="g2", description="process noise variance Qy of the second axis "
+       "y_k = A y_{k-1} + w_y,k (0: y = 0)"),
+    _p("rho", 0.0, -1.0, 1.0, description="correlation of the two axes' process noises w_x, w_y"),
+    _p("y0", 0.0, unit="g", description="initial second-axis state y_0 of the filter"),
+    _p("P0y", 0.01, 0.0, unit="g2", description="initial error variance of the second axis"),
 )}
 
 
@@ -72,8 +87,8 @@ def allowed(name):
         parts.append("%s %s %s" % (name, ">" if p.low_open else ">=", _fmt(p.low)))
     if p.high is not None:
         parts.append("%s %s %s" % (name, "<" if p.high_open else "<=", _fmt(p.high)))
-    if name == "a1":
-        parts.append("a1 != 0")
+    if name in ("a1", "a1y"):
+        parts.append("%s != 0" % name)
     return " and ".join(parts) if parts else "any finite value"
 
 
@@ -119,7 +134,7 @@ def problem(name, value):
         bad = v <= p.low if p.low_open else v < p.low
     if not bad and p.high is not None:
         bad = v >= p.high if p.high_open else v > p.high
-    if not bad and name == "a1":
+    if not bad and name in ("a1", "a1y"):
         bad = v == 0.0
     if not bad and isinstance(p.default, int) and v != int(v):
         bad = True

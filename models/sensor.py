@@ -28,6 +28,17 @@ def measurement_noise(seed, k):
     return normal(seed, STREAM_MEASUREMENT, k)
 
 
+def h_bilinear(own, other, a0, a1, a2, b):
+    """Noise-free output of one axis of the dual-axis sensor, ``a0 + a1 x + a2 x^2 + b x y``
+    (``own = x``, ``other = y``); ``b = 0`` is :func:`h`, same bits."""
+    return h(own, a0, a1, a2) + b * own * other
+
+
+def measure_bilinear(own, other, a0, a1, a2, b, R, v):
+    """Measurement ``h_bilinear + sqrt(R) v``; ``b = 0`` is :func:`measure`, same bits."""
+    return h_bilinear(own, other, a0, a1, a2, b) + _ops.sqrt(R) * v
+
+
 def drift(a2, variance):
     """Expected drift of the quadratic sensor, ``a2 sigma_x^2`` (eq. 4)."""
     return a2 * variance

@@ -371,6 +371,7 @@ def add_cli(groups):
     sub = exp.add_subparsers(dest="experiment", metavar="EXPERIMENT",
                              parser_class=type(exp))
     sub.required = True
+    groups["experiment"] = sub  # driftfmu experiment dual-axis goes here too
     g = sub.add_parser("adxl203", help="accelerometer experiment (Sec. IV, Figs. 4-5): fit on "
                        "25 sets, EKF1 on 5 held out, per frequency")
     g.add_argument("--freqs", type=_freq_list, default=list(FREQS), metavar="F1,F2,...",

@@ -194,6 +194,22 @@ def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
         arr[j] = values[name]()
 
 
+def dual_simulate(n, seeds, excitation_values, sensor_values, estimator_values, Ts, record=()):
+    """The dual-axis chain of :mod:`models.dualaxis` for ``len(seeds)`` runs at once (the batch
+    engine of ``driftfmu experiment dual-axis``): run ``r`` is the co-simulation of Excitation ->
+    Accelerometer (``dual = 1``) -> DualDriftEstimator and the two single-axis DriftEstimators
+    with both FMU seeds ``seeds[r]``, bit for bit.
+
+    Returns :func:`models.dualaxis.simulate`'s ``final_<column>`` and ``mean_xx``, ``mean_xy``,
+    ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each ``(runs, n)``.
+    """
+    from driftfmu.models import dualaxis
+    seeds = np.asarray(seeds, dtype=np.uint64)
+    return dualaxis.simulate(n, dict(excitation_values, seed=seeds),
+                             dict(sensor_values, seed=seeds), estimator_values, Ts,
+                             record=record)
+
+
 # -- the FMU engine -------------------------------------------------------------------------
 def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
                  Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
@@ -257,15 +273,18 @@ def make_tasks(n, seeds, per_run, common, record=(), chunk=CHUNK, engine="batch"
 def run_task(task):
     """Run one task on a worker; return ``(outputs, seconds)``.
 
-    The batch engine runs the chunk at once; the FMU engine co-simulates its runs one by one.
+    The batch engine runs the chunk at once; the FMU engine co-simulates its runs one by one;
+    ``"dual"`` runs the dual-axis chain's chunk at once (:func:`dual_simulate`).
     """
     t0 = time.perf_counter()
     if task["engine"] == "batch":
         out = simulate(task["n"], task["seeds"], record=task["record"], **task["kwargs"])
     elif task["engine"] == "fmu":
         out = fmu_task(task)
+    elif task["engine"] == "dual":  # the dual-axis chain (driftfmu experiment dual-axis)
+        out = dual_simulate(task["n"], task["seeds"], record=task["record"], **task["kwargs"])
     else:
-        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'"
+        raise ValueError("engine = %r is not allowed; allowed: 'batch', 'fmu' or 'dual'"
                          % (task["engine"],))
     return out, time.perf_counter() - t0
 

@@ -110,9 +110,11 @@ def cmd_run_gaussian(args):
 
 
 #: Modules that add their own sub-commands: each has ``add_cli(groups)`` taking the dict
-#: ``{"top": <sub-parsers of driftfmu>, "run": <sub-parsers of driftfmu run>}``.
+#: ``{"top": <sub-parsers of driftfmu>, "run": <sub-parsers of driftfmu run>}``; the module that
+#: adds ``driftfmu experiment`` puts its sub-parsers there as ``"experiment"`` for the later ones.
 PLUGINS = ("driftfmu.simulations.doctor", "driftfmu.simulations.sweep", "driftfmu.simulations.montecarlo",
-           "driftfmu.simulations.sinusoidal", "driftfmu.simulations.adxl203")
+           "driftfmu.simulations.sinusoidal", "driftfmu.simulations.adxl203",
+           "driftfmu.simulations.dual_axis")
 
 
 def make_parser():
@@ -122,8 +124,8 @@ def make_parser():
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 
-    p = sub.add_parser("build", help="build Excitation.fmu, Accelerometer.fmu and "
-                       "DriftEstimator.fmu (validated with fmpy)")
+    p = sub.add_parser("build", help="build Excitation.fmu, Accelerometer.fmu, "
+                       "DriftEstimator.fmu and DualDriftEstimator.fmu (validated with fmpy)")
     p.add_argument("--out", default="build/fmus", metavar="DIR",
                    help="output folder for the FMUs (default: build/fmus)")
     p.add_argument("--cross-check", nargs="?", const="build/cross-check", default=None,
@@ -149,8 +151,9 @@ def make_parser():
     g.set_defaults(func=cmd_run_gaussian)
 
     import importlib
+    groups = {"top": sub, "run": runs}
     for name in PLUGINS:
-        importlib.import_module(name).add_cli({"top": sub, "run": runs})
+        importlib.import_module(name).add_cli(groups)
     return parser
 
 

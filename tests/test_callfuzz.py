@@ -24,9 +24,10 @@ import pytest
 
 from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
+from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
 
-SLAVES = (Excitation, Accelerometer, DriftEstimator)
+SLAVES = (Excitation, Accelerometer, DriftEstimator, DualDriftEstimator)
 TS = 1e-3
 REALS = [0.0, 0.5, -1.3, 2.0, 1e-3, 1e200, -1e200, 1e308, math.nan, math.inf, -math.inf, 5e-324]
 STEPS = [TS, TS, TS, 2 * TS, 2.5 * TS, 0.3 * TS, 0.25 * TS, 1e-12, 0.0, -TS, math.nan,

@@ -16,12 +16,13 @@ import pytest
 
 from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
+from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
 from driftfmu.models import parameters, sensor
 from driftfmu.simulations.cosim import Instance
 
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
-          "DriftEstimator": DriftEstimator}
+          "DriftEstimator": DriftEstimator, "DualDriftEstimator": DualDriftEstimator}
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 
 
@@ -250,6 +251,8 @@ INIT_CASES = {
     "Excitation": (dict(kind=2, X=2.0, f=100.0, phi=0.5, Xy=1.0, phiy=0.2), {}),
     "Accelerometer": (dict(a0=5.0, a2=0.1, axes=2, cross=0.1, fc=100.0), dict(x=1.0, y=-0.5)),
     "DriftEstimator": (dict(a0=0.2, a2=0.05, x0=0.3, P0=0.2), dict(z=1.5)),
+    "DualDriftEstimator": (dict(a0=0.2, a2=0.05, bx=0.02, by=0.03, x0=0.3, y0=-0.2, P0=0.2,
+                                P0y=0.3, rho=0.4), dict(z_x=1.5, z_y=-0.7)),
 }
 
 
@@ -458,7 +461,7 @@ def test_fmus_run_any_step_in_fmpy(built_fmus):
     # fmpy's own driver with a step that is no whole number of sample periods, the default
     # experiment's stop time and the Compliance Checker's 500 output points over it
     from fmpy import simulate_fmu
-    for name in ("Excitation", "DriftEstimator"):
+    for name in ("Excitation", "DriftEstimator", "DualDriftEstimator"):
         for step in (None, 0.7e-3, 2.0 / 500):  # None: fmpy's default from the experiment
             result = simulate_fmu(str(built_fmus[name]), output_interval=step)
             assert len(result) > 400 and all(math.isfinite(v) for row in result

@@ -5,6 +5,7 @@ import os
 
 import pytest
 
+from driftfmu.fmu_src.builder import NAMES
 from driftfmu.models import chain
 from driftfmu.simulations.cosim import Instance
 from driftfmu.simulations.gaussian import CONNECTIONS, FMU_NAMES
@@ -140,7 +141,7 @@ def _rss_bytes():
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
-@pytest.mark.parametrize("name", FMU_NAMES)
+@pytest.mark.parametrize("name", NAMES)
 def test_thousand_instantiate_free_cycles_leave_memory_flat(built_fmus, name, report):
     inst = Instance(name, built_fmus[name])
     fmu = inst.fmu
@@ -168,8 +169,9 @@ def test_thousand_instantiate_free_cycles_leave_memory_flat(built_fmus, name, re
     inst.free()
 
 
-def test_errors_reach_the_logger_with_debug_logging_off(built_fmus):
-    inst = Instance("quiet", built_fmus["DriftEstimator"], logging_on=False)
+@pytest.mark.parametrize("name", ["DriftEstimator", "DualDriftEstimator"])
+def test_errors_reach_the_logger_with_debug_logging_off(built_fmus, name):
+    inst = Instance("quiet", built_fmus[name], logging_on=False)
     inst.fmu.setupExperiment(startTime=0.0)
     inst.fmu.enterInitializationMode()
     inst.set({"R": -2.0})
@@ -188,9 +190,10 @@ def test_info_messages_stay_quiet_with_debug_logging_off(built_fmus):
     w.free()
 
 
+@pytest.mark.parametrize("name", ["Accelerometer", "DualDriftEstimator"])
 @pytest.mark.parametrize("call", ["getReal", "getInteger", "setInteger", "getBoolean"])
-def test_bad_value_reference_is_an_error_not_a_crash(built_fmus, call, report):
-    inst = Instance("badref", built_fmus["Accelerometer"])
+def test_bad_value_reference_is_an_error_not_a_crash(built_fmus, call, name, report):
+    inst = Instance("badref", built_fmus[name])
     fmu = inst.fmu
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
@@ -207,8 +210,9 @@ def test_bad_value_reference_is_an_error_not_a_crash(built_fmus, call, report):
     inst.free()
 
 
-def test_garbage_serialised_state_is_refused(built_fmus):
-    inst = Instance("garbage", built_fmus["DriftEstimator"])
+@pytest.mark.parametrize("name", NAMES)
+def test_garbage_serialised_state_is_refused(built_fmus, name):
+    inst = Instance("garbage", built_fmus[name])
     fmu = inst.fmu
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
@@ -216,6 +220,6 @@ def test_garbage_serialised_state_is_refused(built_fmus):
     state = fmu.deSerializeFMUstate(b"not a state")
     with pytest.raises(Exception, match="status 3"):
         fmu.setFMUstate(state)
-    assert "not an FMU state of DriftEstimator" in inst.messages[-1]
+    assert "not an FMU state of %s" % name in inst.messages[-1]
     fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=1e-3)
     inst.free()

@@ -6,6 +6,7 @@ import pytest
 
 from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
+from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
 from driftfmu.models import chain
 
@@ -75,7 +76,7 @@ def test_slaves_equal_models_sample_by_sample():
 
 
 def test_variables_table_is_complete():
-    for cls in (Excitation, Accelerometer, DriftEstimator):
+    for cls in (Excitation, Accelerometer, DriftEstimator, DualDriftEstimator):
         for spec in cls.VARIABLES:
             assert spec["description"] and "[" in spec["description"], spec["name"]
         names = {s["name"] for s in cls.VARIABLES}
@@ -90,6 +91,13 @@ def test_variables_table_is_complete():
     (Accelerometer, "a1", 0.0, "a1 = 0.0 is out of range; allowed: a1 != 0"),
     (Excitation, "A", 1.5, "A = 1.5 is out of range; allowed: A > -1 and A < 1"),
     (Excitation, "Ts", 0.0, "Ts = 0.0 is out of range; allowed: Ts >= 1e-09"),
+    (Excitation, "rho", -1.5, "rho = -1.5 is out of range; allowed: rho >= -1 and rho <= 1"),
+    (Accelerometer, "a1y", 0.0, "a1y = 0.0 is out of range; allowed: a1y != 0"),
+    (Accelerometer, "dual", 2, "dual = 2 is out of range; allowed: dual >= 0 and dual <= 1"),
+    (DualDriftEstimator, "R", -1.0, "R = -1.0 is out of range; allowed: R > 0"),
+    (DualDriftEstimator, "Qy", -0.5, "Qy = -0.5 is out of range; allowed: Qy >= 0"),
+    (DualDriftEstimator, "estimator", 0,
+     "estimator = 0 is out of range; allowed: 1 <= estimator <= 3"),
 ])
 def test_bad_parameter_is_logged_at_end_of_initialisation(slave_cls, name, value, text):
     s = slave_cls(instance_name="s")
