@@ -79,6 +79,10 @@ PARAMETERS = {p.name: p for p in (
 )}
 
 
+#: Parameters that must not be 0 (a sensitivity: the filter divides by it), beyond their range.
+NONZERO = ("a1", "a1y")
+
+
 def allowed(name):
     """Human-readable allowed range of parameter ``name``, e.g. ``'R > 0'``."""
     p = PARAMETERS[name]
@@ -87,7 +91,7 @@ def allowed(name):
         parts.append("%s %s %s" % (name, ">" if p.low_open else ">=", _fmt(p.low)))
     if p.high is not None:
         parts.append("%s %s %s" % (name, "<" if p.high_open else "<=", _fmt(p.high)))
-    if name in ("a1", "a1y"):
+    if name in NONZERO:
         parts.append("%s != 0" % name)
     return " and ".join(parts) if parts else "any finite value"
 
@@ -134,7 +138,7 @@ def problem(name, value):
         bad = v <= p.low if p.low_open else v < p.low
     if not bad and p.high is not None:
         bad = v >= p.high if p.high_open else v > p.high
-    if not bad and name in ("a1", "a1y"):
+    if not bad and name in NONZERO:
         bad = v == 0.0
     if not bad and isinstance(p.default, int) and v != int(v):
         bad = True

@@ -110,6 +110,16 @@ def test_bad_parameter_is_logged_at_end_of_initialisation(slave_cls, name, value
     assert "initialisation did not complete" in messages(s)[0]
 
 
+@pytest.mark.parametrize("slave_cls,switch", [(Excitation, "kind"), (DriftEstimator, "process")])
+def test_nyquist_check_leaves_a_bad_Ts_to_its_own_message(slave_cls, switch):
+    s = slave_cls(instance_name="s")
+    set_var(s, switch, 2)
+    set_var(s, "Ts", 0.0)
+    s.exit_initialization_mode()
+    assert any("Ts = 0.0 is out of range; allowed: Ts >= 1e-09" in m for m in messages(s))
+    assert not [m for m in messages(s) if "internal error" in m or "Nyquist" in m]
+
+
 def test_nyquist_is_checked_for_the_sinusoid():
     s = Excitation(instance_name="s")
     set_var(s, "kind", 2)

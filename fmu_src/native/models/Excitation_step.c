@@ -12,7 +12,6 @@ int model_check(ModelInstance *comp)
 {
     const ModelVariables *v = &comp->v;
     int n;
-    if (v->kind == EXCITATION_SINUSOIDAL && v->Ts == 0.0) return slave_zero_division(comp);
     n = slave_check_parameters(comp, EXTRA, 1);
     if (v->kind == EXCITATION_SINUSOIDAL) n += slave_check_nyquist(comp, v->f, v->Ts);
     return n;

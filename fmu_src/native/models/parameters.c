@@ -15,6 +15,7 @@ typedef struct {
     double high;
     int low_open, high_open;
     int integer; /* the default is an int: fractional values are out of range */
+    int nonzero; /* parameters.NONZERO: 0 is refused beyond the range */
     const char *allowed;
 } ParameterRow;
 
@@ -103,7 +104,7 @@ int parameters_problem(const char *name, double value, int is_integer, char *out
     bad = !isfinite(value);
     if (!bad && p->has_low) bad = p->low_open ? value <= p->low : value < p->low;
     if (!bad && p->has_high) bad = p->high_open ? value >= p->high : value > p->high;
-    if (!bad && strcmp(name, "a1") == 0) bad = value == 0.0;
+    if (!bad && p->nonzero) bad = value == 0.0;
     if (!bad && p->integer && value != floor(value)) bad = 1;
     if (!bad) return 0;
     if (is_integer)

@@ -45,16 +45,12 @@ int slave_check_parameters(ModelInstance *comp, const SlaveRange *extra, int n_e
     return n;
 }
 
-int slave_zero_division(ModelInstance *comp)
-{
-    return slave_problem(comp, "internal error in _initialise: ZeroDivisionError: float "
-                               "division by zero");
-}
-
 int slave_check_nyquist(ModelInstance *comp, double f, double Ts)
 {
     char msg[PARAMETERS_MESSAGE_MAX], rf[40], rn[40];
-    double nyquist = 0.5 / Ts;
+    double nyquist;
+    if (!(Ts > 0.0)) return 0; /* Ts itself is refused by its range check */
+    nyquist = 0.5 / Ts;
     if (!(f >= nyquist)) return 0;
     parameters_repr_float(f, rf, sizeof rf);
     parameters_repr_float(nyquist, rn, sizeof rn);

@@ -21,11 +21,8 @@ int slave_check_parameters(ModelInstance *comp, const SlaveRange *extra, int n_e
 /* Log one problem (model_log_error(comp, "%s", message)) and return 1. */
 int slave_problem(ModelInstance *comp, const char *message);
 
-/* Python's `internal error in _initialise: ZeroDivisionError: float division by zero` of a
- * check that divides by Ts = 0 (slave_base._call's words); returns 1. */
-int slave_zero_division(ModelInstance *comp);
-
-/* The Nyquist check of Excitation and DriftEstimator: 1 (logged) if f >= 0.5 / Ts. */
+/* The Nyquist check of Excitation and DriftEstimator: 1 (logged) if f >= 0.5 / Ts (0 where Ts
+ * is not positive: its own range check refuses it). */
 int slave_check_nyquist(ModelInstance *comp, double f, double Ts);
 
 #endif
