@@ -24,13 +24,14 @@ Sets run in parallel (one process per core); each worker loads the FMUs once per
 import math
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 
 from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
 from driftfmu.models.noise import STREAM_PHASE, normal, uniform
 from driftfmu.simulations import batch, output
 from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, fmu_paths
 from driftfmu.simulations.sinusoidal import CONNECTIONS, check_frequency
+from driftfmu.simulations.errors import DataError, UsageError
 
 FREQS = (100.0, 125.0, 150.0, 175.0, 200.0)
 SETS = 30
@@ -105,15 +106,15 @@ def _log_samples(n, points=400):
 def check_settings(freqs, sets, held_out, n, Ts):
     """ValueError (value and what is allowed) for bad experiment settings."""
     if not freqs:
-        raise ValueError("freqs is empty; allowed: one or more frequencies")
+        raise UsageError("freqs is empty; allowed: one or more frequencies")
     for f in freqs:
         check_frequency(f, Ts)
     if held_out < 1 or sets - held_out < 2:
-        raise ValueError("sets = %r with %r held out is not allowed; allowed: held_out >= 1 and "
+        raise UsageError("sets = %r with %r held out is not allowed; allowed: held_out >= 1 and "
                          "at least 2 sets to fit (sets >= held_out + 2)" % (sets, held_out))
     for f in freqs:
         if n * f * Ts < 2:
-            raise ValueError("n = %r samples span %.3g periods at f = %r Hz; allowed: n >= %d "
+            raise UsageError("n = %r samples span %.3g periods at f = %r Hz; allowed: n >= %d "
                              "(two periods at the lowest frequency)"
                              % (n, n * f * Ts, f, math.ceil(2 / (min(freqs) * Ts))))
 
@@ -142,8 +143,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
     fits = {f: [None] * train for f in freqs}
     tests = {f: [None] * held_out for f in freqs}
     models = {}
-    context = batch.mp_context("driftfmu.simulations.adxl203")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    with batch.process_pool(workers, "driftfmu.simulations.adxl203") as pool:
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
         for fut in as_completed(futs):
@@ -290,7 +290,7 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
     """
     files = [str(p) for p in files]
     if len(files) - held_out < 1 or held_out < 0:
-        raise ValueError("%d file(s) with %d held out; allowed: 0 <= held_out < number of files"
+        raise UsageError("%d file(s) with %d held out; allowed: 0 <= held_out < number of files"
                          % (len(files), held_out))
     data = [identify.read_csv(p) for p in files]
     Ts = None
@@ -298,7 +298,7 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
         try:
             ts = identify.sample_period(t)
         except ValueError as exc:
-            raise ValueError("%s: %s" % (p, exc)) from None
+            raise DataError("%s: %s" % (p, exc)) from None
         check_frequency(f, ts)
         Ts = ts if Ts is None else Ts
     train = len(files) - held_out
@@ -402,7 +402,7 @@ def add_cli(groups):
 def _cmd_experiment(args):
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
-    with cli.progress(total, "sets") as update:
+    with cli.progress(total, "sets", "set") as update:
         s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=args.held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
                         workers=args.workers, progress=update)

@@ -15,6 +15,7 @@ Parallel: :func:`run_tasks` maps a task function over chunks of runs on local wo
 (``concurrent.futures``) or on a Dask distributed cluster (``scheduler=ADDRESS``); the FMU
 engine (:func:`fmu_task`) is fanned out the same way.
 """
+import contextlib
 import math
 import os
 import time
@@ -22,6 +23,7 @@ import time
 import numpy as np
 
 from driftfmu.models import chain, drift, excitation, harmonic, noise, parameters, sensor
+from driftfmu.simulations.errors import UsageError
 
 #: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
 SEED_MAX = parameters.PARAMETERS["seed"].high
@@ -57,7 +59,7 @@ def run_seeds(seed, runs):
     seed = int(seed)
     last = run_seed(seed, runs - 1)
     if seed < 0 or last > SEED_MAX:
-        raise ValueError("seed = %r with runs = %d needs FMU seeds %d..%d; allowed: "
+        raise UsageError("seed = %r with runs = %d needs FMU seeds %d..%d; allowed: "
                          "0 <= seed and seed + runs - 1 <= %d" % (seed, runs, seed, last,
                                                                   SEED_MAX))
     return run_seed(np.uint64(seed), np.arange(runs, dtype=np.uint64))
@@ -66,7 +68,7 @@ def run_seeds(seed, runs):
 def check_runs(runs):
     """Raise ValueError unless ``runs`` is an integer >= 1."""
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
-        raise ValueError("runs = %r is not allowed; allowed: an integer runs >= 1" % (runs,))
+        raise UsageError("runs = %r is not allowed; allowed: an integer runs >= 1" % (runs,))
 
 
 def check_parameters(values):
@@ -86,7 +88,7 @@ def check_parameters(values):
                 problems.append(msg)
                 break
     if problems:
-        raise ValueError("; ".join(problems))
+        raise UsageError("; ".join(problems))
 
 
 def default_P0(A, Q):
@@ -140,7 +142,7 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     runs = seeds.shape[0]
     unknown = set(record) - set(TRAJECTORIES)
     if unknown:
-        raise ValueError("cannot record %s; allowed: %s" % (sorted(unknown),
+        raise UsageError("cannot record %s; allowed: %s" % (sorted(unknown),
                                                             ", ".join(TRAJECTORIES)))
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
@@ -219,7 +221,7 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
                               R=R, process=harmonic.GAUSS_MARKOV, A=fA, Q=fQ, P0=P0, x0=x0,
                               fmu_dir=fmu_dir, plot=False)["columns"]
     else:
-        raise ValueError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
+        raise UsageError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
                          "the Gaussian excitation with the filter's A and Q equal to the "
                          "excitation's, or the sinusoidal one" % (kind, fA, fQ))
     zbar, x2bar = 0.0, 0.0
@@ -265,7 +267,7 @@ def run_task(task):
     elif task["engine"] == "fmu":
         out = fmu_task(task)
     else:
-        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'"
+        raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'"
                          % (task["engine"],))
     return out, time.perf_counter() - t0
 
@@ -363,26 +365,76 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
             from dask.distributed import as_completed
             futures = client.map(run_task, tasks, pure=False)
             index = {f.key: i for i, f in enumerate(futures)}
-            for fut in as_completed(futures):
-                finished(index[fut.key], fut.result())
+            try:
+                for fut in as_completed(futures):
+                    finished(index[fut.key], fut.result())
+            except BaseException:  # Ctrl-C or a failed task: the cluster drops the rest
+                with contextlib.suppress(Exception):
+                    client.cancel(futures)
+                raise
         finally:
             if own:
                 client.close()
         return results
     workers = workers_default() if workers is None else workers
     if workers < 1:
-        raise ValueError("workers = %r is not allowed; allowed: workers >= 1" % (workers,))
+        raise UsageError("workers = %r is not allowed; allowed: workers >= 1" % (workers,))
     if workers == 1 or len(tasks) == 1:
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
-    from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)),
-                             mp_context=mp_context()) as pool:
+    from concurrent.futures import as_completed as cf_completed
+    with process_pool(min(workers, len(tasks))) as pool:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
         for fut in cf_completed(futures):
             finished(futures[fut], fut.result())
     return results
+
+
+def _worker_init():
+    """Start of a worker process: Ctrl-C is the parent's to handle (it stops the workers);
+    SIGTERM from the parent removes the FMUs this worker has extracted, then exits at once."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _worker_stop)
+
+
+def _worker_stop(signum, frame):
+    from driftfmu.simulations import cosim
+    cosim.remove_extracted()
+    os._exit(128 + signum)
+
+
+@contextlib.contextmanager
+def process_pool(workers, preload="driftfmu.simulations.batch"):
+    """A ``ProcessPoolExecutor`` of ``workers`` processes (:func:`mp_context`) that, when the
+    block fails or is interrupted (Ctrl-C), cancels what is queued and stops its workers at once
+    instead of waiting for their tasks to finish."""
+    from concurrent.futures import ProcessPoolExecutor
+    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(preload),
+                               initializer=_worker_init)
+    try:
+        yield pool
+    except BaseException:
+        stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+def stop_pool(pool, timeout=5.0):
+    """Cancel the queued tasks of ``pool``, SIGTERM its worker processes (each removes its
+    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    deadline = time.monotonic() + timeout
+    for p in procs:
+        p.join(max(0.0, deadline - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(1.0)
 
 
 def mp_context(preload="driftfmu.simulations.batch"):

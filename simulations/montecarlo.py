@@ -18,6 +18,7 @@ import numpy as np
 from driftfmu.models import drift, excitation
 from driftfmu.simulations import batch, output
 from driftfmu.simulations.gaussian import SETTLE_BAND
+from driftfmu.simulations.errors import UsageError
 
 #: The letter's claim: EKF1 and EKF2 settle in under 250 samples.
 SETTLE_BY = 250
@@ -82,7 +83,7 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
     seeds = batch.run_seeds(seed, runs)
     per_run = {k: v(seeds) if callable(v) else v for k, v in per_run.items()}
     if engine not in ("batch", "fmu"):
-        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+        raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     if engine == "fmu":
         from driftfmu.simulations.gaussian import fmu_paths
         fmu_paths(fmu_dir)
@@ -146,7 +147,7 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, X=X, f=f)
     batch.check_parameters(params)
     if not f < 0.5 / Ts:
-        raise ValueError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
+        raise UsageError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
                          "f < %r Hz" % (f, 0.5 / Ts, 0.5 / Ts))
     common = dict(a0=a0, a1=a1, a2=a2, R=R, Ts=Ts, X=X, f=f, kind=excitation.SINUSOIDAL,
                   filter_A=A, filter_Q=Q)
@@ -241,7 +242,7 @@ def add_cli(groups):
 def _with_bar(args, fn, **kw):
     from driftfmu.simulations import cli
     desc = "montecarlo (%s engine)" % args.engine
-    with cli.progress(args.runs, desc, monitor=False) as update:
+    with cli.progress(args.runs, desc, "run", monitor=False) as update:
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
                   a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
                   scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,

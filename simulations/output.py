@@ -1,7 +1,8 @@
 """Writing results whole or not at all, and the plots.
 
 Files are written into a staging folder beside the destination and moved into place only when
-every file of the set has been written; on any error the destination is left as it was.
+every file of the set has been written; on any error or Ctrl-C the destination is left as it
+was, and folders created for it are removed again when they are still empty.
 """
 import contextlib
 import json
@@ -10,19 +11,45 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from driftfmu.simulations.errors import UsageError
+
+
+@contextlib.contextmanager
+def removing_new_folders(path):
+    """Run the block; when it fails (or is interrupted), remove the folders of ``path`` and its
+    parents that did not exist before and are empty after."""
+    path = Path(path)
+    new = []
+    p = path
+    while not p.exists() and p != p.parent:
+        new.append(p)
+        p = p.parent
+    try:
+        yield
+    except BaseException:
+        for d in new:  # deepest first
+            with contextlib.suppress(OSError):
+                d.rmdir()  # only when empty
+        raise
+
 
 @contextlib.contextmanager
 def staged(out_dir):
-    """Yield a staging folder; on success move its files into ``out_dir`` (created if missing)."""
+    """Yield a staging folder; on success move its files into ``out_dir`` (created if missing).
+
+    ``out_dir`` naming an existing file is a ValueError (one line, nothing written)."""
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
-    try:
-        yield stage
-        for f in sorted(stage.iterdir()):
-            os.replace(f, out / f.name)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    if out.exists() and not out.is_dir():
+        raise UsageError("%s is an existing file; allowed: a folder (created if missing)" % out)
+    with removing_new_folders(out):
+        out.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
+        try:
+            yield stage
+            for f in sorted(stage.iterdir()):
+                os.replace(f, out / f.name)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
 
 
 def write_csv(path, columns, names):

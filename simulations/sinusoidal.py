@@ -17,6 +17,7 @@ from driftfmu.models import adxl203, chain, drift, excitation, harmonic, identif
 from driftfmu.simulations import output
 from driftfmu.simulations.cosim import cosimulate
 from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, compare, fmu_paths, settled_from
+from driftfmu.simulations.errors import UsageError
 
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Excitation", "y", "Accelerometer", "y"),
@@ -31,7 +32,7 @@ def check_frequency(f, Ts):
     """ValueError unless ``0 < f < 1 / (2 Ts)``."""
     nyquist = 0.5 / Ts
     if not 0.0 < f < nyquist:
-        raise ValueError("f = %r Hz is not allowed at Ts = %r s; allowed: 0 < f < 1/(2 Ts) = "
+        raise UsageError("f = %r Hz is not allowed at Ts = %r s; allowed: 0 < f < 1/(2 Ts) = "
                          "%r Hz (the Nyquist rate)" % (f, Ts, nyquist))
 
 
@@ -91,7 +92,7 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     sp = dict(a0=a0, a1=a1, a2=a2, R=R)
     if preset is not None:
         if preset not in adxl203.PRESETS:
-            raise ValueError("preset = %r is not known; allowed: %s"
+            raise UsageError("preset = %r is not known; allowed: %s"
                              % (preset, ", ".join(sorted(adxl203.PRESETS))))
         sp.update(adxl203.PRESETS[preset])
     sp.update(sensor or {})
@@ -100,9 +101,9 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
                   P0=P0, x0=x0, process=process)
     problems = parameters.check(params) + adxl203.check(sp)
     if problems:
-        raise ValueError("; ".join(problems))
+        raise UsageError("; ".join(problems))
     if estimator not in (1, 2, 3):
-        raise ValueError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
+        raise UsageError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
     check_frequency(f, Ts)
     model = nominal_model(sp, Ts) if preset is not None else dict(a0=a0, a1=a1, a2=a2, R=R)
     start = {
@@ -191,7 +192,7 @@ def add_cli(groups):
 
 def _cmd(args):
     from driftfmu.simulations import cli
-    with cli.progress(args.n, "co-simulation") as update:
+    with cli.progress(args.n, "co-simulation", "sample") as update:
         res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,

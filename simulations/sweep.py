@@ -17,6 +17,7 @@ import numpy as np
 
 from driftfmu.models import excitation, sensor
 from driftfmu.simulations import batch, output
+from driftfmu.simulations.errors import UsageError
 
 DEFAULT_A2 = tuple(np.logspace(-3, -0.5, 6))
 DEFAULT_R = tuple(np.logspace(-6, -2, 5))
@@ -32,7 +33,7 @@ def check_grid(name, values):
     """The grid of ``name`` as a 1-D float array; ValueError when empty or out of range."""
     arr = np.atleast_1d(np.asarray(values, dtype=float))
     if arr.ndim != 1 or arr.size == 0:
-        raise ValueError("the %s grid is empty; allowed: one or more values of %s"
+        raise UsageError("the %s grid is empty; allowed: one or more values of %s"
                          % (name, name))
     batch.check_parameters({name: arr})
     return arr
@@ -73,7 +74,7 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
     batch.check_runs(runs)
     batch.check_parameters(dict(a0=a0, a1=a1, Q=Q, A=A, n=n, Ts=Ts))
     if engine not in ("batch", "fmu"):
-        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+        raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     seeds1 = batch.run_seeds(seed, runs)
     points = len(a2) * len(R)
     seeds = np.tile(seeds1, points)
@@ -205,7 +206,7 @@ def cmd_sweep(args):
     t0 = time.perf_counter()
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine
-    with cli.progress(total, desc, monitor=False) as update:
+    with cli.progress(total, desc, "run", monitor=False) as update:
         res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
                     runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, engine=args.engine,
                     scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,

@@ -121,4 +121,4 @@ def test_cli_identify_and_its_errors(recordings, tmp_path, capsys):
     assert rc == 1 and "missing column(s) z" in capsys.readouterr().err
     assert not (tmp_path / "p").exists()
     rc = main(["identify", str(tmp_path / "a.csv"), "--f", "900", "--out", str(tmp_path / "q")])
-    assert rc == 1 and "Nyquist" in capsys.readouterr().err
+    assert rc == 2 and "Nyquist" in capsys.readouterr().err
