@@ -24,6 +24,7 @@ Sets run in parallel (one process per core); each worker loads the FMUs once per
 import math
 import os
 import time
+import warnings
 from concurrent.futures import as_completed
 
 from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
@@ -103,6 +104,12 @@ def _log_samples(n, points=400):
     return [k for k in ks if 1 <= k <= n]
 
 
+def default_held_out(sets):
+    """Held-out sets for ``sets`` sets when none are given: the letter's share, 5 of 30
+    (``sets / 6`` rounded), at least 1."""
+    return max(1, int(round(sets / 6.0)))
+
+
 def check_settings(freqs, sets, held_out, n, Ts):
     """ValueError (value and what is allowed) for bad experiment settings."""
     if not freqs:
@@ -111,7 +118,10 @@ def check_settings(freqs, sets, held_out, n, Ts):
         check_frequency(f, Ts)
     if held_out < 1 or sets - held_out < 2:
         raise UsageError("sets = %r with %r held out is not allowed; allowed: held_out >= 1 and "
-                         "at least 2 sets to fit (sets >= held_out + 2)" % (sets, held_out))
+                         "at least 2 sets to fit (sets >= held_out + 2): %s"
+                         % (sets, held_out, "add --sets %d or more" % (held_out + 2)
+                            if sets < 3 or held_out < 1 else "lower --held-out to at most %d "
+                            "or add --sets %d or more" % (sets - 2, held_out + 2)))
     for f in freqs:
         if n * f * Ts < 2:
             raise UsageError("n = %r samples span %.3g periods at f = %r Hz; allowed: n >= %d "
@@ -302,10 +312,20 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
         check_frequency(f, ts)
         Ts = ts if Ts is None else Ts
     train = len(files) - held_out
-    fits = [identify.fit_set(t, x, z, f) for t, x, z in data[:train]]
+    fits, doubts = [], []
+    for p, (t, x, z) in zip(files[:train], data[:train]):
+        fits.append(_fit_file(p, t, x, z, f, doubts))
+    for p, (t, x, _) in zip(files[train:], data[train:]):
+        # a held-out recording is checked too: its drive must be at f for EKF1's model
+        _fit_file(p, t, x, x, f, doubts)
+    if train == 1:
+        doubts.append("the model comes from one recording: no spread (sd) to report; fit two "
+                      "or more to see how much the coefficients scatter")
+        warnings.warn(doubts[-1], identify.IdentificationWarning, stacklevel=2)
     model = identify.average(fits)
     summary = {"frequency": f, "files": files[:train], "model": model,
-               "fits": [fi._asdict() for fi in fits], "method": "harmonic analysis"}
+               "fits": [fi._asdict() for fi in fits], "method": "harmonic analysis",
+               "warnings": doubts}
     rows = {"file": [], "dc_empirical": [], "dc_ekf1": [], "difference": []}
     for p, (t, _, z) in zip(files[train:], data[train:]):
         ts = identify.sample_period(t)
@@ -334,6 +354,21 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
     return summary
 
 
+def _fit_file(path, t, x, z, f, doubts):
+    """fit_set on one recording; its errors and warnings name the file (warnings are also
+    appended to ``doubts``)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", identify.IdentificationWarning)
+        try:
+            fit = identify.fit_set(t, x, z, f)
+        except identify.IdentificationError as exc:
+            raise identify.IdentificationError("%s: %s" % (path, exc)) from None
+    for w in caught:
+        doubts.append("%s: %s" % (path, w.message))
+        warnings.warn(doubts[-1], w.category, stacklevel=3)
+    return fit
+
+
 # -- command line -------------------------------------------------------------------------------
 
 def _freq_list(text):
@@ -347,6 +382,21 @@ def _freq_list(text):
         raise argparse.ArgumentTypeError("freqs = %r; allowed: positive frequencies in Hz, "
                                          "e.g. 100,125,150" % text)
     return freqs
+
+
+def _count(name):
+    """argparse type: an integer >= 0."""
+    import argparse
+
+    def parse(text):
+        try:
+            v = int(text)
+        except ValueError:
+            v = -1
+        if v < 0:
+            raise argparse.ArgumentTypeError("%s = %r; allowed: an integer >= 0" % (name, text))
+        return v
+    return parse
 
 
 def _positive_int(name):
@@ -376,11 +426,15 @@ def add_cli(groups):
     g.add_argument("--freqs", type=_freq_list, default=list(FREQS), metavar="F1,F2,...",
                    help="drive frequencies [Hz] (default: %s)" % ",".join("%g" % f for f in FREQS))
     g.add_argument("--sets", type=_positive_int("sets"), default=SETS,
-                   help="sets per frequency (default: %d)" % SETS)
-    g.add_argument("--held-out", type=_positive_int("held-out"), default=HELD_OUT,
-                   help="sets held out for EKF1 (default: %d)" % HELD_OUT)
+                   help="sets per frequency; allowed: sets >= held-out + 2 (default: %d)"
+                        % SETS)
+    g.add_argument("--held-out", type=_positive_int("held-out"), default=None, metavar="K",
+                   help="of the sets, the last K are held out for EKF1, the others fit the "
+                        "model; allowed: 1 <= K <= sets - 2 (default: sets / 6 rounded, at "
+                        "least 1: %d of %d)" % (HELD_OUT, SETS))
     g.add_argument("--n", type=_positive_int("n"), default=N,
-                   help="samples per set (default: %d)" % N)
+                   help="samples per set; allowed: at least two periods of the lowest "
+                        "frequency (default: %d)" % N)
     cli.add_params(g, ("Ts", "seed"), Ts=TS, seed=SEED)
     g.add_argument("--workers", type=_positive_int("workers"), default=None,
                    help="parallel processes (default: the number of cores)")
@@ -391,10 +445,14 @@ def add_cli(groups):
     i = top.add_parser("identify", help="fit a0, a1, a2, R from recordings (CSV: time, x, z) "
                        "by harmonic analysis; EKF1 on held-out recordings")
     i.add_argument("files", nargs="+", metavar="CSV", help="recordings with columns time, x, z")
-    i.add_argument("--f", type=cli.param_type("f"), required=True,
-                   help="drive frequency [Hz]")
-    i.add_argument("--held-out", type=int, default=0,
-                   help="the last K files are held out for EKF1 (default: 0)")
+    i.add_argument("--f", type=cli.frequency_type, required=True,
+                   help="drive frequency [Hz] of the recordings; allowed: %s of the "
+                        "recordings' sample period; checked against the recorded drive x"
+                        % cli.FREQUENCY_ALLOWED)
+    i.add_argument("--held-out", type=_count("held-out"), default=0, metavar="K",
+                   help="the last K files are held out: the model is fitted on the others "
+                        "and EKF1 runs on these (z only), with the margin against their "
+                        "empirical drift; allowed: 0 <= K < number of files (default: 0)")
     cli.add_out(i, "results/identify")
     i.set_defaults(func=_cmd_identify)
 
@@ -402,8 +460,9 @@ def add_cli(groups):
 def _cmd_experiment(args):
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
+    held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
     with cli.progress(total, "sets", "set") as update:
-        s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=args.held_out,
+        s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
                         workers=args.workers, progress=update)
     print("wrote %s/adxl203.csv, adxl203.json, adxl203.npz, fig4.png, fig5.png" % args.out)
@@ -425,5 +484,11 @@ def _cmd_identify(args):
     print("wrote %s/identify.json%s" % (args.out, ", identify.csv" if args.held_out else ""))
     print("model from %d set(s): a0 %.6g, a1 %.6g, a2 %.6g, R %.4g"
           % (m["sets"], m["a0"], m["a1"], m["a2"], m["R"]))
+    if m["sd_a2"] is not None:
+        print("spread over the sets (sd): a0 %.3g, a1 %.3g, a2 %.3g, R %.3g"
+              % (m["sd_a0"], m["sd_a1"], m["sd_a2"], m["sd_R"]))
+    if s["warnings"]:
+        print("%d warning(s), see above and identify.json: the fit is doubtful"
+              % len(s["warnings"]))
     if args.held_out:
         print("EKF1 on %d held-out set(s): margin %.1f dB" % (args.held_out, s["margin_db"]))

@@ -12,9 +12,11 @@ processes stopped and temporary files removed.
 """
 import argparse
 import contextlib
+import math
 import os
 import signal
 import sys
+import warnings
 from pathlib import Path
 
 from driftfmu.models import parameters
@@ -48,15 +50,36 @@ def param_type(name):
     return parse
 
 
+#: What the command line accepts for a drive frequency (the FMU parameter allows f = 0, a
+#: constant; a run needs a drive below the Nyquist rate).
+FREQUENCY_ALLOWED = "0 < f < 1/(2 Ts), the Nyquist rate"
+
+
+def frequency_type(text):
+    """argparse type of a drive frequency: a finite number > 0 (the upper bound, the Nyquist
+    rate, depends on ``--Ts`` and is checked by the run before it starts)."""
+    try:
+        value = float(text)
+    except ValueError:
+        value = None
+    if value is None or not math.isfinite(value) or value <= 0.0:
+        raise argparse.ArgumentTypeError("f = %r is not allowed; allowed: %s"
+                                         % (text, FREQUENCY_ALLOWED))
+    return value
+
+
 def add_params(parser, names, **defaults):
     """Add ``--<name>`` options for model parameters, with help from models.parameters."""
     for name in names:
         p = parameters.PARAMETERS[name]
         default = defaults.get(name, p.default)
-        parser.add_argument("--%s" % name, type=param_type(name), default=default,
+        unit = "" if p.unit == "1" else " [%s]" % p.unit
+        allowed = FREQUENCY_ALLOWED if name == "f" else parameters.allowed(name)
+        parser.add_argument("--%s" % name, type=frequency_type if name == "f" else
+                            param_type(name), default=default,
                             metavar=name.upper() if len(name) > 1 else name,
-                            help="%s [%s]; allowed: %s (default: %s)"
-                                 % (p.description, p.unit, parameters.allowed(name), default))
+                            help="%s%s; allowed: %s (default: %s)"
+                                 % (p.description, unit, allowed, default))
 
 
 @contextlib.contextmanager
@@ -227,6 +250,17 @@ def main(argv=None):
     previous = None
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous = signal.signal(signal.SIGINT, _interrupt)  # first: no traceback, ever
+    with warnings.catch_warnings():
+        warnings.simplefilter("always", UserWarning)  # every doubt, each on its own line
+        warnings.showwarning = _show_warning
+        return _main(argv, previous)
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    sys.stderr.write("driftfmu: warning: %s\n" % first_line(message))
+
+
+def _main(argv, previous):
     try:
         parser = make_parser()
         args = parser.parse_args(argv)
