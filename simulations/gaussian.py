@@ -133,8 +133,10 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
             output.write_json(stage / "summary.json", summary)
             if plot:
                 output.plot_drift(stage / "drift.png", cols,
-                                  "Gaussian x: a1=%g, a2=%g, Q=%g, R=%g, A=%g, seed %d"
-                                  % (a1, a2, Q, R, A, seed))
+                                  "Drift estimates of one co-simulation (the letter's Fig. 1): "
+                                  "Gaussian state, a1 = %g V/g, a2 = %g V/g², Q = %g g², "
+                                  "R = %g V², A = %g, n = %d, seed %d"
+                                  % (a1, a2, Q, R, A, n, seed))
     return {"columns": cols, "summary": summary}
 
 

@@ -170,9 +170,11 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
             output.write_json(stage / "summary.json", summary)
             if plot:
                 output.plot_drift(stage / "drift.png", cols,
-                                  "Sinusoidal x: X=%g g, f=%g Hz, %s filter%s, seed %d"
-                                  % (X, f, harmonic.PROCESSES[process],
-                                     ", %s" % preset if preset else "", seed))
+                                  "Drift estimates of one co-simulation: sinusoidal state "
+                                  "X = %g g at f = %g Hz, %s filter%s, n = %d at Ts = %g s, "
+                                  "seed %d" % (X, f, harmonic.PROCESSES[process],
+                                               ", %s stand-in" % preset if preset else "",
+                                               n, Ts, seed))
     return {"columns": cols, "summary": summary}
 
 
