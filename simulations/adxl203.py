@@ -224,66 +224,106 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
                      adxl_emp=np.array([p["dc_empirical"] for p in per]),
                      adxl_ekf1=np.array([p["dc_ekf1"] for p in per]))
             if plot:
-                plot_fig4(stage / "fig4.png", per[0], [r["trace"] for r in tests[freqs[0]]],
-                          train, n, Ts)
+                plot_fig4(stage / "fig4.png", per, [[r["trace"] for r in tests[f]]
+                                                    for f in freqs], train, n, Ts)
                 plot_fig5(stage / "fig5.png", per)
     return summary
 
 
-def plot_fig4(path, p, traces, train, n, Ts):
-    """Fig. 4: EKF1 against the empirical drift for each held-out set at one frequency, with the
-    EKF1 running estimates (inset axis: convergence over the set)."""
+def plot_fig4(path, per, traces, train, n, Ts):
+    """Fig. 4: EKF1 against the empirical drift for every held-out set at every frequency
+    (left: discrete sets as markers, spread around their frequency, with the rms difference
+    per frequency), and EKF1's running estimate over one set per frequency (right; dotted: that
+    set's empirical drift).  ``traces`` holds, per frequency, the held-out sets' traces."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    sets = np.arange(train + 1, train + 1 + len(p["dc_empirical"]))
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
-    ax.plot(sets, 1e3 * np.array(p["dc_empirical"]), "ks-", label="empirical  z̄ - a0")
-    ax.plot(sets, 1e3 * np.array(p["dc_ekf1"]), "o--", color="C0", label="EKF1")
-    ax.set_xlabel("held-out set")
+    from driftfmu.simulations.output import caption
+    freqs = np.array([p["frequency"] for p in per])
+    step = float(np.min(np.diff(freqs))) if len(freqs) > 1 else max(freqs[0] * 0.2, 1.0)
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    for c, p in enumerate(per):
+        h = len(p["dc_empirical"])
+        dx = 0.5 * step * (np.arange(h) - (h - 1) / 2.0) / max(h, 1)
+        x = p["frequency"] + dx
+        ax.plot(x, 1e3 * np.array(p["dc_empirical"]), "s", mfc="none", mec="k", ms=7,
+                label="empirical z̄ − a0" if c == 0 else None)
+        ax.plot(x, 1e3 * np.array(p["dc_ekf1"]), "o", color="C0", ms=4.5,
+                label="EKF1 (last sample)" if c == 0 else None)
+        ax.annotate("%.1f dB" % p["margin_db"], (p["frequency"], 0.0),
+                    xycoords=("data", "axes fraction"), xytext=(0, 4),
+                    textcoords="offset points", ha="center", fontsize=8, color="0.3")
+    ax.set_xticks(freqs)
+    ax.set_xlim(freqs[0] - 0.6 * step, freqs[-1] + 0.6 * step)
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo - 0.12 * (hi - lo), hi)  # room for the margin labels
+    ax.set_xlabel("drive frequency [Hz] (held-out sets %d-%d side by side)"
+                  % (train + 1, train + len(per[0]["dc_empirical"])))
     ax.set_ylabel("drift [mV]")
-    ax.set_xticks(sets)
-    ax.set_title("Estimated vs empirical drift, %g Hz (margin %.1f dB)"
-                 % (p["frequency"], p["margin_db"]))
+    ax.set_title("each held-out set: EKF1 and the empirical drift (bottom: margin)",
+                 fontsize=10)
     ax.grid(True, alpha=0.3)
-    ax.legend()
-    for i, tr in enumerate(traces):
-        k, dc = np.array(tr).T
-        ax2.semilogx(k, 1e3 * dc, lw=1, color="C%d" % i, label="set %d" % sets[i])
-        ax2.axhline(1e3 * p["dc_empirical"][i], color="C%d" % i, lw=0.8, ls=":")
-    ax2.set_ylim(0, 2 * 1e3 * max(p["dc_empirical"]))
-    ax2.set_xlabel("sample k (fs = %g kHz)" % (1e-3 / Ts))
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.16), ncol=2, fontsize=9,
+              frameon=False)
+    top = 0.0
+    for c, (p, tr) in enumerate(zip(per, traces)):
+        k, dc = np.array(tr[0]).T
+        color = plt.cm.viridis(0.9 * c / max(1, len(per) - 1))
+        ax2.plot(k, 1e3 * dc, lw=1.1, color=color, label="%g Hz, set %d"
+                 % (p["frequency"], train + 1))
+        ax2.axhline(1e3 * p["dc_empirical"][0], color=color, lw=0.9, ls=":")
+        top = max(top, 1e3 * max(p["dc_empirical"]))
+    ax2.set_ylim(0, 2 * top)
+    from driftfmu.simulations.output import log_sample_axis
+    log_sample_axis(ax2)
+    ax2.set_xlim(1, max(n, 2))
+    ax2.set_xlabel("sample k (log scale; fs = %g kHz)" % (1e-3 / Ts))
     ax2.set_ylabel("EKF1 drift [mV]")
-    ax2.set_title("EKF1 running estimate (dotted: empirical)")
-    ax2.grid(True, alpha=0.3)
-    ax2.legend(fontsize=8)
+    ax2.set_title("EKF1 running estimate (dotted: the set's empirical drift)", fontsize=10)
+    ax2.grid(True, which="major", alpha=0.3)
+    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
+    caption(fig, "Fig. 4 of the letter on the ADXL203 stand-in: EKF1 drift estimate against "
+                 "the empirical drift on the held-out sets, %d samples per set at fs = %g kHz"
+                 % (n, 1e-3 / Ts), width=120)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
 def plot_fig5(path, per):
-    """Fig. 5: drift and |EKF1 - empirical| (rms over the held-out sets) against frequency, dB."""
+    """Fig. 5: the drift and the rms difference EKF1 - empirical over the held-out sets,
+    against frequency, in dB of volts (``10 log10(value / 1 V)``, as the letter's margin); the
+    margin between them labelled at each frequency."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
+    from driftfmu.simulations.output import caption
     f = np.array([p["frequency"] for p in per])
     drift = np.array([abs(p["drift_mean"]) for p in per])
     diff = np.array([p["difference_rms"] for p in per])
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.plot(f, 10 * np.log10(drift), "ks-", label="drift (empirical)")
-    ax.plot(f, 10 * np.log10(diff), "o--", color="C3", label="difference EKF1 - empirical (rms)")
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    ax.plot(f, 10 * np.log10(drift), "ks-", label="drift: mean empirical z̄ − a0")
+    ax.plot(f, 10 * np.log10(diff), "o--", color="C3",
+            label="rms(EKF1 − empirical) over the held-out sets")
     for fi, a, b in zip(f, drift, diff):
+        ax.annotate("", xy=(fi, 10 * math.log10(b)), xytext=(fi, 10 * math.log10(a)),
+                    arrowprops=dict(arrowstyle="<->", color="0.6", lw=0.8))
         ax.annotate("%.1f dB" % (10 * math.log10(a / b)), (fi, 10 * math.log10(math.sqrt(a * b))),
-                    ha="center", fontsize=8)
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("10 log10(|value| / 1 V) [dB]")
-    ax.set_title("ADXL203 stand-in: drift vs estimation difference")
+                    xytext=(4, 0), textcoords="offset points", ha="left", va="center",
+                    fontsize=8)
+    ax.set_xlabel("drive frequency [Hz]")
+    ax.set_ylabel("drift, difference [dB re 1 V]  (10 log10(v / 1 V))")
     ax.set_xticks(f)
+    step = float(np.min(np.diff(f))) if len(f) > 1 else max(f[0] * 0.2, 1.0)
+    ax.set_xlim(f[0] - 0.4 * step, f[-1] + 0.6 * step)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2)
+    ax.legend(fontsize=9, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=1,
+              frameon=False)
+    caption(fig, "Fig. 5 of the letter on the ADXL203 stand-in: drift and estimation "
+                 "difference against frequency; labelled, the margin (the letter claims at "
+                 "least %g dB)" % CLAIM_DB, width=80)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
