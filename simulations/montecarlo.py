@@ -316,10 +316,12 @@ def print_summary(s, references):
           "that sample to the end" % (s["runs"], s["n"], s["seconds"], 100 * s["band"]))
     print("%-10s" % "estimator" + "".join(" | settled by %d vs %-9s" % (s["settle_by"], ref)
                                           for ref in references))
+    def median(k):  # n + 1: the median run is outside the band at the last sample
+        return "%6g" % k if k <= s["n"] else " never"
     for e in ("ekf1", "ekf2", "ekf3"):
         print("%-10s" % e.upper() + "".join(
-            " | %5.1f %% (median k %6g)   " % (100 * s["settled_fraction"][ref][e],
-                                              s["median_settled_from"][ref][e])
+            " | %5.1f %% (median k %s)   " % (100 * s["settled_fraction"][ref][e],
+                                            median(s["median_settled_from"][ref][e]))
             for ref in references))
     g = s["ekf1_ekf2_gap_db"]
     line = ("EKF1-EKF2 gap at the last sample: mean %.4f dB, std %.4f dB, max |gap| %.4f dB "
