@@ -250,10 +250,14 @@ def main(argv=None):
     previous = None
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
         previous = signal.signal(signal.SIGINT, _interrupt)  # first: no traceback, ever
-    with warnings.catch_warnings():
-        warnings.simplefilter("always", UserWarning)  # every doubt, each on its own line
-        warnings.showwarning = _show_warning
-        return _main(argv, previous)
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("always", UserWarning)  # every doubt, each on its own line
+            warnings.showwarning = _show_warning
+            return _main(argv, previous)
+    except KeyboardInterrupt:  # in the instant before _main's own handling
+        sys.stderr.write("driftfmu: interrupted\n")
+        return EXIT_INTERRUPTED
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

@@ -2,7 +2,7 @@
 
 For every grid point ``(a2_i, R_j)`` and run ``r`` (FMU seed ``seed + r``, the same seeds at every
 grid point) the Gaussian chain runs ``n`` samples; the final-sample drift estimates of EKF1-3 are
-compared with the three references of ``shared/paper/NOTES.md``:
+compared with the three drift references (``docs/method.md``, section 4):
 
 - empirical ``z̄_n - a0`` (the letter's reference; carries the linear term ``a1 x̄_n``),
 - realised ``a2 (1/n) sum x_k^2`` (simulation only),
