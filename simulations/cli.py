@@ -7,8 +7,8 @@ missing; results written whole or not at all).
 Exit statuses, the same for every sub-command (:mod:`simulations.errors`): 0 done; 2 a usage
 error (an option argparse refuses, or a setting the run cannot start with, such as a frequency
 above the Nyquist rate), one line on standard error; 1 a failed run (the data cannot support the
-result, an FMU or a file operation failed), one line; 130 interrupted (Ctrl-C), one line, worker
-processes stopped and temporary files removed.
+result, an FMU or a file operation failed), one line; 130 interrupted (Ctrl-C or SIGTERM), one
+line, worker processes stopped and temporary files removed.
 """
 import argparse
 import contextlib
@@ -229,11 +229,30 @@ def check_out(args):
                          % out)
 
 
+#: Set by the first SIGINT/SIGTERM: whatever exception the interrupted code then raises (an
+#: import stopped half-way raises ImportError, not KeyboardInterrupt), the run was interrupted.
+_interrupted = []
+
+
 def _interrupt(signum, frame):
-    """SIGINT: stop the command (KeyboardInterrupt) once; further Ctrl-Cs must not break the
-    clean-up that the first one started."""
+    """SIGINT (and SIGTERM): stop the command (KeyboardInterrupt) once; further signals must not
+    break the clean-up that the first one started."""
+    _interrupted.append(signum)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
     raise KeyboardInterrupt
+
+
+def _hold(signum, frame):
+    """SIGINT/SIGTERM while the sub-commands' modules are imported: noted, acted on right after
+    (an exception raised inside an extension module's import is not reliably re-raised)."""
+    _interrupted.append(signum)
+
+
+def _main_interrupted():
+    sys.stderr.write("driftfmu: interrupted; worker processes stopped, no partial result files "
+                     "left\n")
+    return EXIT_INTERRUPTED
 
 
 def first_line(exc):
@@ -247,9 +266,12 @@ def first_line(exc):
 
 def main(argv=None):
     """The ``driftfmu`` command; returns the exit status (0, 1, 2 or 130, see the module)."""
-    previous = None
+    del _interrupted[:]
+    previous = {}
     if signal.getsignal(signal.SIGINT) is signal.default_int_handler:
-        previous = signal.signal(signal.SIGINT, _interrupt)  # first: no traceback, ever
+        previous[signal.SIGINT] = signal.signal(signal.SIGINT, _hold)  # first thing
+    if signal.getsignal(signal.SIGTERM) == signal.SIG_DFL:  # kill, timeout: clean up the same way
+        previous[signal.SIGTERM] = signal.signal(signal.SIGTERM, _hold)
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("always", UserWarning)  # every doubt, each on its own line
@@ -266,7 +288,11 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 
 def _main(argv, previous):
     try:
-        parser = make_parser()
+        parser = make_parser()  # imports NumPy, matplotlib's helpers, the plugins
+        for signum in previous:
+            signal.signal(signum, _interrupt)
+        if _interrupted:
+            raise KeyboardInterrupt
         args = parser.parse_args(argv)
         try:
             check_out(args)
@@ -276,20 +302,17 @@ def _main(argv, previous):
             parser.error(first_line(exc))
         args.func(args)
     except KeyboardInterrupt:
-        sys.stderr.write("driftfmu: interrupted; worker processes stopped, no partial result "
-                         "files left\n")
-        return EXIT_INTERRUPTED
-    except UsageError as exc:
-        sys.stderr.write("driftfmu: error: %s\n" % first_line(exc))
-        return EXIT_USAGE
+        return _main_interrupted()
     except Exception as exc:  # one readable line, not a traceback
+        if _interrupted:  # whatever the interrupted code raised on its way out
+            return _main_interrupted()
         sys.stderr.write("driftfmu: error: %s\n" % first_line(exc))
-        return EXIT_FAILED
+        return EXIT_USAGE if isinstance(exc, UsageError) else EXIT_FAILED
     finally:
-        if previous is not None:
+        for signum, handler in previous.items():
             # called with arguments (a test, a script): give the caller its handler back; as
             # the program: a Ctrl-C while the interpreter shuts down has nothing left to stop
-            signal.signal(signal.SIGINT, previous if argv is not None else signal.SIG_IGN)
+            signal.signal(signum, handler if argv is not None else signal.SIG_IGN)
     return 0
 
 

@@ -61,38 +61,47 @@ def _remove(unzipdir):
 
 
 @contextlib.contextmanager
-def interrupts_deferred():
-    """Hold Ctrl-C (SIGINT) back from FMU calls: yield ``check()``, which raises it between
-    calls.
+def interrupts_deferred(signals=(signal.SIGINT, signal.SIGTERM)):
+    """Hold Ctrl-C (SIGINT) and SIGTERM back from FMU calls: yield ``check()``, which acts on
+    them between calls.
 
     A KeyboardInterrupt raised inside an FMU's own Python code would unwind through pythonfmu's
-    C++ layer (which frees its objects twice on an exception).  So while the master runs, SIGINT
-    only marks itself pending; ``check()``, called by the master between steps, hands it to the
-    handler that was installed before (which raises KeyboardInterrupt).  Nothing changes when
-    SIGINT is ignored, not handled in Python, or this is not the main thread.
+    C++ layer (which frees its objects twice on an exception).  So while the master runs, each
+    of ``signals`` whose handler is a Python function only marks itself pending; ``check()``,
+    called by the master between steps, hands it to that handler (which raises, e.g.,
+    KeyboardInterrupt).  Signals ignored or not handled in Python are left alone, and nothing
+    changes outside the main thread.
     """
-    previous = signal.getsignal(signal.SIGINT)
-    if threading.current_thread() is not threading.main_thread() or not callable(previous):
+    if threading.current_thread() is not threading.main_thread():
         yield lambda: None
         return
+    previous = {s: signal.getsignal(s) for s in signals}
+    previous = {s: h for s, h in previous.items() if callable(h)}
     pending = []
 
     def hold(signum, frame):
         pending.append(signum)
 
-    def check():
-        if pending and signal.getsignal(signal.SIGINT) is hold:
-            signal.signal(signal.SIGINT, previous)
-            previous(signal.SIGINT, None)
+    def restore():
+        held = [s for s in previous if signal.getsignal(s) is hold]
+        for s in held:
+            signal.signal(s, previous[s])
+        return held
 
-    signal.signal(signal.SIGINT, hold)
+    def check():
+        if pending:
+            held = restore()
+            if pending[0] in held:
+                previous[pending[0]](pending[0], None)
+
+    for s in previous:
+        signal.signal(s, hold)
     try:
         yield check
     finally:
-        if signal.getsignal(signal.SIGINT) is hold:
-            signal.signal(signal.SIGINT, previous)
-            if pending:
-                previous(signal.SIGINT, None)
+        held = restore()
+        if pending and pending[0] in held:
+            previous[pending[0]](pending[0], None)
 
 
 class CoSimulationError(RuntimeError):

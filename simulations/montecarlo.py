@@ -186,8 +186,9 @@ def plot_population(path, result, prefix, title):
     95 % points (thin, same colour and dash) over the runs of each estimator's error against
     the realised drift in percent (top; grey: the 10 % band of "settled"), and of the empirical
     drift ``z̄ - a0``, EKF1 and the realised drift in mV (bottom: for a Gaussian state the
-    empirical drift's spread is the linear term ``a1 x̄``, far larger than the drift).  Sample axis logarithmic; the dotted line is
-    k = 250, the letter's "converged in under 250 samples"; legends beside the axes."""
+    empirical drift's spread is the linear term ``a1 x̄``, far larger than the drift; a
+    symmetric-log axis shows both).  Sample axis logarithmic; the dotted line is k = 250, the
+    letter's "converged in under 250 samples"; legends beside the axes."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt

@@ -197,7 +197,7 @@ def _group(pgid):
     return live
 
 
-def _interrupt(argv, tmp_path, after, wait_for_workers=0):
+def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_main=False):
     """Start ``driftfmu argv`` in its own session, send SIGINT to its whole process group (as a
     terminal's Ctrl-C does) ``after`` seconds in (or once ``wait_for_workers`` children run);
     return (exit status, stderr, seconds to stop, live processes left, files left in TMPDIR)."""
@@ -208,6 +208,9 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0):
                          start_new_session=True, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     t0 = time.monotonic()
+    while wait_for_main and not _main_started(p.pid) and time.monotonic() - t0 < 60:
+        assert p.poll() is None, p.communicate()
+        time.sleep(0.002)
     if wait_for_workers:
         while len(_group(p.pid)) < 1 + wait_for_workers and time.monotonic() - t0 < 120:
             assert p.poll() is None, p.communicate()
@@ -217,7 +220,10 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0):
         time.sleep(after)
     workers = len(_group(p.pid)) - 1
     sent = time.monotonic()
-    os.killpg(p.pid, signal.SIGINT)
+    if send is None:
+        os.killpg(p.pid, signal.SIGINT)
+    else:
+        send(p.pid)
     try:
         _, err = p.communicate(timeout=60)
     finally:
@@ -247,11 +253,40 @@ def test_ctrl_c_stops_the_experiment_and_its_workers(built_fmus, tmp_path):
     assert not (tmp_path / "res").exists()
 
 
-@pytest.mark.parametrize("after", [0.05, 0.3])
+def _main_started(pid):
+    """True once the command's main() runs: it then catches SIGTERM (bit 15 of SigCgt in
+    /proc/PID/status), which the interpreter's own start-up does not."""
+    try:
+        with open("/proc/%d/status" % pid) as fh:
+            caught = next(int(line.split()[1], 16) for line in fh if line.startswith("SigCgt"))
+    except (OSError, StopIteration):
+        return False
+    return bool(caught & (1 << (signal.SIGTERM - 1)))
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="needs /proc")
+@pytest.mark.parametrize("after", [0.0, 0.3])
 def test_ctrl_c_early_is_one_line_and_130(tmp_path, after):
+    # "early": as soon as main() has started (while NumPy, matplotlib and the plugins are still
+    # being imported), and 0.3 s later; a signal in the interpreter's own start-up, before any
+    # of the project's code runs, is Python's to report
     rc, err, stopped, left, files, _ = _interrupt(
-        ["sweep", "--runs", "20000", "--out", "res"], tmp_path, after=after)
+        ["sweep", "--runs", "20000", "--out", "res"], tmp_path, after=after, wait_for_main=True)
     assert rc == 130, err
     assert "interrupted" in _one_error_line(err)
     assert left == [] and files == []
     assert not (tmp_path / "res").exists()
+
+
+@pytest.mark.integration
+def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path):
+    # what `timeout` or `kill PID` do: SIGTERM to the main process, not to the group
+    fmu_dir = Path(built_fmus["Excitation"]).parent
+    rc, err, stopped, left, files, workers = _interrupt(
+        ["experiment", "adxl203", "--workers", "2", "--out", "res", "--fmu-dir", str(fmu_dir)],
+        tmp_path, after=1.0, wait_for_workers=2,
+        send=lambda pid: os.kill(pid, signal.SIGTERM))
+    assert workers >= 2
+    assert rc == 130, err
+    assert "interrupted" in _one_error_line(err)
+    assert stopped < 10.0 and left == [] and files == []
