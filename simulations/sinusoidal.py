@@ -143,10 +143,10 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     summary = {
         "parameters": params, "sensor": sp, "filter_model": model,
         "process": harmonic.PROCESSES[process], "estimator": estimator, "final": final,
-        "whole_periods": {"samples": m, "periods": round(m * f * Ts, 6),
-                          "note": None if m else "the %d samples span %.3g periods of f = %g "
-                          "Hz: no whole period, so no empirical reference (n >= %d needed)"
-                          % (n, periods, f, math.ceil(1.0 / (f * Ts)))},
+        "whole_periods": {"samples": m, "periods": round(m * f * Ts, 6)},
+        "empirical_note": None if m else "the %d samples span %.3g periods of f = %g Hz: no "
+                          "whole period, so no empirical reference (n >= %d needed)"
+                          % (n, periods, f, math.ceil(1.0 / (f * Ts))),
         "ekf1_rel_error": {"vs_expected": final["dc_ekf1"] / dc_expected - 1.0
                            if dc_expected else None,
                            "vs_empirical_whole_periods": final["dc_ekf1"] / dc_whole - 1.0
@@ -224,7 +224,7 @@ def _cmd(args):
         return "n/a" if v is None else "%+.3f %%" % (100 * v)
     print("EKF1 (%s filter) vs expected %s, vs empirical %s"
           % (s["process"], pct(e["vs_expected"]), pct(e["vs_empirical_whole_periods"])))
-    if wp["note"]:
-        sys.stderr.write("driftfmu: warning: %s\n" % wp["note"])
+    if s["empirical_note"]:
+        sys.stderr.write("driftfmu: warning: %s\n" % s["empirical_note"])
     print("validation: FMU outputs equal models/ (max |diff| %.3g, tolerance %g)"
           % (max(s["validation"]["max_abs_diff"].values()), s["validation"]["tolerance"]))
