@@ -151,8 +151,8 @@ def fit_set(t, x, z, f, skip=0):
         raise IdentificationError("%s; allowed: at least %g %%: give the drive frequency of "
                                   "the recording" % (text, 100 * MIN_EXPLAINED))
     if m * f * Ts < FEW_PERIODS - 1e-9:
-        warnings.warn("only %d whole periods of f = %g Hz: the standard errors of "
-                      ":func:`standard_errors` hold for many periods; the fit is rough"
+        warnings.warn("only %d whole periods of f = %g Hz: the closed-form standard errors "
+                      "hold for many periods; the fit is rough"
                       % (round(m * f * Ts), f), IdentificationWarning, stacklevel=2)
     phi = math.atan2(c, s)
     B = _basis(w + phi, 2)

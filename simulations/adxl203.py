@@ -122,11 +122,13 @@ def check_settings(freqs, sets, held_out, n, Ts):
                          % (sets, held_out, "add --sets %d or more" % (held_out + 2)
                             if sets < 3 or held_out < 1 else "lower --held-out to at most %d "
                             "or add --sets %d or more" % (sets - 2, held_out + 2)))
-    for f in freqs:
-        if n * f * Ts < 2:
-            raise UsageError("n = %r samples span %.3g periods at f = %r Hz; allowed: n >= %d "
-                             "(two periods at the lowest frequency)"
-                             % (n, n * f * Ts, f, math.ceil(2 / (min(freqs) * Ts))))
+    skip = adxl203.settling_samples(adxl203.ADXL203["fc"], Ts)
+    need = skip + math.ceil(identify.MIN_PERIODS / (min(freqs) * Ts))
+    if n < need:
+        raise UsageError("n = %r samples are too few: the fit leaves out the first %d (the output "
+                         "filter's start) and needs %d whole periods of the lowest frequency, "
+                         "%g Hz; allowed: n >= %d" % (n, skip, identify.MIN_PERIODS, min(freqs),
+                                                       need))
 
 
 def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS, seed=SEED,

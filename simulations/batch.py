@@ -395,8 +395,16 @@ def _worker_init():
     """Start of a worker process: Ctrl-C is the parent's to handle (it stops the workers);
     SIGTERM from the parent removes the FMUs this worker has extracted, then exits at once."""
     import signal
+    import warnings
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_stop)
+    warnings.showwarning = _worker_warning  # one line each, as the command's own
+
+
+def _worker_warning(message, category, filename, lineno, file=None, line=None):
+    import sys
+    text = str(message).strip().splitlines()
+    sys.stderr.write("driftfmu: warning: %s\n" % (text[0] if text else category.__name__))
 
 
 def _worker_stop(signum, frame):
