@@ -123,12 +123,11 @@ def check_settings(freqs, sets, held_out, n, Ts):
                             if sets < 3 or held_out < 1 else "lower --held-out to at most %d "
                             "or add --sets %d or more" % (sets - 2, held_out + 2)))
     skip = adxl203.settling_samples(adxl203.ADXL203["fc"], Ts)
-    need = skip + math.ceil(identify.MIN_PERIODS / (min(freqs) * Ts))
+    need = skip + math.ceil(identify.MIN_PERIODS / (min(freqs) * Ts))  # MIN_PERIODS = 2
     if n < need:
         raise UsageError("n = %r samples are too few: the fit leaves out the first %d (the output "
-                         "filter's start) and needs %d whole periods of the lowest frequency, "
-                         "%g Hz; allowed: n >= %d" % (n, skip, identify.MIN_PERIODS, min(freqs),
-                                                       need))
+                         "filter's start) and needs two periods of the lowest frequency, %g Hz, "
+                         "after them; allowed: n >= %d" % (n, skip, min(freqs), need))
 
 
 def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS, seed=SEED,
