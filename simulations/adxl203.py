@@ -315,7 +315,7 @@ def plot_fig5(path, per):
                     xytext=(4, 0), textcoords="offset points", ha="left", va="center",
                     fontsize=8)
     ax.set_xlabel("drive frequency [Hz]")
-    ax.set_ylabel("drift, difference [dB re 1 V]  (10 log10(v / 1 V))")
+    ax.set_ylabel("drift and difference [dB re 1 V]")
     ax.set_xticks(f)
     step = float(np.min(np.diff(f))) if len(f) > 1 else max(f[0] * 0.2, 1.0)
     ax.set_xlim(f[0] - 0.4 * step, f[-1] + 0.6 * step)
@@ -323,8 +323,8 @@ def plot_fig5(path, per):
     ax.legend(fontsize=9, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=1,
               frameon=False)
     caption(fig, "Fig. 5 of the letter on the ADXL203 stand-in: drift and estimation "
-                 "difference against frequency; labelled, the margin (the letter claims at "
-                 "least %g dB)" % CLAIM_DB, width=80)
+                 "difference against frequency, in dB re 1 V (10 log10(v / 1 V)); labelled, the "
+                 "margin (the letter claims at least %g dB)" % CLAIM_DB, width=80)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
