@@ -199,8 +199,10 @@ def _group(pgid):
 
 def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_main=False):
     """Start ``driftfmu argv`` in its own session, send SIGINT to its whole process group (as a
-    terminal's Ctrl-C does) ``after`` seconds in (or once ``wait_for_workers`` children run);
-    return (exit status, stderr, seconds to stop, live processes left, files left in TMPDIR)."""
+    terminal's Ctrl-C does; or call ``send(pid)``) ``after`` seconds in, counted from when
+    main() has started (``wait_for_main``) or ``wait_for_workers`` children run; return (exit
+    status, stderr, seconds to stop, live processes left, files left in TMPDIR, workers that
+    ran when the signal was sent)."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
     env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
