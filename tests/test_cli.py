@@ -292,3 +292,35 @@ def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path
     assert rc == 130, err
     assert "interrupted" in _one_error_line(err)
     assert stopped < 10.0 and left == [] and files == []
+
+
+def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
+    from dask.distributed import Client, LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        def busy():
+            return sum(len(v) for v in client.processing().values())
+        argv = ["sweep", "--runs", "100000", "--scheduler", cluster.scheduler_address,
+                "--out", "res"]
+        tmp = tmp_path / "tmp"
+        tmp.mkdir()
+        env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+        p = subprocess.Popen([sys.executable, "-m", "driftfmu", *argv], cwd=tmp_path, env=env,
+                             start_new_session=True, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+        t0 = time.monotonic()
+        while not busy() and time.monotonic() - t0 < 120:
+            assert p.poll() is None, p.communicate()
+            time.sleep(0.05)
+        assert busy()  # the cluster is computing the sweep's runs
+        sent = time.monotonic()
+        os.killpg(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+        assert p.returncode == 130 and time.monotonic() - sent < 10.0, err
+        assert "interrupted" in err.strip().splitlines()[-1]
+        for _ in range(100):  # the cancelled runs leave the cluster
+            if not busy():
+                break
+            time.sleep(0.1)
+        assert busy() == 0
+    assert not (tmp_path / "res").exists()
