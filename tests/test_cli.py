@@ -324,3 +324,14 @@ def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
             time.sleep(0.1)
         assert busy() == 0
     assert not (tmp_path / "res").exists()
+
+
+@pytest.mark.integration
+def test_doctor_leaves_no_temporary_files(built_fmus, tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    r = subprocess.run([sys.executable, "-m", "driftfmu", "doctor", str(built_fmus["Excitation"])],
+                       env=dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT)),
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "will run on this host" in r.stdout, r.stdout + r.stderr
+    assert os.listdir(tmp) == []
