@@ -237,7 +237,7 @@ def plot_population(path, result, prefix, title):
         if SETTLE_BY <= n:
             ax.axvline(SETTLE_BY, color="0.3", lw=0.9, ls=":")
             ax.annotate("k = %d" % SETTLE_BY, (SETTLE_BY, 1.0),
-                        xycoords=("data", "axes fraction"), xytext=(3, -12),
+                        xycoords=("data", "axes fraction"), xytext=(-3, -12), ha="right",
                         textcoords="offset points", fontsize=8, color="0.3")
         ax.grid(True, which="major", alpha=0.3)
         output.log_sample_axis(ax)

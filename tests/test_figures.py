@@ -60,6 +60,15 @@ def _check(fig, series):
         if legend is not None:
             overlap = legend.get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
             assert not overlap, "legend on the data: %s" % ax.get_title()
+    # labels written on the data (margins, "k = 250") stay inside their axes, not over the
+    # tick labels or cut at the frame
+    for ax in axes:
+        frame = ax.get_window_extent(renderer)
+        for t in ax.texts:
+            if t.get_text().strip():
+                b = t.get_window_extent(renderer)
+                assert b.x0 >= frame.x0 - 1 and b.x1 <= frame.x1 + 1 and b.y0 >= frame.y0 - 1 \
+                    and b.y1 <= frame.y1 + 1, "label off its axes: %r" % t.get_text()
     # what is drawn of each axes (tick labels, axis labels, title, legend, annotations) and
     # the caption lie inside the image
     for box in [ax.get_tightbbox(renderer) for ax in axes] + \
