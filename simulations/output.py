@@ -134,6 +134,7 @@ def plot_drift(path, cols, title):
 def caption(fig, text, width=95):
     """A caption-like title over the whole figure, wrapped to ``width`` characters."""
     import textwrap
+    text = text.replace(" = ", "\u00a0=\u00a0")  # "a1 = 1" stays on one line
     fig.suptitle("\n".join(textwrap.wrap(text, width)), fontsize=10.5)
 
 
