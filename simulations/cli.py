@@ -171,6 +171,8 @@ def make_parser():
     parser = _Parser(prog="driftfmu", description=(
         "FMI 2.0 co-simulation FMUs of a weakly nonlinear accelerometer and an EKF drift "
         "compensator (Chorti et al., Sensor Letters 2006), and fmpy masters around them."))
+    from driftfmu import __version__
+    parser.add_argument("--version", action="version", version="driftfmu %s" % __version__)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     sub.required = True
 

@@ -69,6 +69,13 @@ def test_out_naming_an_existing_file_is_one_line_and_exit_2(tmp_path, capsys):
     assert f.read_text() == "mine\n"
 
 
+def test_version(capsys):
+    from driftfmu import __version__
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == "driftfmu " + __version__
+
+
 def test_help_states_the_frequency_range_that_is_accepted(capsys):
     with pytest.raises(SystemExit) as exc:
         main(["run", "sinusoidal", "--help"])
