@@ -19,6 +19,7 @@ import contextlib
 import math
 import os
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
@@ -398,6 +399,8 @@ def _worker_init():
     import warnings
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_stop)
+    if hasattr(signal, "pthread_sigmask"):  # forked with both blocked (see process_pool)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     warnings.showwarning = _worker_warning  # one line each, as the command's own
 
 
@@ -418,15 +421,37 @@ def process_pool(workers, preload="driftfmu.simulations.batch"):
     """A ``ProcessPoolExecutor`` of ``workers`` processes (:func:`mp_context`) that, when the
     block fails or is interrupted (Ctrl-C), cancels what is queued and stops its workers at once
     instead of waiting for their tasks to finish."""
-    from concurrent.futures import ProcessPoolExecutor
-    pool = ProcessPoolExecutor(max_workers=workers, mp_context=mp_context(preload),
-                               initializer=_worker_init)
+    pool = _Pool(max_workers=workers, mp_context=mp_context(preload), initializer=_worker_init)
     try:
         yield pool
     except BaseException:
         stop_pool(pool)
         raise
     pool.shutdown(wait=True)
+
+
+@contextlib.contextmanager
+def _signals_blocked():
+    """SIGINT and SIGTERM held back (this thread): a worker forked meanwhile starts with them
+    blocked and so cannot be stopped before :func:`_worker_init` has set its handlers."""
+    import signal
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+class _Pool(ProcessPoolExecutor):
+    """A ProcessPoolExecutor whose workers, forked in ``submit``, start with SIGINT and SIGTERM
+    blocked (until :func:`_worker_init` has set their handlers and unblocks them)."""
+
+    def submit(self, *args, **kwargs):
+        with _signals_blocked():
+            return super().submit(*args, **kwargs)
 
 
 def stop_pool(pool, timeout=5.0):
