@@ -34,6 +34,7 @@ outputs read after initialisation along the connections before the first step
 (``jacobi_reference(..., initial="outputs")``).  To get our master's results from the same FMUs, run ``driftfmu run gaussian`` (or any
 master that propagates outputs along the connections in order before reading them).
 """
+import os
 import shutil
 import tempfile
 import xml.etree.ElementTree as ET
@@ -134,6 +135,7 @@ def build_ssp(fmus, out="build/DriftChain.ssp", start_values=None, n=2000, Ts=1e
                        ET.tostring(tree.getroot(), encoding="utf-8", xml_declaration=True))
             for name in FMU_NAMES:
                 z.write(fmus[name], "resources/%s.fmu" % name)
+        os.chmod(part, 0o644)  # as the FMUs; NamedTemporaryFile creates it 0600
         shutil.move(str(part), str(out))
     finally:
         part.unlink(missing_ok=True)

@@ -53,13 +53,13 @@ RANGE_G = 1.7
 #: The sensor parameters and their off values (the letter's quadratic sensor).
 EXTRAS_OFF = dict(a3=0.0, cross=0.0, fc=0.0, Vs=0.0, bits=0, density=0.0, axes=1)
 
-#: ADXL203 stand-in (datasheet facts, see shared/paper/NOTES.md, and the choices stated here):
-#: 5 V supply (zero-g 2.5 V, 1000 mV/g), noise density 110 ug/sqrt(Hz), C = 4.7 nF on the
-#: output (fc = 5 uF / 4.7 nF = 1064 Hz, well above the 200 Hz drive and its 2nd harmonic),
-#: 12-bit ratiometric ADC, cross-axis sensitivity 1.5 % (the datasheet's typical figure),
-#: both axes.  The nonlinearity is chosen, not a datasheet figure: a2 = 0.01 V/g^2 (the letter's
-#: value; 0.85 % of full scale for the best straight line over +-1.7 g, inside the datasheet's
-#: 1.25 % maximum) and a small cubic a3 = 0.002 V/g^3.
+#: ADXL203 stand-in (datasheet facts and the choices stated here; sources and assumptions in
+#: docs/method.md, section 6): 5 V supply (zero-g 2.5 V, 1000 mV/g), noise density
+#: 110 ug/sqrt(Hz), C = 4.7 nF on the output (fc = 5 uF / 4.7 nF = 1064 Hz, well above the
+#: 200 Hz drive and its 2nd harmonic), 12-bit ratiometric ADC, both axes, cross-axis coupling
+#: 1.5 % (an assumption, not verified against the datasheet).  The nonlinearity is chosen, not a
+#: datasheet figure: a2 = 0.01 V/g^2 (the letter's value; 0.85 % of full scale for the best
+#: straight line over +-1.7 g) and a small cubic a3 = 0.002 V/g^3.
 ADXL203 = dict(a0=2.5, a1=SENSITIVITY_5V, a2=0.01, a3=0.002, R=1e-4, cross=0.015,
                fc=round(BANDWIDTH_RULE / 4.7e-9, 6), Vs=5.0, bits=12, density=110e-6, axes=2)
 PRESETS = {"adxl203": ADXL203}

@@ -12,8 +12,9 @@ For ``k = 1, 2, ...`` and the a-posteriori estimate ``(x+_k, P+_k)``:
                        dc^{(3)}_k = \\frac{(k-1)\\, dc^{(3)}_{k-1} + a_2 s^{(3)}_k}{k}
 
 EKF1 uses the posterior second moment ``x+^2 + P+`` (``E[x^2] = E[x+^2] + P``), which makes it
-unbiased; EKF2 is low by ``a2 P``.  See ``shared/paper/NOTES.md`` for the reading of the garbled
-equations.
+unbiased; EKF2 is low by ``a2 P``.  The letter's equations are garbled in its text; this reading,
+and the EKF1-EKF2 gap ``10 log10(1 + R / (a1^2 Q))`` that decides it, are in ``docs/method.md``
+(section 3).
 
 References: empirical ``z̄_k - a0``; realised ``a2 (1/k) sum x_i^2`` (simulation only);
 expected ``a2 sigma_x^2``.

@@ -38,11 +38,53 @@ form: for white noise of variance ``s^2`` over ``N`` samples in whole periods,
 
 Sets are fitted one by one and the fits averaged (the letter's "one averaged 2nd-order model").
 Runs on NumPy (it is analysis, not an FMU's step).
+
+What the data must support (checked by :func:`fit_set`): at least :data:`MIN_PERIODS` whole
+periods of the drive (else :class:`IdentificationError`; fewer than :data:`FEW_PERIODS` is an
+:class:`IdentificationWarning`), and a drive that is a sinusoid at the given ``f``: the share of
+the variance of ``x`` that ``X sin(2 pi f t + phi)`` explains, ``(X^2 / 2) / var(x)``, must be at
+least :data:`MIN_EXPLAINED` (else an error naming the recording's strongest frequency; below
+:data:`GOOD_EXPLAINED` a warning).  A wrong ``f`` makes the phase of the fitted sinusoid drift
+against the recording, so this share collapses long before ``a2`` and ``R`` look absurd.
 """
 import math
+import warnings
 from collections import namedtuple
 
-Fit = namedtuple("Fit", "a0 a1 a2 R X phi lag samples")
+Fit = namedtuple("Fit", "a0 a1 a2 R X phi lag samples periods explained")
+
+#: Fewest whole periods of the drive a fit accepts; below FEW_PERIODS it warns.
+MIN_PERIODS = 2
+FEW_PERIODS = 10
+#: Share of var(x) the sinusoid at ``f`` must explain (error below MIN_EXPLAINED, warning below
+#: GOOD_EXPLAINED): a reference accelerometer's noise of 1 % of the drive amplitude costs 2e-4.
+MIN_EXPLAINED = 0.9
+GOOD_EXPLAINED = 0.999
+
+
+class IdentificationError(ValueError):
+    """The data cannot support the fit (too few periods, a drive not at the given frequency)."""
+
+
+class IdentificationWarning(UserWarning):
+    """The fit ran but is doubtful; the message gives the diagnostic figure."""
+
+
+def dominant_frequency(x, Ts):
+    """The strongest frequency [Hz] in ``x`` (Hann-windowed periodogram peak, refined by a
+    parabola through the log magnitudes of the three bins around it)."""
+    import numpy as np
+    x = np.asarray(x, dtype=float)
+    x = x - x.mean()
+    spec = np.abs(np.fft.rfft(x * np.hanning(len(x))))
+    spec[0] = 0.0
+    k = int(np.argmax(spec))
+    shift = 0.0
+    if 0 < k < len(spec) - 1 and np.all(spec[k - 1:k + 2] > 0):
+        a, b, c = np.log(spec[k - 1:k + 2])
+        den = a - 2 * b + c
+        shift = 0.5 * (a - c) / den if den else 0.0
+    return (k + shift) / (len(x) * Ts)
 
 #: Columns a recording must have.
 CSV_COLUMNS = ("time", "x", "z")
@@ -81,15 +123,37 @@ def fit_set(t, x, z, f, skip=0):
     """
     import numpy as np
     t, x, z = (np.asarray(a, dtype=float)[skip:] for a in (t, x, z))
+    if len(t) < 2:
+        raise IdentificationError("%d sample(s) after the first %d; allowed: at least %d whole "
+                                  "periods of the drive" % (len(t), skip, MIN_PERIODS))
     Ts = (t[-1] - t[0]) / (len(t) - 1)
+    periods = math.floor(len(t) * f * Ts + 1e-9)
+    if periods < MIN_PERIODS:
+        raise IdentificationError(
+            "%d samples at Ts = %.6g s span %.3g periods of f = %g Hz; allowed: at least %d "
+            "whole periods (%d samples)" % (len(t), Ts, len(t) * f * Ts, f, MIN_PERIODS,
+                                            math.ceil(MIN_PERIODS / (f * Ts))))
     m = whole_periods(len(t), f, Ts)
     t, x, z = t[:m], x[:m], z[:m]
     w = 2.0 * math.pi * f * (t - t[0])
     (s, c), *_ = np.linalg.lstsq(np.column_stack([np.sin(w), np.cos(w)]), x, rcond=None)
     X = math.hypot(s, c)
     if not X > 0.0:
-        raise ValueError("the drive x has no component at f = %r Hz; allowed: a sinusoidal "
-                         "drive at the given frequency" % (f,))
+        raise IdentificationError("the drive x has no component at f = %r Hz; allowed: a "
+                                  "sinusoidal drive at the given frequency" % (f,))
+    var_x = float(np.var(x))
+    explained = min(1.0, X * X / 2.0 / var_x) if var_x > 0 else 1.0
+    text = ("a sinusoid at f = %g Hz explains %.1f %% of the variance of the drive x (the "
+            "recording's strongest frequency is %.4g Hz)"
+            % (f, 100 * explained, dominant_frequency(x, Ts))) if explained < GOOD_EXPLAINED \
+        else None
+    if explained < MIN_EXPLAINED:
+        raise IdentificationError("%s; allowed: at least %g %%: give the drive frequency of "
+                                  "the recording" % (text, 100 * MIN_EXPLAINED))
+    if m * f * Ts < FEW_PERIODS - 1e-9:
+        warnings.warn("only %d whole periods of f = %g Hz: the closed-form standard errors "
+                      "hold for many periods; the fit is rough"
+                      % (round(m * f * Ts), f), IdentificationWarning, stacklevel=2)
     phi = math.atan2(c, s)
     B = _basis(w + phi, 2)
     coef, *_ = np.linalg.lstsq(B, z, rcond=None)
@@ -100,18 +164,28 @@ def fit_set(t, x, z, f, skip=0):
     a0 = c0 - a2 * X * X / 2.0
     resid = z - B @ coef
     R = float(resid @ resid) / max(1, m - B.shape[1])
-    return Fit(float(a0), float(a1), float(a2), R, X, phi, lag, m)
+    if text is not None:
+        # the part of x the sinusoid misses reaches z through a1 and is counted as noise
+        leak = a1 * a1 * (1.0 - explained) * var_x / R if R > 0 else math.inf
+        warnings.warn("%s: the fit is doubtful (a wrong f, a distorted or noisy drive); if that "
+                      "part of x is motion, it makes up to %.0f %% of the fitted R"
+                      % (text, 100 * min(1.0, leak)), IdentificationWarning, stacklevel=2)
+    return Fit(float(a0), float(a1), float(a2), R, X, phi, lag, m,
+               int(round(m * f * Ts)), explained)
 
 
 def average(fits):
     """The averaged model ``{a0, a1, a2, R}`` of a list of :class:`Fit` (plain means), with the
-    spread (sample standard deviation) of each and the number of sets."""
+    spread (sample standard deviation) of each and the number of sets.  With one set there is
+    no spread: the ``sd_*`` are None."""
     import numpy as np
+    if not fits:
+        raise IdentificationError("no sets to average; allowed: one or more fits")
     out = {"sets": len(fits)}
     for name in ("a0", "a1", "a2", "R"):
         v = np.array([getattr(fi, name) for fi in fits])
         out[name] = float(v.mean())
-        out["sd_" + name] = float(v.std(ddof=1)) if len(v) > 1 else 0.0
+        out["sd_" + name] = float(v.std(ddof=1)) if len(v) > 1 else None
     return out
 
 

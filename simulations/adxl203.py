@@ -24,13 +24,15 @@ Sets run in parallel (one process per core); each worker loads the FMUs once per
 import math
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+import warnings
+from concurrent.futures import as_completed
 
 from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
 from driftfmu.models.noise import STREAM_PHASE, normal, uniform
 from driftfmu.simulations import batch, output
 from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, fmu_paths
 from driftfmu.simulations.sinusoidal import CONNECTIONS, check_frequency
+from driftfmu.simulations.errors import DataError, UsageError
 
 FREQS = (100.0, 125.0, 150.0, 175.0, 200.0)
 SETS = 30
@@ -102,20 +104,30 @@ def _log_samples(n, points=400):
     return [k for k in ks if 1 <= k <= n]
 
 
+def default_held_out(sets):
+    """Held-out sets for ``sets`` sets when none are given: the letter's share, 5 of 30
+    (``sets / 6`` rounded), at least 1."""
+    return max(1, int(round(sets / 6.0)))
+
+
 def check_settings(freqs, sets, held_out, n, Ts):
     """ValueError (value and what is allowed) for bad experiment settings."""
     if not freqs:
-        raise ValueError("freqs is empty; allowed: one or more frequencies")
+        raise UsageError("freqs is empty; allowed: one or more frequencies")
     for f in freqs:
         check_frequency(f, Ts)
     if held_out < 1 or sets - held_out < 2:
-        raise ValueError("sets = %r with %r held out is not allowed; allowed: held_out >= 1 and "
-                         "at least 2 sets to fit (sets >= held_out + 2)" % (sets, held_out))
-    for f in freqs:
-        if n * f * Ts < 2:
-            raise ValueError("n = %r samples span %.3g periods at f = %r Hz; allowed: n >= %d "
-                             "(two periods at the lowest frequency)"
-                             % (n, n * f * Ts, f, math.ceil(2 / (min(freqs) * Ts))))
+        raise UsageError("sets = %r with %r held out is not allowed; allowed: held_out >= 1 and "
+                         "at least 2 sets to fit (sets >= held_out + 2): %s"
+                         % (sets, held_out, "add --sets %d or more" % (held_out + 2)
+                            if sets < 3 or held_out < 1 else "lower --held-out to at most %d "
+                            "or add --sets %d or more" % (sets - 2, held_out + 2)))
+    skip = adxl203.settling_samples(adxl203.ADXL203["fc"], Ts)
+    need = skip + math.ceil(identify.MIN_PERIODS / (min(freqs) * Ts))  # MIN_PERIODS = 2
+    if n < need:
+        raise UsageError("n = %r samples are too few: the fit leaves out the first %d (the output "
+                         "filter's start) and needs two periods of the lowest frequency, %g Hz, "
+                         "after them; allowed: n >= %d" % (n, skip, min(freqs), need))
 
 
 def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS, seed=SEED,
@@ -142,8 +154,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
     fits = {f: [None] * train for f in freqs}
     tests = {f: [None] * held_out for f in freqs}
     models = {}
-    context = batch.mp_context("driftfmu.simulations.adxl203")
-    with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+    with batch.process_pool(workers, "driftfmu.simulations.adxl203") as pool:
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
         for fut in as_completed(futs):
@@ -214,66 +225,106 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
                      adxl_emp=np.array([p["dc_empirical"] for p in per]),
                      adxl_ekf1=np.array([p["dc_ekf1"] for p in per]))
             if plot:
-                plot_fig4(stage / "fig4.png", per[0], [r["trace"] for r in tests[freqs[0]]],
-                          train, n, Ts)
+                plot_fig4(stage / "fig4.png", per, [[r["trace"] for r in tests[f]]
+                                                    for f in freqs], train, n, Ts)
                 plot_fig5(stage / "fig5.png", per)
     return summary
 
 
-def plot_fig4(path, p, traces, train, n, Ts):
-    """Fig. 4: EKF1 against the empirical drift for each held-out set at one frequency, with the
-    EKF1 running estimates (inset axis: convergence over the set)."""
+def plot_fig4(path, per, traces, train, n, Ts):
+    """Fig. 4: EKF1 against the empirical drift for every held-out set at every frequency
+    (left: discrete sets as markers, spread around their frequency, with the rms difference
+    per frequency), and EKF1's running estimate over one set per frequency (right; dotted: that
+    set's empirical drift).  ``traces`` holds, per frequency, the held-out sets' traces."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    sets = np.arange(train + 1, train + 1 + len(p["dc_empirical"]))
-    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(10, 4))
-    ax.plot(sets, 1e3 * np.array(p["dc_empirical"]), "ks-", label="empirical  z̄ - a0")
-    ax.plot(sets, 1e3 * np.array(p["dc_ekf1"]), "o--", color="C0", label="EKF1")
-    ax.set_xlabel("held-out set")
+    from driftfmu.simulations.output import caption
+    freqs = np.array([p["frequency"] for p in per])
+    step = float(np.min(np.diff(freqs))) if len(freqs) > 1 else max(freqs[0] * 0.2, 1.0)
+    fig, (ax, ax2) = plt.subplots(1, 2, figsize=(12, 4.8))
+    for c, p in enumerate(per):
+        h = len(p["dc_empirical"])
+        dx = 0.5 * step * (np.arange(h) - (h - 1) / 2.0) / max(h, 1)
+        x = p["frequency"] + dx
+        ax.plot(x, 1e3 * np.array(p["dc_empirical"]), "s", mfc="none", mec="k", ms=7,
+                label="empirical z̄ − a0" if c == 0 else None)
+        ax.plot(x, 1e3 * np.array(p["dc_ekf1"]), "o", color="C0", ms=4.5,
+                label="EKF1 (last sample)" if c == 0 else None)
+        ax.annotate("%.1f dB" % p["margin_db"], (p["frequency"], 0.0),
+                    xycoords=("data", "axes fraction"), xytext=(0, 4),
+                    textcoords="offset points", ha="center", fontsize=8, color="0.3")
+    ax.set_xticks(freqs)
+    ax.set_xlim(freqs[0] - 0.6 * step, freqs[-1] + 0.6 * step)
+    lo, hi = ax.get_ylim()
+    ax.set_ylim(lo - 0.12 * (hi - lo), hi)  # room for the margin labels
+    ax.set_xlabel("drive frequency [Hz] (held-out sets %d-%d side by side)"
+                  % (train + 1, train + len(per[0]["dc_empirical"])))
     ax.set_ylabel("drift [mV]")
-    ax.set_xticks(sets)
-    ax.set_title("Estimated vs empirical drift, %g Hz (margin %.1f dB)"
-                 % (p["frequency"], p["margin_db"]))
+    ax.set_title("each held-out set: EKF1 and the empirical drift (bottom: margin)",
+                 fontsize=10)
     ax.grid(True, alpha=0.3)
-    ax.legend()
-    for i, tr in enumerate(traces):
-        k, dc = np.array(tr).T
-        ax2.semilogx(k, 1e3 * dc, lw=1, color="C%d" % i, label="set %d" % sets[i])
-        ax2.axhline(1e3 * p["dc_empirical"][i], color="C%d" % i, lw=0.8, ls=":")
-    ax2.set_ylim(0, 2 * 1e3 * max(p["dc_empirical"]))
-    ax2.set_xlabel("sample k (fs = %g kHz)" % (1e-3 / Ts))
+    ax.legend(loc="upper left", bbox_to_anchor=(0.0, -0.16), ncol=2, fontsize=9,
+              frameon=False)
+    top = 0.0
+    for c, (p, tr) in enumerate(zip(per, traces)):
+        k, dc = np.array(tr[0]).T
+        color = plt.cm.viridis(0.9 * c / max(1, len(per) - 1))
+        ax2.plot(k, 1e3 * dc, lw=1.1, color=color, label="%g Hz, set %d"
+                 % (p["frequency"], train + 1))
+        ax2.axhline(1e3 * p["dc_empirical"][0], color=color, lw=0.9, ls=":")
+        top = max(top, 1e3 * max(p["dc_empirical"]))
+    ax2.set_ylim(0, 2 * top)
+    from driftfmu.simulations.output import log_sample_axis
+    log_sample_axis(ax2)
+    ax2.set_xlim(1, max(n, 2))
+    ax2.set_xlabel("sample k (log scale; fs = %g kHz)" % (1e-3 / Ts))
     ax2.set_ylabel("EKF1 drift [mV]")
-    ax2.set_title("EKF1 running estimate (dotted: empirical)")
-    ax2.grid(True, alpha=0.3)
-    ax2.legend(fontsize=8)
+    ax2.set_title("EKF1 running estimate (dotted: the set's empirical drift)", fontsize=10)
+    ax2.grid(True, which="major", alpha=0.3)
+    ax2.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
+    caption(fig, "Fig. 4 of the letter on the ADXL203 stand-in: EKF1 drift estimate against "
+                 "the empirical drift on the held-out sets, %d samples per set at fs = %g kHz"
+                 % (n, 1e-3 / Ts), width=120)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
 
 
 def plot_fig5(path, per):
-    """Fig. 5: drift and |EKF1 - empirical| (rms over the held-out sets) against frequency, dB."""
+    """Fig. 5: the drift and the rms difference EKF1 - empirical over the held-out sets,
+    against frequency, in dB of volts (``10 log10(value / 1 V)``, as the letter's margin); the
+    margin between them labelled at each frequency."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
+    from driftfmu.simulations.output import caption
     f = np.array([p["frequency"] for p in per])
     drift = np.array([abs(p["drift_mean"]) for p in per])
     diff = np.array([p["difference_rms"] for p in per])
-    fig, ax = plt.subplots(figsize=(6, 4.5))
-    ax.plot(f, 10 * np.log10(drift), "ks-", label="drift (empirical)")
-    ax.plot(f, 10 * np.log10(diff), "o--", color="C3", label="difference EKF1 - empirical (rms)")
+    fig, ax = plt.subplots(figsize=(8, 4.8))
+    ax.plot(f, 10 * np.log10(drift), "ks-", label="drift: mean empirical z̄ − a0")
+    ax.plot(f, 10 * np.log10(diff), "o--", color="C3",
+            label="rms(EKF1 − empirical) over the held-out sets")
     for fi, a, b in zip(f, drift, diff):
+        ax.annotate("", xy=(fi, 10 * math.log10(b)), xytext=(fi, 10 * math.log10(a)),
+                    arrowprops=dict(arrowstyle="<->", color="0.6", lw=0.8))
         ax.annotate("%.1f dB" % (10 * math.log10(a / b)), (fi, 10 * math.log10(math.sqrt(a * b))),
-                    ha="center", fontsize=8)
-    ax.set_xlabel("frequency [Hz]")
-    ax.set_ylabel("10 log10(|value| / 1 V) [dB]")
-    ax.set_title("ADXL203 stand-in: drift vs estimation difference")
+                    xytext=(4, 0), textcoords="offset points", ha="left", va="center",
+                    fontsize=8)
+    ax.set_xlabel("drive frequency [Hz]")
+    ax.set_ylabel("drift and difference [dB re 1 V]")
     ax.set_xticks(f)
+    step = float(np.min(np.diff(f))) if len(f) > 1 else max(f[0] * 0.2, 1.0)
+    ax.set_xlim(f[0] - 0.4 * step, f[-1] + 0.6 * step)
     ax.grid(True, alpha=0.3)
-    ax.legend(fontsize=8, loc="upper center", bbox_to_anchor=(0.5, -0.15), ncol=2)
+    ax.legend(fontsize=9, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=1,
+              frameon=False)
+    caption(fig, "Fig. 5 of the letter on the ADXL203 stand-in: drift and estimation "
+                 "difference against frequency, in dB re 1 V (10 log10(v / 1 V)); labelled, the "
+                 "margin (the letter claims at least %g dB)" % CLAIM_DB, width=80)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -290,7 +341,7 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
     """
     files = [str(p) for p in files]
     if len(files) - held_out < 1 or held_out < 0:
-        raise ValueError("%d file(s) with %d held out; allowed: 0 <= held_out < number of files"
+        raise UsageError("%d file(s) with %d held out; allowed: 0 <= held_out < number of files"
                          % (len(files), held_out))
     data = [identify.read_csv(p) for p in files]
     Ts = None
@@ -298,14 +349,24 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
         try:
             ts = identify.sample_period(t)
         except ValueError as exc:
-            raise ValueError("%s: %s" % (p, exc)) from None
+            raise DataError("%s: %s" % (p, exc)) from None
         check_frequency(f, ts)
         Ts = ts if Ts is None else Ts
     train = len(files) - held_out
-    fits = [identify.fit_set(t, x, z, f) for t, x, z in data[:train]]
+    fits, doubts = [], []
+    for p, (t, x, z) in zip(files[:train], data[:train]):
+        fits.append(_fit_file(p, t, x, z, f, doubts))
+    for p, (t, x, _) in zip(files[train:], data[train:]):
+        # a held-out recording is checked too: its drive must be at f for EKF1's model
+        _fit_file(p, t, x, x, f, doubts)
+    if train == 1:
+        doubts.append("the model comes from one recording: no spread (sd) to report; fit two "
+                      "or more to see how much the coefficients scatter")
+        warnings.warn(doubts[-1], identify.IdentificationWarning, stacklevel=2)
     model = identify.average(fits)
     summary = {"frequency": f, "files": files[:train], "model": model,
-               "fits": [fi._asdict() for fi in fits], "method": "harmonic analysis"}
+               "fits": [fi._asdict() for fi in fits], "method": "harmonic analysis",
+               "warnings": doubts}
     rows = {"file": [], "dc_empirical": [], "dc_ekf1": [], "difference": []}
     for p, (t, _, z) in zip(files[train:], data[train:]):
         ts = identify.sample_period(t)
@@ -334,6 +395,21 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
     return summary
 
 
+def _fit_file(path, t, x, z, f, doubts):
+    """fit_set on one recording; its errors and warnings name the file (warnings are also
+    appended to ``doubts``)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", identify.IdentificationWarning)
+        try:
+            fit = identify.fit_set(t, x, z, f)
+        except identify.IdentificationError as exc:
+            raise identify.IdentificationError("%s: %s" % (path, exc)) from None
+    for w in caught:
+        doubts.append("%s: %s" % (path, w.message))
+        warnings.warn(doubts[-1], w.category, stacklevel=3)
+    return fit
+
+
 # -- command line -------------------------------------------------------------------------------
 
 def _freq_list(text):
@@ -347,6 +423,21 @@ def _freq_list(text):
         raise argparse.ArgumentTypeError("freqs = %r; allowed: positive frequencies in Hz, "
                                          "e.g. 100,125,150" % text)
     return freqs
+
+
+def _count(name):
+    """argparse type: an integer >= 0."""
+    import argparse
+
+    def parse(text):
+        try:
+            v = int(text)
+        except ValueError:
+            v = -1
+        if v < 0:
+            raise argparse.ArgumentTypeError("%s = %r; allowed: an integer >= 0" % (name, text))
+        return v
+    return parse
 
 
 def _positive_int(name):
@@ -377,11 +468,15 @@ def add_cli(groups):
     g.add_argument("--freqs", type=_freq_list, default=list(FREQS), metavar="F1,F2,...",
                    help="drive frequencies [Hz] (default: %s)" % ",".join("%g" % f for f in FREQS))
     g.add_argument("--sets", type=_positive_int("sets"), default=SETS,
-                   help="sets per frequency (default: %d)" % SETS)
-    g.add_argument("--held-out", type=_positive_int("held-out"), default=HELD_OUT,
-                   help="sets held out for EKF1 (default: %d)" % HELD_OUT)
+                   help="sets per frequency; allowed: sets >= held-out + 2 (default: %d)"
+                        % SETS)
+    g.add_argument("--held-out", type=_positive_int("held-out"), default=None, metavar="K",
+                   help="of the sets, the last K are held out for EKF1, the others fit the "
+                        "model; allowed: 1 <= K <= sets - 2 (default: sets / 6 rounded, at "
+                        "least 1: %d of %d)" % (HELD_OUT, SETS))
     g.add_argument("--n", type=_positive_int("n"), default=N,
-                   help="samples per set (default: %d)" % N)
+                   help="samples per set; allowed: at least two periods of the lowest "
+                        "frequency (default: %d)" % N)
     cli.add_params(g, ("Ts", "seed"), Ts=TS, seed=SEED)
     g.add_argument("--workers", type=_positive_int("workers"), default=None,
                    help="parallel processes (default: the number of cores)")
@@ -392,10 +487,14 @@ def add_cli(groups):
     i = top.add_parser("identify", help="fit a0, a1, a2, R from recordings (CSV: time, x, z) "
                        "by harmonic analysis; EKF1 on held-out recordings")
     i.add_argument("files", nargs="+", metavar="CSV", help="recordings with columns time, x, z")
-    i.add_argument("--f", type=cli.param_type("f"), required=True,
-                   help="drive frequency [Hz]")
-    i.add_argument("--held-out", type=int, default=0,
-                   help="the last K files are held out for EKF1 (default: 0)")
+    i.add_argument("--f", type=cli.frequency_type, required=True,
+                   help="drive frequency [Hz] of the recordings; allowed: %s of the "
+                        "recordings' sample period; checked against the recorded drive x"
+                        % cli.FREQUENCY_ALLOWED)
+    i.add_argument("--held-out", type=_count("held-out"), default=0, metavar="K",
+                   help="the last K files are held out: the model is fitted on the others "
+                        "and EKF1 runs on these (z only), with the margin against their "
+                        "empirical drift; allowed: 0 <= K < number of files (default: 0)")
     cli.add_out(i, "results/identify")
     i.set_defaults(func=_cmd_identify)
 
@@ -403,8 +502,9 @@ def add_cli(groups):
 def _cmd_experiment(args):
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
-    with cli.progress(total, "sets") as update:
-        s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=args.held_out,
+    held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
+    with cli.progress(total, "sets", "set") as update:
+        s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
                         workers=args.workers, progress=update)
     print("wrote %s/adxl203.csv, adxl203.json, adxl203.npz, fig4.png, fig5.png" % args.out)
@@ -426,5 +526,11 @@ def _cmd_identify(args):
     print("wrote %s/identify.json%s" % (args.out, ", identify.csv" if args.held_out else ""))
     print("model from %d set(s): a0 %.6g, a1 %.6g, a2 %.6g, R %.4g"
           % (m["sets"], m["a0"], m["a1"], m["a2"], m["R"]))
+    if m["sd_a2"] is not None:
+        print("spread over the sets (sd): a0 %.3g, a1 %.3g, a2 %.3g, R %.3g"
+              % (m["sd_a0"], m["sd_a1"], m["sd_a2"], m["sd_R"]))
+    if s["warnings"]:
+        print("%d warning(s), see above and identify.json: the fit is doubtful"
+              % len(s["warnings"]))
     if args.held_out:
         print("EKF1 on %d held-out set(s): margin %.1f dB" % (args.held_out, s["margin_db"]))

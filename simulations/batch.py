@@ -15,13 +15,16 @@ Parallel: :func:`run_tasks` maps a task function over chunks of runs on local wo
 (``concurrent.futures``) or on a Dask distributed cluster (``scheduler=ADDRESS``); the FMU
 engine (:func:`fmu_task`) is fanned out the same way.
 """
+import contextlib
 import math
 import os
 import time
+from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
 from driftfmu.models import chain, drift, excitation, harmonic, noise, parameters, sensor
+from driftfmu.simulations.errors import UsageError
 
 #: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
 SEED_MAX = parameters.PARAMETERS["seed"].high
@@ -57,7 +60,7 @@ def run_seeds(seed, runs):
     seed = int(seed)
     last = run_seed(seed, runs - 1)
     if seed < 0 or last > SEED_MAX:
-        raise ValueError("seed = %r with runs = %d needs FMU seeds %d..%d; allowed: "
+        raise UsageError("seed = %r with runs = %d needs FMU seeds %d..%d; allowed: "
                          "0 <= seed and seed + runs - 1 <= %d" % (seed, runs, seed, last,
                                                                   SEED_MAX))
     return run_seed(np.uint64(seed), np.arange(runs, dtype=np.uint64))
@@ -66,7 +69,7 @@ def run_seeds(seed, runs):
 def check_runs(runs):
     """Raise ValueError unless ``runs`` is an integer >= 1."""
     if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
-        raise ValueError("runs = %r is not allowed; allowed: an integer runs >= 1" % (runs,))
+        raise UsageError("runs = %r is not allowed; allowed: an integer runs >= 1" % (runs,))
 
 
 def check_parameters(values):
@@ -86,7 +89,7 @@ def check_parameters(values):
                 problems.append(msg)
                 break
     if problems:
-        raise ValueError("; ".join(problems))
+        raise UsageError("; ".join(problems))
 
 
 def default_P0(A, Q):
@@ -140,7 +143,7 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     runs = seeds.shape[0]
     unknown = set(record) - set(TRAJECTORIES)
     if unknown:
-        raise ValueError("cannot record %s; allowed: %s" % (sorted(unknown),
+        raise UsageError("cannot record %s; allowed: %s" % (sorted(unknown),
                                                             ", ".join(TRAJECTORIES)))
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
@@ -235,7 +238,7 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
                               R=R, process=harmonic.GAUSS_MARKOV, A=fA, Q=fQ, P0=P0, x0=x0,
                               fmu_dir=fmu_dir, plot=False)["columns"]
     else:
-        raise ValueError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
+        raise UsageError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
                          "the Gaussian excitation with the filter's A and Q equal to the "
                          "excitation's, or the sinusoidal one" % (kind, fA, fQ))
     zbar, x2bar = 0.0, 0.0
@@ -284,7 +287,7 @@ def run_task(task):
     elif task["engine"] == "dual":  # the dual-axis chain (driftfmu experiment dual-axis)
         out = dual_simulate(task["n"], task["seeds"], record=task["record"], **task["kwargs"])
     else:
-        raise ValueError("engine = %r is not allowed; allowed: 'batch', 'fmu' or 'dual'"
+        raise UsageError("engine = %r is not allowed; allowed: 'batch', 'fmu' or 'dual'"
                          % (task["engine"],))
     return out, time.perf_counter() - t0
 
@@ -382,26 +385,108 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
             from dask.distributed import as_completed
             futures = client.map(run_task, tasks, pure=False)
             index = {f.key: i for i, f in enumerate(futures)}
-            for fut in as_completed(futures):
-                finished(index[fut.key], fut.result())
+            try:
+                for fut in as_completed(futures):
+                    finished(index[fut.key], fut.result())
+            except BaseException:  # Ctrl-C or a failed task: the cluster drops the rest
+                with contextlib.suppress(Exception):
+                    client.cancel(futures)
+                raise
         finally:
             if own:
                 client.close()
         return results
     workers = workers_default() if workers is None else workers
     if workers < 1:
-        raise ValueError("workers = %r is not allowed; allowed: workers >= 1" % (workers,))
+        raise UsageError("workers = %r is not allowed; allowed: workers >= 1" % (workers,))
     if workers == 1 or len(tasks) == 1:
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
-    from concurrent.futures import ProcessPoolExecutor, as_completed as cf_completed
-    with ProcessPoolExecutor(max_workers=min(workers, len(tasks)),
-                             mp_context=mp_context()) as pool:
+    from concurrent.futures import as_completed as cf_completed
+    with process_pool(min(workers, len(tasks))) as pool:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
         for fut in cf_completed(futures):
             finished(futures[fut], fut.result())
     return results
+
+
+def _worker_init():
+    """Start of a worker process: Ctrl-C is the parent's to handle (it stops the workers);
+    SIGTERM from the parent removes the FMUs this worker has extracted, then exits at once."""
+    import signal
+    import warnings
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, _worker_stop)
+    if hasattr(signal, "pthread_sigmask"):  # forked with both blocked (see process_pool)
+        signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
+    warnings.showwarning = _worker_warning  # one line each, as the command's own
+
+
+def _worker_warning(message, category, filename, lineno, file=None, line=None):
+    import sys
+    text = str(message).strip().splitlines()
+    sys.stderr.write("driftfmu: warning: %s\n" % (text[0] if text else category.__name__))
+
+
+def _worker_stop(signum, frame):
+    from driftfmu.simulations import cosim
+    cosim.remove_extracted()
+    os._exit(128 + signum)
+
+
+@contextlib.contextmanager
+def process_pool(workers, preload="driftfmu.simulations.batch"):
+    """A ``ProcessPoolExecutor`` of ``workers`` processes (:func:`mp_context`) that, when the
+    block fails or is interrupted (Ctrl-C), cancels what is queued and stops its workers at once
+    instead of waiting for their tasks to finish."""
+    pool = _Pool(max_workers=workers, mp_context=mp_context(preload), initializer=_worker_init)
+    try:
+        yield pool
+    except BaseException:
+        stop_pool(pool)
+        raise
+    pool.shutdown(wait=True)
+
+
+@contextlib.contextmanager
+def _signals_blocked():
+    """SIGINT and SIGTERM held back (this thread): a worker forked meanwhile starts with them
+    blocked and so cannot be stopped before :func:`_worker_init` has set its handlers."""
+    import signal
+    if not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGINT, signal.SIGTERM})
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+class _Pool(ProcessPoolExecutor):
+    """A ProcessPoolExecutor whose workers, forked in ``submit``, start with SIGINT and SIGTERM
+    blocked (until :func:`_worker_init` has set their handlers and unblocks them)."""
+
+    def submit(self, *args, **kwargs):
+        with _signals_blocked():
+            return super().submit(*args, **kwargs)
+
+
+def stop_pool(pool, timeout=5.0):
+    """Cancel the queued tasks of ``pool``, SIGTERM its worker processes (each removes its
+    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``."""
+    procs = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in procs:
+        with contextlib.suppress(Exception):
+            p.terminate()
+    deadline = time.monotonic() + timeout
+    for p in procs:
+        p.join(max(0.0, deadline - time.monotonic()))
+        if p.is_alive():
+            p.kill()
+            p.join(1.0)
 
 
 def mp_context(preload="driftfmu.simulations.batch"):

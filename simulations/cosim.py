@@ -12,11 +12,96 @@ libcosim): every FMU steps with the inputs of the previous point, outputs are re
 the steps, and only then copied along the connections, so each connection delays its signal by
 one step.  It is there to compare with such masters, not to get the letter's results.
 """
+import contextlib
 import shutil
+import signal
+import tempfile
+import threading
 
 from fmpy import extract, read_model_description
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
     fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
+
+from driftfmu.simulations.errors import UsageError
+
+
+#: Folders the FMUs of live instances are extracted to (removed by :meth:`Instance.free`, or by
+#: :func:`remove_extracted` when a worker process is told to stop).
+EXTRACTED = set()
+
+
+def remove_extracted():
+    """Remove every folder an FMU of this process is still extracted to."""
+    for d in list(EXTRACTED):
+        _remove(d)
+
+
+def _extract(path):
+    """Extract the FMU at ``path`` into a new temporary folder, registered in
+    :data:`EXTRACTED` before anything is written there (SIGTERM held back until it is)."""
+    mask = hasattr(signal, "pthread_sigmask")
+    if mask:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
+    try:
+        unzipdir = tempfile.mkdtemp(prefix="driftfmu_fmu_")
+        EXTRACTED.add(unzipdir)
+    finally:
+        if mask:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+    try:
+        return extract(path, unzipdir=unzipdir)
+    except BaseException:
+        _remove(unzipdir)
+        raise
+
+
+def _remove(unzipdir):
+    shutil.rmtree(unzipdir, ignore_errors=True)
+    EXTRACTED.discard(unzipdir)
+
+
+@contextlib.contextmanager
+def interrupts_deferred(signals=(signal.SIGINT, signal.SIGTERM)):
+    """Hold Ctrl-C (SIGINT) and SIGTERM back from FMU calls: yield ``check()``, which acts on
+    them between calls.
+
+    A KeyboardInterrupt raised inside an FMU's own Python code would unwind through pythonfmu's
+    C++ layer (which frees its objects twice on an exception).  So while the master runs, each
+    of ``signals`` whose handler is a Python function only marks itself pending; ``check()``,
+    called by the master between steps, hands it to that handler (which raises, e.g.,
+    KeyboardInterrupt).  Signals ignored or not handled in Python are left alone, and nothing
+    changes outside the main thread.
+    """
+    if threading.current_thread() is not threading.main_thread():
+        yield lambda: None
+        return
+    previous = {s: signal.getsignal(s) for s in signals}
+    previous = {s: h for s, h in previous.items() if callable(h)}
+    pending = []
+
+    def hold(signum, frame):
+        pending.append(signum)
+
+    def restore():
+        held = [s for s in previous if signal.getsignal(s) is hold]
+        for s in held:
+            signal.signal(s, previous[s])
+        return held
+
+    def check():
+        if pending:
+            held = restore()
+            if pending[0] in held:
+                previous[pending[0]](pending[0], None)
+
+    for s in previous:
+        signal.signal(s, hold)
+    try:
+        yield check
+    finally:
+        held = restore()
+        if pending and pending[0] in held:
+            previous[pending[0]](pending[0], None)
 
 
 class CoSimulationError(RuntimeError):
@@ -33,7 +118,7 @@ class Instance:
         self.name = name
         self.path = str(path)
         self.md = read_model_description(self.path)
-        self.unzipdir = extract(self.path)
+        self.unzipdir = _extract(self.path)
         self.vrs = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.messages = []
@@ -41,10 +126,14 @@ class Instance:
         self._callbacks.logger = fmi2CallbackLoggerTYPE(self._log)
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
-        self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
-                             modelIdentifier=self.md.coSimulation.modelIdentifier,
-                             instanceName=name)
-        self.fmu.instantiate(callbacks=self._callbacks, loggingOn=logging_on)
+        try:
+            self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
+                                 modelIdentifier=self.md.coSimulation.modelIdentifier,
+                                 instanceName=name)
+            self.fmu.instantiate(callbacks=self._callbacks, loggingOn=logging_on)
+        except BaseException:
+            _remove(self.unzipdir)
+            raise
 
     def _log(self, env, instance, status, category, message):
         self.messages.append("%s [%s] %s" % (
@@ -69,7 +158,7 @@ class Instance:
             self.fmu.terminate()
         finally:
             self.fmu.freeInstance()
-            shutil.rmtree(self.unzipdir, ignore_errors=True)
+            _remove(self.unzipdir)
 
 
 COUPLINGS = ("gauss-seidel", "jacobi")
@@ -111,13 +200,20 @@ def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=
         When an FMU call fails; the message holds the FMUs' log.
     """
     if coupling not in COUPLINGS:
-        raise ValueError("coupling = %r is not allowed; allowed: %s" % (coupling, COUPLINGS))
-    jacobi = coupling == "jacobi"
+        raise UsageError("coupling = %r is not allowed; allowed: %s" % (coupling, COUPLINGS))
+    with interrupts_deferred() as check:
+        return _cosimulate(fmus, connections, n_steps, step_size, start_values, record,
+                           start_time, progress, logging_on, coupling == "jacobi", check)
+
+
+def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, start_time,
+                progress, logging_on, jacobi, check):
     start_values = start_values or {}
     insts = {}
     try:
         for name, path in fmus.items():
             insts[name] = Instance(name, path, logging_on=logging_on)
+            check()
         if record is None:
             record = {name: [v.name for v in inst.md.modelVariables if v.causality == "output"]
                       for name, inst in insts.items()}
@@ -137,6 +233,7 @@ def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=
         every = max(1, n_steps // 100)
         t = start_time
         for i in range(n_steps):
+            check()
             if i:
                 for inst in insts.values():
                     inst.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=step_size)

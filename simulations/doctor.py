@@ -153,14 +153,19 @@ def _importable(module):
 
 
 def _try_instantiate(fmu):
-    code = ("import sys\nfrom fmpy import read_model_description, extract\n"
+    # the child removes the folder it extracts the FMU to, also when it fails or is interrupted
+    code = ("import shutil, sys, tempfile\nfrom fmpy import read_model_description, extract\n"
             "from fmpy.fmi2 import FMU2Slave\n"
-            "md = read_model_description(sys.argv[1]); d = extract(sys.argv[1])\n"
-            "s = FMU2Slave(guid=md.guid, unzipDirectory=d, "
+            "md = read_model_description(sys.argv[1]); d = tempfile.mkdtemp()\n"
+            "try:\n"
+            "    extract(sys.argv[1], unzipdir=d)\n"
+            "    s = FMU2Slave(guid=md.guid, unzipDirectory=d, "
             "modelIdentifier=md.coSimulation.modelIdentifier, instanceName='doctor')\n"
-            "s.instantiate(); s.setupExperiment(startTime=0.0)\n"
-            "s.enterInitializationMode(); s.exitInitializationMode()\n"
-            "s.terminate(); s.freeInstance()\n")
+            "    s.instantiate(); s.setupExperiment(startTime=0.0)\n"
+            "    s.enterInitializationMode(); s.exitInitializationMode()\n"
+            "    s.terminate(); s.freeInstance()\n"
+            "finally:\n"
+            "    shutil.rmtree(d, ignore_errors=True)\n")
     try:
         r = subprocess.run([sys.executable, "-c", code, str(fmu)], capture_output=True,
                            text=True, timeout=120)

@@ -10,6 +10,7 @@ from pathlib import Path
 from driftfmu.models import chain, drift, excitation, parameters
 from driftfmu.simulations import output
 from driftfmu.simulations.cosim import cosimulate
+from driftfmu.simulations.errors import UsageError
 
 FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
@@ -97,9 +98,9 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
     params["P0"] = P0
     problems = parameters.check(params)
     if problems:
-        raise ValueError("; ".join(problems))
+        raise UsageError("; ".join(problems))
     if estimator not in (1, 2, 3):
-        raise ValueError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
+        raise UsageError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
     start = start_values(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, seed=seed, Ts=Ts, x0=x0, P0=P0,
                          estimator=estimator)
     record = {"Excitation": ["x"], "Accelerometer": ["z"],
@@ -132,8 +133,10 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
             output.write_json(stage / "summary.json", summary)
             if plot:
                 output.plot_drift(stage / "drift.png", cols,
-                                  "Gaussian x: a1=%g, a2=%g, Q=%g, R=%g, A=%g, seed %d"
-                                  % (a1, a2, Q, R, A, seed))
+                                  "Drift estimates of one co-simulation (the letter's Fig. 1): "
+                                  "Gaussian state, a1 = %g V/g, a2 = %g V/g², Q = %g g², "
+                                  "R = %g V², A = %g, n = %d, seed %d"
+                                  % (a1, a2, Q, R, A, n, seed))
     return {"columns": cols, "summary": summary}
 
 

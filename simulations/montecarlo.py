@@ -18,6 +18,7 @@ import numpy as np
 from driftfmu.models import drift, excitation
 from driftfmu.simulations import batch, output
 from driftfmu.simulations.gaussian import SETTLE_BAND
+from driftfmu.simulations.errors import UsageError
 
 #: The letter's claim: EKF1 and EKF2 settle in under 250 samples.
 SETTLE_BY = 250
@@ -82,7 +83,7 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
     seeds = batch.run_seeds(seed, runs)
     per_run = {k: v(seeds) if callable(v) else v for k, v in per_run.items()}
     if engine not in ("batch", "fmu"):
-        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+        raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     if engine == "fmu":
         from driftfmu.simulations.gaussian import fmu_paths
         fmu_paths(fmu_dir)
@@ -124,7 +125,9 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     result["summary"] = summary
     if out is not None:
         _write(out, result, GAUSSIAN_KEYS, "fig1.png",
-               "Gaussian x, %d runs: a1=%g, a2=%g, Q=%g, R=%g, A=%g" % (runs, a1, a2, Q, R, A))
+               "Drift estimation error over %d runs (the letter's Fig. 1 as a population): "
+               "Gaussian state, a1 = %g V/g, a2 = %g V/g², Q = %g g², R = %g V², A = %g, "
+               "n = %d" % (runs, a1, a2, Q, R, A, n))
     return result
 
 
@@ -146,7 +149,7 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, X=X, f=f)
     batch.check_parameters(params)
     if not f < 0.5 / Ts:
-        raise ValueError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
+        raise UsageError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
                          "f < %r Hz" % (f, 0.5 / Ts, 0.5 / Ts))
     common = dict(a0=a0, a1=a1, a2=a2, R=R, Ts=Ts, X=X, f=f, kind=excitation.SINUSOIDAL,
                   filter_A=A, filter_Q=Q)
@@ -162,8 +165,10 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     result["summary"] = summary
     if out is not None:
         _write(out, result, SINE_KEYS, "sine.png",
-               "sinusoidal x, %d runs: X=%g, f=%g Hz, a1=%g, a2=%g, R=%g; filter A=%g, Q=%g"
-               % (runs, X, f, a1, a2, R, A, Q))
+               "Drift estimation error over %d runs: sinusoidal state X = %g g at f = %g Hz "
+               "(random phase per run), a1 = %g V/g, a2 = %g V/g², R = %g V², n = %d at "
+               "Ts = %g s; Gauss-Markov filter A = %g, Q = %g g²"
+               % (runs, X, f, a1, a2, R, n, Ts, A, Q))
     return result
 
 
@@ -177,31 +182,77 @@ def _write(out, result, keys, figure, title):
 
 
 def plot_population(path, result, prefix, title):
-    """Median and 5-95 % band over the runs of each estimator's error against the realised
-    (top) and the empirical (bottom) drift, per sample."""
+    """The letter's Fig. 1 over a population: per sample, the median (thick) and the 5 % and
+    95 % points (thin, same colour and dash) over the runs of each estimator's error against
+    the realised drift in percent (top; grey: the 10 % band of "settled"), and of the empirical
+    drift ``z̄ - a0``, EKF1 and the realised drift in mV (bottom: for a Gaussian state the
+    empirical drift's spread is the linear term ``a1 x̄``, far larger than the drift; a
+    symmetric-log axis shows both).  Sample axis logarithmic; the dotted line is k = 250, the
+    letter's "converged in under 250 samples"; legends beside the axes."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.lines import Line2D
+
     dcs = [result["%s_dc%d" % (prefix, i)] for i in (1, 2, 3)]
     n = dcs[0].shape[1]
     k = np.arange(1, n + 1)
-    fig, axes = plt.subplots(2, 1, figsize=(8, 7), sharex=True)
-    for ax, ref in zip(axes, ("realised", "empirical")):
-        r = result["%s_dc_%s" % (prefix, ref)]
-        for i, (dc, color) in enumerate(zip(dcs, ("C0", "C1", "C2")), start=1):
-            err = dc - r
-            lo, med, hi = np.percentile(err, [5, 50, 95], axis=0)
-            ax.fill_between(k, lo, hi, color=color, alpha=0.2 if i != 2 else 0.1, lw=0)
-            ax.plot(k, med, color=color, lw=1.2, ls="--" if i == 2 else "-",
-                    label="EKF%d - %s (median, 5-95 %%)" % (i, ref))
-        ax.axhline(0.0, color="k", lw=0.8)
-        ax.axvline(SETTLE_BY, color="0.5", lw=0.8, ls=":")
-        ax.set_ylabel("drift error [V]")
-        ax.grid(True, alpha=0.3)
-        ax.legend(fontsize=8, loc="upper right")
-    axes[0].set_title(title, fontsize=9)
-    axes[1].set_xlabel("sample k")
-    axes[1].set_xlim(1, n)
+    styles = (("C0", "-", 2.0), ("C1", (0, (3, 3)), 1.4), ("C2", "-", 1.4))
+    fig, axes = plt.subplots(2, 1, figsize=(10, 7.5), sharex=True)
+    realised = result["%s_dc_realised" % prefix]
+    empirical = result["%s_dc_empirical" % prefix]
+    start = min(n - 1, max(10, n // 100))
+
+    def band(ax, values, color, ls, lw, label):
+        lo, med, hi = np.nanpercentile(values, [5, 50, 95], axis=0)
+        ax.plot(k, med, color=color, ls=ls, lw=lw, label=label)
+        ax.plot(k, lo, color=color, ls=ls, lw=0.8, alpha=0.9)
+        ax.plot(k, hi, color=color, ls=ls, lw=0.8, alpha=0.9)
+        return [lo[start:], hi[start:]]
+
+    top, bottom = axes
+    span = []
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for i, (dc, (color, ls, lw)) in enumerate(zip(dcs, styles), start=1):
+            span += band(top, 100.0 * (dc - realised) / np.abs(realised), color, ls, lw,
+                         "EKF%d median" % i)
+    top.axhspan(-100 * SETTLE_BAND, 100 * SETTLE_BAND, color="0.85", zorder=0,
+                label="±%g %% (settled)" % (100 * SETTLE_BAND))
+    top.set_ylim(*output._limits(span, include=(0.0,)))
+    top.set_ylabel("EKF − realised [% of realised]")
+    span = band(bottom, 1e3 * empirical, "C3", "-", 1.6, "empirical z̄ − a0 median")
+    span += band(bottom, 1e3 * dcs[0], "C0", "-", 2.0, "EKF1 median")
+    span += band(bottom, 1e3 * realised, "k", (0, (1, 1.5)), 1.2, "realised median")
+    bottom.set_ylim(*output._limits(span, include=(0.0,)))
+    # symmetric log: the drift (about a2 E[x^2]) in the linear part around 0, the empirical
+    # drift's much larger spread on the log parts
+    drift_mv = float(np.nanmedian(np.abs(1e3 * realised[:, -1])))
+    if drift_mv > 0 and np.isfinite(drift_mv):
+        from matplotlib.ticker import FuncFormatter
+        bottom.set_yscale("symlog", linthresh=2.0 * drift_mv, linscale=1.5)
+        bottom.yaxis.set_major_formatter(FuncFormatter(lambda v, _: "%g" % v))
+    bottom.set_ylabel("drift [mV] (linear within ±%.2g)" % (2.0 * drift_mv))
+    for ax in axes:
+        ax.axhline(0.0, color="k", lw=0.6)
+        if SETTLE_BY <= n:
+            ax.axvline(SETTLE_BY, color="0.3", lw=0.9, ls=":")
+            ax.annotate("k = %d" % SETTLE_BY, (SETTLE_BY, 1.0),
+                        xycoords=("data", "axes fraction"), xytext=(-3, -12), ha="right",
+                        textcoords="offset points", fontsize=8, color="0.3")
+        ax.grid(True, which="major", alpha=0.3)
+        output.log_sample_axis(ax)
+        handles, labels = ax.get_legend_handles_labels()
+        handles.append(Line2D([], [], color="0.4", lw=0.8))
+        labels.append("thin: 5 % and 95 % of runs")
+        ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9,
+                  frameon=False)
+    top.set_title("estimation error against the realised drift a2·mean(x²) (simulation only)",
+                  fontsize=10)
+    bottom.set_title("the empirical drift z̄ − a0 (the letter's reference) beside EKF1 and the "
+                     "realised drift", fontsize=10)
+    axes[1].set_xlabel("sample k (log scale)")
+    axes[1].set_xlim(1, max(n, 2))
+    output.caption(fig, title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
@@ -241,7 +292,7 @@ def add_cli(groups):
 def _with_bar(args, fn, **kw):
     from driftfmu.simulations import cli
     desc = "montecarlo (%s engine)" % args.engine
-    with cli.progress(args.runs, desc, monitor=False) as update:
+    with cli.progress(args.runs, desc, "run", monitor=False) as update:
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
                   a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
                   scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
@@ -266,10 +317,12 @@ def print_summary(s, references):
           "that sample to the end" % (s["runs"], s["n"], s["seconds"], 100 * s["band"]))
     print("%-10s" % "estimator" + "".join(" | settled by %d vs %-9s" % (s["settle_by"], ref)
                                           for ref in references))
+    def median(k):  # n + 1: the median run is outside the band at the last sample
+        return "%6g" % k if k <= s["n"] else " never"
     for e in ("ekf1", "ekf2", "ekf3"):
         print("%-10s" % e.upper() + "".join(
-            " | %5.1f %% (median k %6g)   " % (100 * s["settled_fraction"][ref][e],
-                                              s["median_settled_from"][ref][e])
+            " | %5.1f %% (median k %s)   " % (100 * s["settled_fraction"][ref][e],
+                                            median(s["median_settled_from"][ref][e]))
             for ref in references))
     g = s["ekf1_ekf2_gap_db"]
     line = ("EKF1-EKF2 gap at the last sample: mean %.4f dB, std %.4f dB, max |gap| %.4f dB "

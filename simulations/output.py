@@ -1,7 +1,8 @@
 """Writing results whole or not at all, and the plots.
 
 Files are written into a staging folder beside the destination and moved into place only when
-every file of the set has been written; on any error the destination is left as it was.
+every file of the set has been written; on any error or Ctrl-C the destination is left as it
+was, and folders created for it are removed again when they are still empty.
 """
 import contextlib
 import json
@@ -10,19 +11,45 @@ import shutil
 import tempfile
 from pathlib import Path
 
+from driftfmu.simulations.errors import UsageError
+
+
+@contextlib.contextmanager
+def removing_new_folders(path):
+    """Run the block; when it fails (or is interrupted), remove the folders of ``path`` and its
+    parents that did not exist before and are empty after."""
+    path = Path(path)
+    new = []
+    p = path
+    while not p.exists() and p != p.parent:
+        new.append(p)
+        p = p.parent
+    try:
+        yield
+    except BaseException:
+        for d in new:  # deepest first
+            with contextlib.suppress(OSError):
+                d.rmdir()  # only when empty
+        raise
+
 
 @contextlib.contextmanager
 def staged(out_dir):
-    """Yield a staging folder; on success move its files into ``out_dir`` (created if missing)."""
+    """Yield a staging folder; on success move its files into ``out_dir`` (created if missing).
+
+    ``out_dir`` naming an existing file is a ValueError (one line, nothing written)."""
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
-    try:
-        yield stage
-        for f in sorted(stage.iterdir()):
-            os.replace(f, out / f.name)
-    finally:
-        shutil.rmtree(stage, ignore_errors=True)
+    if out.exists() and not out.is_dir():
+        raise UsageError("%s is an existing file; allowed: a folder (created if missing)" % out)
+    with removing_new_folders(out):
+        out.mkdir(parents=True, exist_ok=True)
+        stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
+        try:
+            yield stage
+            for f in sorted(stage.iterdir()):
+                os.replace(f, out / f.name)
+        finally:
+            shutil.rmtree(stage, ignore_errors=True)
 
 
 def write_csv(path, columns, names):
@@ -39,34 +66,82 @@ def write_json(path, obj):
         fh.write("\n")
 
 
+def _limits(values, pad=0.08, include=()):
+    """Axis limits around the finite ``values`` (and ``include``), padded; never empty."""
+    import numpy as np
+    v = np.concatenate([np.ravel(np.asarray(a, dtype=float)) for a in values]
+                       + [np.asarray(include, dtype=float)])
+    v = v[np.isfinite(v)]
+    if not v.size:
+        return -1.0, 1.0
+    lo, hi = float(v.min()), float(v.max())
+    span = hi - lo if hi > lo else max(abs(hi), 1e-12)
+    return lo - pad * span, hi + pad * span
+
+
 def plot_drift(path, cols, title):
-    """The letter's Fig. 1, done right: EKF1-3 against the realised and expected drift (top) and
-    against the empirical drift ``z̄ - a0``, whose linear term ``a1 x̄`` dwarfs the drift for a
-    Gaussian state (bottom)."""
+    """The letter's Fig. 1, done right (one run): EKF1-3 against the realised and the expected
+    drift (top) and EKF1 against the empirical drift ``z̄ - a0``, the letter's reference, whose
+    linear term ``a1 x̄`` dwarfs the drift for a Gaussian state (bottom).
+
+    Drifts in mV over the sample number on a log axis (the start-up and the settled estimate
+    both visible); the y range of the top panel is that of its curves after the first 1 % of
+    the samples (at least 10), of the bottom one after the first 10 %, so a start-up transient
+    does not flatten the rest; legends sit beside the axes, off the curves.
+    """
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     import numpy as np
-    k = np.arange(1, len(cols["dc_ekf1"]) + 1)
-    fig, (top, bottom) = plt.subplots(2, 1, figsize=(8, 7), sharex=True,
+    mv = {c: 1e3 * np.asarray(cols[c], dtype=float) for c in
+          ("dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_realised", "dc_expected", "dc_empirical")}
+    n = len(mv["dc_ekf1"])
+    k = np.arange(1, n + 1)
+    start = min(n - 1, max(10, n // 100))
+    fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 7), sharex=True,
                                       gridspec_kw={"height_ratios": [3, 2]})
+    top.plot(k, mv["dc_realised"], color="0.55", lw=3.2, alpha=0.6,
+             label="realised  a2·mean(x²)")
+    top.plot(k, mv["dc_expected"], color="k", lw=1.0, ls=":", label="expected  a2·E[x²]")
+    top.plot(k, mv["dc_ekf3"], color="C2", lw=1.3, label="EKF3")
+    top.plot(k, mv["dc_ekf1"], color="C0", lw=2.0, label="EKF1")
+    top.plot(k, mv["dc_ekf2"], color="C1", lw=1.1, ls=(0, (3, 3)),
+             label="EKF2 (dashed, over EKF1)")
+    top.set_ylim(*_limits([mv[c][start:] for c in ("dc_ekf1", "dc_ekf2", "dc_ekf3",
+                                                   "dc_realised", "dc_expected")]))
+    top.set_title("estimates against the realised and the expected drift", fontsize=10)
+    bottom.plot(k, mv["dc_empirical"], color="C3", lw=0.9, label="empirical  z̄ − a0")
+    bottom.plot(k, mv["dc_ekf1"], color="C0", lw=1.3, label="EKF1")
+    bottom.axhline(0.0, color="k", lw=0.6)
+    late = min(n - 1, max(10, n // 10))
+    bottom.set_ylim(*_limits([mv["dc_empirical"][late:], mv["dc_ekf1"][late:]],
+                             include=(0.0,)))
+    bottom.set_title("EKF1 against the empirical drift z̄ − a0 (the letter's reference)",
+                     fontsize=10)
     for ax in (top, bottom):
-        ax.plot(k, cols["dc_ekf1"], color="C0", lw=1.2, label="EKF1")
-        ax.plot(k, cols["dc_ekf2"], color="C1", lw=1.0, ls="--", label="EKF2")
-        ax.plot(k, cols["dc_ekf3"], color="C2", lw=1.2, label="EKF3")
-        ax.grid(True, alpha=0.3)
-        ax.set_ylabel("drift [V]")
-    top.plot(k, cols["dc_realised"], color="k", lw=1.4, label="realised  a2 mean(x²)")
-    top.plot(k, cols["dc_expected"], color="k", lw=1.0, ls=":", label="expected  a2 var(x)")
-    bottom.plot(k, cols["dc_empirical"], color="0.5", lw=0.8, label="empirical  z̄ - a0")
-    ref = float(np.asarray(cols["dc_expected"])[-1])
-    if ref > 0:
-        top.set_ylim(0.0, 2.5 * ref)
-    top.set_xlim(1, k[-1])
-    top.set_title(title)
-    top.legend(loc="upper right", fontsize=8, ncol=2)
-    bottom.legend(loc="upper right", fontsize=8, ncol=2)
-    bottom.set_xlabel("sample k")
+        log_sample_axis(ax)
+        ax.grid(True, which="major", alpha=0.3)
+        ax.set_ylabel("drift [mV]")
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9, frameon=False)
+    bottom.set_xlim(1, max(n, 2))
+    bottom.set_xlabel("sample k (log scale)")
+    caption(fig, title)
     fig.tight_layout()
     fig.savefig(path, dpi=120)
     plt.close(fig)
+
+
+def caption(fig, text, width=95):
+    """A caption-like title over the whole figure, wrapped to ``width`` characters."""
+    import textwrap
+    text = text.replace(" = ", "\u00a0=\u00a0")  # "a1 = 1" stays on one line
+    fig.suptitle("\n".join(textwrap.wrap(text, width)), fontsize=10.5)
+
+
+def log_sample_axis(ax):
+    """A log x axis of sample numbers with plain tick labels (1, 10, 100, 1000)."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+    ax.set_xscale("log")
+    ax.xaxis.set_major_locator(LogLocator(base=10))
+    ax.xaxis.set_major_formatter(FuncFormatter(lambda v, _: "%g" % v))
+    ax.xaxis.set_minor_formatter(NullFormatter())

@@ -12,11 +12,13 @@ sample, and reports the drift estimates against the references: the expected dri
 ``z̄ - a0`` over the largest whole number of periods, which is the natural reference here.
 """
 import math
+import sys
 
 from driftfmu.models import adxl203, chain, drift, excitation, harmonic, identify, parameters
 from driftfmu.simulations import output
 from driftfmu.simulations.cosim import cosimulate
 from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, compare, fmu_paths, settled_from
+from driftfmu.simulations.errors import UsageError
 
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Excitation", "y", "Accelerometer", "y"),
@@ -31,7 +33,7 @@ def check_frequency(f, Ts):
     """ValueError unless ``0 < f < 1 / (2 Ts)``."""
     nyquist = 0.5 / Ts
     if not 0.0 < f < nyquist:
-        raise ValueError("f = %r Hz is not allowed at Ts = %r s; allowed: 0 < f < 1/(2 Ts) = "
+        raise UsageError("f = %r Hz is not allowed at Ts = %r s; allowed: 0 < f < 1/(2 Ts) = "
                          "%r Hz (the Nyquist rate)" % (f, Ts, nyquist))
 
 
@@ -91,7 +93,7 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     sp = dict(a0=a0, a1=a1, a2=a2, R=R)
     if preset is not None:
         if preset not in adxl203.PRESETS:
-            raise ValueError("preset = %r is not known; allowed: %s"
+            raise UsageError("preset = %r is not known; allowed: %s"
                              % (preset, ", ".join(sorted(adxl203.PRESETS))))
         sp.update(adxl203.PRESETS[preset])
     sp.update(sensor or {})
@@ -100,9 +102,9 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
                   P0=P0, x0=x0, process=process)
     problems = parameters.check(params) + adxl203.check(sp)
     if problems:
-        raise ValueError("; ".join(problems))
+        raise UsageError("; ".join(problems))
     if estimator not in (1, 2, 3):
-        raise ValueError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
+        raise UsageError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
     check_frequency(f, Ts)
     model = nominal_model(sp, Ts) if preset is not None else dict(a0=a0, a1=a1, a2=a2, R=R)
     start = {
@@ -128,8 +130,12 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     dc_expected = cfg.a2 * mean_u2
     cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
         u, cols["z"], cfg.a0, cfg.a2, dc_expected)
-    m = identify.whole_periods(n, f, Ts)
-    dc_whole = sum(cols["z"][:m]) / m - cfg.a0
+    periods = n * f * Ts
+    if periods >= 1.0:
+        m = identify.whole_periods(n, f, Ts)
+        dc_whole = sum(cols["z"][:m]) / m - cfg.a0
+    else:  # not one whole period: no empirical reference to speak of
+        m, dc_whole = 0, None
 
     final = {c: cols[c][-1] for c in ("dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
                                       "dc_realised", "dc_expected")}
@@ -138,10 +144,13 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
         "parameters": params, "sensor": sp, "filter_model": model,
         "process": harmonic.PROCESSES[process], "estimator": estimator, "final": final,
         "whole_periods": {"samples": m, "periods": round(m * f * Ts, 6)},
+        "empirical_note": None if m else "the %d samples span %.3g periods of f = %g Hz: no "
+                          "whole period, so no empirical reference (n >= %d needed)"
+                          % (n, periods, f, math.ceil(1.0 / (f * Ts))),
         "ekf1_rel_error": {"vs_expected": final["dc_ekf1"] / dc_expected - 1.0
-                           if dc_expected else math.nan,
+                           if dc_expected else None,
                            "vs_empirical_whole_periods": final["dc_ekf1"] / dc_whole - 1.0
-                           if dc_whole else math.nan},
+                           if dc_whole else None},
         "settled_from_sample": {
             "reference": "realised drift a2 mean(u^2), band 10 %",
             "ekf1": settled_from(cols["dc_ekf1"], cols["dc_realised"]),
@@ -161,9 +170,11 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
             output.write_json(stage / "summary.json", summary)
             if plot:
                 output.plot_drift(stage / "drift.png", cols,
-                                  "Sinusoidal x: X=%g g, f=%g Hz, %s filter%s, seed %d"
-                                  % (X, f, harmonic.PROCESSES[process],
-                                     ", %s" % preset if preset else "", seed))
+                                  "Drift estimates of one co-simulation: sinusoidal state "
+                                  "X = %g g at f = %g Hz, %s filter%s, n = %d at Ts = %g s, "
+                                  "seed %d" % (X, f, harmonic.PROCESSES[process],
+                                               ", %s stand-in" % preset if preset else "",
+                                               n, Ts, seed))
     return {"columns": cols, "summary": summary}
 
 
@@ -191,7 +202,7 @@ def add_cli(groups):
 
 def _cmd(args):
     from driftfmu.simulations import cli
-    with cli.progress(args.n, "co-simulation") as update:
+    with cli.progress(args.n, "co-simulation", "sample") as update:
         res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
@@ -201,12 +212,19 @@ def _cmd(args):
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)
-    print("final drift: EKF1 %.5g, EKF2 %.5g, EKF3 %.5g | expected %.5g, empirical over %d whole "
-          "periods %.5g, realised %.5g" % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"],
-                                           f["dc_expected"], s["whole_periods"]["periods"],
-                                           f["dc_empirical_whole_periods"], f["dc_realised"]))
+    wp = s["whole_periods"]
+    emp = ("empirical over %d whole periods %.5g" % (wp["periods"],
+                                                     f["dc_empirical_whole_periods"])
+           if wp["samples"] else "empirical: none (not one whole period)")
+    print("final drift: EKF1 %.5g, EKF2 %.5g, EKF3 %.5g | expected %.5g, %s, realised %.5g"
+          % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"], f["dc_expected"], emp, f["dc_realised"]))
     e = s["ekf1_rel_error"]
-    print("EKF1 (%s filter) vs expected %+.3f %%, vs empirical %+.3f %%"
-          % (s["process"], 100 * e["vs_expected"], 100 * e["vs_empirical_whole_periods"]))
+
+    def pct(v):
+        return "n/a" if v is None else "%+.3f %%" % (100 * v)
+    print("EKF1 (%s filter) vs expected %s, vs empirical %s"
+          % (s["process"], pct(e["vs_expected"]), pct(e["vs_empirical_whole_periods"])))
+    if s["empirical_note"]:
+        sys.stderr.write("driftfmu: warning: %s\n" % s["empirical_note"])
     print("validation: FMU outputs equal models/ (max |diff| %.3g, tolerance %g)"
           % (max(s["validation"]["max_abs_diff"].values()), s["validation"]["tolerance"]))

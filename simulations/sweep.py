@@ -2,7 +2,7 @@
 
 For every grid point ``(a2_i, R_j)`` and run ``r`` (FMU seed ``seed + r``, the same seeds at every
 grid point) the Gaussian chain runs ``n`` samples; the final-sample drift estimates of EKF1-3 are
-compared with the three references of ``shared/paper/NOTES.md``:
+compared with the three drift references (``docs/method.md``, section 4):
 
 - empirical ``z̄_n - a0`` (the letter's reference; carries the linear term ``a1 x̄_n``),
 - realised ``a2 (1/n) sum x_k^2`` (simulation only),
@@ -17,6 +17,7 @@ import numpy as np
 
 from driftfmu.models import excitation, sensor
 from driftfmu.simulations import batch, output
+from driftfmu.simulations.errors import UsageError
 
 DEFAULT_A2 = tuple(np.logspace(-3, -0.5, 6))
 DEFAULT_R = tuple(np.logspace(-6, -2, 5))
@@ -32,7 +33,7 @@ def check_grid(name, values):
     """The grid of ``name`` as a 1-D float array; ValueError when empty or out of range."""
     arr = np.atleast_1d(np.asarray(values, dtype=float))
     if arr.ndim != 1 or arr.size == 0:
-        raise ValueError("the %s grid is empty; allowed: one or more values of %s"
+        raise UsageError("the %s grid is empty; allowed: one or more values of %s"
                          % (name, name))
     batch.check_parameters({name: arr})
     return arr
@@ -73,7 +74,7 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
     batch.check_runs(runs)
     batch.check_parameters(dict(a0=a0, a1=a1, Q=Q, A=A, n=n, Ts=Ts))
     if engine not in ("batch", "fmu"):
-        raise ValueError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+        raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     seeds1 = batch.run_seeds(seed, runs)
     points = len(a2) * len(R)
     seeds = np.tile(seeds1, points)
@@ -155,28 +156,36 @@ def write(out, result, plot=True):
 
 def plot_grid(path, result, estimator, subtitle):
     """Mean absolute error of one estimator over the (a2, R) grid: against the realised drift
-    (left) and against the letter's empirical drift ``z̄ - a0`` (right), one line per R."""
+    (left) and against the letter's empirical drift ``z̄ - a0`` (right), one line per R (its
+    own colour and marker, so lines that coincide stay distinguishable), and the drift itself
+    (dotted).  Legend beside the axes."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     t = result["table"]
     a2, R = result["grid_a2"], result["grid_R"]
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4.5), sharex=True)
+    markers = "osD^vPX*"
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharex=True)
     for ax, ref in zip(axes, ("realised", "empirical")):
         mae = t["mae_%s_%s" % (estimator, ref)].reshape(len(a2), len(R))
         for j, r in enumerate(R):
-            ax.loglog(a2, mae[:, j], marker="o", lw=1.2, color=plt.cm.viridis(j / max(1, len(R) - 1)),
-                      label="R = %.0e" % r)
+            ax.loglog(a2, mae[:, j], marker=markers[j % len(markers)], ms=6 - 0.5 * (j % 4),
+                      lw=1.2, color=plt.cm.viridis(0.9 * j / max(1, len(R) - 1)),
+                      label="R = %.0e V²" % r)
         ax.loglog(a2, t["dc_expected"].reshape(len(a2), len(R))[:, 0], color="k", ls=":",
-                  lw=1.0, label="drift a2 Q/(1-A²)")
+                  lw=1.2, label="the drift a2·Q/(1−A²)")
         ax.set_xlabel("a2 [V/g²]")
-        ax.set_ylabel("mean |dc_%s - dc_%s| [V]" % (estimator, ref))
-        ax.set_title("%s against the %s drift" % (estimator.upper(), ref), fontsize=10)
+        ax.set_ylabel("mean |%s − %s drift| [V]" % (estimator.upper(), ref))
+        ax.set_title("%s against the %s drift%s" % (
+            estimator.upper(), ref, " a2·mean(x²)" if ref == "realised"
+            else " z̄ − a0 (the letter's)"), fontsize=10)
         ax.grid(True, which="major", alpha=0.3)
         ax.minorticks_off()  # log-axis minor ticks are most of the drawing time
-    axes[0].legend(fontsize=8)
-    fig.suptitle(subtitle, fontsize=9)
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.12, top=0.86, wspace=0.28)
+    axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
+    fig.suptitle("Fig. %s of the letter: mean absolute error of %s over a grid of a2 and R (%s)"
+                 % ("2" if estimator == "ekf1" else "3", estimator.upper(), subtitle),
+                 fontsize=10.5)
+    fig.subplots_adjust(left=0.07, right=0.84, bottom=0.12, top=0.86, wspace=0.3)
     fig.savefig(path, dpi=110)
     plt.close(fig)
 
@@ -205,7 +214,7 @@ def cmd_sweep(args):
     t0 = time.perf_counter()
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine
-    with cli.progress(total, desc, monitor=False) as update:
+    with cli.progress(total, desc, "run", monitor=False) as update:
         res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
                     runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, engine=args.engine,
                     scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,

@@ -144,5 +144,5 @@ def test_cli_reports_a_frequency_above_nyquist_in_one_line(tmp_path, capsys):
     rc = main(["experiment", "adxl203", "--freqs", "100,6000", "--out", str(tmp_path / "o"),
                "--fmu-dir", str(tmp_path / "f")])
     err = capsys.readouterr().err
-    assert rc == 1 and "f = 6000.0 Hz" in err and "Nyquist" in err
+    assert rc == 2 and "f = 6000.0 Hz" in err and "Nyquist" in err
     assert not (tmp_path / "o").exists()

@@ -2,6 +2,7 @@
 from the noise level; CSV recordings; bad input refused with nothing written."""
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -121,4 +122,67 @@ def test_cli_identify_and_its_errors(recordings, tmp_path, capsys):
     assert rc == 1 and "missing column(s) z" in capsys.readouterr().err
     assert not (tmp_path / "p").exists()
     rc = main(["identify", str(tmp_path / "a.csv"), "--f", "900", "--out", str(tmp_path / "q")])
-    assert rc == 1 and "Nyquist" in capsys.readouterr().err
+    assert rc == 2 and "Nyquist" in capsys.readouterr().err
+
+
+# -- fits the data cannot support: errors; doubtful ones: warnings with the figure ---------------
+
+def test_a_drive_frequency_the_recording_contradicts_is_refused(recordings):
+    c = recordings
+    with pytest.raises(identify.IdentificationError) as exc:
+        identify.fit_set(c["time"][0], c["x"][0], c["z"][0], 51.3)  # recorded at 50 Hz
+    msg = str(exc.value)
+    assert "explains 0." in msg or "explains 1." in msg  # the diagnostic figure, in percent
+    assert "strongest frequency is 50 Hz" in msg
+
+
+def test_a_slightly_wrong_frequency_warns_with_the_share_explained(recordings):
+    c = recordings
+    with pytest.warns(identify.IdentificationWarning, match=r"explains 9\d\.\d %") as rec:
+        fit = identify.fit_set(c["time"][0], c["x"][0], c["z"][0], 50.02)
+    assert fit.explained < identify.GOOD_EXPLAINED
+    assert "of the fitted R" in str(rec[0].message)
+    # and the right frequency fits without a word
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        fit = identify.fit_set(c["time"][0], c["x"][0], c["z"][0], F)
+    assert fit.explained > 0.9999 and fit.periods == round(N * F * TS)
+
+
+def test_too_few_periods_is_an_error_and_few_a_warning(recordings):
+    c = recordings
+    with pytest.raises(identify.IdentificationError, match=r"at least 2 whole periods"):
+        identify.fit_set(c["time"][0][:10], c["x"][0][:10], c["z"][0][:10], F)
+    with pytest.warns(identify.IdentificationWarning, match=r"only 6 whole periods"):
+        identify.fit_set(c["time"][0][:120], c["x"][0][:120], c["z"][0][:120], F)
+
+
+def test_one_set_has_no_spread_rather_than_a_spread_of_zero(recordings, tmp_path):
+    c = recordings
+    fit = identify.fit_set(c["time"][0], c["x"][0], c["z"][0], F)
+    avg = identify.average([fit])
+    assert avg["sets"] == 1 and avg["sd_a2"] is None and avg["sd_R"] is None
+    _write(tmp_path / "one.csv", c["time"][0], c["x"][0], c["z"][0])
+    with pytest.warns(identify.IdentificationWarning, match="one recording"):
+        s = run_identify([tmp_path / "one.csv"], F)
+    assert s["warnings"] and s["model"]["sd_a0"] is None
+
+
+def test_cli_exit_1_for_a_contradicted_frequency_and_a_warning_line_for_a_doubtful_one(
+        recordings, tmp_path, capsys):
+    from driftfmu.simulations.cli import main
+    c = recordings
+    files = []
+    for i in range(2):
+        files.append(str(tmp_path / ("s%d.csv" % i)))
+        _write(files[-1], c["time"][i], c["x"][i], c["z"][i])
+    assert main(["identify", *files, "--f", "51.3", "--out", str(tmp_path / "a")]) == 1
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "s0.csv" in err[0] and "strongest frequency is 50 Hz" in err[0]
+    assert not (tmp_path / "a").exists()
+    assert main(["identify", *files, "--f", "50.02", "--out", str(tmp_path / "b")]) == 0
+    cap = capsys.readouterr()
+    lines = cap.err.strip().splitlines()
+    assert len(lines) == 2 and all(line.startswith("driftfmu: warning: ") for line in lines)
+    assert "2 warning(s)" in cap.out
+    assert len(json.loads((tmp_path / "b" / "identify.json").read_text())["warnings"]) == 2

@@ -80,7 +80,7 @@ def test_cli_run_sinusoidal(fmu_dir, tmp_path, capsys):
     assert rc == 0 and "harmonic filter" in text and "validation: FMU outputs equal" in text
     rc = main(["run", "sinusoidal", "--f", "700", "--out", str(tmp_path / "x"),
                "--fmu-dir", str(fmu_dir)])
-    assert rc == 1 and "Nyquist" in capsys.readouterr().err
+    assert rc == 2 and "Nyquist" in capsys.readouterr().err
     assert not (tmp_path / "x").exists()
 
 

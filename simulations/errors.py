@@ -1,0 +1,23 @@
+"""The exceptions the ``driftfmu`` command maps to its exit statuses.
+
+- :class:`UsageError`: a setting the command cannot run with (an option out of range, a drive
+  frequency at or above the Nyquist rate, more held-out sets than sets); exit status 2, like an
+  option argparse refuses.  Raised before any work starts.
+- :class:`DataError`: input data that cannot support the result asked for (a recording too short
+  for the fit, a drive frequency the recording contradicts); exit status 1, a failed run.
+- Any other exception is a failed run (exit status 1); Ctrl-C is exit status 130.
+
+Both are ``ValueError`` subclasses, so code that catches ValueError keeps working.
+"""
+
+
+class UsageError(ValueError):
+    """A setting is not allowed (exit status 2); the message names it and what is allowed."""
+
+
+class DataError(ValueError):
+    """The data cannot support the fit or reference asked for (exit status 1)."""
+
+
+#: Exit statuses of the ``driftfmu`` command.
+EXIT_OK, EXIT_FAILED, EXIT_USAGE, EXIT_INTERRUPTED = 0, 1, 2, 130

@@ -1,0 +1,344 @@
+"""The command line as a newcomer meets it: one exit convention (usage 2, failed run 1, Ctrl-C
+130), one readable line per error, Ctrl-C that stops worker processes at once and leaves no
+temporary files, no empty folders after a failed build, the SSP overwrite rule, and outputs that
+say "never" or "none" instead of None or a meaningless percentage."""
+import json
+import os
+import signal
+import stat
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from driftfmu.simulations import cli
+from driftfmu.simulations.adxl203 import default_held_out
+from driftfmu.simulations.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _one_error_line(err):
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert len(lines) == 1, err
+    assert "Traceback" not in err
+    return lines[0]
+
+
+# -- usage errors: 2 ----------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv,words", [
+    (["run", "sinusoidal", "--f", "600"], ("f = 600.0 Hz", "Nyquist")),
+    (["run", "sinusoidal", "--f", "0"], ("0 < f < 1/(2 Ts)",)),
+    (["montecarlo", "sinusoidal", "--f", "600", "--runs", "2"], ("Nyquist",)),
+    (["experiment", "adxl203", "--sets", "6", "--held-out", "5"],
+     ("lower --held-out to at most 4", "--sets 7")),
+    (["experiment", "adxl203", "--sets", "2"], ("add --sets 3",)),
+    (["experiment", "adxl203", "--freqs", "100,6000"], ("f = 6000.0 Hz",)),
+    (["sweep", "--R", "0"], ("R",)),
+    (["run", "gaussian", "--A", "1"], ("A",)),
+])
+def test_a_setting_the_run_cannot_start_with_is_a_usage_error(argv, words, tmp_path, capsys):
+    out = tmp_path / "out"
+    rc = _status(argv + ["--out", str(out), "--fmu-dir", str(tmp_path / "fmus")])
+    line = _one_error_line(capsys.readouterr().err)
+    assert rc == 2, line
+    for w in words:
+        assert w in line
+    assert not out.exists() and not (tmp_path / "fmus").exists()
+
+
+def _status(argv):
+    """main's exit status, whether it returns it or argparse raises SystemExit."""
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+def test_out_naming_an_existing_file_is_one_line_and_exit_2(tmp_path, capsys):
+    f = tmp_path / "results.txt"
+    f.write_text("mine\n")
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "gaussian", "--out", str(f)])
+    assert exc.value.code == 2
+    line = _one_error_line(capsys.readouterr().err)
+    assert "is an existing file" in line and "Errno" not in line
+    assert f.read_text() == "mine\n"
+
+
+def test_version(capsys):
+    from driftfmu import __version__
+    with pytest.raises(SystemExit) as exc:
+        main(["--version"])
+    assert exc.value.code == 0 and capsys.readouterr().out.strip() == "driftfmu " + __version__
+
+
+def test_help_states_the_frequency_range_that_is_accepted(capsys):
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "sinusoidal", "--help"])
+    assert exc.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "0 < f < 1/(2 Ts)" in text and "f >= 0" not in text
+
+
+# -- failed runs: 1 -----------------------------------------------------------------------------
+
+def test_a_failed_run_is_one_line_and_exit_1(tmp_path, capsys):
+    bad = tmp_path / "r.csv"
+    bad.write_text("time,x\n0,1\n0.001,2\n0.002,3\n")
+    assert main(["identify", str(bad), "--f", "50", "--out", str(tmp_path / "o")]) == 1
+    assert "missing column(s) z" in _one_error_line(capsys.readouterr().err)
+    assert not (tmp_path / "o").exists()
+
+
+def test_a_failed_build_leaves_no_empty_folder(tmp_path, monkeypatch, capsys):
+    from driftfmu.fmu_src import builder
+
+    def fail(out_dir, *a, **k):
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        raise builder.BuildError("the compiler broke")
+    monkeypatch.setattr(builder, "build_fmus", fail)
+    assert main(["build", "--out", str(tmp_path / "a" / "b" / "fmus")]) == 1
+    assert "the compiler broke" in _one_error_line(capsys.readouterr().err)
+    assert list(tmp_path.iterdir()) == []
+
+
+# -- the SSP archive: kept unless --force, mode 0644 ----------------------------------------------
+
+@pytest.mark.integration
+def test_build_ssp_keeps_an_existing_file_unless_force(tmp_path, capsys):
+    ssp = tmp_path / "chain.ssp"
+    ssp.write_bytes(b"not yours to replace")
+    with pytest.raises(SystemExit) as exc:
+        main(["build", "--out", str(tmp_path / "fmus"), "--ssp", str(ssp)])
+    assert exc.value.code == 2
+    assert "--force" in _one_error_line(capsys.readouterr().err)
+    assert ssp.read_bytes() == b"not yours to replace"
+    assert not (tmp_path / "fmus").exists()  # refused before anything was built
+    assert main(["build", "--out", str(tmp_path / "fmus"), "--ssp", str(ssp), "--force"]) == 0
+    import zipfile
+    assert "SystemStructure.ssd" in zipfile.ZipFile(ssp).namelist()
+    assert stat.S_IMODE(ssp.stat().st_mode) == 0o644
+    fmu = tmp_path / "fmus" / "Excitation.fmu"
+    assert stat.S_IMODE(fmu.stat().st_mode) == stat.S_IMODE(ssp.stat().st_mode)
+
+
+# -- results that would be silently wrong, and "never" -------------------------------------------
+
+@pytest.mark.integration
+def test_no_whole_period_gives_no_empirical_percentage(built_fmus, tmp_path, capsys):
+    fmu_dir = Path(built_fmus["Excitation"]).parent
+    rc = main(["run", "sinusoidal", "--f", "0.3", "--out", str(tmp_path / "o"),
+               "--fmu-dir", str(fmu_dir)])
+    cap = capsys.readouterr()
+    assert rc == 0
+    assert "vs empirical n/a" in cap.out and "-99" not in cap.out
+    assert "no whole period" in _one_error_line(cap.err)
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["whole_periods"]["samples"] == 0
+    assert s["ekf1_rel_error"]["vs_empirical_whole_periods"] is None
+
+
+@pytest.mark.integration
+def test_one_sample_prints_never_and_no_warning(built_fmus, tmp_path, capsys):
+    fmu_dir = Path(built_fmus["Excitation"]).parent
+    assert main(["run", "gaussian", "--n", "1", "--out", str(tmp_path / "o"),
+                 "--fmu-dir", str(fmu_dir)]) == 0
+    cap = capsys.readouterr()
+    assert "None" not in cap.out and "never" in cap.out
+    assert cap.err == ""
+
+
+def test_montecarlo_says_never_for_runs_that_never_settle(capsys):
+    s = {"runs": 4, "n": 10, "seconds": 0.1, "band": 0.1, "settle_by": 250,
+         "settled_fraction": {"realised": {e: 0.0 for e in ("ekf1", "ekf2", "ekf3")}},
+         "median_settled_from": {"realised": {e: 11.0 for e in ("ekf1", "ekf2", "ekf3")}},
+         "ekf1_ekf2_gap_db": {"mean": 0.0, "std": 0.0, "max_abs": 0.0, "of_means": 0.0}}
+    from driftfmu.simulations.montecarlo import print_summary
+    print_summary(s, ("realised",))
+    out = capsys.readouterr().out
+    assert "never" in out and "median k     11" not in out
+
+
+def test_default_held_out_is_the_letters_share():
+    assert default_held_out(30) == 5
+    assert default_held_out(6) == 1
+    assert default_held_out(3) == 1
+
+
+def test_progress_bars_name_their_unit(monkeypatch):
+    import tqdm
+    seen = {}
+
+    class Bar:
+        n = 0
+
+        def __init__(self, total, desc, unit, leave):
+            seen["unit"] = unit
+
+        def update(self, k):
+            pass
+
+        def close(self):
+            pass
+    monkeypatch.setattr(tqdm, "tqdm", Bar)
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    with cli.progress(10, "sets", "set") as update:
+        update(1)
+    assert seen["unit"].strip() == "set"
+
+
+# -- Ctrl-C: 130 --------------------------------------------------------------------------------
+
+def _group(pgid):
+    """Live (not zombie) processes of process group ``pgid``."""
+    r = subprocess.run(["ps", "-e", "-o", "pid=,pgid=,stat="], capture_output=True, text=True)
+    live = []
+    for line in r.stdout.splitlines():
+        pid, group, st = line.split()[:3]
+        if int(group) == pgid and not st.startswith("Z"):
+            live.append(int(pid))
+    return live
+
+
+def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_main=False):
+    """Start ``driftfmu argv`` in its own session, send SIGINT to its whole process group (as a
+    terminal's Ctrl-C does; or call ``send(pid)``) ``after`` seconds in, counted from when
+    main() has started (``wait_for_main``) or ``wait_for_workers`` children run; return (exit
+    status, stderr, seconds to stop, live processes left, files left in TMPDIR, workers that
+    ran when the signal was sent)."""
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+    p = subprocess.Popen([sys.executable, "-m", "driftfmu", *argv], cwd=tmp_path, env=env,
+                         start_new_session=True, stdout=subprocess.PIPE,
+                         stderr=subprocess.PIPE, text=True)
+    t0 = time.monotonic()
+    while wait_for_main and not _main_started(p.pid) and time.monotonic() - t0 < 60:
+        assert p.poll() is None, p.communicate()
+        time.sleep(0.002)
+    if wait_for_workers:
+        while len(_group(p.pid)) < 1 + wait_for_workers and time.monotonic() - t0 < 120:
+            assert p.poll() is None, p.communicate()
+            time.sleep(0.1)
+        time.sleep(after)
+    else:
+        time.sleep(after)
+    workers = len(_group(p.pid)) - 1
+    sent = time.monotonic()
+    if send is None:
+        os.killpg(p.pid, signal.SIGINT)
+    else:
+        send(p.pid)
+    try:
+        _, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGKILL)
+    stopped = time.monotonic() - sent
+    left = _group(p.pid)
+    for _ in range(50):  # the group's last processes may take a moment to go
+        if not left:
+            break
+        time.sleep(0.1)
+        left = _group(p.pid)
+    return p.returncode, err, stopped, left, sorted(os.listdir(tmp)), workers
+
+
+@pytest.mark.integration
+def test_ctrl_c_stops_the_experiment_and_its_workers(built_fmus, tmp_path):
+    fmu_dir = Path(built_fmus["Excitation"]).parent
+    rc, err, stopped, left, files, workers = _interrupt(
+        ["experiment", "adxl203", "--workers", "2", "--out", "res", "--fmu-dir", str(fmu_dir)],
+        tmp_path, after=2.0, wait_for_workers=2)
+    assert workers >= 2  # it was interrupted while the sets ran on the workers
+    assert rc == 130, err
+    assert "interrupted" in _one_error_line(err)
+    assert stopped < 10.0  # today about 0.1 s; without the handling, minutes
+    assert left == [] and files == []
+    assert not (tmp_path / "res").exists()
+
+
+def _main_started(pid):
+    """True once the command's main() runs: it then catches SIGTERM (bit 15 of SigCgt in
+    /proc/PID/status), which the interpreter's own start-up does not."""
+    try:
+        with open("/proc/%d/status" % pid) as fh:
+            caught = next(int(line.split()[1], 16) for line in fh if line.startswith("SigCgt"))
+    except (OSError, StopIteration):
+        return False
+    return bool(caught & (1 << (signal.SIGTERM - 1)))
+
+
+@pytest.mark.skipif(not os.path.exists("/proc/self/status"), reason="needs /proc")
+@pytest.mark.parametrize("after", [0.0, 0.3])
+def test_ctrl_c_early_is_one_line_and_130(tmp_path, after):
+    # "early": as soon as main() has started (while NumPy, matplotlib and the plugins are still
+    # being imported), and 0.3 s later; a signal in the interpreter's own start-up, before any
+    # of the project's code runs, is Python's to report
+    rc, err, stopped, left, files, _ = _interrupt(
+        ["sweep", "--runs", "20000", "--out", "res"], tmp_path, after=after, wait_for_main=True)
+    assert rc == 130, err
+    assert "interrupted" in _one_error_line(err)
+    assert left == [] and files == []
+    assert not (tmp_path / "res").exists()
+
+
+@pytest.mark.integration
+def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path):
+    # what `timeout` or `kill PID` do: SIGTERM to the main process, not to the group
+    fmu_dir = Path(built_fmus["Excitation"]).parent
+    rc, err, stopped, left, files, workers = _interrupt(
+        ["experiment", "adxl203", "--workers", "2", "--out", "res", "--fmu-dir", str(fmu_dir)],
+        tmp_path, after=1.0, wait_for_workers=2,
+        send=lambda pid: os.kill(pid, signal.SIGTERM))
+    assert workers >= 2
+    assert rc == 130, err
+    assert "interrupted" in _one_error_line(err)
+    assert stopped < 10.0 and left == [] and files == []
+
+
+def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
+    from dask.distributed import Client, LocalCluster
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                      dashboard_address=None) as cluster, Client(cluster) as client:
+        def busy():
+            return sum(len(v) for v in client.processing().values())
+        argv = ["sweep", "--runs", "100000", "--scheduler", cluster.scheduler_address,
+                "--out", "res"]
+        tmp = tmp_path / "tmp"
+        tmp.mkdir()
+        env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+        p = subprocess.Popen([sys.executable, "-m", "driftfmu", *argv], cwd=tmp_path, env=env,
+                             start_new_session=True, stdout=subprocess.PIPE,
+                             stderr=subprocess.PIPE, text=True)
+        t0 = time.monotonic()
+        while not busy() and time.monotonic() - t0 < 120:
+            assert p.poll() is None, p.communicate()
+            time.sleep(0.05)
+        assert busy()  # the cluster is computing the sweep's runs
+        sent = time.monotonic()
+        os.killpg(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+        assert p.returncode == 130 and time.monotonic() - sent < 10.0, err
+        assert "interrupted" in err.strip().splitlines()[-1]
+        for _ in range(100):  # the cancelled runs leave the cluster
+            if not busy():
+                break
+            time.sleep(0.1)
+        assert busy() == 0
+    assert not (tmp_path / "res").exists()
+
+
+@pytest.mark.integration
+def test_doctor_leaves_no_temporary_files(built_fmus, tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    r = subprocess.run([sys.executable, "-m", "driftfmu", "doctor", str(built_fmus["Excitation"])],
+                       env=dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT)),
+                       capture_output=True, text=True, timeout=300)
+    assert r.returncode == 0 and "will run on this host" in r.stdout, r.stdout + r.stderr
+    assert os.listdir(tmp) == []

@@ -1,0 +1,166 @@
+"""Every figure the commands write, rendered small and checked for what a reviewer would look at
+first: no warnings while drawing, axes labelled (with units), a caption-like title, every series
+drawn with finite data inside the axes, legends off the axes, and no text cut off at the edge of
+the image."""
+import warnings
+
+import matplotlib
+import numpy as np
+import pytest
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from driftfmu.models import chain, drift  # noqa: E402
+from driftfmu.simulations import adxl203, montecarlo, output, sweep  # noqa: E402
+
+
+@pytest.fixture
+def figures(monkeypatch):
+    """Render with warnings as errors; keep each figure the code closes, for inspection."""
+    kept = []
+    close = plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: kept.append(fig))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        yield kept
+    for fig in kept:
+        close(fig)
+
+
+def _check(fig, series):
+    """The checks every figure passes; ``series`` are legend labels each axes must draw, as
+    {axes index: [label prefix, ...]}."""
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    page = fig.bbox
+    assert fig._suptitle is not None and len(fig._suptitle.get_text()) > 30  # a caption
+    axes = [ax for ax in fig.axes if ax.get_visible()]
+    for ax in axes:
+        assert ax.get_ylabel().strip(), ax.get_title()
+        assert "[" in ax.get_ylabel() and "]" in ax.get_ylabel(), ax.get_ylabel()  # units
+        assert ax.get_title().strip() or len(axes) == 1  # panels say what they show
+    # an x label on the bottom axes of each column (shared x axes label only the last row)
+    assert all(ax.get_xlabel().strip() for ax in axes
+               if not any(o is not ax and ax.get_shared_x_axes().joined(ax, o)
+                          and o.get_position().y0 < ax.get_position().y0 for o in axes))
+    for i, labels in series.items():
+        ax = axes[i]
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        x0, x1 = sorted(ax.get_xlim())
+        y0, y1 = sorted(ax.get_ylim())
+        for prefix in labels:
+            found = [line for name, line in lines.items() if name.startswith(prefix)]
+            assert found, (prefix, sorted(lines))
+            x, y = (np.asarray(v, dtype=float) for v in found[0].get_data())
+            inside = np.isfinite(x) & np.isfinite(y) & (x >= x0) & (x <= x1) & (y >= y0) \
+                & (y <= y1)
+            assert inside.any(), prefix  # drawn, and inside the view
+        legend = ax.get_legend()
+        if legend is not None:
+            overlap = legend.get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
+            assert not overlap, "legend on the data: %s" % ax.get_title()
+    # labels written on the data (margins, "k = 250") stay inside their axes, not over the
+    # tick labels or cut at the frame
+    for ax in axes:
+        frame = ax.get_window_extent(renderer)
+        for t in ax.texts:
+            if t.get_text().strip():
+                b = t.get_window_extent(renderer)
+                assert b.x0 >= frame.x0 - 1 and b.x1 <= frame.x1 + 1 and b.y0 >= frame.y0 - 1 \
+                    and b.y1 <= frame.y1 + 1, "label off its axes: %r" % t.get_text()
+    # what is drawn of each axes (tick labels, axis labels, title, legend, annotations) and
+    # the caption lie inside the image
+    for box in [ax.get_tightbbox(renderer) for ax in axes] + \
+            [fig._suptitle.get_window_extent(renderer)]:
+        assert box.x0 >= page.x0 - 1 and box.x1 <= page.x1 + 1 and box.y0 >= page.y0 - 1 \
+            and box.y1 <= page.y1 + 1, "clipped: %s outside %s" % (box, page)
+
+
+def _one_run(n=400, **kw):
+    cols = chain.simulate(n, 1, **kw)
+    a2 = kw.get("a2", 0.01)
+    expected = a2 * (0.5 if kw.get("kind") == 2 else kw.get("Q", 0.01))
+    cols = dict(cols)
+    cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
+        cols["x"], cols["z"], 0.0, a2, expected)
+    return cols
+
+
+@pytest.mark.parametrize("kind", [1, 2])
+def test_drift_png(figures, tmp_path, kind):
+    cols = _one_run(kind=kind, Q=0.01 if kind == 1 else 0.5)
+    output.plot_drift(tmp_path / "drift.png", cols, "Drift estimates of one run, kind %d, "
+                      "with enough words to be a caption" % kind)
+    (fig,) = figures
+    _check(fig, {0: ["realised", "expected", "EKF1", "EKF2", "EKF3"],
+                 1: ["empirical", "EKF1"]})
+    assert (tmp_path / "drift.png").stat().st_size > 10000
+
+
+def test_drift_png_of_one_sample_draws_without_warning(figures, tmp_path):
+    output.plot_drift(tmp_path / "drift.png", _one_run(n=1), "One sample: still a figure, "
+                      "without a warning from matplotlib")
+    assert len(figures) == 1
+
+
+@pytest.mark.parametrize("which", ["gaussian", "sinusoidal"])
+def test_fig1_and_sine_png(figures, tmp_path, which):
+    if which == "gaussian":
+        montecarlo.montecarlo_gaussian(runs=64, n=300, workers=1, out=tmp_path)
+    else:
+        montecarlo.montecarlo_sinusoidal(runs=64, n=300, workers=1, out=tmp_path)
+    (fig,) = figures
+    _check(fig, {0: ["EKF1", "EKF2", "EKF3"], 1: ["empirical", "EKF1", "realised"]})
+    # the median and both percentile lines of each estimator: 3 lines each, none hidden in a
+    # filled band
+    top = fig.axes[0]
+    assert len([c for c in top.collections if c.get_label().startswith("EKF")]) == 0
+    assert len([line for line in top.get_lines() if line.get_color() in ("C0", "C1", "C2")]) \
+        == 9
+    assert any(t.get_text() == "k = 250" for t in top.texts)  # the claim's sample, labelled
+
+
+def test_fig2_fig3_png(figures, tmp_path):
+    sweep.sweep(a2=[1e-3, 1e-2, 1e-1], R=[1e-6, 1e-4, 1e-2], runs=16, n=200, workers=1,
+                out=tmp_path)
+    assert len(figures) == 2
+    for fig in figures:
+        _check(fig, {i: ["R = 1e-06", "R = 1e-04", "R = 1e-02", "the drift"] for i in (0, 1)})
+
+
+def _per(freqs, held_out=3):
+    rng = np.random.default_rng(1)
+    per, traces = [], []
+    for f in freqs:
+        emp = list(0.011 + 3e-4 * rng.standard_normal(held_out))
+        ekf = [e + 5e-5 * rng.standard_normal() for e in emp]
+        rms = float(np.sqrt(np.mean((np.array(ekf) - emp) ** 2)))
+        per.append({"frequency": f, "dc_empirical": emp, "dc_ekf1": ekf,
+                    "drift_mean": float(np.mean(emp)), "difference_rms": rms,
+                    "margin_db": 10 * np.log10(np.mean(emp) / rms)})
+        k = np.unique(np.geomspace(1, 6000, 100).astype(int))
+        traces.append([list(zip(k, e * (1 - np.exp(-k / 50.0)))) for e in emp])
+    return per, traces
+
+
+def test_fig4_png_shows_every_held_out_set_of_every_frequency(figures, tmp_path):
+    freqs = (100.0, 125.0, 150.0, 175.0, 200.0)
+    per, traces = _per(freqs)
+    adxl203.plot_fig4(tmp_path / "fig4.png", per, traces, 25, 6000, 1e-4)
+    (fig,) = figures
+    _check(fig, {0: ["empirical", "EKF1"], 1: ["%g Hz" % f for f in freqs]})
+    left = fig.axes[0]
+    marks = [line for line in left.get_lines() if line.get_linestyle() in ("None", "none", "")]
+    assert len(marks) == 2 * len(freqs)  # markers, not lines joining discrete sets
+    assert sum(len(line.get_xdata()) for line in marks) == 2 * 3 * len(freqs)
+
+
+def test_fig5_png(figures, tmp_path):
+    per, _ = _per((100.0, 150.0, 200.0))
+    adxl203.plot_fig5(tmp_path / "fig5.png", per)
+    (fig,) = figures
+    _check(fig, {0: ["drift", "rms(EKF1"]})
+    ax = fig.axes[0]
+    assert "dB re 1 V" in ax.get_ylabel() and "|value|" not in ax.get_ylabel()
+    assert len([t for t in ax.texts if t.get_text().endswith(" dB")]) == 3
