@@ -30,7 +30,7 @@ recorded output against :func:`models.dualaxis.simulate` on the same seeds, bit 
 import math
 import os
 import time
-from concurrent.futures import ProcessPoolExecutor, as_completed
+from concurrent.futures import as_completed
 from pathlib import Path
 
 import numpy as np
@@ -213,8 +213,7 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
     done = 0
     if engine == "fmu":
         paths = fmu_paths(fmu_dir)
-        context = batch.mp_context("driftfmu.simulations.dual_axis")
-        with ProcessPoolExecutor(max_workers=workers, mp_context=context) as pool:
+        with batch.process_pool(workers, "driftfmu.simulations.dual_axis") as pool:
             futs = {pool.submit(_fmu_task, (paths, *start_values(sw, v, s), n, Ts, int(sd))):
                     (i, r) for i, (sw, v) in enumerate(grid) for r, sd in enumerate(seeds)}
             cols = {}
@@ -444,7 +443,7 @@ def _cmd(args):
     total = 2 * args.points * runs
     settings = {k: getattr(args, k) for k in ("n", "Ts", "f", "X", "Xy", "phi", "A", "Q", "Qy",
                                               "a2", "bx", "R", "a2y", "by", "Ry")}
-    with cli.progress(total, "runs", monitor=False) as update:
+    with cli.progress(total, "runs", "run", monitor=False) as update:
         s = run_dual_axis(out=args.out, points=args.points, runs=runs, engine=args.engine,
                           seed=args.seed, fmu_dir=args.fmu_dir, workers=args.workers,
                           scheduler=args.scheduler, progress=update, **settings)
