@@ -15,8 +15,8 @@ For each slave script ``fmu_src/<Name>.py`` :func:`build_fmus`
    builder falls back to adding libpython to pythonfmu's library as a DT_NEEDED entry;
 4. validates the FMU with fmpy and moves it into place as ``<out_dir>/<Name>.fmu``.
 
-``resources/driftfmu_build.json`` records the Python version, libpython soname, code hash and
-loader kind of the build.
+``resources/driftfmu_build.json`` records the GUID (which the loader shim checks the host's
+against), the Python version, libpython soname, code hash and loader kind of the build.
 """
 import ast
 import contextlib
@@ -565,6 +565,7 @@ def _build_one(name, out_dir, src_dir, loader, log):
         entries.update(_linux_binaries(model_identifier, library, loader, work))
         entries[BUILD_INFO] = json.dumps({
             "model_identifier": model_identifier,
+            "guid": ET.fromstring(xml).get("guid"),
             "hash": digest,
             "package": package,
             "module": script.stem,
