@@ -391,14 +391,20 @@ static int null_argument(Instance *inst, const char *function, const char *name,
 }
 
 /* 1 (logged) if an array of n > 0 elements is NULL. */
-static int null_array(Instance *inst, const char *function, const char *name, size_t n,
-                      const void *p)
+static int null_count_array(Instance *inst, const char *function, const char *name,
+                            const char *count, size_t n, const void *p)
 {
     if (n == 0 || p)
         return 0;
-    shim_log(inst, fmi2Error, "%s: %s is NULL with nvr = %zu; allowed: an array of nvr "
-             "elements (or nvr = 0)", function, name, n);
+    shim_log(inst, fmi2Error, "%s: %s is NULL with %s = %zu; allowed: an array of %s "
+             "elements (or %s = 0)", function, name, count, n, count, count);
     return 1;
+}
+
+static int null_array(Instance *inst, const char *function, const char *name, size_t n,
+                      const void *p)
+{
+    return null_count_array(inst, function, name, "nvr", n, p);
 }
 
 /*
@@ -791,7 +797,8 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
                                const fmi2String categories[])
 {
     INSTANCE(c, "fmi2SetDebugLogging", ANY_STATE);
-    if (null_array(inst, "fmi2SetDebugLogging", "categories", nCategories, categories))
+    if (null_count_array(inst, "fmi2SetDebugLogging", "categories", "nCategories", nCategories,
+                         categories))
         return fmi2Error;
     free_categories(inst);
     inst->logging_on = loggingOn;
@@ -1199,7 +1206,8 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
                                    size_t size, fmi2FMUstate *FMUstate)
 {
     INSTANCE(c, "fmi2DeSerializeFMUstate", ANY_STATE);
-    if (null_array(inst, "fmi2DeSerializeFMUstate", "serializedState", size, serializedState) ||
+    if (null_count_array(inst, "fmi2DeSerializeFMUstate", "serializedState", "size", size,
+                         serializedState) ||
         null_argument(inst, "fmi2DeSerializeFMUstate", "FMUstate", FMUstate))
         return fmi2Error;
     State fields;
@@ -1267,6 +1275,12 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
                       fmi2Real communicationStepSize, fmi2Boolean noSetFMUStatePriorToCurrentPoint)
 {
     INSTANCE(c, "fmi2DoStep", STEP_COMPLETE);
+    if (!isfinite(currentCommunicationPoint)) {
+        shim_log(inst, fmi2Error, "fmi2DoStep: currentCommunicationPoint = %g s; allowed: a "
+                 "finite time, the end of the previous step (%.17g s)",
+                 currentCommunicationPoint, inst->time);
+        return fmi2Error;
+    }
     fmi2Status status = CALL(inner.DoStep(inst->inner, currentCommunicationPoint,
                                           communicationStepSize,
                                           noSetFMUStatePriorToCurrentPoint));
