@@ -97,7 +97,7 @@ enum {
 #define SETTABLE (INSTANTIATED | INITIALIZATION_MODE | STEP_COMPLETE)
 
 /* One model instance: pythonfmu's component and what the shim needs to filter its messages. */
-typedef struct {
+typedef struct Instance {
     fmi2Component inner;
     fmi2CallbackFunctions host;     /* the host's callbacks, copied */
     fmi2CallbackFunctions to_inner; /* the host's, with the logger replaced by shim_logger */
@@ -109,6 +109,9 @@ typedef struct {
     int state;        /* one of the states above */
     char guid[128];   /* the FMU's GUID, checked at instantiation */
     double start_time, time; /* from fmi2SetupExperiment; the end of the last accepted step */
+    char *location;   /* the resource location pythonfmu got */
+    fmi2Boolean visible;
+    struct Instance *next_free; /* in the pool of freed instances */
 } Instance;
 
 /* Append a formatted line to the error text err (ERROR_SIZE bytes). */
@@ -309,6 +312,7 @@ static void free_instance(Instance *inst)
 {
     free_categories(inst);
     free(inst->name);
+    free(inst->location);
     free(inst);
 }
 
@@ -680,6 +684,61 @@ static char *pythonfmu_location(const char *folder, char *why)
     return location;
 }
 
+/* -- the pool of freed instances ---------------------------------------------------------- */
+
+/*
+ * Creating a pythonfmu 0.7.0 instance leaks about 1 kB that nothing outside pythonfmu can free
+ * (a copy of the resources path, the slave class's mro() list and the str() of every class in
+ * it, made and dropped inside its fmi2Instantiate).  fmi2FreeInstance therefore resets the
+ * instance (pythonfmu's fmi2Reset makes a fresh Python slave object) and keeps up to POOL_SIZE
+ * of them; an fmi2Instantiate with the same instance name, resources and visibility gets one
+ * back, in the state a new instance has, without a new pythonfmu instance.
+ */
+#define POOL_SIZE 8
+static pthread_mutex_t pool_lock = PTHREAD_MUTEX_INITIALIZER;
+static Instance *pool;
+static int pooled;
+
+static Instance *from_pool(const char *name, const char *location, fmi2Boolean visible)
+{
+    Instance *found = NULL;
+    pthread_mutex_lock(&pool_lock);
+    for (Instance **p = &pool; *p; p = &(*p)->next_free) {
+        Instance *i = *p;
+        if (!strcmp(i->name, name) && !strcmp(i->location, location) &&
+            !i->visible == !visible) {
+            *p = i->next_free;
+            i->next_free = NULL;
+            pooled--;
+            found = i;
+            break;
+        }
+    }
+    pthread_mutex_unlock(&pool_lock);
+    return found;
+}
+
+/* Reset inst and keep it for a later fmi2Instantiate; 0 when it cannot be kept. */
+static int to_pool(Instance *inst)
+{
+    pthread_mutex_lock(&pool_lock);
+    int room = pooled < POOL_SIZE;
+    pthread_mutex_unlock(&pool_lock);
+    if (!room || !inst->location)
+        return 0;
+    inst->host.logger = NULL; /* the host is gone: nothing it gave may be called */
+    inst->logging_on = fmi2False;
+    free_categories(inst);
+    if (CALL(inner.Reset(inst->inner)) > fmi2Warning)
+        return 0;
+    pthread_mutex_lock(&pool_lock);
+    inst->next_free = pool;
+    pool = inst;
+    pooled++;
+    pthread_mutex_unlock(&pool_lock);
+    return 1;
+}
+
 /* -- instantiation ------------------------------------------------------------------------- */
 
 const char *fmi2GetTypesPlatform(void) { return fmi2TypesPlatform; }
@@ -771,9 +830,21 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         inst->to_inner.allocateMemory = calloc;
         inst->to_inner.freeMemory = free;
     }
+    Instance *reused = from_pool(inst->name, location, visible);
+    if (reused) {
+        reused->host = inst->host;
+        reused->logging_on = loggingOn;
+        reused->state = INSTANTIATED;
+        reused->start_time = reused->time = 0.0;
+        reused->worst = fmi2OK;
+        free(location);
+        free_instance(inst);
+        return reused;
+    }
+    inst->location = location;
+    inst->visible = visible;
     inst->inner = inner.Instantiate(instanceName, fmuType, fmuGUID, location, &inst->to_inner,
                                     visible, fmi2True);
-    free(location);
     if (!inst->inner) {
         free_instance(inst);
         return NULL;
@@ -785,6 +856,8 @@ void fmi2FreeInstance(fmi2Component c)
 {
     Instance *inst = (Instance *)c;
     if (!inst)
+        return;
+    if (inst->state != FATAL && to_pool(inst))
         return;
     /* After a fatal error pythonfmu 0.7.0 has released the instance's Python objects already,
        and releasing them again would crash: the instance is left to the process then. */

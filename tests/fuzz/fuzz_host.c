@@ -20,6 +20,7 @@
  *   raw B TEXT                         buffer B := TEXT (a hand-made "serialised state"; \n
  *                                      and \s in TEXT are a newline and a space)
  *   alias S T                          state slot S := the pointer in slot T
+ *   dump B                             print buffer B ("DUMP B text", newlines as '|')
  *   craft B NEWB KEY JSON              NEWB := B with "KEY": JSON added to its JSON object
  *                                      (the driftfmu header's length is fixed up)
  *   garbage S                          state slot S := a pointer to 64 bytes of junk
@@ -430,6 +431,14 @@ static fmi2Status run(char **w, int n)
         buffer_sizes[b] = (size_t)(o - out);
         return fmi2OK;
     }
+    if (!strcmp(op, "dump")) {
+        int b = slot(w[1]);
+        printf("DUMP %d ", b);
+        for (size_t i = 0; i < buffer_sizes[b]; i++)
+            putchar(buffers[b][i] == '\n' ? '|' : buffers[b][i]);
+        printf("\n");
+        return fmi2OK;
+    }
     if (!strcmp(op, "alias")) {
         states[slot(w[1])] = states[slot(w[2])];
         return fmi2OK;
@@ -580,7 +589,7 @@ int main(void)
         int on_instance = strcmp(w[0], "load") && strcmp(w[0], "inst") && strcmp(w[0], "raw") &&
                           strcmp(w[0], "craft") && strcmp(w[0], "garbage") &&
                           strcmp(w[0], "check") && strcmp(w[0], "reals") &&
-                          strcmp(w[0], "alias") &&
+                          strcmp(w[0], "alias") && strcmp(w[0], "dump") &&
                           strcmp(w[0], "free") && strcmp(w[0], "cycles") && n > 1;
         Slot *s = on_instance ? &insts[slot(w[1])] : NULL;
         if (s && !s->lib)
