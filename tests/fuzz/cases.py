@@ -9,7 +9,9 @@ instance at the point where the calls go, and the other model (for foreign state
 
 ``WHERE[name]`` says where the calls go: ``instantiated`` (before fmi2SetupExperiment),
 ``init`` (initialisation mode, after the inputs are set), ``step`` (after initialisation, at
-a random call of the sequence) or ``end`` (after fmi2Terminate).  Cases in ``ALL_MODELS`` run
+a random call of the sequence), ``end`` (after the sequence; the calls may terminate) or
+``restart`` (after the sequence and the ``end`` cases: they reset the instance and
+initialise it anew).  Cases in ``ALL_MODELS`` run
 with each model; the others with the Accelerometer (which has every feature they need).
 """
 import random
@@ -283,12 +285,12 @@ def _restart(model, ctx, parameters, inputs):
     return calls + [(_outputs(model, i), None)]
 
 
-@case("end", all_models=False)
+@case("restart", all_models=False)
 def parameter_overflow(model, ctx):
     return _restart(model, ctx, {"a2": "1e308"}, {"x": "1.5"})
 
 
-@case("end", all_models=False)
+@case("restart", all_models=False)
 def filtered_input_overflow(model, ctx):
     return _restart(model, ctx, {"fc": "100"}, {"x": "1e200"})
 
@@ -385,9 +387,15 @@ def set_real_partly_bad(model, ctx):
 
 # -- a script from a case ---------------------------------------------------------------------
 
-def script(case_name, model, other, seed, n_calls=30):
-    """The script of one invalid case: the sequence with the bad calls in instance 0, the same
+def script(case_names, model, other, seed, n_calls=30):
+    """The script of invalid cases: the sequence with the bad calls in instance 0, the same
     sequence without them in instance 1.
+
+    Parameters
+    ----------
+    case_names : str or list of str
+        Names in :data:`CASES`; each case's calls go where :data:`WHERE` says (``step``: at a
+        random call of the body, drawn from ``seed``).
 
     Returns
     -------
@@ -397,19 +405,25 @@ def script(case_name, model, other, seed, n_calls=30):
     seq0, seq1 : list of int
         Script line numbers of the sequence's calls in instance 0 and in instance 1.
     """
+    if isinstance(case_names, str):
+        case_names = [case_names]
+    order = ("instantiated", "init", "step", "end", "restart")
+    case_names = sorted(case_names, key=lambda name: order.index(WHERE[name]))
     rng = random.Random(seed)
     seq = Sequence(model, rng, n_calls)
-    where = WHERE[case_name]
-    if where == "instantiated":
-        at = 0
-    elif where == "init":
-        at = seq.calls.index("exit {I}")
-    elif where == "step":
-        at = rng.randrange(seq.body, len(seq.calls) + 1)
-    else:
-        at = len(seq.calls)
-    t, inputs = seq.context[at] if at < len(seq.calls) else (seq.t, dict(seq.inputs))
-    calls = CASES[case_name](model, Context(0, t, inputs, other))
+    inserted = {}
+    for name in case_names:
+        where = WHERE[name]
+        if where == "instantiated":
+            at = 0
+        elif where == "init":
+            at = seq.calls.index("exit {I}")
+        elif where == "step":
+            at = rng.randrange(seq.body, len(seq.calls) + 1)
+        else:
+            at = len(seq.calls)
+        t, inputs = seq.context[at] if at < len(seq.calls) else (seq.t, dict(seq.inputs))
+        inserted.setdefault(at, []).extend(CASES[name](model, Context(0, t, inputs, other)))
 
     lines = header(model, 0) + ["inst 1 0 reference 1 %s DEFAULT" % model.guid,
                                 "reals 1 %d %s" % (len(model.reals),
@@ -420,9 +434,9 @@ def script(case_name, model, other, seed, n_calls=30):
     bad, seq0, seq1 = {}, [], []
     body = seq.lines(0)
     for k, line in enumerate(body + [None]):
-        if k == at:
+        if k in inserted:
             lines.append("check on")
-            for call, expect in calls:
+            for call, expect in inserted[k]:
                 lines.append(call)
                 bad[len(lines)] = expect
             lines.append("check off")
@@ -440,7 +454,7 @@ def judge(result, bad, seq0, seq1):
     """Problems of a case's run: crash, hang, changes, non-finite values, a bad call that was
     accepted or logged nothing, and outputs of the sequence that differ from the reference's."""
     problems = result.problems()
-    if problems and (result.crashed or result.timed_out):
+    if result.returncode != 0 or result.timed_out:
         return problems
     statuses = result.statuses()
     logged = _logged_errors(result)
@@ -482,7 +496,8 @@ def _logged_errors(result):
     return lines
 
 
-def run_case(host, case_name, model, other, seed, **kwargs):
-    lines, bad, seq0, seq1 = script(case_name, model, other, seed)
+def run_case(host, case_names, model, other, seed, **kwargs):
+    """Run :func:`script` in a fresh host; ``(result, problems, lines)``."""
+    lines, bad, seq0, seq1 = script(case_names, model, other, seed)
     result = run_script(host, lines, **kwargs)
     return result, judge(result, bad, seq0, seq1), lines

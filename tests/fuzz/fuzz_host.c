@@ -14,6 +14,7 @@
  *   free I | setup I T | enter I | exit I | term I | reset I
  *   setr I N VR V ...  | seti I N VR V ... | setb I N VR V ...
  *   getr I N VR ...    | geti I N VR ...   | getb I N VR ...
+ *   copy I VR J VR2                    set Real VR2 of instance J to Real VR of instance I
  *   step I T H
  *   gst I S | sst I S | fst I S        get into / set from / free state slot S
  *   ser I S B | des I B S              serialise state S into buffer B / deserialise B into S
@@ -531,6 +532,15 @@ static fmi2Status run(char **w, int n)
     if (!strcmp(op, "getr")) return get_values(s, w, n, 'r');
     if (!strcmp(op, "geti")) return get_values(s, w, n, 'i');
     if (!strcmp(op, "getb")) return get_values(s, w, n, 'b');
+    if (!strcmp(op, "copy")) {
+        if (n < 5) fail("copy I VR J VR2");
+        Slot *d = instance(w[3]);
+        fmi2ValueReference from = reference(w[2]), to = reference(w[4]);
+        double v;
+        fmi2Status status = l->GetReal(s->c, &from, 1, &v);
+        if (status > fmi2Warning) return status;
+        return d->lib->SetReal(d->c, &to, 1, &v);
+    }
     if (!strcmp(op, "step")) {
         if (n < 4) fail("step I T H");
         return l->DoStep(s->c, number(w[2]), number(w[3]), fmi2True);
