@@ -163,9 +163,14 @@ def run_script(host, lines, valgrind=None, time_limit=TIME_LIMIT, env=None):
 
 # -- scripts -----------------------------------------------------------------------------------
 
+def word(text):
+    """``text`` as one word of a script (spaces and backslashes escaped)."""
+    return text.replace("\\", "\\\\").replace(" ", "\\s")
+
+
 def header(model, slot=0, lib=0, name="fuzz"):
     """Load ``model`` as library ``lib`` and instantiate it in ``slot``."""
-    return ["load %d %s %s" % (lib, model.dir, model.identifier),
+    return ["load %d %s %s" % (lib, word(model.dir), model.identifier),
             "inst %d %d %s 1 %s DEFAULT" % (slot, lib, name, model.guid),
             "reals %d %d %s" % (slot, len(model.reals), " ".join(map(str, model.reals)))]
 

@@ -17,7 +17,7 @@ with each model; the others with the Accelerometer (which has every feature they
 import random
 from dataclasses import dataclass
 
-from . import OK, WARNING, DISCARD, ERROR, Sequence, header, run_script
+from . import DISCARD, ERROR, WARNING, Sequence, header, run_script, word
 
 CASES = {}
 WHERE = {}
@@ -72,7 +72,7 @@ def uri_null(model, ctx):
 
 @case("step", all_models=False)
 def uri_http(model, ctx):
-    return _inst(model, "http://localhost%s/resources" % model.dir)
+    return _inst(model, "http://localhost%s/resources" % word(model.dir))
 
 
 @case("step", all_models=False)
@@ -83,25 +83,25 @@ def uri_relative(model, ctx):
 
 @case("step", all_models=False)
 def uri_other_host(model, ctx):
-    return _inst(model, "file://fileserver%s/resources" % model.dir)
+    return _inst(model, "file://fileserver%s/resources" % word(model.dir))
 
 
 @case("step", all_models=False)
 def uri_missing_folder(model, ctx):
-    return _inst(model, "file://%s/no-such-folder" % model.dir) + \
+    return _inst(model, "file://%s/no-such-folder" % word(model.dir)) + \
         _inst(model, "file:///no/such/folder/resources")
 
 
 @case("step", all_models=False)
 def uri_not_the_resources(model, ctx):
-    return _inst(model, "file://%s" % model.dir) + _inst(model, "file:///tmp")
+    return _inst(model, "file://%s" % word(model.dir)) + _inst(model, "file:///tmp")
 
 
 @case("step", all_models=False)
 def uri_bad_escapes(model, ctx):
-    return _inst(model, "file://%s/resources%%zz" % model.dir) + \
-        _inst(model, "file://%s/res%%00ources" % model.dir) + \
-        _inst(model, "file://%s/resources%%" % model.dir)
+    return _inst(model, "file://%s/resources%%zz" % word(model.dir)) + \
+        _inst(model, "file://%s/res%%00ources" % word(model.dir)) + \
+        _inst(model, "file://%s/resources%%" % word(model.dir))
 
 
 @case("step", all_models=False)
@@ -428,7 +428,7 @@ def script(case_names, model, other, seed, n_calls=30):
     lines = header(model, 0) + ["inst 1 0 reference 1 %s DEFAULT" % model.guid,
                                 "reals 1 %d %s" % (len(model.reals),
                                                    " ".join(map(str, model.reals)))]
-    lines += ["load 1 %s %s" % (other.dir, other.identifier),
+    lines += ["load 1 %s %s" % (word(other.dir), other.identifier),
               "inst 6 1 other 1 %s DEFAULT" % other.guid,
               "setup 6 0", "enter 6", "exit 6"]
     bad, seq0, seq1 = {}, [], []

@@ -5,7 +5,8 @@
  *
  * One call a line, words separated by spaces; I is an instance slot, L a library slot, S a
  * state slot, B a byte-buffer slot (0..63 each).  Numbers are read with strtod/strtoul, so
- * "nan", "inf" and "1e300" work.  A word "NULL" stands for a NULL string.
+ * "nan", "inf" and "1e300" work.  A word "NULL" stands for a NULL string; "\s" in a word is
+ * a space, "\\" a backslash.
  *
  *   load L DIR MODEL_IDENTIFIER        dlopen DIR/binaries/linux64/MODEL_IDENTIFIER.so
  *   inst I L NAME TYPE GUID URI        fmi2Instantiate; GUID/URI "NULL"; URI "DEFAULT" is
@@ -583,6 +584,21 @@ static fmi2Status run(char **w, int n)
     return fmi2Fatal;
 }
 
+/* "\s" in a word is a space (paths and URIs with spaces), "\\" a backslash. */
+static void unescape(char *word)
+{
+    char *o = word;
+    for (char *p = word; *p; p++) {
+        if (p[0] == '\\' && (p[1] == 's' || p[1] == '\\')) {
+            *o++ = p[1] == 's' ? ' ' : '\\';
+            p++;
+        } else {
+            *o++ = *p;
+        }
+    }
+    *o = '\0';
+}
+
 int main(void)
 {
     static char line[1 << 16];
@@ -593,6 +609,8 @@ int main(void)
         int n = 0;
         for (char *t = strtok(line, " \t\r\n"); t && n < MAX_WORDS; t = strtok(NULL, " \t\r\n"))
             w[n++] = t;
+        for (int k = 0; k < n && strcmp(w[0], "raw"); k++)
+            unescape(w[k]);
         if (n == 0 || w[0][0] == '#')
             continue;
         /* snapshot around calls on an instance, when checking */
