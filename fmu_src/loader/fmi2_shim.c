@@ -1031,10 +1031,9 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
  * An FMU state is a shim record around pythonfmu's (a Python object): the model's GUID and the
  * instance's FMI state and time go with it, and every live record is listed, so that a pointer
  * the shim did not hand out (garbage, freed, another FMU's) is refused without reading it.
- * Serialised, a state is a text header and pythonfmu's bytes:
- *     driftfmu FMU state 1\n<GUID>\n<state> <start time> <time> <length of the rest>\n<bytes>
+ * Serialised, a state is the model's bytes (JSON with the model's name, GUID and version, which
+ * the model checks when the state is set).
  */
-#define STATE_HEADER "driftfmu FMU state 1\n"
 
 typedef struct State {
     struct State *next;
@@ -1187,12 +1186,6 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     return fmi2OK;
 }
 
-static int state_header(const State *s, size_t n, char *header, size_t size)
-{
-    return snprintf(header, size, STATE_HEADER "%s\n%d %a %a %zu\n", s->guid, s->state,
-                    s->start_time, s->time, n);
-}
-
 /* Size of pythonfmu's serialisation of s, or (size_t)-1 after an error. */
 static size_t inner_size(Instance *inst, State *s, fmi2Status *status)
 {
@@ -1211,10 +1204,8 @@ fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, si
         return fmi2Error;
     fmi2Status status;
     size_t n = inner_size(inst, s, &status);
-    if (n == (size_t)-1)
-        return status;
-    char header[512];
-    *size = (size_t)state_header(s, n, header, sizeof header) + n;
+    if (n != (size_t)-1)
+        *size = n;
     return status;
 }
 
@@ -1231,58 +1222,53 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     size_t n = inner_size(inst, s, &status);
     if (n == (size_t)-1)
         return status;
-    char header[512];
-    size_t h = (size_t)state_header(s, n, header, sizeof header);
-    if (size < h + n) {
+    if (size < n) { /* pythonfmu would copy n bytes into the smaller buffer */
         shim_log(inst, fmi2Error, "fmi2SerializeFMUstate: size = %zu is too small; allowed: "
-                 "the size fmi2SerializedFMUstateSize returns, %zu", size, h + n);
+                 "the size fmi2SerializedFMUstateSize returns, %zu", size, n);
         return fmi2Error;
     }
-    memcpy(serializedState, header, h);
     fmi2Status inner_status = CALL(inner.SerializeFMUstate(inst->inner, s->inner,
-                                                           serializedState + h, n));
+                                                           serializedState, n));
     return inner_status > status ? inner_status : status;
 }
 
-/* Parse a serialised state's header: 1 and the fields, or 0 with why. */
-static int parse_state(Instance *inst, const fmi2Byte *bytes, size_t size, State *fields,
-                       size_t *offset, size_t *n, char *why, size_t why_size)
+/* 1 if `what` occurs in text before end. */
+static int occurs(const char *text, const char *end, const char *what)
 {
-    size_t magic = strlen(STATE_HEADER);
-    if (size < magic || memcmp(bytes, STATE_HEADER, magic)) {
-        snprintf(why, why_size, "it does not start with \"driftfmu FMU state 1\"");
-        return 0;
+    const char *p = strstr(text, what);
+    return p && p < end;
+}
+
+/*
+ * The FMI state and time a serialised state describes, from the model's "flags" and "time"
+ * (the model writes them, and checks the GUID, the model and every field when the state is
+ * set).  Bytes without them get the instance's own: the model refuses such bytes anyway.
+ */
+static void state_of_bytes(Instance *inst, const fmi2Byte *bytes, size_t size, State *fields)
+{
+    fields->state = inst->state;
+    fields->start_time = inst->start_time;
+    fields->time = inst->time;
+    char *text = malloc(size + 1);
+    if (!text)
+        return;
+    memcpy(text, bytes, size);
+    text[size] = '\0';
+    const char *flags = strstr(text, "\"flags\": {"), *end = flags ? strchr(flags, '}') : NULL;
+    if (end) {
+        fields->state = occurs(flags, end, "\"terminated\": true") ? TERMINATED
+                        : occurs(flags, end, "\"initialised\": true") ? STEP_COMPLETE
+                        : occurs(flags, end, "\"in_init\": true") ? INITIALIZATION_MODE
+                                                                    : INSTANTIATED;
     }
-    char header[512];
-    size_t h = size - magic < sizeof header - 1 ? size - magic : sizeof header - 1;
-    memcpy(header, bytes + magic, h);
-    header[h] = '\0';
-    char *guid_end = memchr(header, '\n', h);
-    if (!guid_end) {
-        snprintf(why, why_size, "its header is cut off");
-        return 0;
+    const char *time = strstr(text, "\"time\": [");
+    double start, elapsed;
+    if (time && sscanf(time + 9, "%lf, %lf", &start, &elapsed) == 2 && isfinite(start) &&
+        isfinite(elapsed)) {
+        fields->start_time = start;
+        fields->time = start + elapsed;
     }
-    *guid_end = '\0';
-    if (strcmp(header, inst->guid)) {
-        snprintf(why, why_size, "it is a state of the FMU with GUID %.100s", header);
-        return 0;
-    }
-    char *line = guid_end + 1, *line_end = memchr(line, '\n', h - (line - header));
-    int used = 0;
-    if (!line_end || (*line_end = '\0',
-                      sscanf(line, "%d %la %la %zu%n", &fields->state, &fields->start_time,
-                             &fields->time, n, &used) != 4) || line + used != line_end) {
-        snprintf(why, why_size, "its header is damaged");
-        return 0;
-    }
-    *offset = magic + (size_t)(line_end + 1 - header);
-    if (!(fields->state == INSTANTIATED || fields->state == INITIALIZATION_MODE ||
-          fields->state == STEP_COMPLETE || fields->state == TERMINATED) ||
-        !isfinite(fields->start_time) || !isfinite(fields->time) || *n > size - *offset) {
-        snprintf(why, why_size, "its header is damaged or the bytes are cut off");
-        return 0;
-    }
-    return 1;
+    free(text);
 }
 
 fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedState[],
@@ -1294,21 +1280,18 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         null_argument(inst, "fmi2DeSerializeFMUstate", "FMUstate", FMUstate))
         return fmi2Error;
     State fields;
-    size_t offset = 0, n = 0;
-    char why[256];
-    if (!parse_state(inst, serializedState, size, &fields, &offset, &n, why, sizeof why)) {
-        shim_log(inst, fmi2Error, "fmi2DeSerializeFMUstate: the %zu bytes are not a serialised "
-                 "FMU state of this FMU (GUID %s): %s; allowed: bytes from its "
-                 "fmi2SerializeFMUstate", size, inst->guid, why);
-        return fmi2Error;
-    }
+    state_of_bytes(inst, size ? serializedState : "", size, &fields);
     fmi2FMUstate target = *FMUstate;
     fmi2Status warning = check_target(inst, "fmi2DeSerializeFMUstate", &target);
     fmi2FMUstate fresh = NULL;
-    fmi2Status status = CALL(inner.DeSerializeFMUstate(inst->inner, serializedState + offset, n,
-                                                       &fresh));
+    fmi2Status status = CALL(inner.DeSerializeFMUstate(inst->inner, size ? serializedState : "",
+                                                       size, &fresh));
     if (status > fmi2Warning)
         return status;
+    if (!fresh) {
+        shim_log(inst, fmi2Error, "fmi2DeSerializeFMUstate: the model returned no state");
+        return fmi2Error;
+    }
     fmi2Status stored = store_state(inst, fresh, &target, fields.state, fields.start_time,
                                     fields.time);
     if (stored == fmi2OK)
