@@ -182,10 +182,13 @@ static int load_libpython(char *err, char *note)
     snprintf(candidates[n++], sizeof candidates[0], "libpython3.so");
     for (int i = 0; i < n; i++) {
         if (try_libpython(candidates[i], err)) {
-            if (explicit_failed)
+            if (explicit_failed) { /* its reason, without the list's line break */
+                size_t skip = explicit_end - explicit_at > 3 ? 3 : 0;
                 snprintf(note, ERROR_SIZE, "driftfmu: DRIFTFMU_LIBPYTHON=%s is not a usable "
-                         "libpython:%.*s\nusing %s instead", explicit_path,
-                         (int)(explicit_end - explicit_at), err + explicit_at, candidates[i]);
+                         "libpython (%.*s); using %s instead", explicit_path,
+                         (int)(explicit_end - explicit_at - skip), err + explicit_at + skip,
+                         candidates[i]);
+            }
             return 1;
         }
     }

@@ -27,7 +27,8 @@
  *                                      (the driftfmu header's length is fixed up)
  *   garbage S                          state slot S := a pointer to 64 bytes of junk
  *   null I WHAT                        a call with a NULL where a pointer belongs (see below)
- *   status I KIND TYPE                 fmi2Get<TYPE>Status (TYPE: s r i b str)
+ *   status I KIND TYPE                 fmi2Get<TYPE>Status (TYPE: s r i b str); prints the
+ *                                      value (not for str) when the call succeeds
  *   cycles L N EVERY                   N instantiate..free cycles, "RSS i bytes" every EVERY
  *   stateloop I S N EVERY              N fmi2GetFMUstate into slot S, RSS every EVERY
  *   errloop I N EVERY                  N rejected fmi2SetReal (NaN into vr 0), RSS every EVERY
@@ -574,11 +575,26 @@ static fmi2Status run(char **w, int n)
         fmi2Integer iv;
         fmi2Boolean bv;
         fmi2String strv;
-        if (!strcmp(t, "s")) return l->GetStatus(s->c, kind, &sv);
-        if (!strcmp(t, "r")) return l->GetRealStatus(s->c, kind, &rv);
-        if (!strcmp(t, "i")) return l->GetIntegerStatus(s->c, kind, &iv);
-        if (!strcmp(t, "b")) return l->GetBooleanStatus(s->c, kind, &bv);
-        return l->GetStringStatus(s->c, kind, &strv);
+        fmi2Status status;
+        double printed;
+        if (!strcmp(t, "s")) {
+            status = l->GetStatus(s->c, kind, &sv);
+            printed = sv;
+        } else if (!strcmp(t, "r")) {
+            status = l->GetRealStatus(s->c, kind, &rv);
+            printed = rv;
+        } else if (!strcmp(t, "i")) {
+            status = l->GetIntegerStatus(s->c, kind, &iv);
+            printed = iv;
+        } else if (!strcmp(t, "b")) {
+            status = l->GetBooleanStatus(s->c, kind, &bv);
+            printed = bv;
+        } else {
+            return l->GetStringStatus(s->c, kind, &strv);
+        }
+        if (status <= fmi2Warning)
+            print_reals(&printed, 1);
+        return status;
     }
     fail("unknown call");
     return fmi2Fatal;
