@@ -139,7 +139,10 @@ class SlaveBase(Fmi2Slave):
     DEPENDENCIES = {}
     CAN_HANDLE_VARIABLE_STEP = True
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
-    #: Names of the hidden state (attributes; None before initialisation).
+    #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
+    #: before initialisation).  Slaves provide the hooks ``prepare``, ``initial_hidden``,
+    #: ``sample`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
+    #: ``hidden_problems``; the step rule, the checks and the FMU state are this class's.
     HIDDEN = ()
 
     def __init__(self, **kwargs):
@@ -398,12 +401,12 @@ class SlaveBase(Fmi2Slave):
     def _refresh(self):
         """Outputs of the pending sample from the current inputs (feedthrough)."""
         if self._initialised:
-            pending, outputs = self._samples(self._hidden(), self.k, 1, True)
+            pending, outputs = self._samples(self._committed, self.k, 1, True)
         else:  # Initialization Mode: sample 1 from the start values and inputs
             self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
             pending, outputs = self._samples(self.initial_hidden(), 1, 1, True)
             pending = None
-        self._set_outputs(outputs)
+        self.__dict__.update(outputs)
         self._pending = pending
         self._dirty = False
 
@@ -434,18 +437,27 @@ class SlaveBase(Fmi2Slave):
         first = True
         if m and self._at_sample:  # sample k: committed with the inputs set at t
             if self._dirty or self._pending is None:
-                hidden, outputs = self._samples(self._hidden(), k, 1, True)
+                hidden, outputs = self._samples(self._committed, k, 1, True)
             else:
                 hidden = self._pending
             first = False
         if m > 1 or (m and not self._at_sample):  # the other instants: inputs held from t
             start = k + 1 if self._at_sample else k
-            hidden, outputs = self._samples(self._hidden() if hidden is None else hidden,
+            hidden, outputs = self._samples(self._committed if hidden is None else hidden,
                                             start, k + m - start, first)
         if at_sample and not self.DEPENDENCIES:
-            pending, outputs = self._samples(self._hidden() if hidden is None else hidden,
+            pending, outputs = self._samples(self._committed if hidden is None else hidden,
                                              k + m, 1, True)
-        self._commit(hidden, k + m, at_sample, elapsed, comp, outputs, pending)
+        # commit (nothing above changed the instance)
+        if hidden is not None:
+            self._committed = hidden
+        if outputs is not None:
+            self.__dict__.update(outputs)
+        self.k = k + m
+        self._at_sample = at_sample
+        self._elapsed, self._elapsed_c = elapsed, comp
+        self._pending = pending
+        self._dirty = pending is None
 
     def _commit(self, hidden, k, at_sample, elapsed, comp, outputs, pending):
         if hidden is not None:
@@ -457,12 +469,6 @@ class SlaveBase(Fmi2Slave):
         self._elapsed, self._elapsed_c = elapsed, comp
         self._pending = pending
         self._dirty = pending is None
-
-    def _set_outputs(self, outputs):
-        self.__dict__.update(outputs)
-
-    def _hidden(self):
-        return self._committed
 
     def _samples(self, hidden, k0, n, first):
         """Process samples ``k0 .. k0 + n - 1`` from ``hidden`` with the inputs held; return
@@ -483,7 +489,8 @@ class SlaveBase(Fmi2Slave):
                 for name, value in outputs.items():
                     if not math.isfinite(value):
                         self._not_finite(name, value, k)
-        if not self.hidden_finite(hidden):
+        check = self.hidden_finite
+        if check is not None and not check(hidden):
             for name, value in hidden.items():
                 for part, v in _numbers(name, value):
                     if not math.isfinite(v):
@@ -520,8 +527,9 @@ class SlaveBase(Fmi2Slave):
         return value
 
     def hidden_finite(self, hidden):
-        """Whether every number in ``hidden`` is finite (slaves may override with a faster
-        test of the same meaning)."""
+        """Whether every number in ``hidden`` is finite.  Slaves may override this with a
+        faster test of the same meaning, or set it to None where a non-finite hidden value
+        always makes an output non-finite (which is checked first)."""
         for name, value in hidden.items():
             if value is None:
                 continue
@@ -534,6 +542,20 @@ class SlaveBase(Fmi2Slave):
 
     def hidden_problems(self, hidden):
         """Problems of a hidden state read back for the current parameters (hook)."""
+        return []
+
+    def _timing_problems(self, k, time, at_sample):
+        """Whether sample index ``k`` and the at-a-sample flag agree with the time of a state
+        (as :meth:`_step` derives them: ``k - 1`` is the first instant at or after ``t``)."""
+        position = (time[1] + time[2]) / self.Ts
+        if not math.isfinite(position):
+            return ["time = %r is not a finite number of sample periods Ts = %r s"
+                    % (time, self.Ts)]
+        first = math.ceil(position - INSTANT_TOLERANCE)
+        if k - 1 != first or at_sample != (first <= position + INSTANT_TOLERANCE):
+            return ["k = %r and at_sample = %r do not match the time %r s after the start "
+                    "(the next sample there is k = %d)" % (k, at_sample, time[1] + time[2],
+                                                            first + 1)]
         return []
 
     # -- FMU state: variables plus hidden state ---------------------------------------------
@@ -625,7 +647,8 @@ class SlaveBase(Fmi2Slave):
                            self.initial_hidden()[name] is not None):
                         bad = ["the hidden state of an initialised instance is missing"]
                     else:
-                        bad = self.hidden_problems(hidden)
+                        bad = self.hidden_problems(hidden) + self._timing_problems(
+                            k, time, flags["at_sample"])
             finally:
                 for name, value in saved.items():
                     setattr(self, name, value)
