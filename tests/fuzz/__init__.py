@@ -5,8 +5,8 @@ values read, ``CHANGED`` when a rejected call changed the instance (all Reals an
 serialised FMU state are compared before and after it) and ``NONFINITE`` when an accepted call
 left a Real variable non-finite.  This module writes the scripts and judges the output:
 
-- :func:`valid_sequence`: random valid call sequences (inputs, steps of whole sample periods,
-  reads, FMU state get/set/serialise round trips), replayed in a fresh instance of the same
+- :func:`valid_sequence`: random valid call sequences (inputs, steps of whole and fractional
+  sample periods, reads, FMU state get/set/serialise round trips), replayed in a fresh instance of the same
   process and through an FMU state restore; the outputs must be identical.
 - :data:`INVALID`: every kind of bad call of issue 9 (resource locations, GUIDs, NULLs,
   garbage, foreign and crafted FMU states, bad step sizes and times, overflowing inputs,
@@ -209,7 +209,9 @@ class Sequence:
             if r < 0.35 and model.inputs:
                 self.set(rng.choice(model.inputs), round(rng.gauss(0, 1.5), 9))
             elif r < 0.75:
-                h = model.Ts * rng.choice((1, 1, 1, 2, 3))
+                # whole sample periods mostly; any positive step is valid (the sampled-data
+                # step rule: instants inside a step see the inputs held from its start)
+                h = model.Ts * rng.choice((1, 1, 1, 2, 3, 0.5, 0.3, 2.5))
                 self.add("step {I} %r %r" % (self.t, h))
                 self.t += h
                 self.add(self.read())
