@@ -72,13 +72,24 @@ def reference(host, plain):
     return value
 
 
+@pytest.fixture(scope="module")
+def unzipped(built_fmus, tmp_path_factory):
+    """folder name -> the Accelerometer unzipped into a folder of that name (once each)."""
+    cache = {}
+
+    def get(folder):
+        if folder not in cache:
+            root = tmp_path_factory.mktemp("uri") / folder
+            cache[folder] = fuzz.unzip(built_fmus["Accelerometer"], root)
+        return cache[folder]
+    return get
+
+
 @pytest.mark.parametrize("form", list(uri_forms("/x")))
 @pytest.mark.parametrize("folder", FOLDERS)
-def test_each_uri_form_in_the_c_host(host, built_fmus, tmp_path_factory, reference, folder,
-                                     form):
-    root = tmp_path_factory.mktemp("uri") / folder
-    model = fuzz.unzip(built_fmus["Accelerometer"], root)
-    uri = uri_forms(root / "resources")[form]
+def test_each_uri_form_in_the_c_host(host, unzipped, reference, folder, form):
+    model = unzipped(folder)
+    uri = uri_forms(Path(model.dir) / "resources")[form]
     result, value = c_host_value(host, model, uri)
     assert result.problems() == [] and "INST 0 ok" in result.lines, (uri, result.output)
     assert value == reference

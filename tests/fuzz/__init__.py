@@ -6,9 +6,9 @@ serialised FMU state are compared before and after it) and ``NONFINITE`` when an
 left a Real variable non-finite.  This module writes the scripts and judges the output:
 
 - :func:`valid_sequence`: random valid call sequences (inputs, steps of whole and fractional
-  sample periods, reads, FMU state get/set/serialise round trips), replayed in a fresh instance of the same
-  process and through an FMU state restore; the outputs must be identical.
-- :data:`INVALID`: every kind of bad call of issue 9 (resource locations, GUIDs, NULLs,
+  sample periods, reads, FMU state get/set/serialise round trips), replayed in a fresh
+  instance of the same process and through an FMU state restore; the outputs must be identical.
+- ``cases.CASES`` (tests/fuzz/cases.py): every kind of bad call of issue 9 (resource locations, GUIDs, NULLs,
   garbage, foreign and crafted FMU states, bad step sizes and times, overflowing inputs,
   out-of-order calls, out-of-range value references).  Each is run between the calls of a
   valid sequence, and the outputs of that sequence must be those of the same sequence without
