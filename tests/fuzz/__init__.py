@@ -189,7 +189,7 @@ class Sequence:
     sequence) and ``{B}`` (a buffer slot), so one sequence runs in several instances.
     """
 
-    def __init__(self, model, rng, n_calls, state_calls=True, t0=None):
+    def __init__(self, model, rng, n_calls, state_calls=True, t0=None, parameters=True):
         self.model = model
         self.calls = []
         #: per call, the time and the inputs before it
@@ -198,6 +198,8 @@ class Sequence:
         self.inputs = {name: model.start.get(name, 0.0) for name in model.inputs}
         if t0 is None:  # from instantiation: initialise first
             self.add("setup {I} 0", "enter {I}")
+            if parameters and "seed" in model.vr:
+                self.add("seti {I} 1 %d %d" % (model.vr["seed"], rng.randint(2, 10 ** 6)))
             for name in model.inputs:
                 self.set(name, round(rng.uniform(-2, 2), 6))
             self.add("exit {I}", self.read())
@@ -245,7 +247,8 @@ class Sequence:
 
 def valid_sequence(model, seed, n_calls=40):
     """A script running one random valid sequence in instance 0, then in a fresh instance 1,
-    then (in 1) a state restore replay; and the line ranges whose reads must agree.
+    then (in 1) a state restore replay, then another sequence in an instance of 0's name (made
+    after 0 was freed) and in a new one; and the line ranges whose reads must agree.
 
     Returns
     -------
@@ -268,8 +271,16 @@ def valid_sequence(model, seed, n_calls=40):
     before = _span(lines, tail_calls)
     lines.append("sst 1 20")
     after = _span(lines, tail_calls)
-    lines += ["fst 1 20", "free 0", "free 1"]
-    return lines, [(first, second), (before, after)]
+    lines += ["fst 1 20", "free 0"]
+    # a fresh sequence in an instance of the freed one's name (the shim hands back the freed
+    # instance, reset) and in one of a new name
+    fresh = Sequence(model, rng, n_calls // 2, parameters=False)
+    lines.append("inst 2 0 fuzz 1 %s DEFAULT" % model.guid)
+    reused = _span(lines, fresh.lines(2))
+    lines.append("inst 3 0 third 1 %s DEFAULT" % model.guid)
+    new = _span(lines, fresh.lines(3))
+    lines += ["free 1", "free 2", "free 3"]
+    return lines, [(first, second), (before, after), (reused, new)]
 
 
 def _span(lines, new):
