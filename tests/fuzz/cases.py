@@ -105,6 +105,18 @@ def uri_bad_escapes(model, ctx):
 
 
 @case("step", all_models=False)
+def uri_very_long(model, ctx):
+    return _inst(model, "file:///" + "a/" * 3000 + "resources") + \
+        _inst(model, "file://" + word(model.dir) + "/" + "%41" * 5000)
+
+
+@case("step", all_models=False)
+def instance_name_very_long(model, ctx):
+    """A name of 20,000 characters is accepted (nothing in the standard bounds it)."""
+    return [("inst 5 0 %s 1 %s DEFAULT" % ("n" * 20000, model.guid), "ok"), ("free 5", None)]
+
+
+@case("step", all_models=False)
 def guid_wrong(model, ctx):
     return _inst(model, "DEFAULT", guid="{00000000-0000-0000-0000-000000000000}") + \
         _inst(model, "DEFAULT", guid=model.guid.upper() + "x")
