@@ -117,6 +117,19 @@ def instance_name_very_long(model, ctx):
 
 
 @case("step", all_models=False)
+def odd_callbacks(model, ctx):
+    """No logger, no memory functions: the instance works (the shim logs nowhere, allocates
+    with calloc); NULL callbacks: refused (there is nothing to log with)."""
+    calls = []
+    for kind in ("nolog", "noalloc"):
+        calls += [("instcb 5 0 odd %s %s" % (model.guid, kind), "ok"), ("setup 5 0", "ok"),
+                  ("enter 5", "ok"), ("exit 5", "ok"), ("step 5 0 %r" % model.Ts, "ok"),
+                  ("setr 5 1 %d nan" % model.reals[0], "refused_silent"
+                   if kind == "nolog" else "refused"), ("free 5", None)]
+    return calls + [("instcb 5 0 odd %s null" % model.guid, "refused_silent")]
+
+
+@case("step", all_models=False)
 def guid_wrong(model, ctx):
     return _inst(model, "DEFAULT", guid="{00000000-0000-0000-0000-000000000000}") + \
         _inst(model, "DEFAULT", guid=model.guid.upper() + "x")

@@ -11,6 +11,8 @@
  *   load L DIR MODEL_IDENTIFIER        dlopen DIR/binaries/linux64/MODEL_IDENTIFIER.so
  *   inst I L NAME TYPE GUID URI        fmi2Instantiate; GUID/URI "NULL"; URI "DEFAULT" is
  *                                      file://DIR/resources; prints "INST I ok|null"
+ *   instcb I L NAME GUID KIND          fmi2Instantiate with callbacks without a logger
+ *                                      (nolog), without memory functions (noalloc), or NULL
  *   reals I N VR...                    the Real value references of I (snapshots, finiteness)
  *   free I | setup I T | enter I | exit I | term I | reset I
  *   setr I N VR V ...  | seti I N VR V ... | setb I N VR V ...
@@ -398,6 +400,24 @@ static fmi2Status run(char **w, int n)
         load(slot(w[1]), w[2], w[3]);
         return fmi2OK;
     }
+    if (!strcmp(op, "instcb")) { /* inst with odd callbacks: nolog, noalloc or null */
+        if (n < 6) fail("instcb I L NAME GUID KIND");
+        Slot *s = &insts[slot(w[1])];
+        Library *lib = &libs[slot(w[2])];
+        if (!lib->handle) fail("no such library");
+        char uri[8192];
+        snprintf(uri, sizeof uri, "file://%s/resources", lib->dir);
+        static fmi2CallbackFunctions nolog = {NULL, calloc, free, NULL, NULL};
+        static fmi2CallbackFunctions noalloc = {logger, NULL, NULL, NULL, NULL};
+        const fmi2CallbackFunctions *cb = !strcmp(w[5], "nolog") ? &nolog
+                                          : !strcmp(w[5], "noalloc") ? &noalloc : NULL;
+        s->lib = lib;
+        s->c = lib->Instantiate(w[3], fmi2CoSimulation, w[4], uri, cb, fmi2False, fmi2False);
+        printf("INST %s %s\n", w[1], s->c ? "ok" : "null");
+        if (!s->c)
+            s->lib = NULL;
+        return s->c ? fmi2OK : fmi2Error;
+    }
     if (!strcmp(op, "inst")) {
         if (n < 7) fail("inst I L NAME TYPE GUID URI");
         Slot *s = &insts[slot(w[1])];
@@ -631,6 +651,7 @@ int main(void)
             continue;
         /* snapshot around calls on an instance, when checking */
         int on_instance = strcmp(w[0], "load") && strcmp(w[0], "inst") && strcmp(w[0], "raw") &&
+                          strcmp(w[0], "instcb") &&
                           strcmp(w[0], "craft") && strcmp(w[0], "garbage") &&
                           strcmp(w[0], "check") && strcmp(w[0], "reals") &&
                           strcmp(w[0], "alias") && strcmp(w[0], "dump") &&
