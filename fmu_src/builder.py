@@ -15,10 +15,11 @@ For each slave script ``fmu_src/<Name>.py`` :func:`build_fmus`
    builder falls back to adding libpython to pythonfmu's library as a DT_NEEDED entry;
 4. validates the FMU with fmpy and moves it into place as ``<out_dir>/<Name>.fmu``.
 
-``resources/driftfmu_build.json`` records the Python version, libpython soname, code hash and
-loader kind of the build.  The bundled package carries driftfmu's version, and the GUID is made
-from the module (with its code hash), the class and that version (``slave_base.GUID_NAMESPACE``),
-so the model description and every instance agree on it and FMU states can name their FMU.
+``resources/driftfmu_build.json`` records the GUID (which the loader shim checks the host's
+against), the Python version, libpython soname, code hash and loader kind of the build.  The
+bundled package carries driftfmu's version, and the GUID is made from the module (with its code
+hash), the class and that version (``slave_base.GUID_NAMESPACE``), so the model description and
+every instance agree on it and FMU states can name their FMU.
 """
 import ast
 import contextlib
@@ -571,6 +572,7 @@ def _build_one(name, out_dir, src_dir, loader, log):
         entries.update(_linux_binaries(model_identifier, library, loader, work))
         entries[BUILD_INFO] = json.dumps({
             "model_identifier": model_identifier,
+            "guid": ET.fromstring(xml).get("guid"),
             "hash": digest,
             "package": package,
             "module": script.stem,

@@ -1,0 +1,94 @@
+"""Memory over many calls from a C host (tests/fuzz/fuzz_host.c): the growth per call is the
+slope of the resident memory over the second half of the calls (least squares), so a leak of a
+few bytes a call shows, and allocator warm-up does not."""
+import pytest
+
+import fuzz
+from driftfmu.simulations.gaussian import FMU_NAMES
+
+pytestmark = pytest.mark.integration
+CYCLES = 20_000
+STATE_GETS = 100_000
+ERRORS = 20_000
+
+
+@pytest.fixture(scope="module")
+def host(tmp_path_factory):
+    exe = fuzz.compile_host(tmp_path_factory.mktemp("memory_host"))
+    if exe is None:
+        pytest.skip("no C compiler to build the host")
+    return exe
+
+
+@pytest.fixture(scope="module")
+def models(built_fmus, tmp_path_factory):
+    root = tmp_path_factory.mktemp("memory_models")
+    return {name: fuzz.unzip(fmu, root / name) for name, fmu in built_fmus.items()}
+
+
+def growth_per_call(result, what):
+    """Bytes per call: least-squares slope of "RSS what i bytes" over the second half."""
+    points = [(int(p[2]), int(p[3])) for p in (line.split() for line in result.lines)
+              if len(p) == 4 and p[0] == "RSS" and p[1] == what]
+    assert len(points) >= 8, result.output[-2000:]
+    half = points[len(points) // 2:]
+    n = len(half)
+    mx = sum(i for i, _ in half) / n
+    my = sum(r for _, r in half) / n
+    return (sum((i - mx) * (r - my) for i, r in half)
+            / sum((i - mx) ** 2 for i, _ in half))
+
+
+def test_slope_sees_a_leak():
+    """The slope of a host that leaks 1000 bytes a call is 1000 (and of a flat one 0)."""
+    leaky = fuzz.Result(0, "\n".join("RSS cycles %d %d" % (i, 10_000_000 + 1000 * i)
+                                     for i in range(0, 20_000, 1000)))
+    flat = fuzz.Result(0, "\n".join("RSS cycles %d 10000000" % i for i in range(0, 20_000, 500)))
+    assert growth_per_call(leaky, "cycles") == pytest.approx(1000)
+    assert growth_per_call(flat, "cycles") == 0
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_instantiate_free_cycles_do_not_grow(host, models, name, report):
+    m = models[name]
+    lines = ["load 0 %s %s" % (m.dir, m.identifier),
+             "cycles 0 %d %d %s" % (CYCLES, CYCLES // 40, m.guid)]
+    result = fuzz.run_script(host, lines, time_limit=600)
+    assert result.problems() == [], result.output[-2000:]
+    slope = growth_per_call(result, "cycles")
+    bound = 64.0  # pythonfmu 0.7.0 alone leaks about 1 kB per instance it creates
+    report("MEMORY %s: %d instantiate/free cycles (setup, initialise, one step, terminate): "
+           "resident memory grows %.1f B per cycle (bound %g B)" % (name, CYCLES, slope, bound))
+    assert slope < bound
+
+
+@pytest.mark.parametrize("name", ["Accelerometer", "DriftEstimator"])
+def test_state_gets_into_one_pointer_do_not_grow(host, models, name, report):
+    m = models[name]
+    lines = fuzz.header(m) + fuzz.initialise(m, 0) + [
+        "step 0 0 %r" % m.Ts, "stateloop 0 1 %d %d" % (STATE_GETS, STATE_GETS // 40),
+        "fst 0 1", "free 0"]
+    result = fuzz.run_script(host, lines, time_limit=600)
+    assert result.problems() == [], result.output[-2000:]
+    slope = growth_per_call(result, "states")
+    bound = 8.0  # a state that is not freed is about 800 B
+    report("MEMORY %s: %d fmi2GetFMUstate into one pointer: resident memory grows %.2f B per "
+           "call (bound %g B)" % (name, STATE_GETS, slope, bound))
+    assert slope < bound
+
+
+def test_logged_errors(host, models, report):
+    """A rejected call logs a message.  pythonfmu 0.7.0 keeps a reference to every message
+    string its log queue hands on (its clearLogBuffer does not release the attributes it reads);
+    the slaves intern their messages, so a repeated one (a host retrying a bad call) is kept
+    once.  Distinct messages are still kept by pythonfmu, about 130 B each."""
+    m = models["Accelerometer"]
+    lines = fuzz.header(m) + fuzz.initialise(m, 0) + [
+        "errloop 0 %d %d" % (ERRORS, ERRORS // 40), "free 0"]
+    result = fuzz.run_script(host, lines, time_limit=600)
+    assert result.problems() == [], result.output[-2000:]
+    slope = growth_per_call(result, "errors")
+    bound = 16.0  # 130 B before the messages were interned
+    report("MEMORY Accelerometer: %d rejected fmi2SetReal with the same error: resident memory "
+           "grows %.1f B per logged error (bound %g B)" % (ERRORS, slope, bound))
+    assert slope < bound
