@@ -2,7 +2,9 @@
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
 noise density) of :mod:`models.adxl203`, every extra off by default."""
 
-from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+import math
+
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import adxl203
 
 
@@ -22,7 +24,7 @@ class Accelerometer(SlaveBase):
         var("z", "output", start=0.0, unit="V", description="sensor output z_k"),
         var("a3", "parameter"),
         var("cross", "parameter"),
-        var("fc", "parameter"),
+        var("fc", "parameter", high=adxl203.MAX_BANDWIDTH),
         var("Vs", "parameter"),
         var("bits", "parameter", type="Integer"),
         var("density", "parameter"),
@@ -32,34 +34,49 @@ class Accelerometer(SlaveBase):
             description="second-axis output (axes = 2; 0 otherwise)"),
     )
     DEPENDENCIES = {"z": ["x", "y"], "z_y": ["x", "y"]}
-    #: Output filter states (None before the first sample): committed and pending, per axis.
-    HIDDEN = ("_lp", "_lp_pending", "_lpy", "_lpy_pending")
-    default_experiment = default_experiment(2000, 1e-3)
+    DESCRIPTION = ("Weakly nonlinear accelerometer z_k = a0 + a1 x_k + a2 x_k^2 + v_k, "
+                   "v_k ~ N(0, R); optional ADXL203-like extras (cubic term, cross-axis, output "
+                   "low-pass, ratiometric supply, ADC, noise density, second axis)")
+    #: Output filter states after the last sample (None before the first), per axis.
+    HIDDEN = ("_lp", "_lpy")
+    default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
-        return super().check_parameters() + adxl203.problems(self.parameter_values())
+        problems = super().check_parameters() + adxl203.problems(self.parameter_values())
+        if not problems:
+            cfg = adxl203.config(**self.parameter_values())
+            for name in ("a0", "a1", "a2", "a3", "sigma"):
+                value = getattr(cfg, name)
+                if not math.isfinite(value):
+                    problems.append(
+                        "the parameters give the effective %s = %r (a1, a2, a3 and the noise "
+                        "are scaled by S(Vs)/S(5 V) and density by sqrt(1/(2 Ts))); allowed: "
+                        "parameters whose effective values are finite" % (name, value))
+        return problems
 
-    def start(self):
+    def prepare(self):
         self._cfg = adxl203.config(**self.parameter_values())
-        self._lp = self._lp_pending = self._lpy = self._lpy_pending = None
 
-    def _noise(self, k, axis):
-        return adxl203.noise(self.seed, k, axis) if self.noise else 0.0
+    def initial_hidden(self):
+        return {"_lp": None, "_lpy": None}
 
-    def compute(self):
-        self._lp_pending, self.z = adxl203.measure(self._lp, self.x, self.y,
-                                                   self._noise(self.k, 1), self._cfg)
-        if self.axes == 2:
-            self._lpy_pending, self.z_y = adxl203.measure(self._lpy, self.y, self.x,
-                                                          self._noise(self.k, 2), self._cfg)
+    def _axis(self, prev, own, other, k, axis, output):
+        v = adxl203.noise(self.seed, k, axis) if self.noise else 0.0
+        try:
+            return adxl203.measure(prev, own, other, v, self._cfg)
+        except (OverflowError, ValueError):  # the ADC cannot quantise a non-finite voltage
+            cfg = self._cfg
+            e = adxl203.lowpass(prev, adxl203.sense(own, other, v, cfg), cfg.alpha)
+            self._not_finite(output, cfg.a0 + e, k)
 
-    def advance(self, m):
-        args = (self.seed, self.k, m, self._cfg)
-        self._lp = adxl203.hold(self._lp_pending, self.x, self.y, *args, axis=1,
-                                noise_on=self.noise)
-        if self.axes == 2:
-            self._lpy = adxl203.hold(self._lpy_pending, self.y, self.x, *args, axis=2,
-                                     noise_on=self.noise)
+    def sample(self, hidden, k, first):
+        lp, z = self._axis(hidden["_lp"], self.x, self.y, k, 1, "z")
+        if self.axes != 2:
+            return {"_lp": lp, "_lpy": None}, {"z": z}
+        lpy, z_y = self._axis(hidden["_lpy"], self.y, self.x, k, 2, "z_y")
+        return {"_lp": lp, "_lpy": lpy}, {"z": z, "z_y": z_y}
 
-    def restore_hidden(self):
-        self._cfg = adxl203.config(**self.parameter_values())
+    def hold(self, hidden, k0, n, first):
+        if self._cfg.alpha is None and n > 1:  # no filter: the samples before the last leave
+            k0, n = k0 + n - 1, 1               # no trace (the same bits, faster)
+        return super().hold(hidden, k0, n, first)

@@ -1,7 +1,9 @@
 """DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
 Gauss-Markov (the letter's scalar filter) or a harmonic oscillator at a known frequency."""
 
-from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+import math
+
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import chain, drift, harmonic
 
 
@@ -36,8 +38,13 @@ class DriftEstimator(SlaveBase):
     )
     DEPENDENCIES = {name: ["z"] for name in
                     ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp")}
-    HIDDEN = ("_state", "_pending")
-    default_experiment = default_experiment(2000, 1e-3)
+    DESCRIPTION = ("EKF estimate of x from z and the state-dependent drift a2 E[x^2] (EKF1, EKF2, "
+                   "EKF3), subtracted from z; process model Gauss-Markov or harmonic. The first "
+                   "sample instant of a step takes the z held from its start as the "
+                   "measurement, further instants in the same step are predict-only")
+    #: The filter and drift-estimator state after the last sample (x0, P0 before the first).
+    HIDDEN = ("_state",)
+    default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
         problems = super().check_parameters()
@@ -46,31 +53,54 @@ class DriftEstimator(SlaveBase):
                             "allowed: f < %r Hz" % (self.f, 0.5 / self.Ts, 0.5 / self.Ts))
         return problems
 
-    def _set_model(self):
+    def prepare(self):
         C, S = harmonic.rotation(self.f, self.Ts)
         self._model = dict(process=self.process, A=self.A, Q=self.Q, C=C, S=S, Qh=self.Qh)
 
-    def start(self):
-        self._set_model()
-        self._state = harmonic.estimator_init(self.process, self.x0, self.P0)
-        self._pending = self._state
+    def initial_hidden(self):
+        return {"_state": harmonic.estimator_init(self.process, self.x0, self.P0)}
 
-    def compute(self):
-        self._pending = harmonic.estimator_step(self._state, self.z, self.a0, self.a1, self.a2,
-                                                self.R, **self._model)
-        self.x_hat, self.P = self._pending.x, self._pending.P
-        dcs = drift.estimates(self._pending.drift, self.a2)
-        self.dc_ekf1, self.dc_ekf2, self.dc_ekf3 = dcs
-        self.dc = drift.select(dcs, self.estimator)
-        self.z_comp = chain.compensate(self.z, self.dc)
+    def _outputs(self, state):
+        dcs = drift.estimates(state.drift, self.a2)
+        dc = drift.select(dcs, self.estimator)
+        return {"x_hat": state.x, "P": state.P, "dc_ekf1": dcs[0], "dc_ekf2": dcs[1],
+                "dc_ekf3": dcs[2], "dc": dc, "z_comp": chain.compensate(self.z, dc)}
 
-    def advance(self, m):
-        state = self._pending
-        for _ in range(m - 1):  # samples between communication points carry no measurement
+    def sample(self, hidden, k, first):
+        state = hidden["_state"]
+        if first:  # the measurement: the z set at (or held from) the start of the step
+            state = harmonic.estimator_step(state, self.z, self.a0, self.a1, self.a2, self.R,
+                                            **self._model)
+        else:      # samples between communication points carry no measurement
             state = harmonic.estimator_predict(state, **self._model)
-        self._state = state
+        return {"_state": state}, self._outputs(state)
 
-    def restore_hidden(self):
-        self._set_model()
-        for name in self.HIDDEN:
-            setattr(self, name, harmonic.from_plain(getattr(self, name)))
+    def hold(self, hidden, k0, n, first):
+        hidden, outputs = self.sample(hidden, k0, first)
+        if n > 1:
+            state = hidden["_state"]
+            for _ in range(n - 1):
+                state = harmonic.estimator_predict(state, **self._model)
+            hidden, outputs = {"_state": state}, self._outputs(state)
+        return hidden, outputs
+
+    def parse_hidden(self, name, value):
+        if value is None:
+            return None
+        if not isinstance(value, list) or len(value) not in (3, 6):
+            raise ValueError("not an estimator state [x, P, drift] or [x, d, P, P12, P22, drift]")
+        *head, d = value
+        if not (isinstance(d, list) and len(d) == 5 and isinstance(d[0], int)
+                and not isinstance(d[0], bool) and d[0] >= 0):
+            raise ValueError("not a drift-estimator state [k, s1, dc2, s3, dc3]")
+        for v in head + d[1:]:
+            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)):
+                raise ValueError("%r is not a finite number" % (v,))
+        return harmonic.from_plain(value)
+
+    def hidden_problems(self, hidden):
+        state = hidden["_state"]
+        harmonic_state = isinstance(state, harmonic.HarmonicState)
+        if harmonic_state != (self.process == harmonic.HARMONIC):
+            return ["the estimator state does not belong to process = %r" % (self.process,)]
+        return []

@@ -1,7 +1,7 @@
 """Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; 0 when Gaussian)."""
 
-from driftfmu.fmu_src.slave_base import SlaveBase, default_experiment, var
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import excitation
 
 
@@ -25,7 +25,11 @@ class Excitation(SlaveBase):
         var("y", "output", start=0.0, unit="g",
             description="second-axis acceleration y_k = Xy sin(2 pi f t_k + phiy) (0 if Gaussian)"),
     )
-    default_experiment = default_experiment(2000, 1e-3)
+    DESCRIPTION = ("True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + w_k, w_k ~ N(0, Q), "
+                   "or X sin(2 pi f t + phi); second axis y_k = Xy sin(2 pi f t_k + phiy)")
+    #: x_{k-1}, the excitation before the next sample (x0 before sample 1).
+    HIDDEN = ("_x",)
+    default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
         problems = super().check_parameters()
@@ -44,11 +48,18 @@ class Excitation(SlaveBase):
             return 0.0
         return excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy)
 
-    def start(self):
-        self.x = self._sample(self.x0, 1)
-        self.y = self._sample_y(1)
+    def initial_hidden(self):
+        return {"_x": self.x0}
 
-    def advance(self, m):
-        for i in range(1, m + 1):
-            self.x = self._sample(self.x, self.k + i)
-        self.y = self._sample_y(self.k + m)
+    def sample(self, hidden, k, first):
+        x = self._sample(hidden["_x"], k)
+        return {"_x": x}, {"x": x, "y": self._sample_y(k)}
+
+    def hold(self, hidden, k0, n, first):
+        x = hidden["_x"]
+        if self.kind == excitation.GAUSSIAN:
+            for k in range(k0, k0 + n):
+                x = self._sample(x, k)
+        else:  # the sinusoid needs no history
+            x = self._sample(x, k0 + n - 1)
+        return {"_x": x}, {"x": x, "y": self._sample_y(k0 + n - 1)}

@@ -262,6 +262,10 @@ def _stage(name, src_dir, digest, stage):
         target = package / (source.name if source.parent == src_dir else source.relative_to(root))
         target.parent.mkdir(parents=True, exist_ok=True)
         target.write_text(rewrite_imports(source.read_text(), package.name))
+    # the FMU's own copy of driftfmu's version: the slaves put it (and a GUID made from it)
+    # into their FMU states, and the model description
+    (package / "__init__.py").write_text('"""driftfmu code bundled by build %s."""\n'
+                                         '__version__ = %r\n' % (digest, __version__))
     for folder in [package] + [p for p in package.rglob("*") if p.is_dir()]:
         init = folder / "__init__.py"
         if not init.exists():

@@ -4,23 +4,51 @@ A slave lists its variables once in ``VARIABLES`` (name, type, causality, variab
 unit, min, max, description); this base registers them with pythonfmu, and the builder writes
 units, ranges, dependencies and InitialUnknowns into the model description from the same table.
 
-Timing: sample ``k = 1, 2, ...`` sits at ``t_k = t_start + (k - 1) Ts``.  After initialisation the
-FMU is at sample 1; every ``fmi2DoStep`` of ``h = m Ts`` advances ``m`` samples.  Outputs that
-depend on inputs (``DEPENDENCIES``) are computed from the inputs set at the current
-communication point, when they are read or when the step commits them, so a master that sets
-inputs in the order of the connections gets ``z_k`` from ``x_k`` with no hidden one-step lag.
+Timing (the sampled-data step rule).  Sample ``k = 1, 2, ...`` sits at the instant
+``t_k = t_start + (k - 1) Ts``.  The FMU keeps its own time ``t`` (the start time plus the sum
+of the accepted step sizes, summed with compensation) and a time is *at* sample ``k`` when
+``|(t - t_start) / Ts - (k - 1)| <= 1e-6`` (:data:`INSTANT_TOLERANCE`, a millionth of a sample
+period).  ``fmi2DoStep(t, h)`` accepts any finite ``h > 0`` and processes the sample instants in
+``[t, t + h)`` in order:
 
-Errors: a bad parameter, a non-finite input or a step that is not a whole number of sample
-periods is logged with status error, naming the variable, the value and what is allowed, and the
-call changes nothing (a rejected input keeps its previous value).  No Python exception leaves an
-FMI entry point: pythonfmu would turn it into fmi2Fatal and show its text only with debug logging
-on.  The FMU's loader shim (fmu_src/loader) sees the error log line and returns fmi2Error for
-the call, and forwards error lines to the host's logger even when debug logging is off.
+* if ``t`` is at sample ``k``, sample ``k`` is *pending* and is committed with the inputs set at
+  ``t`` (feedthrough: what the outputs showed at ``t``);
+* every other instant in the step is processed with the inputs held from ``t`` (zero-order
+  hold); the DriftEstimator takes the held ``z`` as the measurement of the *first* instant of a
+  step only and predicts through the others;
+* if ``t + h`` is at a sample instant, that sample becomes pending: outputs that depend on
+  inputs (``DEPENDENCIES``) are computed from the inputs set at ``t + h`` when they are read or
+  when the next step commits them, so a master that sets inputs in the order of the connections
+  gets ``z_k`` from ``x_k`` with no hidden one-step lag.  Otherwise the outputs hold those of the
+  last sample processed.
 
-This module runs inside the FMU: standard library and pythonfmu only.
+Whole-sample steps ``h = m Ts`` therefore advance ``m`` samples, bit for bit as the rule that
+allowed only those.  One step processes at most :data:`MAX_SAMPLES_PER_STEP` instants and
+``Ts >= 1e-9`` s, so no call runs unbounded.  Outputs read in Initialization Mode are computed
+from the start values and inputs (sample 1), as the InitialUnknowns declare.
+
+Errors: a bad parameter, a non-finite input, a step ``h`` that is not finite and positive or
+spans too many samples, and a computation that would make an output or hidden state non-finite
+from finite values (overflow) are logged with status error, naming the variable, the value and
+what is allowed, and the call changes nothing: a call is validated as a whole before anything is
+assigned, and samples are computed into locals and committed only when all of them are finite.
+No Python exception leaves an FMI entry point: pythonfmu would turn it into fmi2Fatal and show
+its text only with debug logging on.  The FMU's loader shim (fmu_src/loader) sees the error log
+line and returns fmi2Error for the call, and forwards error lines to the host's logger even when
+debug logging is off.
+
+FMU state: a JSON-ready dict of the fields ``model`` (class name), ``guid`` (of the FMU),
+``version`` (driftfmu's), every variable of ``VARIABLES``, ``k``, ``time``
+(``[t_start, elapsed, compensation]``), ``flags`` and the slave's ``HIDDEN`` state.  Setting a
+state reads exactly these fields, checks each one's type and finiteness, refuses a state of
+another model, build or version, and assigns only when all of it is valid.
+
+This module runs inside the FMU: standard library and pythonfmu only, and it works under
+``python -OO`` (no docstring is read, no ``assert`` is relied on).
 """
 import math
 import sys
+import uuid
 
 from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
@@ -29,6 +57,25 @@ from pythonfmu.default_experiment import DefaultExperiment
 from driftfmu.models import parameters
 
 _TYPES = {"Real": Real, "Integer": Integer}
+
+#: Most sample instants one ``fmi2DoStep`` may process (a step spanning more is an fmi2Error).
+MAX_SAMPLES_PER_STEP = 1000000
+#: A time is at a sample instant when within this many sample periods of it.
+INSTANT_TOLERANCE = 1e-6
+#: Namespace of the deterministic GUIDs: uuid5(this, "<module>.<class> <version>").
+GUID_NAMESPACE = uuid.UUID("8d0f3bb2-5a52-4c55-9c1e-6d0e1b7c2a11")
+#: The sampled-data step rule, in the model description of every FMU.
+STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep accepts any "
+             "finite h > 0 and processes the sample instants in [t, t+h) in order (at most "
+             "%d per step) with the inputs held from t (zero-order hold); at a sample instant "
+             "the outputs follow the inputs set there, between instants they hold the last "
+             "sample. FMU states carry the model, GUID and version and are refused elsewhere."
+             % MAX_SAMPLES_PER_STEP)
+
+_STATE_META = ("model", "guid", "version")
+_STATE_FIELDS = ("k", "time", "flags")
+_FLAGS = ("initialised", "in_init", "at_sample", "terminated")
+_ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
 
 
 class ModelError(Exception):
@@ -40,15 +87,17 @@ def var(name, causality, start=None, unit=None, description=None, type="Real",
     """One row of a slave's ``VARIABLES`` table.
 
     Parameters named as in :data:`models.parameters.PARAMETERS` take their start value, unit,
-    range and description from there unless given here.
+    range and description from there unless given here; an open bound there (``R > 0``) is
+    declared as the accepted double next to it (FMI 2 bounds are closed).
     """
     p = parameters.PARAMETERS.get(name)
     if p is not None:
         start = p.default if start is None else start
         unit = p.unit if unit is None else unit
         description = p.description if description is None else description
-        low = p.low if low is None else low
-        high = p.high if high is None else high
+        declared = parameters.declared_range(name)
+        low = declared[0] if low is None else low
+        high = declared[1] if high is None else high
     if variability is None:
         variability = "fixed" if causality == "parameter" else "continuous"
     if type == "Integer" and unit == "1":
@@ -58,36 +107,68 @@ def var(name, causality, start=None, unit=None, description=None, type="Real",
             "description": "%s [%s]" % (description, unit or "1")}
 
 
+def _bundle_version():
+    """driftfmu's version: written into the FMU's bundled package by the builder, or the
+    source tree's ``driftfmu.__version__``."""
+    package = sys.modules.get(__name__.rpartition(".")[0])
+    version = getattr(package, "__version__", None)
+    if version is None:
+        version = getattr(sys.modules.get(__name__.split(".")[0]), "__version__", None)
+    return version
+
+
+def vr_text(vr):
+    """A value reference as the host sent it: unsigned (pythonfmu passes it as a C int)."""
+    return str(vr & 0xFFFFFFFF) if isinstance(vr, int) and vr < 0 else repr(vr)
+
+
 class SlaveBase(Fmi2Slave):
     """Base of the Excitation, Accelerometer and DriftEstimator slaves."""
 
     author = "driftfmu contributors"
     license = "MIT"
-    #: Set by the builder from ``driftfmu.__version__`` (the one place the version is written).
-    version = None
+    #: driftfmu's version (also set by the builder from ``driftfmu.__version__``).
+    version = _bundle_version()
+    #: One line on what the model is (the model description's description starts with it; not
+    #: the docstring, which ``python -OO`` drops).
+    DESCRIPTION = ""
     VARIABLES = ()
     DEPENDENCIES = {}
     CAN_HANDLE_VARIABLE_STEP = True
-    #: Relative tolerance when checking that a step is a whole number of sample periods.
-    STEP_TOLERANCE = 1e-9
+    MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
+    #: Names of the hidden state (attributes; None before initialisation).
+    HIDDEN = ()
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
         _drop_duplicate_path(self.resources)
-        self.description = self.__class__.__doc__.strip().splitlines()[0]
-        self.k = 1
-        self._dirty = True
+        cls = type(self)
+        # the same GUID at build time (into the model description) and in every instance
+        self.guid = uuid.uuid5(GUID_NAMESPACE, "%s.%s %s" % (cls.__module__, cls.__name__,
+                                                             self.version))
+        self.description = "%s. %s" % (self.DESCRIPTION, STEP_RULE)
+        self.start_time = 0.0
+        self._elapsed = 0.0     # t - t_start, and the compensation of its running sum
+        self._elapsed_c = 0.0
+        self.k = 1              # the next sample to process (pending when _at_sample)
+        self._at_sample = True
+        self._dirty = True      # inputs or parameters changed since the outputs were computed
         self._initialised = False
+        self._in_init = False
+        self._terminated = False
+        self._pending = None    # hidden state after the pending sample, when not dirty
+        for name in self.HIDDEN:
+            setattr(self, name, None)
+        self._specs = {}
         for spec in self.VARIABLES:
             setattr(self, spec["name"], spec["start"] if spec["start"] is not None else 0.0)
             self.register_variable(self._make_variable(spec))
+            self._specs[len(self._specs)] = spec
         # value reference -> name of the Real variables and of the Real inputs: the fast path
         # of get_real / set_real, called on every sample (value reference = table index)
-        self._real_names = {vr: s["name"] for vr, s in enumerate(self.VARIABLES)
-                            if s["type"] == "Real"}
-        self._real_inputs = {vr: s["name"] for vr, s in enumerate(self.VARIABLES)
+        self._real_names = {vr: s["name"] for vr, s in self._specs.items() if s["type"] == "Real"}
+        self._real_inputs = {vr: s["name"] for vr, s in self._specs.items()
                              if s["type"] == "Real" and s["causality"] == "input"}
-        self._last_step = None
 
     # -- registration -----------------------------------------------------------------------
     def _make_variable(self, spec):
@@ -97,83 +178,127 @@ class SlaveBase(Fmi2Slave):
         variability = getattr(Fmi2Variability, spec["variability"])
         getter = lambda: getattr(self, name)
         setter = None if spec["causality"] == "output" else \
-            (lambda value: self._call(self._write, spec, value))
+            (lambda value: self._call(self._set_checked, "set", [self._vr_of(name)], [value],
+                                      spec["type"]))
         return kind(name, causality=causality, variability=variability,
                     description=spec["description"], getter=getter, setter=setter)
 
+    def _vr_of(self, name):
+        return next(vr for vr, s in self._specs.items() if s["name"] == name)
+
+    # -- getters ----------------------------------------------------------------------------
     def get_real(self, vrs):
-        if self._dirty and self._initialised and self.DEPENDENCIES:
+        if self._dirty and self._at_sample and (self._in_init or (
+                self._initialised and self.DEPENDENCIES)):
             self._call(self._refresh)  # outputs at this communication point, from its inputs
         names = self._real_names
         try:
             return [float(getattr(self, names[vr])) for vr in vrs]
         except KeyError:
-            self._call(self._fail, "value references %s are not Real variables"
-                       % sorted(set(vrs) - set(names)))
+            self._call(self._fail, "fmi2GetReal: %s" % self._bad_refs(vrs, "Real"))
             return [float(getattr(self, names[vr])) if vr in names else math.nan
                     for vr in vrs]
 
-    # pythonfmu's own accessors raise on a bad value reference or type; an exception in a
-    # pythonfmu 0.7.0 call releases the instance's Python objects twice (a crash later), so
-    # every other accessor is guarded: the problem is logged and the call returns fmi2Error.
     def get_integer(self, vrs):
-        return self._guarded("fmi2GetInteger", super().get_integer, [0] * len(vrs), vrs)
+        return self._get_typed("fmi2GetInteger", "Integer", vrs, 0, int)
 
     def get_boolean(self, vrs):
-        return self._guarded("fmi2GetBoolean", super().get_boolean, [False] * len(vrs), vrs)
+        return self._get_typed("fmi2GetBoolean", "Boolean", vrs, False, bool)
 
     def get_string(self, vrs):
-        return self._guarded("fmi2GetString", super().get_string, [""] * len(vrs), vrs)
+        return self._get_typed("fmi2GetString", "String", vrs, "", str)
 
-    def set_integer(self, vrs, values):
-        self._guarded("fmi2SetInteger", super().set_integer, None, vrs, values)
+    def _get_typed(self, what, kind, vrs, fallback, convert):
+        # pythonfmu's own accessors raise on a bad value reference or type; an exception in a
+        # pythonfmu 0.7.0 call releases the instance's Python objects twice (a crash later), so
+        # every accessor checks the whole call first and logs what is wrong
+        specs = self._specs
+        if all(vr in specs and specs[vr]["type"] == kind for vr in vrs):
+            return [convert(getattr(self, specs[vr]["name"])) for vr in vrs]
+        self._call(self._fail, "%s: %s" % (what, self._bad_refs(vrs, kind)))
+        return [convert(getattr(self, specs[vr]["name"]))
+                if vr in specs and specs[vr]["type"] == kind else fallback for vr in vrs]
 
-    def set_boolean(self, vrs, values):
-        self._guarded("fmi2SetBoolean", super().set_boolean, None, vrs, values)
+    def _bad_refs(self, vrs, kind):
+        """What is wrong with the value references ``vrs`` of a call on ``kind`` variables."""
+        problems = []
+        for vr in vrs:
+            spec = self._specs.get(vr)
+            if spec is None:
+                problems.append("value reference %s does not exist" % vr_text(vr))
+            elif spec["type"] != kind:
+                problems.append("value reference %s is %s, %s %s variable, not %s %s"
+                                % (vr_text(vr), spec["name"], _article(spec["type"]),
+                                   spec["type"], _article(kind), kind))
+        return "%s; allowed: the %s value references of modelDescription.xml (%s)" % (
+            ", ".join(problems), kind, ", ".join(
+                str(vr) for vr, s in self._specs.items() if s["type"] == kind) or "none")
 
-    def set_string(self, vrs, values):
-        self._guarded("fmi2SetString", super().set_string, None, vrs, values)
-
-    def _guarded(self, what, call, fallback, vrs, *args):
-        try:
-            return call(vrs, *args)
-        except KeyError as exc:
-            problem = "value reference %s does not exist" % (exc.args[0],)
-        except Exception as exc:
-            problem = str(exc)
-        self.log("%s: %s%r: %s" % (self.instance_name, what, tuple(vrs), problem),
-                 Fmi2Status.error)
-        return fallback
-
+    # -- setters: the whole call is checked before anything is assigned ---------------------
     def set_real(self, vrs, values):
         inputs = self._real_inputs
-        for vr, value in zip(vrs, values):
-            name = inputs.get(vr)
-            if name is not None and math.isfinite(value):  # the per-sample fast path
-                setattr(self, name, value)
-                self._dirty = True
-            elif vr in self._real_names:
-                self._call(self._write, self.VARIABLES[vr], value)
-            else:
-                self._call(self._fail, "value reference %r is not a Real variable" % (vr,))
+        try:
+            fast = not self._terminated and len(vrs) == len(values) \
+                and all(vr in inputs for vr in vrs) and all(math.isfinite(v) for v in values)
+        except TypeError:
+            fast = False
+        if fast:  # the per-sample fast path
+            for vr, value in zip(vrs, values):
+                setattr(self, inputs[vr], value)
+            self._dirty = True
+            return
+        self._call(self._set_checked, "fmi2SetReal", vrs, values, "Real")
 
-    def _write(self, spec, value):
-        name = spec["name"]
-        if spec["causality"] == "output":
-            self._fail("%s is an output; only parameters and inputs can be set" % name)
-        if spec["type"] == "Real" and not math.isfinite(value):
-            self._fail("%s = %r is not finite; %s accepts finite values only"
-                       % (name, value, spec["causality"]))
-        if spec["causality"] == "parameter" and self._initialised:
-            self._fail("%s is a fixed parameter and cannot be changed after initialisation"
-                       % name)
-        setattr(self, name, value)
+    def set_integer(self, vrs, values):
+        self._call(self._set_checked, "fmi2SetInteger", vrs, values, "Integer")
+
+    def set_boolean(self, vrs, values):
+        self._call(self._set_checked, "fmi2SetBoolean", vrs, values, "Boolean")
+
+    def set_string(self, vrs, values):
+        self._call(self._set_checked, "fmi2SetString", vrs, values, "String")
+
+    def _set_checked(self, what, vrs, values, kind):
+        problems = []
+        if self._terminated:
+            problems.append("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
+                            "fmi2FreeInstance, the get functions and fmi2SetFMUstate")
+        bad_refs = [vr for vr in vrs if vr not in self._specs or self._specs[vr]["type"] != kind]
+        if bad_refs:
+            problems.append(self._bad_refs(bad_refs, kind))
+        for vr, value in zip(vrs, values):
+            spec = self._specs.get(vr)
+            if spec is None or spec["type"] != kind:
+                continue
+            name = spec["name"]
+            if spec["causality"] == "output":
+                problems.append("%s is an output; only parameters and inputs can be set" % name)
+            elif kind == "Real" and not (_is_number(value) and math.isfinite(value)):
+                problems.append("%s = %r is not finite; %s accepts finite values only"
+                                % (name, value, spec["causality"]))
+            elif kind == "Integer" and not (isinstance(value, int) and not isinstance(value, bool)):
+                problems.append("%s = %r is not an integer" % (name, value))
+            elif spec["causality"] == "parameter" and self._initialised:
+                problems.append("%s is a fixed parameter and cannot be changed after "
+                                "initialisation (it stays %r)" % (name, getattr(self, name)))
+        if len(values) != len(vrs):
+            problems.append("%d values for %d value references" % (len(values), len(vrs)))
+        if problems:
+            for msg in problems[:-1]:
+                self._log_error("%s: %s" % (what, msg))
+            self._fail("%s: %s%s" % (what, problems[-1], "; nothing was set" if len(vrs) > 1
+                                     else ""))
+        for vr, value in zip(vrs, values):
+            setattr(self, self._specs[vr]["name"], value)
         self._dirty = True
 
     # -- errors -----------------------------------------------------------------------------
+    def _log_error(self, message):
+        self.log("%s: %s" % (self.instance_name, message), Fmi2Status.error, _ERROR_CATEGORY)
+
     def _fail(self, message):
         """Log ``message`` with status error and abandon the current FMI call."""
-        self.log("%s: %s" % (self.instance_name, message), Fmi2Status.error)
+        self._log_error(message)
         raise ModelError(message)
 
     def _call(self, action, *args):
@@ -184,11 +309,21 @@ class SlaveBase(Fmi2Slave):
         except ModelError:
             return False
         except Exception as exc:  # a bug must reach the host's log, not crash or vanish
-            self.log("%s: internal error in %s: %s: %s"
-                     % (self.instance_name, getattr(action, "__name__", "call"),
-                        type(exc).__name__, exc), Fmi2Status.error)
+            self._log_error("internal error in %s: %s: %s"
+                            % (getattr(action, "__name__", "call"), type(exc).__name__, exc))
             return False
 
+    def _not_finite(self, name, value, k):
+        """Refuse a sample whose output or hidden state ``name`` would be ``value`` (not
+        finite) although every input and parameter is finite."""
+        self._fail("%s would be %r at sample %d (t = %r s): the inputs and parameters overflow "
+                   "the model; allowed: values whose outputs and state stay finite (nothing "
+                   "was changed)" % (name, value, k, self._sample_time(k)))
+
+    def _sample_time(self, k):
+        return self.start_time + (k - 1) * self.Ts
+
+    # -- parameters -------------------------------------------------------------------------
     def parameter_values(self):
         """The current values of all parameters, by name."""
         return {s["name"]: getattr(self, s["name"]) for s in self.VARIABLES
@@ -196,7 +331,8 @@ class SlaveBase(Fmi2Slave):
 
     def check_parameters(self):
         """Problems of the parameter values (one readable line each); extended by subclasses."""
-        problems = parameters.check(self.parameter_values())
+        problems = parameters.check({n: v for n, v in self.parameter_values().items()
+                                     if n in parameters.PARAMETERS})
         for s in self.VARIABLES:
             if s["causality"] == "parameter" and s["name"] not in parameters.PARAMETERS:
                 v = getattr(self, s["name"])
@@ -206,67 +342,176 @@ class SlaveBase(Fmi2Slave):
                                     % (s["name"], v, low, s["name"], high))
         return problems
 
+    def _check_and_prepare(self, context):
+        problems = self.check_parameters()
+        for msg in problems[:-1]:
+            self._log_error("%s%s" % (context, msg))
+        if problems:
+            self._fail(context + problems[-1])
+        self.prepare()
+
     # -- FMI calls --------------------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
-        self.start_time = start_time
+        if not self._initialised:
+            self.start_time = start_time
+
+    def enter_initialization_mode(self):
+        self._in_init = True
+        self._dirty = True
 
     def exit_initialization_mode(self):
         self._initialised = self._call(self._initialise)
+        self._in_init = False
+
+    def terminate(self):
+        self._terminated = True
 
     def _initialise(self):
-        problems = self.check_parameters()
-        for msg in problems[:-1]:
-            self.log("%s: %s" % (self.instance_name, msg), Fmi2Status.error)
-        if problems:
-            self._fail(problems[-1])
-        self.k = 1
-        self.start()
-        self._dirty = True
+        self._check_and_prepare("")
+        hidden = self.initial_hidden()
+        outputs = pending = None
+        if not self.DEPENDENCIES:  # outputs of sample 1 now: they depend on no input
+            pending, outputs = self._samples(hidden, 1, 1, True)
+        self._commit(hidden, 1, True, 0.0, 0.0, outputs, pending)
+
+    def _refresh(self):
+        """Outputs of the pending sample from the current inputs (feedthrough)."""
+        if self._initialised:
+            pending, outputs = self._samples(self._hidden(), self.k, 1, True)
+        else:  # Initialization Mode: sample 1 from the start values and inputs
+            self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
+            pending, outputs = self._samples(self.initial_hidden(), 1, 1, True)
+            pending = None
+        self._set_outputs(outputs)
+        self._pending = pending
+        self._dirty = False
 
     def do_step(self, current_time, step_size):
         return self._call(self._step, step_size)
 
-    def _step(self, step_size):
+    def _step(self, h):
+        if self._terminated:
+            self._fail("cannot step: the instance is terminated (fmi2Terminate); allowed: "
+                       "fmi2Reset, then initialise again")
         if not self._initialised:
             self._fail("cannot step: initialisation did not complete (see the errors above)")
-        m = self._samples_in(step_size)
-        if self._dirty and self.DEPENDENCIES:
-            self._refresh()
-        self.advance(m)
-        self.k += m
-        self._dirty = True
+        if not (_is_number(h) and math.isfinite(h) and h > 0.0):
+            self._fail("communication step h = %r s; allowed: a finite h > 0" % (h,))
+        Ts, k, tol = self.Ts, self.k, INSTANT_TOLERANCE
+        elapsed, comp = _add(self._elapsed, self._elapsed_c, h)
+        position = (elapsed + comp) / Ts  # t + h in sample periods from the start
+        limit = self.MAX_SAMPLES_PER_STEP
+        if not position - tol <= limit + k - 1:
+            self._fail("communication step h = %r s spans more than %d sample instants of "
+                       "Ts = %r s; allowed: at most MAX_SAMPLES_PER_STEP = %d sample instants "
+                       "per step, h <= about %r s" % (h, limit, Ts, limit, limit * Ts))
+        last = math.ceil(position - tol)      # index (k - 1) of the first instant at or after t+h
+        m = max(0, last + 1 - k)              # instants in [t, t + h)
+        at_sample = last <= position + tol    # t + h is that instant
+        if not m:  # no sample instant in the step: only the time moves on
+            self._elapsed, self._elapsed_c = elapsed, comp
+            return
+        hidden, outputs, pending = self._hidden(), None, None
+        first = True
+        if self._at_sample:  # sample k: committed with the inputs set at t
+            if self._dirty or self._pending is None:
+                hidden, outputs = self._samples(hidden, k, 1, True)
+            else:
+                hidden = self._pending
+            first = False
+        if m > 1 or not self._at_sample:  # the other instants: inputs held from t
+            start = k + 1 if self._at_sample else k
+            hidden, outputs = self._samples(hidden, start, k + m - start, first)
+        if at_sample and not self.DEPENDENCIES:
+            pending, outputs = self._samples(hidden, k + m, 1, True)
+        self._commit(hidden, k + m, at_sample, elapsed, comp, outputs, pending)
 
-    def _samples_in(self, h):
-        if self._last_step is not None and self._last_step[0] == h:
-            return self._last_step[1]
-        Ts = self.Ts
-        m = round(h / Ts)
-        if m < 1 or abs(h - m * Ts) > self.STEP_TOLERANCE * max(h, Ts):
-            self._fail("communication step %r s is not a whole number of sample periods "
-                       "Ts = %r s; allowed: h = m Ts with m = 1, 2, ..." % (h, Ts))
-        self._last_step = (h, m)
-        return m
+    def _commit(self, hidden, k, at_sample, elapsed, comp, outputs, pending):
+        for name, value in hidden.items():
+            setattr(self, name, value)
+        if outputs is not None:
+            self._set_outputs(outputs)
+        self.k = k
+        self._at_sample = at_sample
+        self._elapsed, self._elapsed_c = elapsed, comp
+        self._pending = pending
+        self._dirty = pending is None
 
-    def _refresh(self):
-        self.compute()
-        self._dirty = False
+    def _set_outputs(self, outputs):
+        for name, value in outputs.items():
+            setattr(self, name, value)
+
+    def _hidden(self):
+        return {name: getattr(self, name) for name in self.HIDDEN}
+
+    def _samples(self, hidden, k0, n, first):
+        """Process samples ``k0 .. k0 + n - 1`` from ``hidden`` with the inputs held; return
+        ``(hidden, outputs)`` after the last, or fail if any value is not finite."""
+        try:
+            hidden, outputs = self.hold(hidden, k0, n, first)
+        except ModelError:
+            raise
+        except _ARITHMETIC as exc:
+            self._fail("the outputs at sample %d (t = %r s) cannot be computed: %s: %s; "
+                       "allowed: inputs and parameters whose outputs stay finite (nothing was "
+                       "changed)" % (k0 + n - 1, self._sample_time(k0 + n - 1),
+                                     type(exc).__name__, exc))
+        k = k0 + n - 1
+        for name, value in outputs.items():
+            if not math.isfinite(value):
+                self._not_finite(name, value, k)
+        for name, value in hidden.items():
+            for part, v in _numbers(name, value):
+                if not math.isfinite(v):
+                    self._not_finite("hidden state " + part, v, k)
+        return hidden, outputs
 
     # -- hooks for the slaves ---------------------------------------------------------------
-    def start(self):
-        """Set the hidden state for sample 1 (after the parameters are checked)."""
+    def prepare(self):
+        """Derived constants from the (checked) parameters."""
 
-    def compute(self):
-        """Compute the outputs at sample ``self.k`` from the inputs and the committed state."""
+    def initial_hidden(self):
+        """The hidden state before sample 1, ``{name: value}`` over ``HIDDEN``."""
+        return {}
 
-    def advance(self, m):
-        """Commit sample ``self.k`` and move the hidden state on by ``m`` samples."""
+    def sample(self, hidden, k, first):
+        """Process sample ``k`` with the current inputs from ``hidden`` (the state after
+        sample ``k - 1``): ``(hidden after k, {output: value})``.  ``first``: the first sample
+        instant of a step (or the pending sample)."""
+        raise NotImplementedError
 
-    HIDDEN = ()
+    def hold(self, hidden, k0, n, first):
+        """Process ``n >= 1`` samples from ``k0`` with the inputs held (``first`` applies to
+        ``k0``); slaves may override this with a shortcut of the same bits."""
+        outputs = None
+        for i in range(n):
+            hidden, outputs = self.sample(hidden, k0 + i, first and i == 0)
+        return hidden, outputs
+
+    def parse_hidden(self, name, value):
+        """The working value of hidden state ``name`` read back from a state (JSON form);
+        raise ValueError or TypeError if it is not one.  Default: None or a finite number."""
+        if value is not None and not (_is_number(value) and math.isfinite(value)):
+            raise ValueError("not a finite number")
+        return value
+
+    def hidden_problems(self, hidden):
+        """Problems of a hidden state read back for the current parameters (hook)."""
+        return []
 
     # -- FMU state: variables plus hidden state ---------------------------------------------
+    def _identity(self):
+        return {"model": type(self).__name__, "guid": str(self.guid), "version": self.version}
+
     def _get_fmu_state(self):
-        state = {s["name"]: getattr(self, s["name"]) for s in self.VARIABLES}
-        for name in ("k", "_dirty", "_initialised") + tuple(self.HIDDEN):
+        state = self._identity()
+        for s in self.VARIABLES:
+            state[s["name"]] = getattr(self, s["name"])
+        state["k"] = self.k
+        state["time"] = [self.start_time, self._elapsed, self._elapsed_c]
+        state["flags"] = {"initialised": self._initialised, "in_init": self._in_init,
+                          "at_sample": self._at_sample, "terminated": self._terminated}
+        for name in self.HIDDEN:
             state[name] = _plain(getattr(self, name))
         return state
 
@@ -274,12 +519,96 @@ class SlaveBase(Fmi2Slave):
         self._call(self._restore, state)
 
     def _restore(self, state):
-        if not isinstance(state, dict) or "k" not in state:
-            self._fail("not an FMU state of %s: %.80r" % (type(self).__name__, state))
-        for name, value in state.items():
+        cls = type(self).__name__
+        if not isinstance(state, dict):
+            self._fail("fmi2SetFMUstate: not an FMU state of %s: %.80r" % (cls, state))
+        mine = self._identity()
+        if state.get("model") != mine["model"]:
+            self._fail("fmi2SetFMUstate: this is an FMU state of model %.40r, not of %s; "
+                       "allowed: a state that this FMU (%s, GUID %s) produced"
+                       % (state.get("model"), cls, cls, mine["guid"]))
+        for key in ("guid", "version"):
+            if state.get(key) != mine[key]:
+                self._fail("fmi2SetFMUstate: the FMU state of %s has %s %.60r, this FMU has "
+                           "%r; allowed: a state of this very FMU (same build and version)"
+                           % (cls, key, state.get(key), mine[key]))
+        expected = _STATE_META + tuple(s["name"] for s in self.VARIABLES) + _STATE_FIELDS \
+            + tuple(self.HIDDEN)
+        unknown = sorted(str(key) for key in state if key not in expected)
+        missing = [key for key in expected if key not in state]
+        if unknown or missing:
+            self._fail("fmi2SetFMUstate: the FMU state of %s has %s; allowed: exactly the "
+                       "fields %s" % (cls, " and ".join(
+                           part for part in (unknown and "unknown fields %s" % unknown[:8],
+                                             missing and "missing fields %s" % missing) if part),
+                           ", ".join(expected)))
+        values, problems = {}, []
+        for s in self.VARIABLES:
+            v = state[s["name"]]
+            ok = (_is_number(v) and math.isfinite(v)) if s["type"] == "Real" else \
+                (isinstance(v, int) and not isinstance(v, bool))
+            if ok:
+                values[s["name"]] = v
+            else:
+                problems.append("%s = %.40r is not %s" % (
+                    s["name"], v, "a finite number" if s["type"] == "Real" else "an integer"))
+        k, time, flags = state["k"], state["time"], state["flags"]
+        if not (isinstance(k, int) and not isinstance(k, bool) and k >= 1):
+            problems.append("k = %.40r is not a sample index (an integer >= 1)" % (k,))
+        if not (isinstance(time, list) and len(time) == 3
+                and all(_is_number(v) and math.isfinite(v) for v in time) and time[1] >= 0.0):
+            problems.append("time = %.80r is not [t_start, elapsed >= 0, compensation] of "
+                            "finite numbers" % (time,))
+        if not (isinstance(flags, dict) and sorted(flags) == sorted(_FLAGS)
+                and all(isinstance(v, bool) for v in flags.values())):
+            problems.append("flags = %.80r is not {%s} of booleans" % (flags, ", ".join(_FLAGS)))
+        hidden = {}
+        for name in self.HIDDEN:
+            try:
+                hidden[name] = self.parse_hidden(name, state[name])
+            except (ValueError, TypeError, ArithmeticError) as exc:
+                problems.append("hidden state %s = %.80r is not valid (%s)"
+                                % (name, state[name], exc))
+        if problems:
+            for msg in problems[:-1]:
+                self._log_error("fmi2SetFMUstate: %s" % msg)
+            self._fail("fmi2SetFMUstate: %s; the state is refused and nothing was changed"
+                       % problems[-1])
+        if flags["initialised"]:
+            # the parameters of an initialised state must be valid ones: check them on a copy
+            saved = self.parameter_values()
+            try:
+                for name in saved:
+                    setattr(self, name, values[name])
+                bad = self.check_parameters()
+                if not bad:
+                    self.prepare()
+                    if any(hidden[name] is None for name in self.HIDDEN
+                           if name in self.initial_hidden() and
+                           self.initial_hidden()[name] is not None):
+                        bad = ["the hidden state of an initialised instance is missing"]
+                    else:
+                        bad = self.hidden_problems(hidden)
+            finally:
+                for name, value in saved.items():
+                    setattr(self, name, value)
+                if self._initialised:
+                    self.prepare()  # the derived constants of the parameters kept
+            if bad:
+                self._fail("fmi2SetFMUstate: the FMU state of %s is not valid: %s; the state is "
+                           "refused and nothing was changed" % (cls, bad[0]))
+        for name, value in values.items():
             setattr(self, name, value)
-        self._last_step = None
-        self.restore_hidden()
+        for name, value in hidden.items():
+            setattr(self, name, value)
+        self.k = k
+        self.start_time, self._elapsed, self._elapsed_c = (float(v) for v in time)
+        self._initialised, self._in_init = flags["initialised"], flags["in_init"]
+        self._at_sample, self._terminated = flags["at_sample"], flags["terminated"]
+        self._pending = None
+        self._dirty = True
+        if self._initialised:
+            self.prepare()
 
     @staticmethod
     def _fmu_state_from_bytes(data):
@@ -290,8 +619,41 @@ class SlaveBase(Fmi2Slave):
         except Exception:
             return None
 
-    def restore_hidden(self):
-        """Turn hidden state read back from JSON into its working types (hook)."""
+
+#: One category string for every error line (pythonfmu 0.7.0 keeps a reference to each
+#: message's category: a fresh string per line would be kept too).
+_ERROR_CATEGORY = "logStatusError"
+
+
+def _article(word):
+    return "an" if word[0] in "AEIOU" else "a"
+
+
+def _is_number(v):
+    return isinstance(v, (int, float)) and not isinstance(v, bool)
+
+
+def _add(s, c, x):
+    """Neumaier's compensated sum: ``(s + x, compensation)`` of a running sum ``s`` with
+    compensation ``c``; the sum of many step sizes stays exact to about one ulp."""
+    t = s + x
+    if abs(s) >= abs(x):
+        c += (s - t) + x
+    else:
+        c += (x - t) + s
+    return t, c
+
+
+def _numbers(name, value):
+    """``(path, number)`` of every number in a hidden state value (namedtuples nested)."""
+    if value is None:
+        return
+    if isinstance(value, tuple):
+        fields = getattr(value, "_fields", None) or range(len(value))
+        for field, v in zip(fields, value):
+            yield from _numbers("%s.%s" % (name, field), v)
+    elif _is_number(value):
+        yield name, value
 
 
 def _drop_duplicate_path(path):
@@ -302,9 +664,11 @@ def _drop_duplicate_path(path):
             sys.path.remove(path)
 
 
-def default_experiment(n_samples, Ts):
-    """DefaultExperiment of ``n_samples`` samples at period ``Ts``, samples at 0..(n-1) Ts."""
-    return DefaultExperiment(start_time=0.0, stop_time=(n_samples - 1) * Ts, step_size=Ts)
+#: Default experiment of every FMU: 0 to 2 s in steps of 1 ms (the default Ts), 2001 samples.
+#: Chosen for the hosts' defaults: fmusim's --output-interval defaults to the step size (whole
+#: samples), and the FMU Compliance Checker's 500 output points over 2 s are steps of 4 ms =
+#: 4 Ts (the stop time 1.999 s of 2000 samples made that 3.998 ms).  Any other step works too.
+DEFAULT_EXPERIMENT = DefaultExperiment(start_time=0.0, stop_time=2.0, step_size=1e-3)
 
 
 def _plain(value):

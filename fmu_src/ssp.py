@@ -181,8 +181,8 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
 
     ``initial`` is what the connected inputs hold for the first step: ``"zero"`` (fmpy: the
     connectors start at 0) or ``"outputs"`` (libcosim: the outputs read after initialisation
-    are copied along the connections, ``x_1`` and the Accelerometer's ``z`` of its start
-    input 0).
+    are copied along the connections, ``x_1`` and the Accelerometer's ``z`` of ``x_1``, which
+    libcosim's initialisation passed along in Initialization Mode).
     """
     if P0 is None:
         P0 = Q / (1.0 - A * A)
@@ -194,8 +194,10 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
     if initial == "zero":
         u_acc = u_est = 0.0                  # fmpy: the connectors start at 0
     elif initial == "outputs":
-        u_acc = xs[0]                        # x_1, and z of sample 1 with the start input 0
-        u_est = sensor.measure(0.0, a0, a1, a2, R, sensor.measurement_noise(seed, 1))
+        u_acc = xs[0]                        # x_1, and z of sample 1 from x_1: the outputs
+        u_est = sensor.measure(u_acc, a0, a1, a2, R,  # read in Initialization Mode follow the
+                               sensor.measurement_noise(seed, 1))  # inputs set there
+
     else:
         raise ValueError("initial = %r is not allowed; allowed: 'zero' or 'outputs'"
                          % (initial,))

@@ -15,19 +15,24 @@ def _p(name, default, low=None, high=None, unit="1", description="", low_open=Fa
     return Param(name, default, low, high, low_open, high_open, unit, description)
 
 
+#: Smallest sample period [s]: bounds the samples of a step of given length (and the FMUs'
+#: declared ``min`` of Ts).
+TS_MIN = 1e-9
+
 PARAMETERS = {p.name: p for p in (
     _p("a0", 0.0, unit="V", description="sensor offset a0 of z = a0 + a1 x + a2 x^2 + v"),
     _p("a1", 1.0, unit="V/g", description="sensor sensitivity a1 (must not be 0)"),
     _p("a2", 0.01, unit="V/g2", description="second-order coefficient a2; its drift is a2 E[x^2]"),
-    _p("A", 0.0, -1.0, 1.0, description="state transition x_k = A x_{k-1} + w_k", low_open=True,
+    _p("A", 0.0, -1.0, 1.0, description="state transition x_k = A x_{k-1} + w_k (|A| < 1: a stationary "
+       "process; the declared min/max are the doubles next to -1 and 1)", low_open=True,
        high_open=True),
     _p("Q", 0.01, 0.0, unit="g2", description="process noise variance Q of w_k"),
-    _p("R", 1e-4, 0.0, unit="V2", description="measurement noise variance R of v_k",
-       low_open=True),
+    _p("R", 1e-4, 0.0, unit="V2", description="measurement noise variance R of v_k (R > 0: the filter "
+       "divides by H^2 P + R; the declared min is the smallest positive double)", low_open=True),
     _p("x0", 0.0, unit="g", description="initial state x_0 (before sample 1)"),
     _p("P0", 0.01, 0.0, unit="g2", description="initial error variance P_0 of the filter"),
-    _p("Ts", 1e-3, 0.0, unit="s", description="sample period (one sample per Ts)",
-       low_open=True),
+    _p("Ts", 1e-3, TS_MIN, unit="s", description="sample period (one sample per Ts; at least "
+       "1 ns, so that a communication step of any size processes a bounded number of samples)"),
     _p("X", 1.0, 0.0, unit="g", description="amplitude X of the sinusoidal excitation"),
     _p("f", 150.0, 0.0, unit="Hz", description="frequency f of the sinusoidal excitation"),
     _p("phi", 0.0, unit="rad", description="phase of the sinusoidal excitation"),
@@ -68,6 +73,32 @@ def allowed(name):
     if name == "a1":
         parts.append("a1 != 0")
     return " and ".join(parts) if parts else "any finite value"
+
+
+def next_float(x, toward):
+    """The double next to ``x`` in the direction of ``toward`` (``math.nextafter``, also on
+    Python 3.8, where the FMUs may run)."""
+    if x == toward:
+        return x
+    if x == 0.0:
+        return math.copysign(5e-324, toward - x)
+    import struct
+    bits = struct.unpack("<q", struct.pack("<d", x))[0]
+    bits += 1 if (toward > x) == (x > 0.0) else -1
+    return struct.unpack("<d", struct.pack("<q", bits))[0]
+
+
+def declared_range(name):
+    """``(min, max)`` of parameter ``name`` as closed bounds (None where unbounded), for FMI 2
+    model descriptions, whose bounds are closed: an open bound ``R > 0`` becomes the accepted
+    double next to it (``R >= 5e-324``, ``A <= 0.9999999999999999``)."""
+    p = PARAMETERS[name]
+    low, high = p.low, p.high
+    if low is not None and p.low_open:
+        low = next_float(float(low), math.inf)
+    if high is not None and p.high_open:
+        high = next_float(float(high), -math.inf)
+    return low, high
 
 
 def _fmt(v):

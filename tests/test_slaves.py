@@ -89,7 +89,7 @@ def test_variables_table_is_complete():
     (DriftEstimator, "estimator", 4, "estimator = 4 is out of range; allowed: 1 <= estimator <= 3"),
     (Accelerometer, "a1", 0.0, "a1 = 0.0 is out of range; allowed: a1 != 0"),
     (Excitation, "A", 1.5, "A = 1.5 is out of range; allowed: A > -1 and A < 1"),
-    (Excitation, "Ts", 0.0, "Ts = 0.0 is out of range; allowed: Ts > 0"),
+    (Excitation, "Ts", 0.0, "Ts = 0.0 is out of range; allowed: Ts >= 1e-09"),
 ])
 def test_bad_parameter_is_logged_at_end_of_initialisation(slave_cls, name, value, text):
     s = slave_cls(instance_name="s")
@@ -128,10 +128,24 @@ def test_parameter_cannot_change_after_initialisation():
     assert get(c.a, "R") == 1e-4
 
 
-def test_step_must_be_whole_sample_periods():
+@pytest.mark.parametrize("h", [math.nan, math.inf, -math.inf, 0.0, -1e-3])
+def test_step_must_be_finite_and_positive(h):
     c = Chain()
-    assert c.step(0.0, 1.5e-3) == [False, False, False]
-    assert "not a whole number of sample periods Ts = 0.001" in messages(c.e)[0]
+    before = [s._get_fmu_state() for s in c.slaves]
+    assert c.step(0.0, h) == [False, False, False]
+    assert messages(c.e)[0] == "e: communication step h = %r s; allowed: a finite h > 0" % h
+    assert [s._get_fmu_state() for s in c.slaves] == before
+
+
+def test_step_of_too_many_samples_is_refused_and_changes_nothing():
+    c = Chain()
+    before = [s._get_fmu_state() for s in c.slaves]
+    assert c.step(0.0, 1e300) == [False, False, False]
+    text = messages(c.d)[0]
+    assert "h = 1e+300 s spans more than 1000000 sample instants of Ts = 0.001 s" in text
+    assert "allowed: at most MAX_SAMPLES_PER_STEP = 1000000" in text
+    assert [s._get_fmu_state() for s in c.slaves] == before
+    assert c.step(0.0, 1e-3) == [True, True, True]  # still usable
 
 
 def test_fmu_state_restores_hidden_state_bit_for_bit():
