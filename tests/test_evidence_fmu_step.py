@@ -160,3 +160,27 @@ def test_excitation_propagates_every_sample_at_A_not_0():
         x = 0.9 * x + math.sqrt(0.05) * noise.normal(5, noise.STREAM_PROCESS, k)
         xs.append(x)
     assert [r[1] for r in got] == pytest.approx([xs[k - 1] for k in _points()], rel=1e-15)
+
+
+@pytest.mark.parametrize("estimator", [1, 2, 3])
+def test_compensated_output_subtracts_the_selected_estimate(estimator):
+    # z_comp = z - dc with dc the estimate of the chosen estimator (1 EKF1, 2 EKF2, 3 EKF3)
+    e, a, d = (Excitation(instance_name="e"), Accelerometer(instance_name="a"),
+               DriftEstimator(instance_name="d"))
+    for s, values in ((e, dict(A=0.5, seed=4)), (a, dict(a2=0.2, seed=4)),
+                      (d, dict(A=0.5, a2=0.2, estimator=estimator))):
+        for name, value in values.items():
+            _set(s, name, value)
+        s.setup_experiment(0.0)
+        s.enter_initialization_mode()
+        s.exit_initialization_mode()
+    t = 0.0
+    for m in STEPS:
+        _set(a, "x", _get(e, "x"))
+        _set(d, "z", _get(a, "z"))
+        dcs = [_get(d, "dc_ekf%d" % i) for i in (1, 2, 3)]
+        assert len(set(dcs)) == 3
+        assert _get(d, "dc") == dcs[estimator - 1]
+        assert _get(d, "z_comp") == _get(a, "z") - dcs[estimator - 1]
+        assert [s.do_step(t, m * TS) for s in (e, a, d)] == [True, True, True]
+        t += m * TS
