@@ -175,11 +175,11 @@ def test_compensated_output_subtracts_the_selected_estimate(estimator):
         s.enter_initialization_mode()
         s.exit_initialization_mode()
     t = 0.0
-    for m in STEPS:
+    for j, m in enumerate(STEPS):
         _set(a, "x", _get(e, "x"))
         _set(d, "z", _get(a, "z"))
         dcs = [_get(d, "dc_ekf%d" % i) for i in (1, 2, 3)]
-        assert len(set(dcs)) == 3
+        assert len(set(dcs)) == (2 if j == 0 else 3)  # EKF2 = EKF3 after one sample only
         assert _get(d, "dc") == dcs[estimator - 1]
         assert _get(d, "z_comp") == _get(a, "z") - dcs[estimator - 1]
         assert [s.do_step(t, m * TS) for s in (e, a, d)] == [True, True, True]
