@@ -46,7 +46,7 @@ def test_true_drift_is_the_dc_of_the_noise_free_sensed_signal():
             x = d["X"] * np.sin(2 * np.pi * f * (k - 1) * TS + d["phi"])
             y = d["Xy"] * np.sin(2 * np.pi * f * (k - 1) * TS + d["phiy"])
             dc = np.mean(adxl203.sense(x, y, 0.0, cfg))  # a1 u + a2 u^2 + a3 u^3, over periods
-            assert experiment.true_drift(d, SENSOR) == pytest.approx(dc, rel=1e-9)
+            assert experiment.true_drift(d, SENSOR) == pytest.approx(dc, rel=1e-9, abs=0)
 
 
 def _record(drive, seeds, n):

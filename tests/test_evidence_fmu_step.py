@@ -144,7 +144,7 @@ def test_accelerometer_output_filter_runs_every_sample_with_the_input_held():
         v = noise.normal(9, noise.STREAM_MEASUREMENT, k)
         s = cfg.a1 * x + cfg.a2 * x * x + cfg.a3 * x ** 3 + math.sqrt(1e-4) * v
         e = s if e is None else alpha * e + (1 - alpha) * s
-        assert got[j][2] == pytest.approx(0.5 + e, rel=1e-13), k
+        assert got[j][2] == pytest.approx(0.5 + e, rel=1e-13, abs=0), k
         if j + 1 < len(ks):
             for kk in range(k + 1, ks[j + 1]):  # held input, fresh noise, every sample
                 v = noise.normal(9, noise.STREAM_MEASUREMENT, kk)
@@ -159,7 +159,7 @@ def test_excitation_propagates_every_sample_at_A_not_0():
     for k in range(1, _points()[-1] + 1):
         x = 0.9 * x + math.sqrt(0.05) * noise.normal(5, noise.STREAM_PROCESS, k)
         xs.append(x)
-    assert [r[1] for r in got] == pytest.approx([xs[k - 1] for k in _points()], rel=1e-15)
+    assert [r[1] for r in got] == pytest.approx([xs[k - 1] for k in _points()], rel=1e-15, abs=0)
 
 
 @pytest.mark.parametrize("estimator", [1, 2, 3])

@@ -66,8 +66,8 @@ def test_average_reports_the_spread_of_the_sets():
     avg = identify.average(fs)
     for name in TRUE:
         v = np.array([getattr(f, name) for f in fs])
-        assert avg[name] == pytest.approx(v.mean(), rel=1e-12)
-        assert avg["sd_" + name] == pytest.approx(v.std(ddof=1), rel=1e-12)
+        assert avg[name] == pytest.approx(v.mean(), rel=1e-12, abs=0)
+        assert avg["sd_" + name] == pytest.approx(v.std(ddof=1), rel=1e-12, abs=0)
     assert avg["sets"] == 40
 
 

@@ -39,10 +39,10 @@ def test_excitation_variance_and_lag1_correlation(A, Q):
     for k in (1, 3, n):
         var_k = Q * (1 - A ** (2 * k)) / (1 - A * A)  # from x_0 = 0
         v = xs[k - 1].var(ddof=1)
-        assert v == pytest.approx(var_k, rel=Z * math.sqrt(2.0 / (runs - 1))), k
+        assert v == pytest.approx(var_k, rel=Z * math.sqrt(2.0 / (runs - 1)), abs=0), k
         assert abs(xs[k - 1].mean()) <= Z * math.sqrt(var_k / runs), k
     assert excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q) == \
-        pytest.approx(Q / (1 - A * A), rel=1e-15)
+        pytest.approx(Q / (1 - A * A), rel=1e-15, abs=0)
     # lag-1 correlation across runs at the end (stationary there): sd(r) = (1 - A^2) / sqrt(runs)
     r = np.corrcoef(xs[n - 2], xs[n - 1])[0, 1]
     assert abs(r - A) <= Z * max(1 - A * A, 1e-3) / math.sqrt(runs)
@@ -58,8 +58,8 @@ def test_expected_drift_column_is_a2_sigma_x2():
     for kind, kw, var in ((excitation.GAUSSIAN, dict(A=0.6, Q=0.02), 0.02 / 0.64),
                           (excitation.SINUSOIDAL, dict(X=1.5, f=50.0), 1.5 ** 2 / 2)):
         r = chain.simulate(5, 1, a2=0.03, kind=kind, **kw)
-        assert r["dc_expected"] == [pytest.approx(0.03 * var, rel=1e-15)] * 5
-        assert sensor.drift(0.03, var) == pytest.approx(0.03 * var, rel=1e-15)
+        assert r["dc_expected"] == [pytest.approx(0.03 * var, rel=1e-15, abs=0)] * 5
+        assert sensor.drift(0.03, var) == pytest.approx(0.03 * var, rel=1e-15, abs=0)
 
 
 @pytest.mark.parametrize("A", [0.0, 0.8])
@@ -71,7 +71,7 @@ def test_realised_and_empirical_drift_average_to_the_expected_drift(A):
     assert abs(realised.mean() - want) <= Z * realised.std(ddof=1) / math.sqrt(runs)
     emp = out["final_zbar"]             # z̄_n - a0 = a1 x̄ + a2 mean(x^2) + v̄
     assert abs(emp.mean() - want) <= Z * emp.std(ddof=1) / math.sqrt(runs)
-    assert want == pytest.approx(a2 * Q / (1 - A * A), rel=0.02)  # near the stationary drift
+    assert want == pytest.approx(a2 * Q / (1 - A * A), rel=0.02, abs=0)  # near the stationary drift
 
 
 def test_empirical_drift_spread_is_64_times_the_drift_at_k_250():
@@ -80,7 +80,7 @@ def test_empirical_drift_spread_is_64_times_the_drift_at_k_250():
     out = batch.simulate(k, batch.run_seeds(60_000, runs), a1=a1, a2=a2, Q=Q, R=R)
     sd = out["final_zbar"].std(ddof=1)
     closed = math.sqrt((a1 * a1 * Q + R) / k)  # a1 x̄ + v̄ (the a2 x^2 term adds ~1e-4 of it)
-    assert sd == pytest.approx(closed, rel=Z * math.sqrt(0.5 / (runs - 1)) + 1e-3)
+    assert sd == pytest.approx(closed, rel=Z * math.sqrt(0.5 / (runs - 1)) + 1e-3, abs=0)
     assert a1 * math.sqrt(Q / k) / (a2 * Q) == pytest.approx(63.2, abs=0.1)
 
 
@@ -115,7 +115,7 @@ def test_ekf1_ekf2_gap_over_a_population_is_the_closed_form(a1, Q, R):
     out = batch.simulate(n, batch.run_seeds(1, runs), a1=a1, a2=0.01, Q=Q, R=R)
     gap, se = _pooled_gap(out["final_dc_ekf1"], out["final_dc_ekf2"])
     want = drift.expected_gap_db(a1, Q, R)
-    assert want == pytest.approx(10 * math.log10(1 + R / (a1 * a1 * Q)), rel=1e-15)
+    assert want == pytest.approx(10 * math.log10(1 + R / (a1 * a1 * Q)), rel=1e-15, abs=0)
     assert abs(gap - want) <= Z * se, (gap, want, se)
     assert se < 0.01 * want  # the population resolves the gap to better than 1 %
     if (a1, Q, R) == (1.0, 0.01, 1e-4):
