@@ -76,6 +76,11 @@ class Accelerometer(SlaveBase):
         lpy, z_y = self._axis(hidden["_lpy"], self.y, self.x, k, 2, "z_y")
         return {"_lp": lp, "_lpy": lpy}, {"z": z, "z_y": z_y}
 
+    def hidden_finite(self, hidden):
+        # the filter state e of an axis reaches its output z = Q(a0 + e): a non-finite e makes
+        # z non-finite, or the ADC raises, both refused by the base class first
+        return True
+
     def hold(self, hidden, k0, n, first):
         if self._cfg.alpha is None and n > 1:  # no filter: the samples before the last leave
             k0, n = k0 + n - 1, 1               # no trace (the same bits, faster)

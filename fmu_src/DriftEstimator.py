@@ -84,6 +84,16 @@ class DriftEstimator(SlaveBase):
             hidden, outputs = {"_state": state}, self._outputs(state)
         return hidden, outputs
 
+    def hidden_finite(self, hidden):
+        # x, P and the drift sums reach the outputs (x_hat, P, dc_ekf1 = a2 s1, dc_ekf2 = dc2,
+        # dc_ekf3 from a2 s3 and dc3), so a non-finite one makes an output non-finite, which the
+        # base class refuses first; the harmonic model's d, P12 and P22 do not reach them
+        state = hidden["_state"]
+        if type(state) is harmonic.HarmonicState:
+            zero = 0.0 * state.d + 0.0 * state.P12 + 0.0 * state.P22  # 0, or nan if any is not
+            return zero == 0.0                                          # finite (no overflow)
+        return True
+
     def parse_hidden(self, name, value):
         if value is None:
             return None

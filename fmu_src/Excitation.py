@@ -55,6 +55,9 @@ class Excitation(SlaveBase):
         x = self._sample(hidden["_x"], k)
         return {"_x": x}, {"x": x, "y": self._sample_y(k)}
 
+    def hidden_finite(self, hidden):
+        return True  # the hidden x is the output x, checked by the base class
+
     def hold(self, hidden, k0, n, first):
         x = hidden["_x"]
         if self.kind == excitation.GAUSSIAN:

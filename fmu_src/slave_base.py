@@ -75,7 +75,8 @@ STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep ac
 _STATE_META = ("model", "guid", "version")
 _STATE_FIELDS = ("k", "time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
-_ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
+_ARITHMETIC = (ArithmeticError, ValueError)
+_INF = math.inf  # overflow, 0/0, floor(nan) in the models
 
 
 class ModelError(Exception):
@@ -143,6 +144,7 @@ class SlaveBase(Fmi2Slave):
         super().__init__(**kwargs)
         _drop_duplicate_path(self.resources)
         cls = type(self)
+        self.version = cls.version  # (pythonfmu's __init__ sets None)
         # the same GUID at build time (into the model description) and in every instance
         self.guid = uuid.uuid5(GUID_NAMESPACE, "%s.%s %s" % (cls.__module__, cls.__name__,
                                                              self.version))
@@ -157,8 +159,8 @@ class SlaveBase(Fmi2Slave):
         self._in_init = False
         self._terminated = False
         self._pending = None    # hidden state after the pending sample, when not dirty
-        for name in self.HIDDEN:
-            setattr(self, name, None)
+        #: the committed hidden state, {name: value} over HIDDEN (replaced, never mutated)
+        self._committed = {name: None for name in self.HIDDEN}
         self._specs = {}
         for spec in self.VARIABLES:
             setattr(self, spec["name"], spec["start"] if spec["start"] is not None else 0.0)
@@ -236,17 +238,25 @@ class SlaveBase(Fmi2Slave):
 
     # -- setters: the whole call is checked before anything is assigned ---------------------
     def set_real(self, vrs, values):
-        inputs = self._real_inputs
-        try:
-            fast = not self._terminated and len(vrs) == len(values) \
-                and all(vr in inputs for vr in vrs) and all(math.isfinite(v) for v in values)
-        except TypeError:
-            fast = False
-        if fast:  # the per-sample fast path
-            for vr, value in zip(vrs, values):
-                setattr(self, inputs[vr], value)
-            self._dirty = True
-            return
+        # the per-sample fast path: finite floats into inputs (v - v is 0 only when v is finite)
+        if len(vrs) == 1 and len(values) == 1 and not self._terminated:
+            name, v = self._real_inputs.get(vrs[0]), values[0]
+            if name is not None and type(v) is float and v - v == 0.0:
+                setattr(self, name, v)
+                self._dirty = True
+                return
+        elif not self._terminated and len(vrs) == len(values):
+            inputs = self._real_inputs
+            names = [inputs.get(vr) for vr in vrs]
+            if None not in names:
+                for v in values:
+                    if type(v) is not float or v - v != 0.0:
+                        break
+                else:
+                    for name, v in zip(names, values):
+                        setattr(self, name, v)
+                    self._dirty = True
+                    return
         self._call(self._set_checked, "fmi2SetReal", vrs, values, "Real")
 
     def set_integer(self, vrs, values):
@@ -294,7 +304,11 @@ class SlaveBase(Fmi2Slave):
 
     # -- errors -----------------------------------------------------------------------------
     def _log_error(self, message):
-        self.log("%s: %s" % (self.instance_name, message), Fmi2Status.error, _ERROR_CATEGORY)
+        # pythonfmu 0.7.0 never releases a reference it takes to each message's text (about
+        # 120 bytes a line); interned, a message repeated (a host retrying a bad call) is kept
+        # once, not once per call
+        self.log(sys.intern("%s: %s" % (self.instance_name, message)), Fmi2Status.error,
+                 _ERROR_CATEGORY)
 
     def _fail(self, message):
         """Log ``message`` with status error and abandon the current FMI call."""
@@ -395,10 +409,12 @@ class SlaveBase(Fmi2Slave):
                        "fmi2Reset, then initialise again")
         if not self._initialised:
             self._fail("cannot step: initialisation did not complete (see the errors above)")
-        if not (_is_number(h) and math.isfinite(h) and h > 0.0):
+        if not (type(h) in (float, int) and 0.0 < h < _INF):
             self._fail("communication step h = %r s; allowed: a finite h > 0" % (h,))
         Ts, k, tol = self.Ts, self.k, INSTANT_TOLERANCE
-        elapsed, comp = _add(self._elapsed, self._elapsed_c, h)
+        elapsed = self._elapsed + h  # Neumaier's compensated sum of the step sizes
+        s = self._elapsed
+        comp = self._elapsed_c + (((s - elapsed) + h) if abs(s) >= h else ((h - elapsed) + s))
         position = (elapsed + comp) / Ts  # t + h in sample periods from the start
         limit = self.MAX_SAMPLES_PER_STEP
         if not position - tol <= limit + k - 1:
@@ -408,29 +424,28 @@ class SlaveBase(Fmi2Slave):
         last = math.ceil(position - tol)      # index (k - 1) of the first instant at or after t+h
         m = max(0, last + 1 - k)              # instants in [t, t + h)
         at_sample = last <= position + tol    # t + h is that instant
-        if not m:  # no sample instant in the step: only the time moves on
-            self._elapsed, self._elapsed_c = elapsed, comp
-            return
-        hidden, outputs, pending = self._hidden(), None, None
+        hidden = outputs = pending = None  # hidden None: the committed state stays
         first = True
-        if self._at_sample:  # sample k: committed with the inputs set at t
+        if m and self._at_sample:  # sample k: committed with the inputs set at t
             if self._dirty or self._pending is None:
-                hidden, outputs = self._samples(hidden, k, 1, True)
+                hidden, outputs = self._samples(self._hidden(), k, 1, True)
             else:
                 hidden = self._pending
             first = False
-        if m > 1 or not self._at_sample:  # the other instants: inputs held from t
+        if m > 1 or (m and not self._at_sample):  # the other instants: inputs held from t
             start = k + 1 if self._at_sample else k
-            hidden, outputs = self._samples(hidden, start, k + m - start, first)
+            hidden, outputs = self._samples(self._hidden() if hidden is None else hidden,
+                                            start, k + m - start, first)
         if at_sample and not self.DEPENDENCIES:
-            pending, outputs = self._samples(hidden, k + m, 1, True)
+            pending, outputs = self._samples(self._hidden() if hidden is None else hidden,
+                                             k + m, 1, True)
         self._commit(hidden, k + m, at_sample, elapsed, comp, outputs, pending)
 
     def _commit(self, hidden, k, at_sample, elapsed, comp, outputs, pending):
-        for name, value in hidden.items():
-            setattr(self, name, value)
+        if hidden is not None:
+            self._committed = hidden
         if outputs is not None:
-            self._set_outputs(outputs)
+            self.__dict__.update(outputs)
         self.k = k
         self._at_sample = at_sample
         self._elapsed, self._elapsed_c = elapsed, comp
@@ -438,32 +453,35 @@ class SlaveBase(Fmi2Slave):
         self._dirty = pending is None
 
     def _set_outputs(self, outputs):
-        for name, value in outputs.items():
-            setattr(self, name, value)
+        self.__dict__.update(outputs)
 
     def _hidden(self):
-        return {name: getattr(self, name) for name in self.HIDDEN}
+        return self._committed
 
     def _samples(self, hidden, k0, n, first):
         """Process samples ``k0 .. k0 + n - 1`` from ``hidden`` with the inputs held; return
         ``(hidden, outputs)`` after the last, or fail if any value is not finite."""
         try:
-            hidden, outputs = self.hold(hidden, k0, n, first)
-        except ModelError:
-            raise
-        except _ARITHMETIC as exc:
+            if n == 1:
+                hidden, outputs = self.sample(hidden, k0, first)
+            else:
+                hidden, outputs = self.hold(hidden, k0, n, first)
+        except _ARITHMETIC as exc:  # (ModelError is neither)
             self._fail("the outputs at sample %d (t = %r s) cannot be computed: %s: %s; "
                        "allowed: inputs and parameters whose outputs stay finite (nothing was "
                        "changed)" % (k0 + n - 1, self._sample_time(k0 + n - 1),
                                      type(exc).__name__, exc))
         k = k0 + n - 1
-        for name, value in outputs.items():
-            if not math.isfinite(value):
-                self._not_finite(name, value, k)
-        for name, value in hidden.items():
-            for part, v in _numbers(name, value):
-                if not math.isfinite(v):
-                    self._not_finite("hidden state " + part, v, k)
+        for value in outputs.values():
+            if value - value != 0.0:  # not finite (v - v is 0 for every finite v)
+                for name, value in outputs.items():
+                    if not math.isfinite(value):
+                        self._not_finite(name, value, k)
+        if not self.hidden_finite(hidden):
+            for name, value in hidden.items():
+                for part, v in _numbers(name, value):
+                    if not math.isfinite(v):
+                        self._not_finite("hidden state " + part, v, k)
         return hidden, outputs
 
     # -- hooks for the slaves ---------------------------------------------------------------
@@ -495,6 +513,19 @@ class SlaveBase(Fmi2Slave):
             raise ValueError("not a finite number")
         return value
 
+    def hidden_finite(self, hidden):
+        """Whether every number in ``hidden`` is finite (slaves may override with a faster
+        test of the same meaning)."""
+        for name, value in hidden.items():
+            if value is None:
+                continue
+            if type(value) is float:
+                if value - value != 0.0:
+                    return False
+            elif not all(math.isfinite(v) for _, v in _numbers(name, value)):
+                return False
+        return True
+
     def hidden_problems(self, hidden):
         """Problems of a hidden state read back for the current parameters (hook)."""
         return []
@@ -512,7 +543,7 @@ class SlaveBase(Fmi2Slave):
         state["flags"] = {"initialised": self._initialised, "in_init": self._in_init,
                           "at_sample": self._at_sample, "terminated": self._terminated}
         for name in self.HIDDEN:
-            state[name] = _plain(getattr(self, name))
+            state[name] = _plain(self._committed[name])
         return state
 
     def _set_fmu_state(self, state):
@@ -599,8 +630,7 @@ class SlaveBase(Fmi2Slave):
                            "refused and nothing was changed" % (cls, bad[0]))
         for name, value in values.items():
             setattr(self, name, value)
-        for name, value in hidden.items():
-            setattr(self, name, value)
+        self._committed = hidden
         self.k = k
         self.start_time, self._elapsed, self._elapsed_c = (float(v) for v in time)
         self._initialised, self._in_init = flags["initialised"], flags["in_init"]
@@ -631,17 +661,6 @@ def _article(word):
 
 def _is_number(v):
     return isinstance(v, (int, float)) and not isinstance(v, bool)
-
-
-def _add(s, c, x):
-    """Neumaier's compensated sum: ``(s + x, compensation)`` of a running sum ``s`` with
-    compensation ``c``; the sum of many step sizes stays exact to about one ulp."""
-    t = s + x
-    if abs(s) >= abs(x):
-        c += (s - t) + x
-    else:
-        c += (x - t) + s
-    return t, c
 
 
 def _numbers(name, value):

@@ -48,9 +48,10 @@ PARAMETERS = {p.name: p for p in (
     _p("cross", 0.0, -1.0, 1.0, description="cross-axis coupling: each axis senses its own "
        "acceleration plus cross times the other's (0: off)"),
     _p("fc", 0.0, 0.0, unit="Hz", description="output low-pass bandwidth f-3dB = 5 uF / C "
-       "(0: off)"),
+       "(0: off; at most 2500 Hz, the datasheet's maximum)"),
     _p("Vs", 0.0, 0.0, 6.0, unit="V", description="supply voltage of the ratiometric output: "
-       "zero-g Vs/2, sensitivity scaled like the datasheet's (0: off, a0 and a1 as given)"),
+       "zero-g Vs/2, sensitivity scaled like the datasheet's (0: off, a0 and a1 as given; "
+       "otherwise 3 <= Vs <= 6, the datasheet's supply range)"),
     _p("bits", 0, 0, 24, description="ADC resolution over [0, Vs) or [0, 5 V) (0: off)"),
     _p("density", 0.0, 0.0, unit="g/sqrt(Hz)", description="noise density; sigma = density "
        "sqrt(fs/2) replaces R (0: off, noise from R)"),
