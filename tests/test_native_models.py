@@ -649,6 +649,12 @@ def models(tmp_path_factory):
 TOL = 1e-6  # slave_base.INSTANT_TOLERANCE
 
 
+def _neumaier(s, c, x):
+    """The compensated sum of the step sizes as slave_base._step computes it (inlined there)."""
+    t = s + x
+    return t, c + (((s - t) + x) if abs(s) >= x else ((x - t) + s))
+
+
 class CSlave:
     """One native model driven through its hooks, with the plumbing's part (sample planning,
     feedthrough refresh, dirty and pending flags) done as slave_base does it."""
@@ -696,7 +702,7 @@ class CSlave:
     def step(self, h):
         """slave_base._step's planning; the hooks do the rest."""
         Ts, k = self.raw("Ts"), self.k
-        elapsed, comp = slave_base._add(self.elapsed, self.comp, h) if VARIABLE_STEPS else \
+        elapsed, comp = _neumaier(self.elapsed, self.comp, h) if VARIABLE_STEPS else \
             (self.elapsed + h, 0.0)
         position = (elapsed + comp) / Ts
         last = math.ceil(position - TOL)
