@@ -23,6 +23,7 @@ import argparse
 import os
 import re
 import shutil
+import signal
 import subprocess
 import sys
 import tempfile
@@ -154,6 +155,8 @@ def main(argv=None):
         print("mutate: all %d patterns match exactly once" % len(load(args.list)))
         return 0
 
+    # SIGTERM as an exception, so the running pytest is killed and the copy removed
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
     tmp, copy = make_copy()
     try:
         where = subprocess.run([sys.executable, "-c", "import driftfmu.models as m, "
