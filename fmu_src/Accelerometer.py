@@ -76,12 +76,18 @@ class Accelerometer(SlaveBase):
         lpy, z_y = self._axis(hidden["_lpy"], self.y, self.x, k, 2, "z_y")
         return {"_lp": lp, "_lpy": lpy}, {"z": z, "z_y": z_y}
 
-    def hidden_finite(self, hidden):
-        # the filter state e of an axis reaches its output z = Q(a0 + e): a non-finite e makes
-        # z non-finite, or the ADC raises, both refused by the base class first
-        return True
+    #: the filter state e of an axis reaches its output z = Q(a0 + e): a non-finite e makes z
+    #: non-finite, or the ADC raises, both refused by the base class
+    hidden_finite = None
 
     def hold(self, hidden, k0, n, first):
-        if self._cfg.alpha is None and n > 1:  # no filter: the samples before the last leave
-            k0, n = k0 + n - 1, 1               # no trace (the same bits, faster)
-        return super().hold(hidden, k0, n, first)
+        if n > 1:  # the samples before the last change only the filter state: adxl203.hold
+            lp, lpy, cfg = hidden["_lp"], hidden["_lpy"], self._cfg  # (the same bits, faster)
+            if cfg.alpha is not None:
+                lp = adxl203.hold(lp, self.x, self.y, self.seed, k0 - 1, n, cfg, axis=1,
+                                  noise_on=self.noise)
+                if self.axes == 2:
+                    lpy = adxl203.hold(lpy, self.y, self.x, self.seed, k0 - 1, n, cfg, axis=2,
+                                       noise_on=self.noise)
+            hidden, k0 = {"_lp": lp, "_lpy": lpy}, k0 + n - 1
+        return self.sample(hidden, k0, first)

@@ -55,8 +55,8 @@ class Excitation(SlaveBase):
         x = self._sample(hidden["_x"], k)
         return {"_x": x}, {"x": x, "y": self._sample_y(k)}
 
-    def hidden_finite(self, hidden):
-        return True  # the hidden x is the output x, checked by the base class
+    #: the hidden x is the output x, which the base class checks
+    hidden_finite = None
 
     def hold(self, hidden, k0, n, first):
         x = hidden["_x"]

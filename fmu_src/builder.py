@@ -16,7 +16,9 @@ For each slave script ``fmu_src/<Name>.py`` :func:`build_fmus`
 4. validates the FMU with fmpy and moves it into place as ``<out_dir>/<Name>.fmu``.
 
 ``resources/driftfmu_build.json`` records the Python version, libpython soname, code hash and
-loader kind of the build.
+loader kind of the build.  The bundled package carries driftfmu's version, and the GUID is made
+from the module (with its code hash), the class and that version (``slave_base.GUID_NAMESPACE``),
+so the model description and every instance agree on it and FMU states can name their FMU.
 """
 import ast
 import contextlib

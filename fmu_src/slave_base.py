@@ -75,8 +75,10 @@ STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep ac
 _STATE_META = ("model", "guid", "version")
 _STATE_FIELDS = ("k", "time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
-_ARITHMETIC = (ArithmeticError, ValueError)
-_INF = math.inf  # overflow, 0/0, floor(nan) in the models
+_ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
+_INF = math.inf
+_TERMINATED = ("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
+               "fmi2FreeInstance, the get functions and fmi2GetFMUstate/fmi2SetFMUstate")
 
 
 class ModelError(Exception):
@@ -137,7 +139,10 @@ class SlaveBase(Fmi2Slave):
     DEPENDENCIES = {}
     CAN_HANDLE_VARIABLE_STEP = True
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
-    #: Names of the hidden state (attributes; None before initialisation).
+    #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
+    #: before initialisation).  Slaves provide the hooks ``prepare``, ``initial_hidden``,
+    #: ``sample`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
+    #: ``hidden_problems``; the step rule, the checks and the FMU state are this class's.
     HIDDEN = ()
 
     def __init__(self, **kwargs):
@@ -190,16 +195,17 @@ class SlaveBase(Fmi2Slave):
 
     # -- getters ----------------------------------------------------------------------------
     def get_real(self, vrs):
-        if self._dirty and self._at_sample and (self._in_init or (
-                self._initialised and self.DEPENDENCIES)):
-            self._call(self._refresh)  # outputs at this communication point, from its inputs
         names = self._real_names
         try:
-            return [float(getattr(self, names[vr])) for vr in vrs]
-        except KeyError:
+            wanted = [names[vr] for vr in vrs]
+        except KeyError:  # the whole call is refused, and changes nothing
             self._call(self._fail, "fmi2GetReal: %s" % self._bad_refs(vrs, "Real"))
             return [float(getattr(self, names[vr])) if vr in names else math.nan
                     for vr in vrs]
+        if self._dirty and self._at_sample and (self._in_init or (
+                self._initialised and self.DEPENDENCIES)):
+            self._call(self._refresh)  # outputs at this communication point, from its inputs
+        return [float(getattr(self, name)) for name in wanted]
 
     def get_integer(self, vrs):
         return self._get_typed("fmi2GetInteger", "Integer", vrs, 0, int)
@@ -271,8 +277,7 @@ class SlaveBase(Fmi2Slave):
     def _set_checked(self, what, vrs, values, kind):
         problems = []
         if self._terminated:
-            problems.append("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
-                            "fmi2FreeInstance, the get functions and fmi2SetFMUstate")
+            problems.append(_TERMINATED)
         bad_refs = [vr for vr in vrs if vr not in self._specs or self._specs[vr]["type"] != kind]
         if bad_refs:
             problems.append(self._bad_refs(bad_refs, kind))
@@ -370,17 +375,22 @@ class SlaveBase(Fmi2Slave):
             self.start_time = start_time
 
     def enter_initialization_mode(self):
+        if self._terminated:
+            self._call(self._fail, "fmi2EnterInitializationMode: " + _TERMINATED)
+            return
         self._in_init = True
         self._dirty = True
 
     def exit_initialization_mode(self):
-        self._initialised = self._call(self._initialise)
-        self._in_init = False
+        if self._call(self._initialise):  # refused: still in Initialization Mode, unchanged
+            self._initialised, self._in_init = True, False
 
     def terminate(self):
         self._terminated = True
 
     def _initialise(self):
+        if self._terminated:
+            self._fail("fmi2ExitInitializationMode: " + _TERMINATED)
         self._check_and_prepare("")
         hidden = self.initial_hidden()
         outputs = pending = None
@@ -391,12 +401,12 @@ class SlaveBase(Fmi2Slave):
     def _refresh(self):
         """Outputs of the pending sample from the current inputs (feedthrough)."""
         if self._initialised:
-            pending, outputs = self._samples(self._hidden(), self.k, 1, True)
+            pending, outputs = self._samples(self._committed, self.k, 1, True)
         else:  # Initialization Mode: sample 1 from the start values and inputs
             self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
             pending, outputs = self._samples(self.initial_hidden(), 1, 1, True)
             pending = None
-        self._set_outputs(outputs)
+        self.__dict__.update(outputs)
         self._pending = pending
         self._dirty = False
 
@@ -405,8 +415,7 @@ class SlaveBase(Fmi2Slave):
 
     def _step(self, h):
         if self._terminated:
-            self._fail("cannot step: the instance is terminated (fmi2Terminate); allowed: "
-                       "fmi2Reset, then initialise again")
+            self._fail("cannot step: " + _TERMINATED)
         if not self._initialised:
             self._fail("cannot step: initialisation did not complete (see the errors above)")
         if not (type(h) in (float, int) and 0.0 < h < _INF):
@@ -428,18 +437,27 @@ class SlaveBase(Fmi2Slave):
         first = True
         if m and self._at_sample:  # sample k: committed with the inputs set at t
             if self._dirty or self._pending is None:
-                hidden, outputs = self._samples(self._hidden(), k, 1, True)
+                hidden, outputs = self._samples(self._committed, k, 1, True)
             else:
                 hidden = self._pending
             first = False
         if m > 1 or (m and not self._at_sample):  # the other instants: inputs held from t
             start = k + 1 if self._at_sample else k
-            hidden, outputs = self._samples(self._hidden() if hidden is None else hidden,
+            hidden, outputs = self._samples(self._committed if hidden is None else hidden,
                                             start, k + m - start, first)
         if at_sample and not self.DEPENDENCIES:
-            pending, outputs = self._samples(self._hidden() if hidden is None else hidden,
+            pending, outputs = self._samples(self._committed if hidden is None else hidden,
                                              k + m, 1, True)
-        self._commit(hidden, k + m, at_sample, elapsed, comp, outputs, pending)
+        # commit (nothing above changed the instance)
+        if hidden is not None:
+            self._committed = hidden
+        if outputs is not None:
+            self.__dict__.update(outputs)
+        self.k = k + m
+        self._at_sample = at_sample
+        self._elapsed, self._elapsed_c = elapsed, comp
+        self._pending = pending
+        self._dirty = pending is None
 
     def _commit(self, hidden, k, at_sample, elapsed, comp, outputs, pending):
         if hidden is not None:
@@ -451,12 +469,6 @@ class SlaveBase(Fmi2Slave):
         self._elapsed, self._elapsed_c = elapsed, comp
         self._pending = pending
         self._dirty = pending is None
-
-    def _set_outputs(self, outputs):
-        self.__dict__.update(outputs)
-
-    def _hidden(self):
-        return self._committed
 
     def _samples(self, hidden, k0, n, first):
         """Process samples ``k0 .. k0 + n - 1`` from ``hidden`` with the inputs held; return
@@ -477,7 +489,8 @@ class SlaveBase(Fmi2Slave):
                 for name, value in outputs.items():
                     if not math.isfinite(value):
                         self._not_finite(name, value, k)
-        if not self.hidden_finite(hidden):
+        check = self.hidden_finite
+        if check is not None and not check(hidden):
             for name, value in hidden.items():
                 for part, v in _numbers(name, value):
                     if not math.isfinite(v):
@@ -514,8 +527,9 @@ class SlaveBase(Fmi2Slave):
         return value
 
     def hidden_finite(self, hidden):
-        """Whether every number in ``hidden`` is finite (slaves may override with a faster
-        test of the same meaning)."""
+        """Whether every number in ``hidden`` is finite.  Slaves may override this with a
+        faster test of the same meaning, or set it to None where a non-finite hidden value
+        always makes an output non-finite (which is checked first)."""
         for name, value in hidden.items():
             if value is None:
                 continue
@@ -528,6 +542,20 @@ class SlaveBase(Fmi2Slave):
 
     def hidden_problems(self, hidden):
         """Problems of a hidden state read back for the current parameters (hook)."""
+        return []
+
+    def _timing_problems(self, k, time, at_sample):
+        """Whether sample index ``k`` and the at-a-sample flag agree with the time of a state
+        (as :meth:`_step` derives them: ``k - 1`` is the first instant at or after ``t``)."""
+        position = (time[1] + time[2]) / self.Ts
+        if not math.isfinite(position):
+            return ["time = %r is not a finite number of sample periods Ts = %r s"
+                    % (time, self.Ts)]
+        first = math.ceil(position - INSTANT_TOLERANCE)
+        if k - 1 != first or at_sample != (first <= position + INSTANT_TOLERANCE):
+            return ["k = %r and at_sample = %r do not match the time %r s after the start "
+                    "(the next sample there is k = %d)" % (k, at_sample, time[1] + time[2],
+                                                            first + 1)]
         return []
 
     # -- FMU state: variables plus hidden state ---------------------------------------------
@@ -619,7 +647,8 @@ class SlaveBase(Fmi2Slave):
                            self.initial_hidden()[name] is not None):
                         bad = ["the hidden state of an initialised instance is missing"]
                     else:
-                        bad = self.hidden_problems(hidden)
+                        bad = self.hidden_problems(hidden) + self._timing_problems(
+                            k, time, flags["at_sample"])
             finally:
                 for name, value in saved.items():
                     setattr(self, name, value)

@@ -23,12 +23,13 @@ PARAMETERS = {p.name: p for p in (
     _p("a0", 0.0, unit="V", description="sensor offset a0 of z = a0 + a1 x + a2 x^2 + v"),
     _p("a1", 1.0, unit="V/g", description="sensor sensitivity a1 (must not be 0)"),
     _p("a2", 0.01, unit="V/g2", description="second-order coefficient a2; its drift is a2 E[x^2]"),
-    _p("A", 0.0, -1.0, 1.0, description="state transition x_k = A x_{k-1} + w_k (|A| < 1: a stationary "
-       "process; the declared min/max are the doubles next to -1 and 1)", low_open=True,
+    _p("A", 0.0, -1.0, 1.0, description="state transition x_k = A x_{k-1} + w_k (|A| < 1: a "
+       "stationary process; the declared min/max are the doubles next to -1 and 1)", low_open=True,
        high_open=True),
     _p("Q", 0.01, 0.0, unit="g2", description="process noise variance Q of w_k"),
-    _p("R", 1e-4, 0.0, unit="V2", description="measurement noise variance R of v_k (R > 0: the filter "
-       "divides by H^2 P + R; the declared min is the smallest positive double)", low_open=True),
+    _p("R", 1e-4, 0.0, unit="V2", description="measurement noise variance R of v_k (R > 0: the "
+       "filter divides by H^2 P + R; the declared min is the smallest positive double)",
+       low_open=True),
     _p("x0", 0.0, unit="g", description="initial state x_0 (before sample 1)"),
     _p("P0", 0.01, 0.0, unit="g2", description="initial error variance P_0 of the filter"),
     _p("Ts", 1e-3, TS_MIN, unit="s", description="sample period (one sample per Ts; at least "

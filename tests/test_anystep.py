@@ -209,3 +209,33 @@ def test_steps_of_whole_samples_in_any_mix_are_bit_identical_to_unit_steps():
     # fewer measurements in the coarse run, so only the excitation and sensor are compared)
     for p, row in zip(positions, rows):
         assert row[:3] == unit[p][:3]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("name", ["mixed, seed 2", "h = 0.3 Ts"])
+def test_built_fmus_in_fmpy_follow_the_rule(built_fmus, name):
+    """The same through pythonfmu's C++ and the loader shim, in fmpy."""
+    from driftfmu.simulations.cosim import Instance
+    quotients = SEQUENCES[name]
+    inst = [Instance(n, built_fmus[n]) for n in ("Excitation", "Accelerometer", "DriftEstimator")]
+    for i in inst:
+        i.fmu.setupExperiment(startTime=0.0)
+        i.fmu.enterInitializationMode()
+        i.fmu.exitInitializationMode()
+    e, a, d = inst
+
+    def point():
+        a.fmu.setReal([a.vrs["x"], a.vrs["y"]], e.fmu.getReal([e.vrs["x"], e.vrs["y"]]))
+        d.fmu.setReal([d.vrs["z"]], a.fmu.getReal([a.vrs["z"]]))
+        return tuple(e.fmu.getReal([e.vrs["x"]]) + a.fmu.getReal([a.vrs["z"], a.vrs["z_y"]])
+                     + d.fmu.getReal([d.vrs[n] for n in OUTS]))
+
+    rows, t = [point()], 0.0
+    for q in quotients:
+        for i in inst:
+            i.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=float(q) * TS)
+        t += float(q) * TS
+        rows.append(point())
+    assert rows == reference(LETTER, quotients)
+    for i in inst:
+        i.free()

@@ -17,7 +17,7 @@ import pytest
 from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
-from driftfmu.models import adxl203, excitation, parameters, sensor
+from driftfmu.models import parameters, sensor
 from driftfmu.simulations.cosim import Instance
 
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
@@ -108,6 +108,8 @@ def _state_of(s):
     ("_state", [0.0, 0.01], "hidden state _state = [0.0, 0.01] is not valid"),
     ("_state", [0.0, 0.01, [1, 0.0, 0.0, "x", 0.0]], "hidden state _state"),
     ("R", -1.0, "R = -1.0 is out of range; allowed: R > 0"),
+    ("k", 7, "k = 7 and at_sample = True do not match the time 0.001 s after the start (the "
+             "next sample there is k = 2)"),
     ("version", "0.0.0", "has version '0.0.0'"),
     ("guid", "0", "has guid '0'"),
     ("model", "Accelerometer", "this is an FMU state of model 'Accelerometer', not of "
@@ -422,7 +424,11 @@ def test_fmu_state_before_initialisation_and_after_reset(built_fmus):
         after_reset = inst.fmu.getFMUstate()
         inst.fmu.setFMUstate(fresh)
         blob = inst.fmu.serializeFMUstate(after_reset)
-        assert json.loads(blob.decode())["flags"]["initialised"] is False
+        state = json.loads(blob.decode())
+        assert state["flags"]["initialised"] is False
+        # the state names the FMU it belongs to: the model description's GUID and version
+        assert (state["model"], state["guid"], state["version"]) == (
+            name, inst.md.guid, inst.md.version)
         inst.fmu.freeFMUstate(fresh)
         inst.fmu.freeFMUstate(after_reset)
         inst.free()
@@ -453,7 +459,7 @@ def test_fmus_run_any_step_in_fmpy(built_fmus):
     # experiment's stop time and the Compliance Checker's 500 output points over it
     from fmpy import simulate_fmu
     for name in ("Excitation", "DriftEstimator"):
-        for step in (0.7e-3, 2.0 / 500):
+        for step in (None, 0.7e-3, 2.0 / 500):  # None: fmpy's default from the experiment
             result = simulate_fmu(str(built_fmus[name]), output_interval=step)
             assert len(result) > 400 and all(math.isfinite(v) for row in result
                                              for v in list(row)[1:])
