@@ -85,7 +85,7 @@ def check(faults, root=ROOT):
     return problems
 
 
-_FAILED = re.compile(r"^(FAILED|ERROR) (\S+)")
+_FAILED = re.compile(r"^(FAILED|ERROR) (.+?)(?: - .*)?$")  # ids may hold spaces
 
 
 def run_tests(copy, tests, timeout, ignore=()):
