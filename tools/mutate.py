@@ -107,6 +107,8 @@ def run_tests(copy, tests, timeout, ignore=()):
         return "passed", None, seconds
     if p.returncode == 1 and first:
         return "failed", first, seconds
+    if p.returncode in (4, 5):  # usage error, no tests collected: nothing was tested
+        return "not run", "pytest exit status %d" % p.returncode, seconds
     # collection errors, internal errors: the copy does not even import or run
     tail = [ln for ln in out.splitlines() if ln.strip()][-3:]
     return "error", first or " / ".join(tail)[:120], seconds
