@@ -25,9 +25,18 @@ def update(x_pred, P_pred, z, a0, a1, a2, R):
     S = H * H * P_pred + R
     K = P_pred * H / S
     x = x_pred + K * (z - h(x_pred, a0, a1, a2))
+    return x, joseph(P_pred, K, H, R)
+
+
+def joseph(P_pred, K, H, R):
+    """Error variance after an update with gain ``K``, ``(1 - K H)^2 P^- + K^2 R`` (Joseph).
+
+    Valid for any gain; the simple form ``(1 - K H) P^-`` holds only at the optimal gain
+    ``K = P^- H / (H^2 P^- + R)``, and there it loses accuracy (and positivity) when
+    ``R << H^2 P^-``.
+    """
     one_minus_KH = 1.0 - K * H
-    P = one_minus_KH * one_minus_KH * P_pred + K * K * R
-    return x, P
+    return one_minus_KH * one_minus_KH * P_pred + K * K * R
 
 
 def step(x, P, z, a0, a1, a2, A, Q, R):

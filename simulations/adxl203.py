@@ -63,6 +63,21 @@ def set_drive(seed, f):
                 phiy=2 * math.pi * uniform(seed, STREAM_PHASE, 3), seed=seed)
 
 
+def true_drift(drive, sensor):
+    """The drift the stand-in really has over whole periods: the DC of ``a2 u^2`` with
+    ``u = x + cross y`` (``a3 u^3`` and the noise have none, the low-pass passes DC),
+
+    .. math:: a_2 \\frac{X^2 + (c X_y)^2 + 2 c X X_y \\cos(\\phi - \\phi_y)}{2}
+
+    with ``a2`` scaled to the supply.  ``drive`` and ``sensor`` are the Excitation's and the
+    Accelerometer's start values of a set.
+    """
+    c = sensor["cross"]
+    return adxl203.config(**sensor).a2 * (drive["X"] ** 2 + (c * drive["Xy"]) ** 2
+                                         + 2 * c * drive["X"] * drive["Xy"]
+                                         * math.cos(drive["phi"] - drive["phiy"])) / 2.0
+
+
 def _run_set(task):
     """Worker: co-simulate one set.  Training: fit the model.  Held out: EKF1 and references."""
     from driftfmu.simulations.cosim import cosimulate
@@ -87,9 +102,7 @@ def _run_set(task):
     m = identify.whole_periods(n, f, Ts)
     res = {"dc_empirical": sum(z[:m]) / m - model["a0"],
            "dc_ekf1": raw["DriftEstimator.dc_ekf1"][-1],
-           "dc_true": adxl203.config(**sp).a2 * (ex["X"] ** 2 + (sp["cross"] * ex["Xy"]) ** 2
-                                              + 2 * sp["cross"] * ex["X"] * ex["Xy"]
-                                              * math.cos(ex["phi"] - ex["phiy"])) / 2.0,
+           "dc_true": true_drift(ex, sp),
            "trace": [(k, raw["DriftEstimator.dc_ekf1"][k - 1]) for k in _log_samples(n)]}
     if validate:
         ref = adxl203.simulate(n, ex, sp, es, Ts)
