@@ -1,0 +1,19 @@
+/* DriftEstimator_step: the per-sample logic of fmu_src/DriftEstimator.py, as the MODEL HOOKS of
+ * fmu_src/native/model.h (model_check, model_start, model_compute, model_advance), compiled into
+ * the DriftEstimator FMU.  This header is its MODEL_LOGIC_HEADER: it defines ModelHidden and
+ * must not include model.h. */
+#ifndef DRIFTFMU_DRIFTESTIMATOR_STEP_H
+#define DRIFTFMU_DRIFTESTIMATOR_STEP_H
+
+#include <stdint.h>
+
+#include "harmonic.h"
+
+/* DriftEstimator.HIDDEN plus the derived process model (self._model's C, S). */
+typedef struct {
+    double C, S;                  /* harmonic.rotation(f, Ts) */
+    HarmonicState state, pending; /* committed and pending estimator state (self._state,
+                                     self._pending); both process models, see harmonic.h */
+} ModelHidden;
+
+#endif

@@ -1,0 +1,51 @@
+/* adxl203: C port of models/adxl203.py (the richer accelerometer), what the Accelerometer FMU
+ * uses.  `None` of the Python is a flag field (has_alpha) or a flag argument (prev_set). */
+#ifndef DRIFTFMU_ADXL203_H
+#define DRIFTFMU_ADXL203_H
+
+#include <stdint.h>
+
+#include "parameters.h"
+
+#define ADXL203_VS_NOMINAL 5.0
+#define ADXL203_SENSITIVITY_5V 1.000
+#define ADXL203_SENSITIVITY_3V 0.560
+#define ADXL203_VS_LOW 3.0
+#define ADXL203_VS_HIGH 6.0
+#define ADXL203_BANDWIDTH_RULE 5e-6
+#define ADXL203_MAX_BANDWIDTH 2500.0
+#define ADXL203_RANGE_G 1.7
+
+/* models.adxl203.Config, same fields in the same order; alpha = None is has_alpha = 0. */
+typedef struct {
+    int64_t plain;
+    double a0, a1, a2, a3, R, sigma, cross;
+    int64_t has_alpha;
+    double alpha;
+    double lsb;
+    int64_t levels;
+} Config;
+
+double adxl203_bandwidth(double C);
+double adxl203_sensitivity(double Vs);
+double adxl203_noise_sigma(double density, double Ts);
+Config adxl203_config(double a0, double a1, double a2, double R, double a3, double cross,
+                      double fc, double Vs, int64_t bits, double density, double Ts);
+/* Measurement-noise draw of axis (1: x, 2: y) at sample k. */
+double adxl203_noise(int64_t seed, int64_t k, int64_t axis);
+double adxl203_sense(double own, double other, double v, const Config *cfg);
+/* One filter step; prev_set = 0 is prev = None, cfg->has_alpha = 0 is alpha = None. */
+double adxl203_lowpass(int64_t prev_set, double prev, double s, int64_t has_alpha, double alpha);
+double adxl203_quantise(double V, const Config *cfg);
+/* One sample of an axis: (*e_set, *e) is the filter state (e_set = 0: None), *z the output. */
+void adxl203_measure(int64_t prev_set, double prev, double own, double other, double v,
+                     const Config *cfg, int64_t *e_set, double *e, double *z);
+/* Filter state after samples k0+1 .. k0+m-1 with the input held; a no-op without filter. */
+void adxl203_hold(int64_t prev_set, double prev, double own, double other, int64_t seed,
+                  int64_t k0, int64_t m, const Config *cfg, int64_t axis, int64_t noise_on,
+                  int64_t *out_set, double *out);
+/* Number of problems of the extra parameters (models.adxl203.problems), each message written
+ * to report(ctx, message) in order. */
+int adxl203_problems(double Vs, double fc, driftfmu_report report, void *ctx);
+
+#endif

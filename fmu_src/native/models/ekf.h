@@ -1,0 +1,12 @@
+/* ekf: C port of models/ekf.py (scalar EKF, Joseph form).  Tuples come back through the
+ * out-pointers, in the order of the Python tuple. */
+#ifndef DRIFTFMU_EKF_H
+#define DRIFTFMU_EKF_H
+
+void ekf_predict(double x, double P, double A, double Q, double *x_pred, double *P_pred);
+void ekf_update(double x_pred, double P_pred, double z, double a0, double a1, double a2,
+                double R, double *x, double *P);
+void ekf_step(double x, double P, double z, double a0, double a1, double a2, double A,
+              double Q, double R, double *x_post, double *P_post);
+
+#endif

@@ -1,0 +1,19 @@
+/* excitation: C port of models/excitation.py. */
+#ifndef DRIFTFMU_EXCITATION_H
+#define DRIFTFMU_EXCITATION_H
+
+#include <stdint.h>
+
+#define EXCITATION_GAUSSIAN 1
+#define EXCITATION_SINUSOIDAL 2
+
+/* x_k = A x_{k-1} + sqrt(Q) w. */
+double excitation_gauss_markov(double x_prev, double A, double Q, double w);
+/* Sample k of the Gauss-Markov excitation under seed (process-noise stream). */
+double excitation_gaussian_sample(double x_prev, double A, double Q, int64_t seed, int64_t k);
+/* Sample k of X sin(2 pi f t_k + phi), t_k = (k - 1) Ts. */
+double excitation_sine(int64_t k, double X, double f, double Ts, double phi);
+/* Q / (1 - A^2) (Gaussian) or X^2 / 2 (sinusoidal); NaN for another kind (Python raises). */
+double excitation_stationary_variance(int64_t kind, double A, double Q, double X);
+
+#endif

@@ -1,0 +1,34 @@
+/* noise: C port of models/noise.py (counter-based Gaussian noise, a pure function of
+ * (seed, stream, k)).  Integers are uint64_t (Python's `int & MASK64`); a negative seed is
+ * converted to uint64_t as two's complement, as `int(seed) & MASK64` does. */
+#ifndef DRIFTFMU_NOISE_H
+#define DRIFTFMU_NOISE_H
+
+#include <stdint.h>
+
+#define NOISE_MASK64 UINT64_C(0xFFFFFFFFFFFFFFFF)
+#define NOISE_GOLDEN UINT64_C(0x9E3779B97F4A7C15)
+
+/* Streams (models.noise.STREAM_*). */
+#define NOISE_STREAM_PROCESS 1
+#define NOISE_STREAM_MEASUREMENT 2
+#define NOISE_STREAM_SENSOR_Y 3
+#define NOISE_STREAM_PHASE 4
+#define NOISE_STREAM_MEASUREMENT_Y 5
+
+#define NOISE_P_LOW 0.02425
+
+/* SplitMix64 finaliser (models.noise._mix). */
+uint64_t noise_mix(uint64_t z);
+/* 64-bit key of a (seed, stream) pair. */
+uint64_t noise_key(uint64_t seed, uint64_t stream);
+/* 64 random bits for sample k of stream under seed. */
+uint64_t noise_bits(uint64_t seed, uint64_t stream, uint64_t k);
+/* Uniform draw in (0, 1) on a grid of 2^-52. */
+double noise_uniform(uint64_t seed, uint64_t stream, uint64_t k);
+/* Acklam's inverse normal CDF of p in (0, 1). */
+double noise_inverse_normal_cdf(double p);
+/* Standard normal draw for sample k of stream under seed. */
+double noise_normal(uint64_t seed, uint64_t stream, uint64_t k);
+
+#endif

@@ -1,0 +1,32 @@
+/* ops: C port of models/_ops.py (elementwise helpers, arithmetic-only log, exp and sin2pi).
+ *
+ * Same order of operations as the Python, so that IEEE 754 double arithmetic gives the same
+ * bits.  Compile every unit with -std=c99 -O2 -ffp-contract=off -fno-fast-math.  Only exact or
+ * correctly rounded library functions are used (sqrt, floor, frexp, ldexp).
+ */
+#ifndef DRIFTFMU_OPS_H
+#define DRIFTFMU_OPS_H
+
+#include <stdint.h>
+
+/* Constants of models/_ops.py, as exact literals (Python repr). */
+#define OPS_LN2 0.6931471805599453
+#define OPS_SQRT_HALF 0.7071067811865476
+#define OPS_PI 3.141592653589793
+
+/* Correctly rounded square root. */
+double ops_sqrt(double x);
+/* Floor (as a double). */
+double ops_floor(double x);
+/* Mantissa in [0.5, 1) (*m) and integer exponent (*e), exactly: x = m 2^e. */
+void ops_frexp(double x, double *m, int64_t *e);
+/* m 2^e, exactly (one rounding when the result is subnormal). */
+double ops_ldexp(double m, int64_t e);
+/* Natural logarithm of a positive x by arithmetic only (models._ops.log). */
+double ops_log(double x);
+/* e^x by arithmetic only (models._ops.exp). */
+double ops_exp(double x);
+/* sin(2 pi c) by arithmetic only (models._ops.sin2pi). */
+double ops_sin2pi(double cycles);
+
+#endif
