@@ -40,6 +40,15 @@ def frexp(x):
     return _np().frexp(x)
 
 
+def ldexp(m, e):
+    """``m 2^e`` exactly (one rounding if the result is subnormal) of floats or arrays; ``e``
+    holds whole numbers (int or float)."""
+    if is_scalar(m) and is_scalar(e):
+        return math.ldexp(m, int(e))
+    np = _np()
+    return np.ldexp(m, np.asarray(e).astype(np.int64))
+
+
 def where(cond, a, b):
     """``a`` where ``cond`` holds, else ``b``: a plain choice for scalars, elementwise for arrays."""
     if is_scalar(cond) or isinstance(cond, bool):
@@ -69,6 +78,51 @@ def log(x):
     for k in (19, 17, 15, 13, 11, 9, 7, 5, 3, 1):
         poly = poly * s2 + 1.0 / k
     return e * LN2 + 2.0 * s * poly
+
+
+#: ``ln 2`` split as in fdlibm: ``LN2_HI`` has 33 significant bits, so ``n LN2_HI`` is exact for
+#: ``|n| < 2^20``; ``LN2_HI + LN2_LO`` is ``ln 2`` to about 1e-26.
+LN2_HI = 0.6931471803691238
+LN2_LO = 1.9082149292705877e-10
+INV_LN2 = 1.4426950408889634
+#: ``exp`` gives ``inf`` above ``EXP_HIGH`` (just below ``ln`` of the largest double, so that
+#: ``e^r 2^n`` never overflows inside) and ``0.0`` below ``EXP_LOW`` (where ``e^x`` rounds to 0).
+EXP_HIGH = 709.78
+EXP_LOW = -745.1332191019412
+
+
+def exp(x):
+    """``e^x`` of a float or an array, by arithmetic only (same bits on both paths).
+
+    ``x = n ln 2 + r`` with ``n = floor(x / ln 2 + 1/2)``; ``r = (x - n LN2_HI) - n LN2_LO``,
+    where ``x - n LN2_HI`` is exact (Cody and Waite), so ``|r| <= ln(2)/2 + 1e-16``.  Then
+    ``e^r`` is the Taylor series summed to ``r^14/14!`` in Horner form (coefficients
+    ``1.0 / k!``) (truncation below
+    ``0.35^15/15! = 1e-19`` relative, well under 1e-17), and ``e^x = e^r 2^n`` exactly
+    (:func:`ldexp`).  Unlike ``math.exp`` and ``numpy.exp``, which may differ in the last bit
+    between platforms and paths, this gives the same bits everywhere.  Accuracy: a few ulp for
+    ``EXP_LOW <= x <= EXP_HIGH`` (subnormal results lose bits); ``inf`` above, ``0.0`` below,
+    ``nan`` for ``nan``.
+    """
+    big = x > EXP_HIGH
+    tiny = x < EXP_LOW
+    nan = x != x
+    if is_scalar(x):
+        if nan or big or tiny:
+            return x if nan else (math.inf if big else 0.0)
+    else:
+        x_in, x = x, where(big | tiny | nan, 0.0, x)
+    n = floor(x * INV_LN2 + 0.5)
+    r = (x - n * LN2_HI) - n * LN2_LO
+    poly = 1.0 / math.factorial(14)
+    for k in range(13, -1, -1):
+        poly = poly * r + 1.0 / math.factorial(k)
+    y = ldexp(poly, n)
+    if is_scalar(y):
+        return y
+    y = where(big, math.inf, y)
+    y = where(nan, x_in, y)
+    return where(tiny, 0.0, y)
 
 
 def sin2pi(cycles):

@@ -27,7 +27,8 @@ Per sample, with ``s`` the pre-filter signal in volts above zero-g:
           z_k = \\mathrm{Q}\\big(z_0 + e_k\\big)
 
 All functions run on floats (one FMU) and arrays (a batch of sets) with the same bits; the
-filter coefficient and the other constants are computed once, from scalars, with ``math``.
+filter coefficient and the other constants are computed once, from scalars (``alpha`` with the
+arithmetic-only :func:`models._ops.exp`, so that the C port gives the same bits).
 """
 import math
 from collections import namedtuple
@@ -113,7 +114,7 @@ def config(a0=0.0, a1=1.0, a2=0.01, R=1e-4, a3=0.0, cross=0.0, fc=0.0, Vs=0.0, b
     z0 = Vs / 2.0 if Vs > 0.0 else a0
     a1e, a2e, a3e = a1 * scale, a2 * scale, a3 * scale
     sigma = a1e * noise_sigma(density, Ts) if density > 0.0 else math.sqrt(R)
-    alpha = math.exp(-2.0 * math.pi * fc * Ts) if fc > 0.0 else None
+    alpha = _ops.exp(-2.0 * math.pi * fc * Ts) if fc > 0.0 else None
     levels = 2 ** int(bits) if bits > 0 else 0
     lsb = (Vs if Vs > 0.0 else VS_NOMINAL) / levels if levels else 0.0
     return Config(plain, z0, a1e, a2e, a3e, R, sigma, cross, alpha, lsb, levels)

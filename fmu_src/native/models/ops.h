@@ -13,10 +13,16 @@
 #define OPS_LN2 0.6931471805599453
 #define OPS_SQRT_HALF 0.7071067811865476
 #define OPS_PI 3.141592653589793
+/* exp: ln 2 split (fdlibm), 1 / ln 2, and the range limits of models._ops.exp. */
+#define OPS_LN2_HI 0.6931471803691238
+#define OPS_LN2_LO 1.9082149292705877e-10
+#define OPS_INV_LN2 1.4426950408889634
+#define OPS_EXP_HIGH 709.78
+#define OPS_EXP_LOW -745.1332191019412
 
 /* Correctly rounded square root. */
 double ops_sqrt(double x);
-/* Floor (as a double). */
+/* Floor (as a double), as Python's float(math.floor(x)): floor(-0.0) is +0.0. */
 double ops_floor(double x);
 /* Mantissa in [0.5, 1) (*m) and integer exponent (*e), exactly: x = m 2^e. */
 void ops_frexp(double x, double *m, int64_t *e);

@@ -1,0 +1,127 @@
+/* adxl203: C port of models/adxl203.py (what the Accelerometer FMU uses); see adxl203.h. */
+#include <stdio.h>
+
+#include "adxl203.h"
+#include "noise.h"
+#include "ops.h"
+#include "sensor.h"
+
+double adxl203_bandwidth(double C) { return ADXL203_BANDWIDTH_RULE / C; }
+
+double adxl203_sensitivity(double Vs)
+{
+    return ADXL203_SENSITIVITY_3V
+           + (ADXL203_SENSITIVITY_5V - ADXL203_SENSITIVITY_3V) * (Vs - 3.0) / 2.0;
+}
+
+double adxl203_noise_sigma(double density, double Ts) { return density * ops_sqrt(0.5 / Ts); }
+
+Config adxl203_config(double a0, double a1, double a2, double R, double a3, double cross,
+                      double fc, double Vs, int64_t bits, double density, double Ts)
+{
+    Config c;
+    double scale, z0;
+    c.plain = (a3 == 0.0 && cross == 0.0 && fc == 0.0 && Vs == 0.0 && bits == 0
+               && density == 0.0);
+    scale = Vs > 0.0 ? adxl203_sensitivity(Vs) / adxl203_sensitivity(ADXL203_VS_NOMINAL) : 1.0;
+    z0 = Vs > 0.0 ? Vs / 2.0 : a0;
+    c.a0 = z0;
+    c.a1 = a1 * scale;
+    c.a2 = a2 * scale;
+    c.a3 = a3 * scale;
+    c.R = R;
+    c.sigma = density > 0.0 ? c.a1 * adxl203_noise_sigma(density, Ts) : ops_sqrt(R);
+    c.cross = cross;
+    c.has_alpha = fc > 0.0;
+    c.alpha = fc > 0.0 ? ops_exp(-2.0 * OPS_PI * fc * Ts) : 0.0;
+    /* 2 ** bits; the parameter check allows bits <= 24 (saturated at 2^62 beyond) */
+    c.levels = bits > 0 ? (int64_t)1 << (bits < 62 ? bits : 62) : 0;
+    c.lsb = c.levels ? (Vs > 0.0 ? Vs : ADXL203_VS_NOMINAL) / (double)c.levels : 0.0;
+    return c;
+}
+
+double adxl203_noise(int64_t seed, int64_t k, int64_t axis)
+{
+    return noise_normal((uint64_t)seed,
+                        axis == 1 ? NOISE_STREAM_MEASUREMENT : NOISE_STREAM_MEASUREMENT_Y,
+                        (uint64_t)k);
+}
+
+double adxl203_sense(double own, double other, double v, const Config *cfg)
+{
+    double u = own + cfg->cross * other;
+    double u2 = u * u;
+    return cfg->a1 * u + cfg->a2 * u2 + cfg->a3 * u2 * u + cfg->sigma * v;
+}
+
+double adxl203_lowpass(int64_t prev_set, double prev, double s, int64_t has_alpha, double alpha)
+{
+    if (!has_alpha || !prev_set) return s;
+    return alpha * prev + (1.0 - alpha) * s;
+}
+
+double adxl203_quantise(double V, const Config *cfg)
+{
+    double code, top;
+    if (!cfg->levels) return V;
+    code = ops_floor(V / cfg->lsb + 0.5);
+    code = code < 0.0 ? 0.0 : code;
+    top = (double)cfg->levels - 1.0;
+    code = code > top ? top : code;
+    return code * cfg->lsb;
+}
+
+void adxl203_measure(int64_t prev_set, double prev, double own, double other, double v,
+                     const Config *cfg, int64_t *e_set, double *e, double *z)
+{
+    if (cfg->plain) {
+        *e_set = 0;
+        *e = 0.0;
+        *z = sensor_measure(own, cfg->a0, cfg->a1, cfg->a2, cfg->R, v);
+        return;
+    }
+    *e = adxl203_lowpass(prev_set, prev, adxl203_sense(own, other, v, cfg), cfg->has_alpha,
+                         cfg->alpha);
+    *e_set = 1;
+    *z = adxl203_quantise(cfg->a0 + *e, cfg);
+}
+
+void adxl203_hold(int64_t prev_set, double prev, double own, double other, int64_t seed,
+                  int64_t k0, int64_t m, const Config *cfg, int64_t axis, int64_t noise_on,
+                  int64_t *out_set, double *out)
+{
+    int64_t j;
+    if (!cfg->has_alpha) {
+        *out_set = prev_set;
+        *out = prev;
+        return;
+    }
+    for (j = 1; j < m; j++) {
+        double v = noise_on ? adxl203_noise(seed, k0 + j, axis) : 0.0;
+        prev = adxl203_lowpass(prev_set, prev, adxl203_sense(own, other, v, cfg), 1, cfg->alpha);
+        prev_set = 1;
+    }
+    *out_set = prev_set;
+    *out = prev;
+}
+
+int adxl203_problems(double Vs, double fc, driftfmu_report report, void *ctx)
+{
+    char msg[PARAMETERS_MESSAGE_MAX], r[40];
+    int n = 0;
+    if (Vs != 0.0 && !(ADXL203_VS_LOW <= Vs && Vs <= ADXL203_VS_HIGH)) {
+        parameters_repr_float(Vs, r, sizeof r);
+        snprintf(msg, sizeof msg, "Vs = %s V is not allowed; allowed: Vs = 0 (ratiometric "
+                 "output off) or %g <= Vs <= %g", r, ADXL203_VS_LOW, ADXL203_VS_HIGH);
+        if (report) report(ctx, msg);
+        n++;
+    }
+    if (fc > ADXL203_MAX_BANDWIDTH) {
+        parameters_repr_float(fc, r, sizeof r);
+        snprintf(msg, sizeof msg, "fc = %s Hz is not allowed; allowed: fc = 0 (low-pass off) or "
+                 "0 < fc <= %g Hz (datasheet maximum)", r, ADXL203_MAX_BANDWIDTH);
+        if (report) report(ctx, msg);
+        n++;
+    }
+    return n;
+}

@@ -1,0 +1,23 @@
+/* chain: C port of the estimator part of models/chain.py; see chain.h. */
+#include "chain.h"
+#include "ekf.h"
+
+EstimatorState chain_estimator_init(double x0, double P0)
+{
+    EstimatorState s;
+    s.x = x0;
+    s.P = P0;
+    s.drift = drift_initial_state();
+    return s;
+}
+
+EstimatorState chain_estimator_step(EstimatorState state, double z, double a0, double a1,
+                                    double a2, double A, double Q, double R)
+{
+    EstimatorState out;
+    ekf_step(state.x, state.P, z, a0, a1, a2, A, Q, R, &out.x, &out.P);
+    out.drift = drift_update(state.drift, out.x, out.P, a2);
+    return out;
+}
+
+double chain_compensate(double z, double dc) { return z - dc; }

@@ -1,0 +1,29 @@
+/* excitation: C port of models/excitation.py; see excitation.h. */
+#include <math.h>
+
+#include "excitation.h"
+#include "noise.h"
+#include "ops.h"
+
+double excitation_gauss_markov(double x_prev, double A, double Q, double w)
+{
+    return A * x_prev + ops_sqrt(Q) * w;
+}
+
+double excitation_gaussian_sample(double x_prev, double A, double Q, int64_t seed, int64_t k)
+{
+    return excitation_gauss_markov(
+        x_prev, A, Q, noise_normal((uint64_t)seed, NOISE_STREAM_PROCESS, (uint64_t)k));
+}
+
+double excitation_sine(int64_t k, double X, double f, double Ts, double phi)
+{
+    return X * ops_sin2pi(f * Ts * (double)(k - 1) + phi / (2.0 * OPS_PI));
+}
+
+double excitation_stationary_variance(int64_t kind, double A, double Q, double X)
+{
+    if (kind == EXCITATION_GAUSSIAN) return Q / (1.0 - A * A);
+    if (kind == EXCITATION_SINUSOIDAL) return X * X / 2.0;
+    return NAN;
+}

@@ -1,0 +1,70 @@
+/* noise: C port of models/noise.py; see noise.h. */
+#include "noise.h"
+#include "ops.h"
+
+#define M1 UINT64_C(0xBF58476D1CE4E5B9)
+#define M2 UINT64_C(0x94D049BB133111EB)
+
+uint64_t noise_mix(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * M1;
+    z = (z ^ (z >> 27)) * M2;
+    return z ^ (z >> 31);
+}
+
+uint64_t noise_key(uint64_t seed, uint64_t stream)
+{
+    return noise_mix(noise_mix(seed) ^ (stream * NOISE_GOLDEN));
+}
+
+uint64_t noise_bits(uint64_t seed, uint64_t stream, uint64_t k)
+{
+    return noise_mix(noise_key(seed, stream) + k * NOISE_GOLDEN);
+}
+
+double noise_uniform(uint64_t seed, uint64_t stream, uint64_t k)
+{
+    /* (bits >> 12) < 2^52: exact as a double, and so is + 0.5 */
+    return ((double)(noise_bits(seed, stream, k) >> 12) + 0.5) * 2.220446049250313e-16;
+}
+
+static const double A_[6] = {-3.969683028665376e+01, 2.209460984245205e+02,
+                             -2.759285104469687e+02, 1.383577518672690e+02,
+                             -3.066479806614716e+01, 2.506628277459239e+00};
+static const double B_[5] = {-5.447609879822406e+01, 1.615858368580409e+02,
+                             -1.556989798598866e+02, 6.680131188771972e+01,
+                             -1.328068155288572e+01};
+static const double C_[6] = {-7.784894002430293e-03, -3.223964580411365e-01,
+                             -2.400758277161838e+00, -2.549732539343734e+00,
+                             4.374664141464968e+00, 2.938163982698783e+00};
+static const double D_[4] = {7.784695709041462e-03, 3.224671290700398e-01,
+                             2.445134137142996e+00, 3.754408661907416e+00};
+
+static double central(double p)
+{
+    double q = p - 0.5;
+    double r = q * q;
+    double num = (((((A_[0] * r + A_[1]) * r + A_[2]) * r + A_[3]) * r + A_[4]) * r + A_[5]) * q;
+    double den = ((((B_[0] * r + B_[1]) * r + B_[2]) * r + B_[3]) * r + B_[4]) * r + 1.0;
+    return num / den;
+}
+
+static double lower_tail(double p)
+{
+    double q = ops_sqrt(-2.0 * ops_log(p));
+    double num = ((((C_[0] * q + C_[1]) * q + C_[2]) * q + C_[3]) * q + C_[4]) * q + C_[5];
+    double den = (((D_[0] * q + D_[1]) * q + D_[2]) * q + D_[3]) * q + 1.0;
+    return num / den;
+}
+
+double noise_inverse_normal_cdf(double p)
+{
+    if (p < NOISE_P_LOW) return lower_tail(p);
+    if (p > 1.0 - NOISE_P_LOW) return -lower_tail(1.0 - p);
+    return central(p);
+}
+
+double noise_normal(uint64_t seed, uint64_t stream, uint64_t k)
+{
+    return noise_inverse_normal_cdf(noise_uniform(seed, stream, k));
+}

@@ -1,0 +1,91 @@
+/* ops: C port of models/_ops.py; see ops.h.  Same operations in the same order as the Python. */
+#include <math.h>
+
+#include "ops.h"
+
+double ops_sqrt(double x) { return sqrt(x); }
+
+/* float(math.floor(x)) goes through a Python int, so a zero result is +0.0 (floor(-0.0) too). */
+double ops_floor(double x)
+{
+    double r = floor(x);
+    return r == 0.0 ? 0.0 : r;
+}
+
+void ops_frexp(double x, double *m, int64_t *e)
+{
+    int ei = 0;
+    *m = frexp(x, &ei);
+    *e = ei;
+}
+
+double ops_ldexp(double m, int64_t e)
+{
+    /* clamp: beyond +-2200 the result is inf/0 (or m itself for 0, inf, nan) anyway */
+    if (e > 2200) e = 2200;
+    if (e < -2200) e = -2200;
+    return ldexp(m, (int)e);
+}
+
+double ops_log(double x)
+{
+    double m, s, s2, poly;
+    int64_t e;
+    int k;
+    ops_frexp(x, &m, &e);
+    if (m < OPS_SQRT_HALF) {
+        m = m * 2.0;
+        e = e - 1;
+    }
+    s = (m - 1.0) / (m + 1.0);
+    s2 = s * s;
+    poly = 1.0 / 21.0;
+    for (k = 19; k >= 1; k -= 2)
+        poly = poly * s2 + 1.0 / (double)k;
+    return (double)e * OPS_LN2 + 2.0 * s * poly;
+}
+
+/* 1.0 / k! for k = 0 .. 14 (Python: 1.0 / math.factorial(k), printed with repr). */
+static const double INV_FACTORIAL[15] = {
+    1.0, 1.0, 0.5, 0.16666666666666666, 0.041666666666666664, 0.008333333333333333,
+    0.001388888888888889, 0.0001984126984126984, 2.48015873015873e-05, 2.7557319223985893e-06,
+    2.755731922398589e-07, 2.505210838544172e-08, 2.08767569878681e-09, 1.6059043836821613e-10,
+    1.1470745597729725e-11};
+
+double ops_exp(double x)
+{
+    double n, r, poly;
+    int k;
+    if (x != x) return x;
+    if (x > OPS_EXP_HIGH) return HUGE_VAL;
+    if (x < OPS_EXP_LOW) return 0.0;
+    n = ops_floor(x * OPS_INV_LN2 + 0.5);
+    r = (x - n * OPS_LN2_HI) - n * OPS_LN2_LO;
+    poly = INV_FACTORIAL[14];
+    for (k = 13; k >= 0; k--)
+        poly = poly * r + INV_FACTORIAL[k];
+    return ops_ldexp(poly, (int64_t)n);
+}
+
+/* (+-1) / n! for n = 1, 3, ..., 23 (Python: sign / math.factorial(n), printed with repr). */
+static const double SIN_COEFF[12] = {
+    1.0, -0.16666666666666666, 0.008333333333333333, -0.0001984126984126984,
+    2.7557319223985893e-06, -2.505210838544172e-08, 1.6059043836821613e-10,
+    -7.647163731819816e-13, 2.8114572543455206e-15, -8.22063524662433e-18,
+    1.9572941063391263e-20, -3.8681701706306835e-23};
+
+double ops_sin2pi(double cycles)
+{
+    double r, sign, t, t2, poly;
+    int n;
+    r = cycles - ops_floor(cycles);
+    sign = r >= 0.5 ? -1.0 : 1.0;
+    r = r >= 0.5 ? r - 0.5 : r;
+    r = r > 0.25 ? 0.5 - r : r;
+    t = 2.0 * OPS_PI * r;
+    t2 = t * t;
+    poly = 0.0;
+    for (n = 23; n > 0; n -= 2)
+        poly = poly * t2 + SIN_COEFF[n / 2];
+    return sign * t * poly;
+}

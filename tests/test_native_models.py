@@ -1,0 +1,537 @@
+"""The C port of models/ (fmu_src/native/models) against models/, bit for bit.
+
+The C units are compiled into a shared library (with the flags the native FMUs use) and called
+through ctypes; every result is compared with its Python twin by its IEEE 754 bits, over many
+random inputs from fixed seeds.  Any difference fails.
+"""
+import ctypes
+import math
+import random
+import shutil
+import struct
+import subprocess
+
+import pytest
+
+from driftfmu.fmu_src.native.models import generate
+from driftfmu.models import _ops, adxl203, chain, drift, ekf, excitation, harmonic, noise, \
+    parameters, sensor
+
+CC = shutil.which("gcc") or shutil.which("cc")
+UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
+         "harmonic.c", "adxl203.c", "parameters.c")
+
+D, I64, U64 = ctypes.c_double, ctypes.c_int64, ctypes.c_uint64
+PD, PI64 = ctypes.POINTER(D), ctypes.POINTER(I64)
+
+
+class DriftState(ctypes.Structure):
+    _fields_ = [("k", I64), ("s1", D), ("dc2", D), ("s3", D), ("dc3", D)]
+
+
+class EstimatorState(ctypes.Structure):
+    _fields_ = [("x", D), ("P", D), ("drift", DriftState)]
+
+
+class HarmonicState(ctypes.Structure):
+    _fields_ = [("x", D), ("d", D), ("P", D), ("P12", D), ("P22", D), ("drift", DriftState)]
+
+
+class Config(ctypes.Structure):
+    _fields_ = [("plain", I64), ("a0", D), ("a1", D), ("a2", D), ("a3", D), ("R", D),
+                ("sigma", D), ("cross", D), ("has_alpha", I64), ("alpha", D), ("lsb", D),
+                ("levels", I64)]
+
+
+REPORT = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p)
+
+SIGNATURES = {
+    "ops_sqrt": (D, D), "ops_floor": (D, D), "ops_frexp": (None, D, PD, PI64),
+    "ops_ldexp": (D, D, I64), "ops_log": (D, D), "ops_exp": (D, D), "ops_sin2pi": (D, D),
+    "noise_mix": (U64, U64), "noise_key": (U64, U64, U64), "noise_bits": (U64, U64, U64, U64),
+    "noise_uniform": (D, U64, U64, U64), "noise_inverse_normal_cdf": (D, D),
+    "noise_normal": (D, U64, U64, U64),
+    "excitation_gauss_markov": (D, D, D, D, D),
+    "excitation_gaussian_sample": (D, D, D, D, I64, I64),
+    "excitation_sine": (D, I64, D, D, D, D),
+    "excitation_stationary_variance": (D, I64, D, D, D),
+    "sensor_h": (D, D, D, D, D), "sensor_dh_dx": (D, D, D, D),
+    "sensor_measure": (D, D, D, D, D, D, D), "sensor_measurement_noise": (D, I64, I64),
+    "sensor_drift": (D, D, D),
+    "ekf_predict": (None, D, D, D, D, PD, PD),
+    "ekf_update": (None, D, D, D, D, D, D, D, PD, PD),
+    "ekf_step": (None, D, D, D, D, D, D, D, D, D, PD, PD),
+    "drift_initial_state": (DriftState,), "drift_running_mean": (D, D, D, I64),
+    "drift_update": (DriftState, DriftState, D, D, D),
+    "drift_estimates": (None, DriftState, D, PD, PD, PD),
+    "drift_select": (D, ctypes.POINTER(D * 3), I64),
+    "chain_estimator_init": (EstimatorState, D, D),
+    "chain_estimator_step": (EstimatorState, EstimatorState, D, D, D, D, D, D, D),
+    "chain_compensate": (D, D, D),
+    "harmonic_rotation": (None, D, D, PD, PD),
+    "harmonic_predict": (None,) + (D,) * 8 + (PD,) * 5,
+    "harmonic_update": (None,) + (D,) * 10 + (PD,) * 5,
+    "harmonic_step": (None,) + (D,) * 13 + (PD,) * 5,
+    "harmonic_estimator_init": (HarmonicState, I64, D, D),
+    "harmonic_estimator_step": (HarmonicState, HarmonicState, D, D, D, D, D, I64, D, D, D, D,
+                                D),
+    "harmonic_estimator_predict": (HarmonicState, HarmonicState, I64, D, D, D, D, D),
+    "adxl203_sensitivity": (D, D), "adxl203_noise_sigma": (D, D, D),
+    "adxl203_config": (Config, D, D, D, D, D, D, D, D, I64, D, D),
+    "adxl203_noise": (D, I64, I64, I64),
+    "adxl203_sense": (D, D, D, D, ctypes.POINTER(Config)),
+    "adxl203_lowpass": (D, I64, D, D, I64, D),
+    "adxl203_quantise": (D, D, ctypes.POINTER(Config)),
+    "adxl203_measure": (None, I64, D, D, D, D, ctypes.POINTER(Config), PI64, PD, PD),
+    "adxl203_hold": (None, I64, D, D, D, I64, I64, I64, ctypes.POINTER(Config), I64, I64, PI64,
+                     PD),
+    "adxl203_problems": (ctypes.c_int, D, D, REPORT, ctypes.c_void_p),
+    "parameters_repr_float": (ctypes.c_int, D, ctypes.c_char_p, ctypes.c_size_t),
+    "parameters_allowed": (ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t),
+    "parameters_problem": (ctypes.c_int, ctypes.c_char_p, D, ctypes.c_int, ctypes.c_char_p,
+                           ctypes.c_size_t),
+}
+
+
+def compile_models(out_dir, cc=CC, name="libdriftmodels.so", extra=()):
+    """Compile the models/ units into the shared library ``out_dir/name``; return its path."""
+    generate.write(out_dir)
+    lib = out_dir / name
+    sources = [str(generate.HERE / u) for u in UNITS]
+    subprocess.run([cc, *generate.CFLAGS, "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC",
+                    "-I", str(out_dir), "-I", str(generate.HERE), *extra, *sources, "-o",
+                    str(lib), "-lm"], check=True, capture_output=True, text=True)
+    return lib
+
+
+@pytest.fixture(scope="module")
+def c(tmp_path_factory):
+    """The compiled models/ port, with argument and result types set."""
+    if CC is None:
+        pytest.skip("no C compiler (gcc or cc) on PATH: the C port cannot be compiled")
+    lib = ctypes.CDLL(str(compile_models(tmp_path_factory.mktemp("native_models"))))
+    for fname, (res, *args) in SIGNATURES.items():
+        f = getattr(lib, fname)
+        f.restype, f.argtypes = res, args
+    return lib
+
+
+def bits(x):
+    return struct.pack("<d", x)
+
+
+def same(a, b):
+    """Equal IEEE 754 bits (NaN equal to NaN of the same payload, -0.0 unlike 0.0)."""
+    return bits(a) == bits(b)
+
+
+def assert_same(py, cv, what):
+    py, cv = tuple(py), tuple(cv)
+    assert len(py) == len(cv)
+    for i, (a, b) in enumerate(zip(py, cv)):
+        assert same(float(a), float(b)), "%s, item %d: Python %r, C %r" % (what, i, a, b)
+
+
+def outs(n):
+    return [D() for _ in range(n)]
+
+
+def refs(values):
+    return [ctypes.byref(v) for v in values]
+
+
+def vals(values):
+    return [v.value for v in values]
+
+
+RNG_SEED = 20261201
+
+
+def magnitudes(rng, n, lo=-300, hi=300):
+    return [rng.uniform(0.5, 10.0) * 10.0 ** rng.uniform(lo, hi) for _ in range(n)]
+
+
+def signed(rng, n, scale=10.0):
+    return [rng.uniform(-scale, scale) for _ in range(n)]
+
+
+# -- _ops -------------------------------------------------------------------------------------
+
+def test_log_equals_models_bit_for_bit(c):
+    rng = random.Random(RNG_SEED)
+    xs = magnitudes(rng, 4000) + [rng.uniform(0.5, 2.0) for _ in range(2000)]
+    xs += [5e-324, 2.2250738585072014e-308, 2.225073858507201e-308, 1e-310, 1.0, 2.0, 0.5,
+           _ops.SQRT_HALF, math.nextafter(_ops.SQRT_HALF, 0.0), math.nextafter(1.0, 2.0),
+           math.nextafter(1.0, 0.0), 1.7976931348623157e308, 0.02425, 1e-300]
+    for x in xs:
+        assert same(_ops.log(x), c.ops_log(x)), x
+
+
+def test_exp_equals_models_bit_for_bit_and_is_close_to_math_exp(c):
+    rng = random.Random(RNG_SEED + 1)
+    xs = [rng.uniform(-745.2, 709.9) for _ in range(3000)] + signed(rng, 3000, 1.0)
+    xs += [0.0, -0.0, 1.0, -1.0, _ops.EXP_HIGH, math.nextafter(_ops.EXP_HIGH, 1e3), _ops.EXP_LOW,
+           math.nextafter(_ops.EXP_LOW, -1e3), -708.4, -740.0, 1e-300, -1e-300, 1000.0, -1000.0,
+           math.inf, -math.inf, math.nan, -2.0 * math.pi * 1063.829787 * 1e-3]
+    worst = 0.0
+    for x in xs:
+        py = _ops.exp(x)
+        assert same(py, c.ops_exp(x)), x
+        ref = math.exp(x) if x <= _ops.EXP_HIGH else math.inf
+        if 2.3e-308 < ref < math.inf:
+            worst = max(worst, abs(py - ref) / math.ulp(ref))
+    assert worst <= 2.0, "models._ops.exp is %g ulp off math.exp" % worst
+
+
+def test_sin2pi_equals_models_bit_for_bit_over_large_cycle_counts(c):
+    rng = random.Random(RNG_SEED + 2)
+    cs = signed(rng, 2000, 1.0) + magnitudes(rng, 2000, -10, 16)
+    cs += [-x for x in magnitudes(rng, 1000, -10, 16)]
+    cs += [0.0, -0.0, 0.25, 0.5, 0.75, 1.0, 1e15 + 0.25, 2.0 ** 52 + 1.0, 2.0 ** 60, 1e-300]
+    for x in cs:
+        assert same(_ops.sin2pi(x), c.ops_sin2pi(x)), x
+
+
+def test_sqrt_floor_frexp_ldexp_equal_python(c):
+    rng = random.Random(RNG_SEED + 3)
+    m, e = D(), I64()
+    for x in magnitudes(rng, 1000) + signed(rng, 1000, 1e6) + [0.0, -0.0, 5e-324, 2.5, -2.5]:
+        if x >= 0.0:
+            assert same(_ops.sqrt(x), c.ops_sqrt(x)), x
+        assert same(_ops.floor(x), c.ops_floor(x)), x
+        c.ops_frexp(x, ctypes.byref(m), ctypes.byref(e))
+        assert (bits(m.value), e.value) == (bits(math.frexp(x)[0]), math.frexp(x)[1]), x
+        n = rng.randint(-1100, 900)
+        try:
+            ref = _ops.ldexp(x, n)
+        except OverflowError:
+            ref = math.copysign(math.inf, x)
+        assert same(ref, c.ops_ldexp(x, n)), (x, n)
+
+
+# -- noise ------------------------------------------------------------------------------------
+
+HUGE_K = (2 ** 31, 2 ** 32 + 7, 2 ** 53 + 1, 2 ** 63 - 1, 2 ** 63, 2 ** 64 - 1)
+
+
+def test_noise_bits_uniform_normal_equal_models_for_many_seeds_streams_and_k(c):
+    rng = random.Random(RNG_SEED + 4)
+    cases = [(rng.randrange(2 ** 31), rng.randint(1, 5), rng.randint(1, 10 ** 6))
+             for _ in range(3000)]
+    cases += [(s, st, k) for s in (0, 1, 2 ** 31 - 1) for st in (1, 2, 3, 4, 5)
+              for k in (1, 2, 3) + HUGE_K]
+    for seed, stream, k in cases:
+        assert noise.bits(seed, stream, k) == c.noise_bits(seed, stream, k), (seed, stream, k)
+        assert noise.key(seed, stream) == c.noise_key(seed, stream)
+        assert same(noise.uniform(seed, stream, k), c.noise_uniform(seed, stream, k))
+        assert same(noise.normal(seed, stream, k), c.noise_normal(seed, stream, k)), \
+            (seed, stream, k)
+    # a k beyond 64 bits wraps as Python's (k * GOLDEN) & MASK64 does
+    k = 2 ** 64 + 12345
+    assert noise.bits(7, 2, k) == c.noise_bits(7, 2, k & noise.MASK64)
+    assert noise._mix(0xDEADBEEF) == c.noise_mix(0xDEADBEEF)
+
+
+def test_inverse_normal_cdf_equals_models_in_both_tails_and_centre(c):
+    rng = random.Random(RNG_SEED + 5)
+    ps = [rng.random() for _ in range(3000)] + [10.0 ** rng.uniform(-300, -1) for _ in
+                                                range(1000)]
+    ps += [1.0 - 10.0 ** rng.uniform(-16, -1) for _ in range(1000)]
+    ps += [noise.P_LOW, math.nextafter(noise.P_LOW, 0.0), 1.0 - noise.P_LOW, 0.5, 2.0 ** -53,
+           1.0 - 2.0 ** -53]
+    for p in ps:
+        assert same(noise.inverse_normal_cdf(p), c.noise_inverse_normal_cdf(p)), p
+
+
+# -- excitation, sensor, ekf, drift, chain ------------------------------------------------------
+
+def test_excitation_equals_models(c):
+    rng = random.Random(RNG_SEED + 6)
+    for _ in range(2000):
+        x, A, Q, w = rng.uniform(-5, 5), rng.uniform(-0.999, 0.999), rng.uniform(0, 3), \
+            rng.gauss(0, 1)
+        seed, k = rng.randrange(2 ** 31), rng.randint(1, 10 ** 9)
+        assert same(excitation.gauss_markov(x, A, Q, w), c.excitation_gauss_markov(x, A, Q, w))
+        assert same(excitation.gaussian_sample(x, A, Q, seed, k),
+                    c.excitation_gaussian_sample(x, A, Q, seed, k))
+        X, f, Ts, phi = rng.uniform(0, 3), rng.uniform(0, 400), 10.0 ** rng.uniform(-6, -1), \
+            rng.uniform(-10, 10)
+        kk = rng.choice((1, 2, rng.randint(1, 10 ** 6), rng.randint(1, 2 ** 40)))
+        assert same(excitation.sine(kk, X, f, Ts, phi), c.excitation_sine(kk, X, f, Ts, phi)), \
+            (kk, X, f, Ts, phi)
+        for kind in (1, 2):
+            assert same(excitation.stationary_variance(kind, A=A, Q=Q, X=X),
+                        c.excitation_stationary_variance(kind, A, Q, X))
+
+
+def test_sensor_equals_models(c):
+    rng = random.Random(RNG_SEED + 7)
+    for _ in range(2000):
+        x, a0, a1, a2 = rng.uniform(-5, 5), rng.uniform(-3, 3), rng.uniform(-2, 2), \
+            rng.uniform(-1, 1)
+        R, v = 10.0 ** rng.uniform(-8, 0), rng.gauss(0, 1)
+        assert same(sensor.h(x, a0, a1, a2), c.sensor_h(x, a0, a1, a2))
+        assert same(sensor.dh_dx(x, a1, a2), c.sensor_dh_dx(x, a1, a2))
+        assert same(sensor.measure(x, a0, a1, a2, R, v), c.sensor_measure(x, a0, a1, a2, R, v))
+        assert same(sensor.drift(a2, R), c.sensor_drift(a2, R))
+        seed, k = rng.randrange(2 ** 31), rng.randint(1, 10 ** 7)
+        assert same(sensor.measurement_noise(seed, k), c.sensor_measurement_noise(seed, k))
+
+
+def test_ekf_equals_models_at_A_nonzero_and_large_a2(c):
+    rng = random.Random(RNG_SEED + 8)
+    for _ in range(2000):
+        x, P = rng.uniform(-3, 3), 10.0 ** rng.uniform(-6, 1)
+        A, Q, R = rng.uniform(-0.99, 0.99), 10.0 ** rng.uniform(-6, 0), 10.0 ** rng.uniform(-8, 0)
+        a0, a1, a2 = rng.uniform(-1, 1), rng.choice((-1, 1)) * rng.uniform(0.1, 3), \
+            rng.choice((rng.uniform(-0.05, 0.05), rng.uniform(-50, 50)))
+        z = rng.uniform(-5, 5)
+        o = outs(2)
+        c.ekf_predict(x, P, A, Q, *refs(o))
+        assert_same(ekf.predict(x, P, A, Q), vals(o), "predict")
+        c.ekf_update(x, P, z, a0, a1, a2, R, *refs(o))
+        assert_same(ekf.update(x, P, z, a0, a1, a2, R), vals(o), "update")
+        c.ekf_step(x, P, z, a0, a1, a2, A, Q, R, *refs(o))
+        assert_same(ekf.step(x, P, z, a0, a1, a2, A, Q, R), vals(o), "step")
+
+
+def _drift_tuple(s):
+    return (s.k, s.s1, s.dc2, s.s3, s.dc3)
+
+
+def assert_drift(py, cv):
+    assert py.k == cv.k
+    assert_same(py[1:], _drift_tuple(cv)[1:], "DriftState")
+
+
+def test_drift_estimators_equal_models_over_a_long_sequence(c):
+    rng = random.Random(RNG_SEED + 9)
+    py, cv = drift.initial_state(), c.drift_initial_state()
+    assert_drift(py, cv)
+    a2 = 0.37
+    dcs_type = D * 3
+    for _ in range(5000):
+        x, P = rng.gauss(0, 2), rng.uniform(0, 0.1)
+        py, cv = drift.update(py, x, P, a2), c.drift_update(cv, x, P, a2)
+        assert_drift(py, cv)
+        o = outs(3)
+        c.drift_estimates(cv, a2, *refs(o))
+        dcs = drift.estimates(py, a2)
+        assert_same(dcs, vals(o), "estimates")
+        for est in (1, 2, 3):
+            assert same(drift.select(dcs, est), c.drift_select(dcs_type(*vals(o)), est))
+    assert math.isnan(c.drift_select(dcs_type(1.0, 2.0, 3.0), 4))
+    for k in (1, 2, 10 ** 9, 2 ** 53 + 3):
+        assert same(drift.running_mean(0.3, 0.7, k), c.drift_running_mean(0.3, 0.7, k))
+
+
+def test_chain_estimator_equals_models(c):
+    rng = random.Random(RNG_SEED + 10)
+    py, cv = chain.estimator_init(0.2, 0.05), c.chain_estimator_init(0.2, 0.05)
+    for _ in range(3000):
+        z = rng.gauss(0.01, 1)
+        py = chain.estimator_step(py, z, 0.1, 1.2, 0.3, 0.6, 0.02, 1e-3)
+        cv = c.chain_estimator_step(cv, z, 0.1, 1.2, 0.3, 0.6, 0.02, 1e-3)
+        assert_same(py[:2], (cv.x, cv.P), "EstimatorState")
+        assert_drift(py.drift, cv.drift)
+    assert same(chain.compensate(1.5, 0.25), c.chain_compensate(1.5, 0.25))
+
+
+# -- harmonic ---------------------------------------------------------------------------------
+
+def _h_tuple(s):
+    return (s.x, s.d, s.P, s.P12, s.P22)
+
+
+def assert_estimator(py, cv):
+    if isinstance(py, chain.EstimatorState):
+        assert_same((py.x, py.P), (cv.x, cv.P), "EstimatorState")
+    else:
+        assert_same(py[:5], _h_tuple(cv), "HarmonicState")
+    assert_drift(py.drift, cv.drift)
+
+
+def test_harmonic_filter_equals_models(c):
+    rng = random.Random(RNG_SEED + 11)
+    for _ in range(1500):
+        f, Ts = rng.uniform(0, 499), 10.0 ** rng.uniform(-5, -3)
+        o2 = outs(2)
+        c.harmonic_rotation(f, Ts, *refs(o2))
+        C, S = harmonic.rotation(f, Ts)
+        assert_same((C, S), vals(o2), "rotation")
+        st = [rng.uniform(-2, 2), rng.uniform(-2, 2), 10.0 ** rng.uniform(-5, 0),
+              rng.uniform(-1e-3, 1e-3), 10.0 ** rng.uniform(-5, 0)]
+        Qh, R, z = 10.0 ** rng.uniform(-10, -2), 10.0 ** rng.uniform(-8, 0), rng.uniform(-3, 3)
+        a0, a1, a2 = rng.uniform(-1, 1), rng.uniform(0.2, 2), rng.uniform(-20, 20)
+        o5 = outs(5)
+        c.harmonic_predict(*st, C, S, Qh, *refs(o5))
+        assert_same(harmonic.predict(*st, C, S, Qh), vals(o5), "predict")
+        c.harmonic_update(*st, z, a0, a1, a2, R, *refs(o5))
+        assert_same(harmonic.update(*st, z, a0, a1, a2, R), vals(o5), "update")
+        c.harmonic_step(*st, z, a0, a1, a2, C, S, Qh, R, *refs(o5))
+        assert_same(harmonic.step(*st, z, a0, a1, a2, C, S, Qh, R), vals(o5), "step")
+
+
+@pytest.mark.parametrize("process", [harmonic.GAUSS_MARKOV, harmonic.HARMONIC])
+def test_harmonic_estimator_equals_models_over_both_process_models(c, process):
+    rng = random.Random(RNG_SEED + 12 + process)
+    for x0, P0 in ((0.0, 0.01), (-0.3, 1.0), (0.7, 0.0)):
+        py = harmonic.estimator_init(process, x0, P0)
+        cv = c.harmonic_estimator_init(process, x0, P0)
+        assert_estimator(py, cv)
+        C, S = harmonic.rotation(150.0, 1e-3)
+        model = dict(process=process, A=0.8, Q=0.02, C=C, S=S, Qh=1e-6)
+        for _ in range(1500):
+            z = 0.01 + rng.gauss(0, 1)
+            if rng.random() < 0.3:
+                py = harmonic.estimator_predict(py, **model)
+                cv = c.harmonic_estimator_predict(cv, process, 0.8, 0.02, C, S, 1e-6)
+            else:
+                py = harmonic.estimator_step(py, z, 0.1, 1.1, 0.05, 1e-3, **model)
+                cv = c.harmonic_estimator_step(cv, z, 0.1, 1.1, 0.05, 1e-3, process, 0.8, 0.02,
+                                               C, S, 1e-6)
+            assert_estimator(py, cv)
+    # the harmonic model's quadrature starts at 0.0 * x0: -0.0 for a negative x0
+    if process == harmonic.HARMONIC:
+        assert bits(c.harmonic_estimator_init(process, -1.0, 1.0).d) == bits(-0.0)
+    assert math.isnan(c.harmonic_estimator_init(3, 0.0, 1.0).x)
+
+
+# -- adxl203 ----------------------------------------------------------------------------------
+
+CONFIG_ARGS = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "Ts")
+
+
+def c_config(c, p):
+    return c.adxl203_config(*(p[n] for n in CONFIG_ARGS))
+
+
+def assert_config(py, cv):
+    assert bool(py.plain) == bool(cv.plain)
+    assert_same((py.a0, py.a1, py.a2, py.a3, py.R, py.sigma, py.cross, py.lsb),
+                (cv.a0, cv.a1, cv.a2, cv.a3, cv.R, cv.sigma, cv.cross, cv.lsb), "Config")
+    assert (py.alpha is not None) == bool(cv.has_alpha)
+    if py.alpha is not None:
+        assert same(py.alpha, cv.alpha)
+    assert py.levels == cv.levels
+
+
+def random_sensor(rng, every_extra=True):
+    on = (lambda: True) if every_extra else (lambda: rng.random() < 0.5)
+    return dict(a0=rng.uniform(-1, 3), a1=rng.uniform(0.2, 2), a2=rng.uniform(-0.1, 0.1),
+                R=10.0 ** rng.uniform(-8, -1), a3=rng.uniform(-0.01, 0.01) if on() else 0.0,
+                cross=rng.uniform(-0.05, 0.05) if on() else 0.0,
+                fc=rng.uniform(1, 2500) if on() else 0.0,
+                Vs=rng.uniform(3, 6) if on() else 0.0, bits=rng.randint(1, 24) if on() else 0,
+                density=10.0 ** rng.uniform(-6, -3) if on() else 0.0,
+                Ts=10.0 ** rng.uniform(-5, -2))
+
+
+def test_adxl203_config_equals_models_with_every_extra_on_and_the_preset(c):
+    rng = random.Random(RNG_SEED + 14)
+    sets = [random_sensor(rng, every_extra=i % 2 == 0) for i in range(600)]
+    sets.append(adxl203.sensor_parameters(**adxl203.ADXL203))
+    sets.append(adxl203.sensor_parameters())
+    for p in sets:
+        assert_config(adxl203.config(**p), c_config(c, p))
+    for Vs in (0.0, 3.0, 3.3, 5.0, 6.0):
+        assert same(adxl203.sensitivity(Vs), c.adxl203_sensitivity(Vs))
+
+
+def test_adxl203_sense_filter_adc_measure_hold_equal_models(c):
+    rng = random.Random(RNG_SEED + 15)
+    for i in range(300):
+        p = random_sensor(rng, every_extra=i % 3 != 0)
+        cfg = adxl203.config(**p)
+        ccfg = c_config(c, p)
+        pc = ctypes.byref(ccfg)
+        seed = rng.randrange(2 ** 31)
+        lp, lp_set, lp_c = None, 0, 0.0
+        for k in range(1, 40):
+            own, other, v = rng.uniform(-2, 2), rng.uniform(-2, 2), rng.gauss(0, 1)
+            assert same(adxl203.sense(own, other, v, cfg), c.adxl203_sense(own, other, v, pc))
+            V = rng.uniform(-1, 7)
+            assert same(adxl203.quantise(V, cfg), c.adxl203_quantise(V, pc)), (V, p)
+            e_set, e, z = I64(), D(), D()
+            c.adxl203_measure(lp_set, lp_c, own, other, v, pc, ctypes.byref(e_set),
+                              ctypes.byref(e), ctypes.byref(z))
+            lp, zp = adxl203.measure(lp, own, other, v, cfg)
+            assert same(zp, z.value), (k, p)
+            assert (lp is not None) == bool(e_set.value)
+            if lp is not None:
+                assert same(lp, e.value)
+            lp_set, lp_c = e_set.value, e.value
+            m, axis, noise_on = rng.randint(1, 6), rng.choice((1, 2)), rng.choice((0, 1))
+            lp = adxl203.hold(lp, own, other, seed, k, m, cfg, axis=axis, noise_on=noise_on)
+            c.adxl203_hold(lp_set, lp_c, own, other, seed, k, m, pc, axis, noise_on,
+                           ctypes.byref(e_set), ctypes.byref(e))
+            assert (lp is not None) == bool(e_set.value)
+            if lp is not None:
+                assert same(lp, e.value)
+            lp_set, lp_c = e_set.value, e.value
+            for axis in (1, 2):
+                assert same(adxl203.noise(seed, k, axis), c.adxl203_noise(seed, k, axis))
+        for prev in (None, 0.3):
+            s, alpha = rng.uniform(-1, 1), rng.choice((None, 0.9))
+            assert same(adxl203.lowpass(prev, s, alpha),
+                        c.adxl203_lowpass(prev is not None, prev or 0.0, s, alpha is not None,
+                                          alpha or 0.0))
+
+
+def collect(call, *args):
+    """Messages a C check reports, in order, and the count it returns."""
+    got = []
+    cb = REPORT(lambda ctx, msg: got.append(msg.decode()))
+    n = call(*args, cb, None)
+    return n, got
+
+
+@pytest.mark.parametrize("Vs, fc", [(0.0, 0.0), (5.0, 1064.0), (2.0, 0.0), (7.5, 3000.0),
+                                    (6.000000000000001, 2500.0), (0.1, 2500.000001),
+                                    (-1.0, -3.0)])
+def test_adxl203_problems_same_messages(c, Vs, fc):
+    n, got = collect(c.adxl203_problems, Vs, fc)
+    assert got == adxl203.problems(dict(Vs=Vs, fc=fc))
+    assert n == len(got)
+
+
+# -- parameters -------------------------------------------------------------------------------
+
+def test_repr_float_is_pythons_repr(c):
+    rng = random.Random(RNG_SEED + 16)
+    xs = [struct.unpack("<d", struct.pack("<Q", rng.getrandbits(64)))[0] for _ in range(3000)]
+    xs += magnitudes(rng, 2000, -20, 20) + [round(rng.uniform(-1e4, 1e4), rng.randint(0, 6))
+                                            for _ in range(1000)]
+    xs += [0.0, -0.0, 1.0, -1.0, 0.1, 1e16, 1e15, 9999999999999998.0, 1e-4, 1e-5, 0.00012,
+           5e-324, 1.7976931348623157e308, math.inf, -math.inf, math.nan, 1e-9, 2.5e-05, 123.0]
+    buf = ctypes.create_string_buffer(64)
+    for x in xs:
+        c.parameters_repr_float(x, buf, 64)
+        assert buf.value.decode() == repr(x), x
+
+
+def test_allowed_and_problem_messages_equal_models(c):
+    buf = ctypes.create_string_buffer(parameters_max := 512)
+    rng = random.Random(RNG_SEED + 17)
+    for name, p in parameters.PARAMETERS.items():
+        assert c.parameters_allowed(name.encode(), buf, parameters_max) >= 0
+        assert buf.value.decode() == parameters.allowed(name)
+        integer = isinstance(p.default, int)
+        edges = [v for b in (p.low, p.high) if b is not None
+                 for v in (b, math.nextafter(b, -math.inf), math.nextafter(b, math.inf))]
+        values = edges + [0.0, 1.0, -1.0, 0.5, 2 ** 31, -(2 ** 31), 1e300, -1e300] + \
+            [rng.uniform(-3, 3) for _ in range(20)]
+        for v in values:
+            if integer and (v != int(v) or not -2 ** 31 <= v < 2 ** 31):
+                continue  # an Integer variable holds 32-bit ints
+            v = int(v) if integer else float(v)
+            want = parameters.problem(name, v)
+            got = c.parameters_problem(name.encode(), float(v), integer, buf, parameters_max)
+            assert got == (want is not None), (name, v)
+            if want is not None:
+                assert buf.value.decode() == want
+        for v in (math.inf, -math.inf, math.nan):
+            if not integer:
+                assert c.parameters_problem(name.encode(), v, 0, buf, parameters_max) == 1
+                assert buf.value.decode() == parameters.problem(name, v)
+    assert c.parameters_allowed(b"nonsense", buf, 512) == -1
