@@ -178,7 +178,8 @@ def fmi2_model_description(slave, token, source_files, log=print):
 
 def fmi3_model_description(slave, token, log=print):
     """FMI 3.0 modelDescription.xml from the same table: Real -> Float64, Integer -> Int32,
-    valueReference = table index, ModelStructure from DEPENDENCIES."""
+    valueReference = table index, ModelStructure from DEPENDENCIES; plus the independent
+    variable ``time`` (value reference ``len(VARIABLES)``, which the FMI 2.0 FMUs do not have)."""
     root = ET.Element("fmiModelDescription", _header_attributes(slave, 3, token))
     ET.SubElement(root, "CoSimulation", {
         "modelIdentifier": slave.__name__, "needsExecutionTool": "false",
@@ -189,7 +190,8 @@ def fmi3_model_description(slave, token, log=print):
             str(bool(getattr(slave, "CAN_HANDLE_VARIABLE_STEP", True))).lower(),
         "hasEventMode": "false", "providesIntermediateUpdate": "false",
         "canReturnEarlyAfterIntermediateUpdate": "false"})
-    units = sorted({s["unit"] for s in slave.VARIABLES if s["unit"] and s["type"] == "Real"})
+    units = sorted({s["unit"] for s in slave.VARIABLES if s["unit"] and s["type"] == "Real"}
+                   | {"s"})
     if units:
         definitions = ET.SubElement(root, "UnitDefinitions")
         definitions.extend(builder._unit_element(u, log) for u in units)
@@ -212,6 +214,11 @@ def fmi3_model_description(slave, token, log=print):
         if spec["causality"] != "output" and spec["start"] is not None:
             attrib["start"] = builder._number(spec["start"], spec["type"])
         ET.SubElement(variables, tag, attrib)
+    # FMI 3.0 wants exactly one independent variable; its value reference follows the table's
+    ET.SubElement(variables, "Float64", name="time", valueReference=str(len(slave.VARIABLES)),
+                  causality="independent", variability="continuous",
+                  description="simulation time: start time plus the accepted steps [s]",
+                  unit="s")
     structure = ET.SubElement(root, "ModelStructure")
     exact = [vr for vr, s in enumerate(slave.VARIABLES) if s["causality"] == "parameter"]
     outputs = [(vr, s) for vr, s in enumerate(slave.VARIABLES) if s["causality"] == "output"]

@@ -106,10 +106,9 @@ class FastInstance:
 
 
 def _raw(function, argtypes):
-    function.argtypes = argtypes
-    function.restype = c_int
-    function.errcheck = None
-    return function
+    """A fresh ctypes prototype on the address of ``function`` (fmpy's own stays untouched)."""
+    address = ctypes.cast(function, c_void_p).value
+    return ctypes.CFUNCTYPE(c_int, *argtypes)(address)
 
 
 def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, record=None,

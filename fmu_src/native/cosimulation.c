@@ -328,20 +328,30 @@ static Status refresh(ModelInstance *comp, const char *function)
     return STATUS_OK;
 }
 
-static int lookup(const unsigned int vr[], size_t n, VariableType type)
+/* FMI 3.0: the independent variable time has the value reference after the table's. */
+#define VR_TIME ((unsigned int)N_VARIABLES)
+#define IS_TIME(vr) (FMI_VERSION == 3 && (vr) == VR_TIME)
+
+static int lookup(const unsigned int vr[], size_t n, VariableType type, int reading)
 {
-    for (size_t i = 0; i < n; i++)
+    for (size_t i = 0; i < n; i++) {
+        if (IS_TIME(vr[i]) && type == TYPE_REAL && reading)
+            continue;
         if (vr[i] >= N_VARIABLES || MODEL_VARIABLES[vr[i]].type != type)
             return (int)i;
+    }
     return -1;
 }
 
 static void vr_problem(ModelInstance *comp, const char *function, const char *type,
                        unsigned int vr)
 {
-    if (vr >= N_VARIABLES)
+    if (IS_TIME(vr))
+        cs_log(comp, STATUS_ERROR, "%s: value reference %u is time, the independent variable: "
+               "a Float64 that can be read, not set", function, vr);
+    else if (vr >= N_VARIABLES + (FMI_VERSION == 3))
         cs_log(comp, STATUS_ERROR, "%s: value reference %u does not exist; allowed: 0 .. %d",
-               function, vr, N_VARIABLES - 1);
+               function, vr, N_VARIABLES - 1 + (FMI_VERSION == 3));
     else
         cs_log(comp, STATUS_ERROR, "%s: value reference %u is %s, a %s variable, not a %s "
                "variable", function, vr, MODEL_VARIABLES[vr].name,
@@ -358,7 +368,7 @@ Status cs_get(ModelInstance *comp, const char *function, VariableType type,
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
         return STATUS_ERROR;
     }
-    int bad = lookup(vr, n, type);
+    int bad = lookup(vr, n, type, 1);
     if (bad >= 0) {
         vr_problem(comp, function, TYPE_NAME[type], vr[bad]);
         return STATUS_ERROR;
@@ -366,7 +376,9 @@ Status cs_get(ModelInstance *comp, const char *function, VariableType type,
     if (refresh(comp, function) != STATUS_OK)
         return STATUS_ERROR;
     for (size_t i = 0; i < n; i++) {
-        if (type == TYPE_REAL)
+        if (IS_TIME(vr[i]))
+            reals[i] = comp->time;
+        else if (type == TYPE_REAL)
             reals[i] = *REAL_AT(comp, vr[i]);
         else
             ints[i] = *INT_AT(comp, vr[i]);
@@ -383,7 +395,7 @@ Status cs_set(ModelInstance *comp, const char *function, VariableType type,
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
         return STATUS_ERROR;
     }
-    int bad = lookup(vr, n, type);
+    int bad = lookup(vr, n, type, 0);
     if (bad >= 0) {
         vr_problem(comp, function, TYPE_NAME[type], vr[bad]);
         return STATUS_ERROR;
