@@ -11,6 +11,26 @@ def built_fmus(tmp_path_factory):
     return dict(zip(NAMES, build_fmus(out, names=NAMES)))
 
 
+@pytest.fixture(scope="session")
+def native_fmus(tmp_path_factory):
+    """The native (C) twins, built once per session: {2: {name: path}, 3: {name: path}}."""
+    from driftfmu.fmu_src.native_build import build_native_fmus
+    out = tmp_path_factory.mktemp("fmus_native") / "native"  # the layout of build/fmus/native
+    return build_native_fmus(out, log=lambda line: None)
+
+
+#: The FMUs a behaviour test runs on: the pythonfmu FMUs and their native FMI 2.0 twins.
+BACKENDS = ("python", "native")
+
+
+@pytest.fixture(params=BACKENDS)
+def backend_fmus(request):
+    """The three FMUs of each backend (FMI 2.0), by name; the test runs once per backend."""
+    if request.param == "python":
+        return request.getfixturevalue("built_fmus")
+    return request.getfixturevalue("native_fmus")[2]
+
+
 @pytest.fixture
 def report(request):
     """``report(line)``: write a line to the terminal past pytest's output capture, so the CI
