@@ -535,3 +535,362 @@ def test_allowed_and_problem_messages_equal_models(c):
                 assert c.parameters_problem(name.encode(), v, 0, buf, parameters_max) == 1
                 assert buf.value.decode() == parameters.problem(name, v)
     assert c.parameters_allowed(b"nonsense", buf, 512) == -1
+
+
+# == the per-model step logic (fmu_src/native/models/<Model>_step.c) ============================
+#
+# Each model's step logic is compiled with a harness (tests/native_harness) into its own shared
+# library and driven here as the plumbing drives it: the sample planning of the step rule below
+# is slave_base's (the Python FMUs'), so the C hooks are checked against the Python slaves and
+# against models.adxl203.simulate, bit for bit.
+
+from pathlib import Path  # noqa: E402
+
+from driftfmu.fmu_src import slave_base  # noqa: E402
+from driftfmu.fmu_src.Accelerometer import Accelerometer  # noqa: E402
+from driftfmu.fmu_src.DriftEstimator import DriftEstimator  # noqa: E402
+from driftfmu.fmu_src.Excitation import Excitation  # noqa: E402
+
+HARNESS = Path(__file__).resolve().parent / "native_harness"
+NATIVE = generate.HERE.parent
+SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
+          "DriftEstimator": DriftEstimator}
+#: The step rule of STEP_RULE.md (any h > 0) is in slave_base when the harden-py branch is in.
+VARIABLE_STEPS = hasattr(slave_base, "MAX_SAMPLES_PER_STEP")
+
+
+def config_h(slave):
+    """config.h of a model as the native build writes it (the parts the step logic uses)."""
+    try:  # the native build's own generator, once the native branch is in the tree
+        from driftfmu.fmu_src import native_build
+        if (NATIVE / "model.h").exists():
+            return native_build.config_h(slave, "{test}", 2)
+    except ImportError:
+        pass
+    lines = ["#include <stddef.h>", '#define MODEL_NAME "%s"' % slave.__name__,
+             "#define N_VARIABLES %d" % len(slave.VARIABLES),
+             "#define MODEL_HAS_FEEDTHROUGH %d" % bool(slave.DEPENDENCIES),
+             '#include "%s_step.h"' % slave.__name__, "typedef struct {"]
+    lines += ["    %s %s;" % ("double" if s["type"] == "Real" else "int", s["name"])
+              for s in slave.VARIABLES]
+    lines += ["} ModelVariables;", "static const VariableInfo MODEL_VARIABLES[N_VARIABLES] = {"]
+    lines += ['    {"%s", TYPE_%s, CAUSALITY_%s, offsetof(ModelVariables, %s)},'
+              % (s["name"], s["type"].upper(), s["causality"].upper(), s["name"])
+              for s in slave.VARIABLES]
+    lines += ["};", "#define MODEL_START_VALUES { %s }" % ", ".join(
+        repr(float(s["start"] or 0)) if s["type"] == "Real" else str(int(s["start"] or 0))
+        for s in slave.VARIABLES)]
+    return "\n".join(lines) + "\n"
+
+
+def step_sources(name):
+    return [generate.HERE / u for u in generate.UNITS[name]] + [HARNESS / "harness.c"]
+
+
+def write_generated(folder, name):
+    folder.mkdir(parents=True, exist_ok=True)
+    generate.write(folder)
+    (folder / "config.h").write_text(config_h(SLAVES[name]))
+    return folder
+
+
+def include_dirs(gen):
+    model_h = NATIVE if (NATIVE / "model.h").exists() else HARNESS
+    return ["-I", str(gen), "-I", str(model_h), "-I", str(generate.HERE)]
+
+
+H_SIGNATURES = {
+    "h_new": (ctypes.c_void_p,), "h_free": (None, ctypes.c_void_p), "h_size": (ctypes.c_size_t,),
+    "h_copy": (None, ctypes.c_void_p, ctypes.c_void_p),
+    "h_index": (ctypes.c_int, ctypes.c_char_p), "h_set": (None, ctypes.c_void_p, ctypes.c_int, D),
+    "h_get": (D, ctypes.c_void_p, ctypes.c_int), "h_set_k": (None, ctypes.c_void_p,
+                                                             ctypes.c_longlong),
+    "h_check": (ctypes.c_int, ctypes.c_void_p), "h_start": (None, ctypes.c_void_p),
+    "h_compute": (ctypes.c_char_p, ctypes.c_void_p),
+    "h_advance": (ctypes.c_char_p, ctypes.c_void_p, ctypes.c_longlong, ctypes.c_longlong,
+                  ctypes.c_int, ctypes.c_int, ctypes.c_longlong),
+    "h_log": (ctypes.c_char_p,), "h_log_clear": (None,),
+}
+
+
+@pytest.fixture(scope="module")
+def models(tmp_path_factory):
+    """name -> the compiled step logic of that model (one shared library each)."""
+    if CC is None:
+        pytest.skip("no C compiler (gcc or cc) on PATH: the C port cannot be compiled")
+    root = tmp_path_factory.mktemp("native_steps")
+    libs = {}
+    for name in SLAVES:
+        gen = write_generated(root / name, name)
+        out = root / ("lib%s.so" % name)
+        subprocess.run([CC, *generate.CFLAGS, "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC",
+                        *include_dirs(gen), *map(str, step_sources(name)), "-o", str(out),
+                        "-lm"], check=True, capture_output=True, text=True)
+        lib = ctypes.CDLL(str(out))
+        for fname, (res, *args) in H_SIGNATURES.items():
+            f = getattr(lib, fname)
+            f.restype, f.argtypes = res, args
+        libs[name] = lib
+    return libs
+
+
+TOL = 1e-6  # slave_base.INSTANT_TOLERANCE
+
+
+class CSlave:
+    """One native model driven through its hooks, with the plumbing's part (sample planning,
+    feedthrough refresh, dirty and pending flags) done as slave_base does it."""
+
+    def __init__(self, lib, name, values=()):
+        self.lib, self.name, self.slave = lib, name, SLAVES[name]
+        self.p = lib.h_new()
+        self.index = {s["name"]: i for i, s in enumerate(self.slave.VARIABLES)}
+        self.feedthrough = bool(self.slave.DEPENDENCIES)
+        for n, v in dict(values).items():
+            self.set(n, v)
+        self.k, self.at_sample, self.dirty, self.initialised = 1, True, True, False
+        self.elapsed = self.comp = 0.0
+
+    def __del__(self):
+        self.lib.h_free(self.p)
+
+    def set(self, name, value):
+        self.lib.h_set(self.p, self.index[name], value)
+        self.dirty = True
+
+    def raw(self, name):
+        return self.lib.h_get(self.p, self.index[name])
+
+    def get(self, name):
+        if self.feedthrough and self.dirty and self.at_sample and self.initialised:
+            bad = self.lib.h_compute(self.p)
+            assert bad is None, bad
+            self.dirty = False
+        return self.raw(name)
+
+    def check(self):
+        self.lib.h_log_clear()
+        n = self.lib.h_check(self.p)
+        msgs = [m for m in self.lib.h_log().decode().split("\n") if m]
+        assert n == len(msgs)
+        return msgs
+
+    def initialise(self):
+        assert self.check() == []
+        self.lib.h_start(self.p)
+        self.lib.h_set_k(self.p, 1)
+        self.initialised, self.dirty = True, True
+
+    def step(self, h):
+        """slave_base._step's planning; the hooks do the rest."""
+        Ts, k = self.raw("Ts"), self.k
+        elapsed, comp = slave_base._add(self.elapsed, self.comp, h) if VARIABLE_STEPS else \
+            (self.elapsed + h, 0.0)
+        position = (elapsed + comp) / Ts
+        last = math.ceil(position - TOL)
+        m = max(0, last + 1 - k)
+        at = last <= position + TOL
+        self.elapsed, self.comp = elapsed, comp
+        if not m:
+            return
+        if self.at_sample:
+            self.get(self.slave.VARIABLES[0]["name"])  # refresh of the pending sample
+        bad = self.lib.h_advance(self.p, k, m, self.at_sample, at, k + m)
+        assert bad is None, bad
+        self.k, self.at_sample, self.dirty = k + m, at, True
+        self.lib.h_set_k(self.p, k + m)
+
+    def save(self):
+        buf = ctypes.create_string_buffer(self.lib.h_size())
+        self.lib.h_copy(buf, self.p)
+        return buf, (self.k, self.at_sample, self.dirty, self.elapsed, self.comp)
+
+    def restore(self, saved):
+        buf, (self.k, self.at_sample, self.dirty, self.elapsed, self.comp) = saved
+        self.lib.h_copy(self.p, buf)
+
+
+def py_slave(name, values=()):
+    """The Python slave (no FMU built), with start values set."""
+    s = SLAVES[name](instance_name=name)
+    for n, v in dict(values).items():
+        setattr(s, n, v)
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    assert s._initialised, [m.msg for m in s.log_queue]
+    return s
+
+
+def py_vr(slave, name):
+    return next(i for i, s in enumerate(slave.VARIABLES) if s["name"] == name)
+
+
+def py_get(slave, name):
+    return slave.get_real([py_vr(slave, name)])[0]
+
+
+def py_set(slave, name, value):
+    slave.set_real([py_vr(slave, name)], [value])
+
+
+def outputs_of(name):
+    return [s["name"] for s in SLAVES[name].VARIABLES if s["causality"] == "output"]
+
+
+def inputs_of(name):
+    return [s["name"] for s in SLAVES[name].VARIABLES if s["causality"] == "input"]
+
+
+def random_values(name, rng):
+    if name == "Excitation":
+        return dict(kind=rng.choice((1, 2)), A=rng.uniform(-0.95, 0.95), Q=rng.uniform(0, 0.1),
+                    x0=rng.uniform(-1, 1), X=rng.uniform(0, 2), f=rng.uniform(1, 120),
+                    phi=rng.uniform(-3, 3), Xy=rng.uniform(0, 1), phiy=rng.uniform(-3, 3),
+                    Ts=rng.choice((1e-3, 2.5e-3, 1e-4)), seed=rng.randrange(2 ** 31))
+    if name == "Accelerometer":
+        p = random_sensor(rng, every_extra=rng.random() < 0.5)
+        p.update(noise=rng.choice((0, 1)), seed=rng.randrange(2 ** 31),
+                 axes=rng.choice((1, 2)), Ts=rng.choice((1e-3, 1e-4)))
+        p["fc"] = min(p["fc"], 0.4 / p["Ts"])
+        return p
+    return dict(a0=rng.uniform(-1, 1), a1=rng.uniform(0.5, 2), a2=rng.uniform(-0.1, 0.1),
+                A=rng.uniform(-0.9, 0.9), Q=rng.uniform(0.001, 0.1), R=10.0 ** rng.uniform(-6, -2),
+                x0=rng.uniform(-0.5, 0.5), P0=rng.uniform(0, 0.1), Ts=rng.choice((1e-3, 1e-4)),
+                estimator=rng.randint(1, 3), process=rng.choice((1, 2)), f=rng.uniform(1, 300),
+                Qh=10.0 ** rng.uniform(-10, -4))
+
+
+def random_steps(rng, Ts, count):
+    """Communication steps: mostly whole numbers of samples, fractional ones with the step rule."""
+    steps = []
+    for _ in range(count):
+        r = rng.random()
+        if r < 0.5 or not VARIABLE_STEPS:
+            steps.append(Ts * rng.choice((1, 1, 1, 2, 3, 7)))
+        elif r < 0.8:
+            steps.append(Ts * rng.uniform(0.05, 3.5))
+        else:
+            steps.append(Ts * rng.choice((0.5, 0.25, 1.5)))
+    return steps
+
+
+@pytest.mark.parametrize("name", list(SLAVES))
+def test_step_logic_equals_the_python_slave_over_random_parameters_and_steps(models, name):
+    """Random parameters, inputs and steps (multi-sample, and fractional under the step rule),
+    with an FMU state saved and restored in the middle: every output equal bit for bit."""
+    rng = random.Random(RNG_SEED + 100 + len(name))
+    for case in range(12):
+        values = random_values(name, rng)
+        py, cs = py_slave(name, values), CSlave(models[name], name, values)
+        cs.initialise()
+        steps = random_steps(rng, values["Ts"], 60)
+        saved = None
+        for i, h in enumerate(steps):
+            for n in inputs_of(name):
+                v = rng.uniform(-1.5, 3.0)
+                py_set(py, n, v)
+                cs.set(n, v)
+            for n in outputs_of(name):
+                assert same(py_get(py, n), cs.get(n)), (case, i, n, values)
+            if i == 20:
+                saved = (cs.save(), py._get_fmu_state())
+            if i == 40:  # back to step 20 and the same steps again: the same bits
+                cs.restore(saved[0])
+                py._set_fmu_state(saved[1])
+                for h2 in steps[20:40]:
+                    py.do_step(0.0, h2)
+                    cs.step(h2)
+            assert py.do_step(0.0, h) is not False
+            cs.step(h)
+        for n in outputs_of(name):
+            assert same(py_get(py, n), cs.get(n)), (case, "end", n, values)
+
+
+def py_problems(name, values):
+    s = SLAVES[name](instance_name=name)
+    for n, v in values.items():
+        setattr(s, n, v)
+    try:
+        return s.check_parameters()
+    except ZeroDivisionError as exc:
+        return ["internal error in _initialise: ZeroDivisionError: %s" % exc]
+
+
+BAD = {"Ts": (0.0, -1e-3, 1e-12, 1e-9, 5.0), "R": (0.0, -1.0, 5e-324), "A": (1.0, -1.0, 0.5),
+       "Q": (-0.1,), "P0": (-1.0,), "a1": (0.0,), "seed": (-1, 2 ** 31 - 1), "kind": (0, 3),
+       "f": (-1.0, 600.0, 499.99), "X": (-1.0,), "noise": (2, -1), "bits": (25, -1, 12),
+       "axes": (0, 3), "Vs": (2.0, 6.5, 5.0), "fc": (3000.0, -1.0), "cross": (1.5,),
+       "density": (-1e-6,), "estimator": (0, 4), "process": (0, 3, 2), "Qh": (-1e-9,),
+       **({"a2": (1e308,), "a3": (1.7e308,)} if VARIABLE_STEPS else {})}
+
+
+@pytest.mark.parametrize("name", list(SLAVES))
+def test_parameter_checks_give_the_python_slaves_messages(models, name):
+    rng = random.Random(RNG_SEED + 200 + len(name))
+    names = [s["name"] for s in SLAVES[name].VARIABLES if s["causality"] == "parameter"]
+    bad = [n for n in names if n in BAD]
+    for case in range(150):
+        values = random_values(name, rng)
+        for n in rng.sample(bad, rng.randint(0, 3)):
+            values[n] = rng.choice(BAD[n])
+        if name == "Accelerometer" and VARIABLE_STEPS and rng.random() < 0.2:
+            # effective values that overflow (checked by the hardened slaves)
+            values.update(a1=1.7e308, Vs=6.0, a3=0.0)
+        values = {n: v for n, v in values.items() if n in names}
+        cs = CSlave(models[name], name, values)
+        assert cs.check() == py_problems(name, values), values
+
+
+# -- whole runs: the three models chained sample by sample against models.adxl203.simulate ----
+
+COLUMNS = ("x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
+
+
+def chain_run(models, n, ex, sp, es, Ts):
+    e = CSlave(models["Excitation"], "Excitation", dict(ex, Ts=Ts))
+    a = CSlave(models["Accelerometer"], "Accelerometer", dict(sp, Ts=Ts))
+    d = CSlave(models["DriftEstimator"], "DriftEstimator", dict(es, Ts=Ts))
+    for s in (e, a, d):
+        s.initialise()
+    cols = {c: [] for c in COLUMNS}
+    for _ in range(n):
+        x, y = e.get("x"), e.get("y")
+        a.set("x", x)
+        a.set("y", y)
+        z = a.get("z")
+        d.set("z", z)
+        row = dict(x=x, y=y, z=z, z_y=a.get("z_y"))
+        row.update({c: d.get(c) for c in ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
+                                          "z_comp")})
+        for c in COLUMNS:
+            cols[c].append(row[c])
+        for s in (e, a, d):
+            s.step(Ts)
+    return cols
+
+
+def assert_run(models, n, ex, sp, es, Ts):
+    ref = adxl203.simulate(n, ex, sp, es, Ts)
+    got = chain_run(models, n, ex, sp, es, Ts)
+    for c in COLUMNS:
+        for k, (a, b) in enumerate(zip(ref[c], got[c]), start=1):
+            assert same(a, b), "%s at sample %d: Python %r, C %r" % (c, k, a, b)
+
+
+def test_gaussian_paper_run_equals_models_bit_for_bit(models):
+    assert_run(models, 4000, dict(seed=7), dict(seed=7), dict(estimator=1), 1e-3)
+
+
+def test_sinusoidal_run_with_the_harmonic_filter_equals_models_bit_for_bit(models):
+    ex = dict(kind=excitation.SINUSOIDAL, X=1.0, f=150.0, phi=0.4, seed=3)
+    es = dict(process=harmonic.HARMONIC, f=150.0, P0=0.5, estimator=3)
+    assert_run(models, 4000, ex, dict(seed=3), es, 1e-3)
+
+
+def test_adxl203_preset_run_equals_models_bit_for_bit(models):
+    ex = dict(kind=excitation.SINUSOIDAL, X=1.02, f=200.0, phi=1.3, Xy=0.51, phiy=-0.7, seed=11)
+    sp = dict(adxl203.ADXL203, seed=11, noise=1)
+    es = dict(a0=2.5, a1=1.0, a2=0.01, R=1.2e-5, process=harmonic.HARMONIC, f=200.0, Qh=1e-8,
+              P0=1.0, estimator=1)
+    assert_run(models, 6000, ex, sp, es, 1e-4)

@@ -9,13 +9,15 @@
 
 #include "adxl203.h"
 
-/* Accelerometer.HIDDEN plus the derived config; a *_set flag of 0 is Python's None. */
+/* Accelerometer.HIDDEN (_lp, _lpy: the output filters after the last sample processed), the
+ * same after the pending sample (computed by model_compute), and the derived config; a *_set
+ * flag of 0 is Python's None. */
 typedef struct {
     Config cfg;                       /* adxl203.config(**parameter_values()) (self._cfg) */
-    int64_t lp_set, lp_pending_set;   /* x axis: committed and pending filter state */
-    double lp, lp_pending;
-    int64_t lpy_set, lpy_pending_set; /* y axis */
-    double lpy, lpy_pending;
+    int64_t lp_set, lpy_set;
+    double lp, lpy;
+    int64_t lp_pending_set, lpy_pending_set;
+    double lp_pending, lpy_pending;
 } ModelHidden;
 
 #endif

@@ -12,8 +12,9 @@
 /* DriftEstimator.HIDDEN plus the derived process model (self._model's C, S). */
 typedef struct {
     double C, S;                  /* harmonic.rotation(f, Ts) */
-    HarmonicState state, pending; /* committed and pending estimator state (self._state,
-                                     self._pending); both process models, see harmonic.h */
+    HarmonicState state;          /* _state: after the last sample processed (x0, P0 before
+                                     the first); both process models, see harmonic.h */
+    HarmonicState pending;        /* after the pending sample (computed by model_compute) */
 } ModelHidden;
 
 #endif

@@ -7,9 +7,12 @@
 
 #include <stdint.h>
 
-/* No hidden state: x and y are the state (the Gauss-Markov recursion runs on the output x). */
+/* Excitation.HIDDEN (_x: the excitation after the last sample processed, x0 before sample 1)
+ * and the state after the pending sample (Python's _pending), computed when it became pending. */
 typedef struct {
-    int32_t unused;
+    double x;
+    int32_t has_pending;
+    double x_pending;
 } ModelHidden;
 
 #endif

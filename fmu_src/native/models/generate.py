@@ -16,8 +16,9 @@ from driftfmu.models import parameters
 #: Folder of the C sources.
 HERE = Path(__file__).resolve().parent
 
-#: models/ units (in fmu_src/native/models) shared by every FMU.
-MATH_UNITS = ("ops.c", "noise.c", "parameters.c")
+#: Units (in fmu_src/native/models) in every FMU: the slaves' shared checks (slave.c, which
+#: includes the plumbing's model.h) and the models/ units every model needs.
+MATH_UNITS = ("slave.c", "ops.c", "noise.c", "parameters.c")
 #: The C units of each FMU: its step logic and the models/ units it needs.
 UNITS = {
     "Excitation": ("Excitation_step.c", "excitation.c") + MATH_UNITS,

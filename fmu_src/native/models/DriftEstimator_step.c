@@ -1,0 +1,104 @@
+/* DriftEstimator_step: the per-sample logic of fmu_src/DriftEstimator.py (prepare, sample, hold
+ * and check_parameters) as the MODEL HOOKS of model.h; see DriftEstimator_step.h. */
+#include <math.h>
+
+#include "chain.h"
+#include "drift.h"
+#include "harmonic.h"
+#include "model.h"
+#include "slave.h"
+
+static const SlaveRange EXTRA[] = {{"estimator", 1, 3}};
+
+int model_check(ModelInstance *comp)
+{
+    const ModelVariables *v = &comp->v;
+    int n;
+    if (v->process == HARMONIC_HARMONIC && v->Ts == 0.0) return slave_zero_division(comp);
+    n = slave_check_parameters(comp, EXTRA, 1);
+    if (v->process == HARMONIC_HARMONIC) n += slave_check_nyquist(comp, v->f, v->Ts);
+    return n;
+}
+
+void model_start(ModelInstance *comp)
+{
+    ModelHidden *h = &comp->h;
+    harmonic_rotation(comp->v.f, comp->v.Ts, &h->C, &h->S);
+    h->state = harmonic_estimator_init(comp->v.process, comp->v.x0, comp->v.P0);
+    h->pending = h->state;
+}
+
+/* DriftEstimator._outputs of a state, and the first value that is not finite (or NULL). */
+static const char *outputs(ModelInstance *comp, const HarmonicState *s)
+{
+    ModelVariables *v = &comp->v;
+    double dcs[3];
+    drift_estimates(s->drift, v->a2, &dcs[0], &dcs[1], &dcs[2]);
+    v->x_hat = s->x;
+    v->P = s->P;
+    v->dc_ekf1 = dcs[0];
+    v->dc_ekf2 = dcs[1];
+    v->dc_ekf3 = dcs[2];
+    v->dc = drift_select(dcs, v->estimator);
+    v->z_comp = chain_compensate(v->z, v->dc);
+    if (!isfinite(v->x_hat)) return "x_hat";
+    if (!isfinite(v->P)) return "P";
+    if (!isfinite(v->dc_ekf1)) return "dc_ekf1";
+    if (!isfinite(v->dc_ekf2)) return "dc_ekf2";
+    if (!isfinite(v->dc_ekf3)) return "dc_ekf3";
+    if (!isfinite(v->dc)) return "dc";
+    if (!isfinite(v->z_comp)) return "z_comp";
+    if (comp->v.process == HARMONIC_HARMONIC) {
+        if (!isfinite(s->d)) return "hidden state _state.d";
+        if (!isfinite(s->P12)) return "hidden state _state.P12";
+        if (!isfinite(s->P22)) return "hidden state _state.P22";
+    }
+    if (!isfinite(s->drift.s1)) return "hidden state _state.drift.s1";
+    if (!isfinite(s->drift.dc2)) return "hidden state _state.drift.dc2";
+    if (!isfinite(s->drift.s3)) return "hidden state _state.drift.s3";
+    if (!isfinite(s->drift.dc3)) return "hidden state _state.drift.dc3";
+    return NULL;
+}
+
+/* DriftEstimator.hold: n >= 1 samples from k0; the first takes z as its measurement if
+ * `first`, every other one is predict-only. */
+static const char *hold(ModelInstance *comp, HarmonicState *s, int64_t n, int first)
+{
+    const ModelVariables *v = &comp->v;
+    const ModelHidden *h = &comp->h;
+    int64_t i;
+    for (i = 0; i < n; i++) {
+        if (first && i == 0)
+            *s = harmonic_estimator_step(*s, v->z, v->a0, v->a1, v->a2, v->R, v->process, v->A,
+                                         v->Q, h->C, h->S, v->Qh);
+        else
+            *s = harmonic_estimator_predict(*s, v->process, v->A, v->Q, h->C, h->S, v->Qh);
+    }
+    return outputs(comp, s);
+}
+
+const char *model_compute(ModelInstance *comp)
+{
+    comp->h.pending = comp->h.state;
+    return hold(comp, &comp->h.pending, 1, 1);
+}
+
+const char *model_advance(ModelInstance *comp, const StepPlan *plan)
+{
+    HarmonicState s = comp->h.state;
+    if (plan->n > 0) {
+        int64_t start = plan->k_first;
+        int first = 1;
+        if (plan->first_pending) { /* sample k: committed with the z set at t */
+            s = comp->h.pending;
+            start = plan->k_first + 1;
+            first = 0;
+        }
+        if (plan->k_first + plan->n > start) { /* the other instants: z held from t */
+            const char *bad = hold(comp, &s, plan->k_first + plan->n - start, first);
+            if (bad) return bad;
+        }
+    }
+    comp->h.state = s;
+    return NULL; /* a pending sample at t + h: model_compute, from the z set there */
+}

@@ -1,0 +1,100 @@
+/* Excitation_step: the per-sample logic of fmu_src/Excitation.py (start, sample, hold and
+ * check_parameters) as the MODEL HOOKS of model.h; see Excitation_step.h. */
+#include <math.h>
+
+#include "excitation.h"
+#include "model.h"
+#include "slave.h"
+
+static const SlaveRange EXTRA[] = {{"kind", 1, 2}};
+
+int model_check(ModelInstance *comp)
+{
+    const ModelVariables *v = &comp->v;
+    int n;
+    if (v->kind == EXCITATION_SINUSOIDAL && v->Ts == 0.0) return slave_zero_division(comp);
+    n = slave_check_parameters(comp, EXTRA, 1);
+    if (v->kind == EXCITATION_SINUSOIDAL) n += slave_check_nyquist(comp, v->f, v->Ts);
+    return n;
+}
+
+/* Excitation._sample and _sample_y */
+static double sample_x(const ModelVariables *v, double x_prev, int64_t k)
+{
+    if (v->kind == EXCITATION_GAUSSIAN)
+        return excitation_gaussian_sample(x_prev, v->A, v->Q, v->seed, k);
+    return excitation_sine(k, v->X, v->f, v->Ts, v->phi);
+}
+
+static double sample_y(const ModelVariables *v, int64_t k)
+{
+    if (v->kind == EXCITATION_GAUSSIAN) return 0.0;
+    return excitation_sine(k, v->Xy, v->f, v->Ts, v->phiy);
+}
+
+/* Excitation.hold: n >= 1 samples from k0 (the sinusoid needs no history); the outputs of the
+ * last.  Returns the name of a value that is not finite, or NULL. */
+static const char *hold(ModelInstance *comp, double *x, int64_t k0, int64_t n)
+{
+    const ModelVariables *v = &comp->v;
+    int64_t k;
+    if (v->kind == EXCITATION_GAUSSIAN) {
+        for (k = k0; k < k0 + n; k++) *x = sample_x(v, *x, k);
+    } else {
+        *x = sample_x(v, *x, k0 + n - 1);
+    }
+    comp->v.x = *x;
+    comp->v.y = sample_y(v, k0 + n - 1);
+    if (!isfinite(comp->v.x)) return "x";
+    if (!isfinite(comp->v.y)) return "y";
+    return NULL;
+}
+
+/* Sample k becomes pending: its outputs depend on no input, so they are computed now. */
+static const char *make_pending(ModelInstance *comp, int64_t k)
+{
+    double x = comp->h.x;
+    const char *bad = hold(comp, &x, k, 1);
+    comp->h.x_pending = x;
+    comp->h.has_pending = 1;
+    return bad;
+}
+
+void model_start(ModelInstance *comp)
+{
+    comp->h.x = comp->v.x0;
+    make_pending(comp, 1);
+}
+
+const char *model_compute(ModelInstance *comp)
+{
+    (void)comp; /* no feedthrough: the pending sample's outputs are computed when it becomes
+                   pending */
+    return NULL;
+}
+
+const char *model_advance(ModelInstance *comp, const StepPlan *plan)
+{
+    const char *bad = NULL;
+    double x = comp->h.x;
+    if (plan->n > 0) {
+        int64_t start = plan->k_first;
+        if (plan->first_pending) { /* sample k: committed */
+            if (comp->h.has_pending) {
+                x = comp->h.x_pending;
+            } else {
+                bad = hold(comp, &x, plan->k_first, 1);
+                if (bad) return bad;
+            }
+            start = plan->k_first + 1;
+        }
+        if (plan->k_first + plan->n > start) { /* the other instants */
+            bad = hold(comp, &x, start, plan->k_first + plan->n - start);
+            if (bad) return bad;
+        }
+    }
+    comp->h.x = x;
+    comp->h.has_pending = 0;
+    if (plan->end_pending) return make_pending(comp, plan->k_end);
+    return NULL;
+}

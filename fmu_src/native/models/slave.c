@@ -1,0 +1,64 @@
+/* slave: see slave.h. */
+#include <stdio.h>
+#include <string.h>
+
+#include "model.h"
+#include "parameters.h"
+#include "slave.h"
+
+int slave_problem(ModelInstance *comp, const char *message)
+{
+    model_log_error(comp, "%s", message);
+    return 1;
+}
+
+static double value_of(const ModelInstance *comp, int i)
+{
+    const char *base = (const char *)&comp->v + MODEL_VARIABLES[i].offset;
+    if (MODEL_VARIABLES[i].type == TYPE_REAL) return *(const double *)base;
+    return (double)*(const int *)base;
+}
+
+int slave_check_parameters(ModelInstance *comp, const SlaveRange *extra, int n_extra)
+{
+    char msg[PARAMETERS_MESSAGE_MAX];
+    int i, j, n = 0;
+    for (i = 0; i < N_VARIABLES; i++) {
+        if (MODEL_VARIABLES[i].causality != CAUSALITY_PARAMETER) continue;
+        if (parameters_problem(MODEL_VARIABLES[i].name, value_of(comp, i),
+                               MODEL_VARIABLES[i].type == TYPE_INTEGER, msg, sizeof msg) == 1)
+            n += slave_problem(comp, msg);
+    }
+    for (i = 0; i < N_VARIABLES; i++) {
+        if (MODEL_VARIABLES[i].causality != CAUSALITY_PARAMETER) continue;
+        for (j = 0; j < n_extra; j++) {
+            double v = value_of(comp, i);
+            if (strcmp(extra[j].name, MODEL_VARIABLES[i].name) != 0) continue;
+            if (v < (double)extra[j].low || v > (double)extra[j].high) {
+                snprintf(msg, sizeof msg, "%s = %.0f is out of range; allowed: %lld <= %s <= %lld",
+                         extra[j].name, v, (long long)extra[j].low, extra[j].name,
+                         (long long)extra[j].high);
+                n += slave_problem(comp, msg);
+            }
+        }
+    }
+    return n;
+}
+
+int slave_zero_division(ModelInstance *comp)
+{
+    return slave_problem(comp, "internal error in _initialise: ZeroDivisionError: float "
+                               "division by zero");
+}
+
+int slave_check_nyquist(ModelInstance *comp, double f, double Ts)
+{
+    char msg[PARAMETERS_MESSAGE_MAX], rf[40], rn[40];
+    double nyquist = 0.5 / Ts;
+    if (!(f >= nyquist)) return 0;
+    parameters_repr_float(f, rf, sizeof rf);
+    parameters_repr_float(nyquist, rn, sizeof rn);
+    snprintf(msg, sizeof msg, "f = %s Hz is at or above the Nyquist rate 1/(2 Ts) = %s Hz; "
+             "allowed: f < %s Hz", rf, rn, rn);
+    return slave_problem(comp, msg);
+}

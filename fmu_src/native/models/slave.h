@@ -1,0 +1,31 @@
+/* slave: what the three step-logic units share (the port of the checks and helpers of
+ * fmu_src/slave_base.py), over the plumbing's fmu_src/native/model.h.  Compiled into every FMU
+ * (slave.c); include after model.h. */
+#ifndef DRIFTFMU_SLAVE_H
+#define DRIFTFMU_SLAVE_H
+
+#include <stdint.h>
+
+/* The declared range of a parameter that models/parameters.py does not know (its VARIABLES row's
+ * min and max, both integers: kind, noise, estimator). */
+typedef struct {
+    const char *name;
+    int64_t low, high;
+} SlaveRange;
+
+/* SlaveBase.check_parameters: every parameter of MODEL_VARIABLES (table order) that
+ * models.parameters knows, checked with its message, then those in `extra`; each problem is
+ * logged with model_log_error.  Returns the number of problems. */
+int slave_check_parameters(ModelInstance *comp, const SlaveRange *extra, int n_extra);
+
+/* Log one problem (model_log_error(comp, "%s", message)) and return 1. */
+int slave_problem(ModelInstance *comp, const char *message);
+
+/* Python's `internal error in _initialise: ZeroDivisionError: float division by zero` of a
+ * check that divides by Ts = 0 (slave_base._call's words); returns 1. */
+int slave_zero_division(ModelInstance *comp);
+
+/* The Nyquist check of Excitation and DriftEstimator: 1 (logged) if f >= 0.5 / Ts. */
+int slave_check_nyquist(ModelInstance *comp, double f, double Ts);
+
+#endif
