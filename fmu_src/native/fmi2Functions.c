@@ -18,9 +18,20 @@ static void host_log(ModelInstance *comp, Status status, const char *category,
                      const char *message)
 {
     const fmi2CallbackFunctions *cb = comp->hostData[0];
-    if (cb && cb->logger)
-        cb->logger(cb->componentEnvironment, comp->instanceName, (fmi2Status)status, category,
-                   "%s", message);
+    if (!cb || !cb->logger)
+        return;
+    /* The message is the logger's format (hosts in languages without varargs, fmpy's among
+     * them, print it as it is): every '%' doubled, so that printf-style hosts show it too. */
+    char escaped[2048];
+    size_t j = 0;
+    for (size_t i = 0; message[i] && j + 2 < sizeof escaped; i++) {
+        if (message[i] == '%')
+            escaped[j++] = '%';
+        escaped[j++] = message[i];
+    }
+    escaped[j] = 0;
+    cb->logger(cb->componentEnvironment, comp->instanceName, (fmi2Status)status, category,
+               escaped);
 }
 
 #define COMP ((ModelInstance *)c)
