@@ -132,8 +132,19 @@ LOG_CATEGORIES = (
 )
 
 
+def model_description_text(slave):
+    """The model description's description, as the Python FMU's: ``DESCRIPTION`` and the step
+    rule (slave_base.STEP_RULE) where the slave has them, else its docstring's first line."""
+    from driftfmu.fmu_src import slave_base
+    text = getattr(slave, "DESCRIPTION", "")
+    rule = getattr(slave_base, "STEP_RULE", "")
+    if text:
+        return "%s. %s" % (text, rule) if rule else text
+    return (slave.__doc__ or slave.__name__).strip().splitlines()[0]
+
+
 def _header_attributes(slave, fmi_version, token):
-    description = slave.__doc__.strip().splitlines()[0]
+    description = model_description_text(slave)
     attrib = {"fmiVersion": "%d.0" % fmi_version, "modelName": slave.__name__}
     attrib["guid" if fmi_version == 2 else "instantiationToken"] = token
     attrib.update({"description": description, "author": "driftfmu contributors",

@@ -475,7 +475,7 @@ def test_illegal_calls_are_refused_with_a_message_and_change_nothing(native_fmus
         for h, text in ((math.nan, "h = nan s; allowed: a finite h > 0"),
                         (-1e-3, "h = -0.001 s; allowed: a finite h > 0"),
                         (0.0, "h = 0.0 s"), (math.inf, "h = inf s"),
-                        (2.0e3, "at most 1000000 sample instants per step")):
+                        (2.0e3, "spans more than 1000000 sample instants of Ts = 0.001 s")):
             with pytest.raises(Exception):
                 fmu.doStep(currentCommunicationPoint=0.0, communicationStepSize=h)
             assert text in inst.messages[-1], inst.messages[-1]

@@ -29,8 +29,9 @@ static void vlog(ModelInstance *comp, Status status, const char *format, va_list
     if (status < STATUS_WARNING && !comp->loggingOn)
         return;
     char message[MESSAGE_SIZE];
-    int used = snprintf(message, sizeof message, "%s: ",
-                        comp->instanceName ? comp->instanceName : "");
+    int used = snprintf(message, sizeof message, "%s: %s",
+                        comp->instanceName ? comp->instanceName : "",
+                        status >= STATUS_WARNING && comp->logContext ? comp->logContext : "");
     if (used < 0 || (size_t)used >= sizeof message)
         used = 0;
     vsnprintf(message + used, sizeof message - (size_t)used, format, args);
@@ -182,6 +183,8 @@ static void to_start(ModelInstance *comp)
     memset(&comp->h, 0, sizeof comp->h);
     comp->startTime = 0.0;
     comp->time = 0.0;
+    comp->elapsed = comp->elapsed_c = 0.0;
+    comp->logContext = NULL;
     comp->k = 1;
     comp->pending = 1;
     comp->dirty = 1;
@@ -251,6 +254,7 @@ Status cs_setup(ModelInstance *comp, const char *function, double startTime)
     }
     comp->startTime = startTime;
     comp->time = startTime;
+    comp->dirty = 1;
     return STATUS_OK;
 }
 
@@ -259,6 +263,7 @@ Status cs_enter_initialization(ModelInstance *comp, const char *function)
     if (!cs_allowed(comp, function, STATE_INSTANTIATED))
         return STATUS_ERROR;
     comp->state = STATE_INITIALIZATION;
+    comp->dirty = 1;
     return STATUS_OK;
 }
 
@@ -268,6 +273,7 @@ Status cs_exit_initialization(ModelInstance *comp, const char *function)
         return STATUS_ERROR;
     comp->state = STATE_STEP;   /* as the Python FMUs: a failed check leaves it unable to step */
     comp->time = comp->startTime;
+    comp->elapsed = comp->elapsed_c = 0.0;
     if (model_check(comp) > 0) {
         comp->initialised = 0;
         return STATUS_ERROR;
@@ -308,10 +314,52 @@ typedef struct {
     ModelHidden h;
 } Backup;
 
+/* The outputs of sample 1 read in Initialization Mode, from the start values and inputs set so
+ * far (as the Python FMUs and the InitialUnknowns say): checked, computed on a copy, and only
+ * the outputs kept. */
+static Status initialisation_outputs(ModelInstance *comp, const char *function)
+{
+    Backup backup = {comp->v, comp->h};
+    comp->logContext = "cannot compute the outputs in Initialization Mode: ";
+    int problems = model_check(comp);
+    comp->logContext = NULL;
+    if (problems)
+        return STATUS_ERROR;
+    const int64_t k = comp->k;
+    comp->k = 1;
+    model_start(comp);
+    const char *bad = MODEL_HAS_FEEDTHROUGH ? model_compute(comp) : NULL;
+    ModelVariables computed = comp->v;
+    comp->v = backup.v;
+    comp->h = backup.h;
+    comp->k = k;
+    for (int i = 0; !bad && i < N_VARIABLES; i++)
+        if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT &&
+            MODEL_VARIABLES[i].type == TYPE_REAL &&
+            !isfinite(*(double *)((char *)&computed + MODEL_VARIABLES[i].offset)))
+            bad = MODEL_VARIABLES[i].name;
+    if (bad) {
+        cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample 1 (t = %s s): the "
+               "start values overflow the model; allowed: values whose outputs stay finite "
+               "(nothing was changed)", function, bad, repr_double(comp->startTime,
+                                                                     (char[32]){0}));
+        return STATUS_ERROR;
+    }
+    for (int i = 0; i < N_VARIABLES; i++)
+        if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT)
+            memcpy((char *)&comp->v + MODEL_VARIABLES[i].offset,
+                   (char *)&computed + MODEL_VARIABLES[i].offset,
+                   MODEL_VARIABLES[i].type == TYPE_REAL ? sizeof(double) : sizeof(int));
+    comp->dirty = 0;
+    return STATUS_OK;
+}
+
 /* The feedthrough outputs of the pending sample, computed when inputs changed. The state is
  * restored and an error returned when a value comes out non-finite. */
 static Status refresh(ModelInstance *comp, const char *function)
 {
+    if (comp->dirty && comp->state == STATE_INITIALIZATION)
+        return initialisation_outputs(comp, function);
     if (!(MODEL_HAS_FEEDTHROUGH && comp->dirty && comp->initialised && comp->pending))
         return STATUS_OK;
     Backup backup = {comp->v, comp->h};
@@ -319,9 +367,11 @@ static Status refresh(ModelInstance *comp, const char *function)
     if (bad) {
         comp->v = backup.v;
         comp->h = backup.h;
-        cs_log(comp, STATUS_ERROR, "%s: %s came out non-finite at sample %lld from finite "
-               "inputs (overflow); the call changed nothing", function, bad,
-               (long long)comp->k);
+        char b[32];
+        cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample %lld (t = %s s): the "
+               "inputs and parameters overflow the model; allowed: values whose outputs and "
+               "state stay finite (nothing was changed)", function, bad, (long long)comp->k,
+               repr_double(comp->startTime + (double)(comp->k - 1) * comp->v.Ts, b));
         return STATUS_ERROR;
     }
     comp->dirty = 0;
@@ -332,30 +382,60 @@ static Status refresh(ModelInstance *comp, const char *function)
 #define VR_TIME ((unsigned int)N_VARIABLES)
 #define IS_TIME(vr) (FMI_VERSION == 3 && (vr) == VR_TIME)
 
-static int lookup(const unsigned int vr[], size_t n, VariableType type, int reading)
-{
-    for (size_t i = 0; i < n; i++) {
-        if (IS_TIME(vr[i]) && type == TYPE_REAL && reading)
-            continue;
-        if (vr[i] >= N_VARIABLES || MODEL_VARIABLES[vr[i]].type != type)
-            return (int)i;
-    }
-    return -1;
-}
-
-static void vr_problem(ModelInstance *comp, const char *function, const char *type,
-                       unsigned int vr)
+static int bad_reference(unsigned int vr, VariableType type, int reading)
 {
     if (IS_TIME(vr))
-        cs_log(comp, STATUS_ERROR, "%s: value reference %u is time, the independent variable: "
-               "a Float64 that can be read, not set", function, vr);
-    else if (vr >= N_VARIABLES + (FMI_VERSION == 3))
-        cs_log(comp, STATUS_ERROR, "%s: value reference %u does not exist; allowed: 0 .. %d",
-               function, vr, N_VARIABLES - 1 + (FMI_VERSION == 3));
-    else
-        cs_log(comp, STATUS_ERROR, "%s: value reference %u is %s, a %s variable, not a %s "
-               "variable", function, vr, MODEL_VARIABLES[vr].name,
-               TYPE_NAME[MODEL_VARIABLES[vr].type], type);
+        return !(type == TYPE_REAL && reading);
+    return vr >= N_VARIABLES || MODEL_VARIABLES[vr].type != (VariableType)type;
+}
+
+/* What is wrong with the value references of a call on `type` variables, worded as the Python
+ * FMUs word it: "value reference 999 does not exist; allowed: the Real value references of
+ * modelDescription.xml (0, 1, ...)". */
+static void bad_references(char *out, size_t size, const unsigned int vr[], size_t n,
+                           const char *type, int type_code, int reading)
+{
+    size_t used = 0;
+    out[0] = 0;
+#define PUT(...)                                                                           \
+    do {                                                                                   \
+        if (used < size) {                                                                 \
+            int w = snprintf(out + used, size - used, __VA_ARGS__);                        \
+            used += w > 0 ? (size_t)w : 0;                                                 \
+        }                                                                                  \
+    } while (0)
+    int first = 1;
+    for (size_t i = 0; i < n; i++) {
+        if (type_code >= 0 && !bad_reference(vr[i], (VariableType)type_code, reading))
+            continue;
+        if (!first)
+            PUT(", ");
+        first = 0;
+        if (IS_TIME(vr[i]))
+            PUT("value reference %u is time, the independent variable: a Float64 that can be "
+                "read, not set", vr[i]);
+        else if (vr[i] >= N_VARIABLES)
+            PUT("value reference %u does not exist", vr[i]);
+        else
+            PUT("value reference %u is %s, %s %s variable, not %s %s variable", vr[i],
+                MODEL_VARIABLES[vr[i]].name,
+                MODEL_VARIABLES[vr[i]].type == TYPE_REAL ? "a" : "an",
+                TYPE_NAME[MODEL_VARIABLES[vr[i]].type],
+                (type[0] == 'I' || type[0] == 'U') ? "an" : "a", type);
+    }
+    PUT("; allowed: the %s value references of modelDescription.xml (", type);
+    int any = 0;
+    for (int i = 0; type_code >= 0 && i < N_VARIABLES; i++)
+        if ((int)MODEL_VARIABLES[i].type == type_code) {
+            PUT(any ? ", %d" : "%d", i);
+            any = 1;
+        }
+    if (FMI_VERSION == 3 && type_code == TYPE_REAL && reading) {
+        PUT(any ? ", %d" : "%d", N_VARIABLES);
+        any = 1;
+    }
+    PUT("%s)", any ? "" : "none");
+#undef PUT
 }
 
 Status cs_get(ModelInstance *comp, const char *function, VariableType type,
@@ -368,11 +448,13 @@ Status cs_get(ModelInstance *comp, const char *function, VariableType type,
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
         return STATUS_ERROR;
     }
-    int bad = lookup(vr, n, type, 1);
-    if (bad >= 0) {
-        vr_problem(comp, function, TYPE_NAME[type], vr[bad]);
-        return STATUS_ERROR;
-    }
+    for (size_t i = 0; i < n; i++)
+        if (bad_reference(vr[i], type, 1)) {
+            char text[MESSAGE_SIZE];
+            bad_references(text, sizeof text, vr, n, TYPE_NAME[type], type, 1);
+            cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
+            return STATUS_ERROR;
+        }
     if (refresh(comp, function) != STATUS_OK)
         return STATUS_ERROR;
     for (size_t i = 0; i < n; i++) {
@@ -389,37 +471,52 @@ Status cs_get(ModelInstance *comp, const char *function, VariableType type,
 Status cs_set(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, const double reals[], const int ints[])
 {
-    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP))
+    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
+                    STATE_TERMINATED))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
         return STATUS_ERROR;
     }
-    int bad = lookup(vr, n, type, 0);
-    if (bad >= 0) {
-        vr_problem(comp, function, TYPE_NAME[type], vr[bad]);
-        return STATUS_ERROR;
-    }
-    /* check every value first: a rejected call changes nothing */
-    for (size_t i = 0; i < n; i++) {
+    /* every problem of the call first (all but the last logged, the last with the error):
+     * a rejected call changes nothing */
+    char problems[8][MESSAGE_SIZE];
+    int np = 0;
+    if (comp->state == STATE_TERMINATED)
+        snprintf(problems[np++], MESSAGE_SIZE, "the instance is terminated (%s); allowed: %s, "
+                 "%s, the get functions and %s", FMI_VERSION == 2 ? "fmi2Terminate" :
+                 "fmi3Terminate", FMI_VERSION == 2 ? "fmi2Reset" : "fmi3Reset",
+                 FMI_VERSION == 2 ? "fmi2FreeInstance" : "fmi3FreeInstance",
+                 FMI_VERSION == 2 ? "fmi2SetFMUstate" : "fmi3SetFMUState");
+    for (size_t i = 0; i < n; i++)
+        if (bad_reference(vr[i], type, 0)) {
+            bad_references(problems[np++], MESSAGE_SIZE, vr, n, TYPE_NAME[type], type, 0);
+            break;
+        }
+    for (size_t i = 0; i < n && np < 8; i++) {
+        if (bad_reference(vr[i], type, 0))
+            continue;
         const VariableInfo *info = &MODEL_VARIABLES[vr[i]];
         char b[32];
-        if (info->causality == CAUSALITY_OUTPUT) {
-            cs_log(comp, STATUS_ERROR, "%s is an output; only parameters and inputs can be set",
-                   info->name);
-            return STATUS_ERROR;
-        }
-        if (type == TYPE_REAL && !isfinite(reals[i])) {
-            cs_log(comp, STATUS_ERROR, "%s = %s is not finite; %s accepts finite values only",
-                   info->name, repr_double(reals[i], b), CAUSALITY_NAME[info->causality]);
-            return STATUS_ERROR;
-        }
-        if (info->causality == CAUSALITY_PARAMETER &&
-            !(comp->state & (STATE_INSTANTIATED | STATE_INITIALIZATION))) {
-            cs_log(comp, STATUS_ERROR, "%s is a fixed parameter and cannot be changed after "
-                   "initialisation", info->name);
-            return STATUS_ERROR;
-        }
+        if (info->causality == CAUSALITY_OUTPUT)
+            snprintf(problems[np++], MESSAGE_SIZE, "%s is an output; only parameters and "
+                     "inputs can be set", info->name);
+        else if (type == TYPE_REAL && !isfinite(reals[i]))
+            snprintf(problems[np++], MESSAGE_SIZE, "%s = %s is not finite; %s accepts finite "
+                     "values only", info->name, repr_double(reals[i], b),
+                     CAUSALITY_NAME[info->causality]);
+        else if (info->causality == CAUSALITY_PARAMETER && comp->initialised)
+            snprintf(problems[np++], MESSAGE_SIZE, "%s is a fixed parameter and cannot be "
+                     "changed after initialisation (it stays %s)", info->name,
+                     info->type == TYPE_REAL ? repr_double(*REAL_AT(comp, vr[i]), b)
+                     : (snprintf(b, sizeof b, "%d", *INT_AT(comp, vr[i])), b));
+    }
+    if (np) {
+        for (int i = 0; i < np - 1; i++)
+            cs_log(comp, STATUS_ERROR, "%s: %s", function, problems[i]);
+        cs_log(comp, STATUS_ERROR, "%s: %s%s", function, problems[np - 1],
+               n > 1 ? "; nothing was set" : "");
+        return STATUS_ERROR;
     }
     for (size_t i = 0; i < n; i++) {
         if (type == TYPE_REAL)
@@ -441,15 +538,35 @@ Status cs_no_such_type(ModelInstance *comp, const char *function, const char *ty
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
         return STATUS_ERROR;
     }
-    vr_problem(comp, function, type, vr[0]);
+    char text[MESSAGE_SIZE];
+    bad_references(text, sizeof text, vr, n, type, -1, 0);
+    cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
     return STATUS_ERROR;
 }
 
-/* ---- the step rule (STEP_RULE.md) -------------------------------------------------------- */
+/* ---- the step rule (STEP_RULE.md), as fmu_src/slave_base.py keeps it ---------------------- */
+
+/* Neumaier's compensated sum of the step sizes (slave_base._add). */
+static void add_step(double *s, double *c, double x)
+{
+    double t = *s + x;
+    if (fabs(*s) >= fabs(x))
+        *c += (*s - t) + x;
+    else
+        *c += (x - t) + *s;
+    *s = t;
+}
 
 Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h)
 {
     (void)currentTime;   /* the FMU keeps its own time */
+    char bh[32], bt[32], bl[32];
+    if (comp->state == STATE_TERMINATED) {
+        cs_log(comp, STATUS_ERROR, "cannot step: the instance is terminated (%s); allowed: %s, "
+               "then initialise again", FMI_VERSION == 2 ? "fmi2Terminate" : "fmi3Terminate",
+               FMI_VERSION == 2 ? "fmi2Reset" : "fmi3Reset");
+        return STATUS_ERROR;
+    }
     if (!cs_allowed(comp, function, STATE_STEP))
         return STATUS_ERROR;
     if (!comp->initialised) {
@@ -457,30 +574,33 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
                "errors above)");
         return STATUS_ERROR;
     }
-    char bh[32], bt[32];
     if (!(isfinite(h) && h > 0.0)) {
         cs_log(comp, STATUS_ERROR, "communication step h = %s s; allowed: a finite h > 0",
                repr_double(h, bh));
         return STATUS_ERROR;
     }
-    const double Ts = comp->v.Ts;
-    const double a = (comp->time - comp->startTime) / Ts;      /* t in sample periods */
-    const double b = (comp->time + h - comp->startTime) / Ts;  /* t + h */
-    StepPlan plan;
-    double first = ceil(a - SAMPLE_TOLERANCE);
-    double end = ceil(b - SAMPLE_TOLERANCE);   /* instants within tolerance of t + h: next step */
-    if (!(end - first <= (double)MAX_SAMPLES_PER_STEP)) {
-        cs_log(comp, STATUS_ERROR, "communication step h = %s s spans %.0f sample instants of "
-               "Ts = %s s; allowed: at most %lld sample instants per step",
-               repr_double(h, bh), end - first, repr_double(Ts, bt),
-               (long long)MAX_SAMPLES_PER_STEP);
+    const double Ts = comp->v.Ts, tol = SAMPLE_TOLERANCE;
+    const int64_t k = comp->k;
+    double elapsed = comp->elapsed, elapsed_c = comp->elapsed_c;
+    add_step(&elapsed, &elapsed_c, h);
+    const double position = (elapsed + elapsed_c) / Ts;   /* t + h in sample periods */
+    const double limit = (double)MAX_SAMPLES_PER_STEP;
+    if (!(position - tol <= limit + (double)k - 1.0)) {
+        cs_log(comp, STATUS_ERROR, "communication step h = %s s spans more than %lld sample "
+               "instants of Ts = %s s; allowed: at most MAX_SAMPLES_PER_STEP = %lld sample "
+               "instants per step, h <= about %s s", repr_double(h, bh),
+               (long long)MAX_SAMPLES_PER_STEP, repr_double(Ts, bt),
+               (long long)MAX_SAMPLES_PER_STEP, repr_double(limit * Ts, bl));
         return STATUS_ERROR;
     }
-    plan.k_first = (int64_t)first + 1;
-    plan.n = (int64_t)(end - first);
-    plan.first_pending = comp->pending && plan.n > 0 && plan.k_first == comp->k;
-    plan.end_pending = fabs(b - nearbyint(b)) <= SAMPLE_TOLERANCE;
-    plan.k_end = (int64_t)nearbyint(b) + 1;
+    const int64_t last = (int64_t)ceil(position - tol);   /* first instant at or after t + h */
+    const int64_t m = last + 1 - k > 0 ? last + 1 - k : 0;   /* instants in [t, t + h) */
+    StepPlan plan;
+    plan.k_first = k;
+    plan.n = m;
+    plan.first_pending = comp->pending && m > 0;
+    plan.end_pending = (double)last <= position + tol;
+    plan.k_end = k + m;
 
     Backup backup = {comp->v, comp->h};
     if (plan.first_pending && refresh(comp, function) != STATUS_OK)
@@ -497,16 +617,16 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
     if (bad) {
         comp->v = backup.v;
         comp->h = backup.h;
-        cs_log(comp, STATUS_ERROR, "%s: %s came out non-finite in the step from t = %s s by "
-               "h = %s s (overflow); the step was not taken and nothing changed", function,
-               bad, repr_double(comp->time, bt), repr_double(h, bh));
+        cs_log(comp, STATUS_ERROR, "%s would not be finite in the step from t = %s s by h = %s "
+               "s: the inputs and parameters overflow the model; allowed: values whose outputs "
+               "and state stay finite (nothing was changed)", bad, repr_double(comp->time, bt),
+               repr_double(h, bh));
         return STATUS_ERROR;
     }
-    comp->time += h;
-    if (plan.end_pending)
-        comp->k = plan.k_end;
-    else if (plan.n > 0)
-        comp->k = plan.k_first + plan.n - 1;
+    comp->elapsed = elapsed;
+    comp->elapsed_c = elapsed_c;
+    comp->time = comp->startTime + (elapsed + elapsed_c);
+    comp->k = k + m;
     comp->pending = plan.end_pending;
     comp->dirty = 1;
     return STATUS_OK;
@@ -528,7 +648,7 @@ typedef struct {
     StateHeader header;
     ModelVariables v;
     ModelHidden h;
-    double startTime, time;
+    double startTime, time, elapsed, elapsed_c;
     int64_t k;
     int32_t pending, dirty, initialised, state;
 } Snapshot;
@@ -593,6 +713,8 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
     s->h = comp->h;
     s->startTime = comp->startTime;
     s->time = comp->time;
+    s->elapsed = comp->elapsed;
+    s->elapsed_c = comp->elapsed_c;
     s->k = comp->k;
     s->pending = comp->pending;
     s->dirty = comp->dirty;
@@ -617,6 +739,8 @@ Status cs_set_state(ModelInstance *comp, const char *function, const void *state
     comp->h = s->h;
     comp->startTime = s->startTime;
     comp->time = s->time;
+    comp->elapsed = s->elapsed;
+    comp->elapsed_c = s->elapsed_c;
     comp->k = s->k;
     comp->pending = s->pending;
     comp->dirty = s->dirty;

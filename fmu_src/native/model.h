@@ -70,7 +70,9 @@ typedef struct ModelInstance {
     ModelHidden h;              /* the model's hidden state */
     double startTime;
     double time;                /* startTime + the sum of the accepted step sizes */
-    int64_t k;                  /* index of the latest sample (the pending one when pending) */
+    double elapsed, elapsed_c;  /* time - startTime as Neumaier's compensated sum, as the
+                                   Python FMUs keep it (position = (elapsed + elapsed_c)/Ts) */
+    int64_t k;                  /* the next sample to process (the pending one when pending) */
     int pending;                /* the current communication point is sample k's instant */
     int dirty;                  /* inputs set since the feedthrough outputs were computed */
     int initialised;            /* the parameters passed the checks at exit of initialisation */
@@ -78,6 +80,7 @@ typedef struct ModelInstance {
     int loggingOn;
     HostLogger hostLog;
     void *hostData[4];          /* the host's callbacks and environment (FMI-version specific) */
+    const char *logContext;     /* put before every error message while set (or NULL) */
 } ModelInstance;
 
 /* One doStep, planned by the plumbing from the FMU's time, start time and Ts. */
