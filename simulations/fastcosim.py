@@ -16,10 +16,11 @@ the same bits.  Other wirings are refused.
 """
 import ctypes
 import shutil
+import subprocess
 from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
 
 import numpy as np
-from fmpy import extract, read_model_description
+from fmpy import read_model_description
 
 from driftfmu.simulations.cosim import CoSimulationError, _STATUS
 
@@ -29,9 +30,8 @@ class FastInstance:
 
     def __init__(self, name, path, logging_on=False):
         self.name = name
-        self.md = read_model_description(str(path))
+        self.unzipdir, self.md = unpacked(path)
         self.fmi = int(self.md.fmiVersion[0])
-        self.unzipdir = extract(str(path))
         self.vrs = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
         self.messages = []
@@ -102,7 +102,215 @@ class FastInstance:
             self.fmu.terminate()
         finally:
             self.fmu.freeInstance()
-            shutil.rmtree(self.unzipdir, ignore_errors=True)
+
+
+_UNPACKED = {}
+
+
+def unpacked(path):
+    """``(folder, model description)`` of the FMU at ``path``, unpacked once per process (the
+    model description and this platform's binaries only; removed at exit) and read without
+    schema validation (the builder validated it): loading an FMU costs microseconds, not the
+    0.2 s of unzipping and validating it again for every run."""
+    import atexit
+    import os
+    import platform
+    import tempfile
+    import zipfile
+    stat = os.stat(path)
+    key = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)
+    if key not in _UNPACKED:
+        folder = tempfile.mkdtemp(prefix="driftfmu_fast_")
+        atexit.register(shutil.rmtree, folder, True)
+        here = {"Linux": ("linux64", "x86_64-linux"), "Windows": ("win64", "x86_64-windows"),
+                "Darwin": ("darwin64", "x86_64-darwin", "aarch64-darwin")}.get(
+                    platform.system(), ())
+        with zipfile.ZipFile(path) as archive:
+            names = [n for n in archive.namelist() if n == "modelDescription.xml"
+                     or n.startswith("resources/")
+                     or any(n.startswith("binaries/%s/" % p) for p in here)]
+            archive.extractall(folder, names)
+        _UNPACKED[key] = (folder, read_model_description(folder, validate=False))
+    return _UNPACKED[key]
+
+
+#: The stepping loop in C, compiled once per machine (see :func:`_c_loop`): the FMI functions are
+#: called through the pointers fmpy's loaded libraries export, on the arrays made here.
+LOOP_SOURCE = r"""
+#include <stddef.h>
+typedef int (*step2)(void *, double, double, int);
+typedef int (*step3)(void *, double, double, int, void *, void *, void *, void *);
+typedef int (*access2)(void *, const unsigned int *, size_t, double *);
+typedef int (*access3)(void *, const unsigned int *, size_t, double *, size_t);
+typedef struct { int fmi; void *component; void *function; } Stepper;
+typedef struct { int fmi; void *component; void *function; const unsigned int *vrs;
+                 size_t n; ptrdiff_t offset; } Access;
+
+/* Points k0 .. k1-1: step every FMU (but at point 0), then the setters and getters in order.
+ * Returns 0, or 1 + the index of the failing call (steppers first) with *where = k. */
+int driftfmu_loop(long k0, long k1, double t0, double h, char *rows, ptrdiff_t row_bytes,
+                  int n_steppers, const Stepper *steppers, int n_access,
+                  const Access *access, long *where)
+{
+    unsigned char flags[4];
+    double last;
+    for (long k = k0; k < k1; k++) {
+        char *row = rows + k * row_bytes;
+        if (k) {
+            double t = t0 + (double)(k - 1) * h;
+            for (int i = 0; i < n_steppers; i++) {
+                const Stepper *s = &steppers[i];
+                int status = s->fmi == 2
+                    ? ((step2)s->function)(s->component, t, h, 1)
+                    : ((step3)s->function)(s->component, t, h, 1, &flags[0], &flags[1],
+                                           &flags[2], &last);
+                if (status > 1) {
+                    *where = k;
+                    return 1 + i;
+                }
+            }
+        }
+        for (int i = 0; i < n_access; i++) {
+            const Access *a = &access[i];
+            double *values = (double *)(row + a->offset);
+            int status = a->fmi == 2
+                ? ((access2)a->function)(a->component, a->vrs, a->n, values)
+                : ((access3)a->function)(a->component, a->vrs, a->n, values, a->n);
+            if (status > 1) {
+                *where = k;
+                return 1 + n_steppers + i;
+            }
+        }
+    }
+    return 0;
+}
+"""
+
+
+class _Stepper(ctypes.Structure):
+    _fields_ = [("fmi", c_int), ("component", c_void_p), ("function", c_void_p)]
+
+
+class _Access(ctypes.Structure):
+    _fields_ = [("fmi", c_int), ("component", c_void_p), ("function", c_void_p),
+                ("vrs", c_void_p), ("n", c_size_t), ("offset", ctypes.c_ssize_t)]
+
+
+_LOOP_LIBRARY = []
+
+
+def loop_library():
+    """The compiled C loop (ctypes function), or None when no C compiler works.  Compiled once
+    into the temporary directory, named by the source's hash, written atomically."""
+    if _LOOP_LIBRARY:
+        return _LOOP_LIBRARY[0]
+    import hashlib
+    import os
+    import shlex
+    import subprocess
+    import tempfile
+    digest = hashlib.sha256(LOOP_SOURCE.encode()).hexdigest()[:12]
+    target = os.path.join(tempfile.gettempdir(), "driftfmu-loop-%s-%d.so" % (digest,
+                                                                          os.getuid()))
+    function = None
+    try:
+        if not os.path.exists(target):
+            compiler = shlex.split(os.environ.get("CC", "cc"))
+            with tempfile.TemporaryDirectory(prefix="driftfmu_loop_") as work:
+                source = os.path.join(work, "loop.c")
+                with open(source, "w") as fh:
+                    fh.write(LOOP_SOURCE)
+                partial = os.path.join(work, "loop.so")
+                subprocess.run(compiler + ["-O2", "-shared", "-fPIC", "-o", partial, source],
+                               check=True, capture_output=True)
+                shutil.move(partial, target + ".part%d" % os.getpid())
+                os.replace(target + ".part%d" % os.getpid(), target)
+        function = ctypes.CDLL(target).driftfmu_loop
+        function.restype = c_int
+        function.argtypes = [ctypes.c_long, ctypes.c_long, c_double, c_double, c_void_p,
+                             ctypes.c_ssize_t, c_int, c_void_p, c_int, c_void_p, c_void_p]
+    except (OSError, subprocess.SubprocessError):
+        function = None
+    _LOOP_LIBRARY.append(function)
+    return function
+
+
+def _c_loop(plan, steppers, start_time, step_size, rows):
+    """``loop(k0, k1)`` running :data:`LOOP_SOURCE`, or None without a compiler."""
+    function = loop_library()
+    if function is None:
+        return None
+    address = lambda f: ctypes.cast(f, c_void_p).value  # noqa: E731
+    stepper_array = (_Stepper * len(steppers))(*[
+        _Stepper(inst.fmi, inst.component, address(inst.do_step)) for inst in steppers])
+    calls, owners = [], []
+    for inst, sets, get_vrs, n_get, offset in plan:
+        for set_vrs, n_set, source in sets:
+            calls.append(_Access(inst.fmi, inst.component, address(inst.set_real),
+                                 ctypes.addressof(set_vrs), n_set, source))
+            owners.append((inst, "setting inputs"))
+        if n_get:
+            calls.append(_Access(inst.fmi, inst.component, address(inst.get_real),
+                                 ctypes.addressof(get_vrs), n_get, offset))
+            owners.append((inst, "reading outputs"))
+    access_array = (_Access * max(1, len(calls)))(*calls)
+    where = ctypes.c_long()
+    keep = (plan, stepper_array, access_array)  # the arrays live as long as the loop
+
+    def loop(k0, k1):
+        failed = function(k0, k1, start_time, step_size, rows.ctypes.data, rows.strides[0],
+                          len(steppers), ctypes.addressof(stepper_array), len(calls),
+                          ctypes.addressof(access_array), ctypes.byref(where))
+        if failed:
+            i = failed - 1
+            if i < len(steppers):
+                _fail(steppers[i], "doStep", where.value, step_size)
+            inst, what = owners[i - len(steppers)]
+            _fail(inst, what, where.value, step_size)
+        return keep
+    return loop
+
+
+def _compile_loop(plan, steppers, start_time, step_size, base, row_bytes):
+    """The stepping loop, written out for these FMUs (no inner loops, no lookups): a function
+    ``loop(k0, k1)`` that does the communication points ``k0 .. k1 - 1``."""
+    env = {"_fail": _fail, "_flags": (ctypes.c_bool * 3)(), "_last": c_double()}
+    env["_flag_addresses"] = [ctypes.addressof(env["_flags"]) + i for i in range(3)]
+    env["_last_address"] = ctypes.addressof(env["_last"])
+    lines = ["def loop(k0, k1):",
+             "    t0, h = %r, %r" % (start_time, step_size),
+             "    f0, f1, f2 = _flag_addresses",
+             "    for k in range(k0, k1):",
+             "        row = %d + k * %d" % (base, row_bytes),
+             "        if k:",
+             "            t = t0 + (k - 1) * h"]
+    for j, inst in enumerate(steppers):
+        env["S%d" % j], env["C%d" % j], env["I%d" % j] = inst.do_step, inst.component, inst
+        extra = "" if inst.fmi == 2 else ", f0, f1, f2, _last_address"
+        lines.append("            if S%d(C%d, t, h, 1%s) > 1: _fail(I%d, 'doStep', k, h)"
+                     % (j, j, extra, j))
+    for j, (inst, sets, get_vrs, n_get, offset) in enumerate(plan):
+        env["G%d" % j], env["P%d" % j] = inst.get_real, inst.set_real
+        env["C%d" % j], env["I%d" % j] = inst.component, inst
+        for i, (set_vrs, n_set, source) in enumerate(sets):
+            env["SV%d_%d" % (j, i)] = set_vrs
+            extra = "" if inst.fmi == 2 else ", %d" % n_set
+            lines.append("        if P%d(C%d, SV%d_%d, %d, row + %d%s) > 1: "
+                         "_fail(I%d, 'setting inputs', k, h)"
+                         % (j, j, j, i, n_set, source, extra, j))
+        if n_get:
+            env["GV%d" % j] = get_vrs
+            extra = "" if inst.fmi == 2 else ", %d" % n_get
+            lines.append("        if G%d(C%d, GV%d, %d, row + %d%s) > 1: "
+                         "_fail(I%d, 'reading outputs', k, h)"
+                         % (j, j, j, n_get, offset, extra, j))
+    exec(compile("\n".join(lines) + "\n", "<fastcosim loop>", "exec"), env)
+    return env["loop"]
+
+
+def _fail(inst, what, k, h):
+    raise CoSimulationError("%s: %s at communication point %d (step %r s) failed"
+                            % (inst.name, what, k, h))
 
 
 def _raw(function, argtypes):
@@ -167,49 +375,17 @@ def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, re
         for name in order:
             insts[name].initialise(start_values.get(name, {}), start_time)
 
-        steppers = [(inst.do_step, inst.component, inst.fmi, inst.name) for inst in
-                    (insts[n] for n in order)]
-        fmi3_flags = (ctypes.c_bool * 3)()
-        last_time = c_double()
-        flag_addresses = [ctypes.addressof(fmi3_flags) + k for k in range(3)]
+        loop = _c_loop(plan, [insts[n] for n in order], start_time, step_size, rows)
+        if loop is None:  # no C compiler: the same loop in Python (slower, same bits)
+            loop = _compile_loop(plan, [insts[n] for n in order], start_time, step_size, base,
+                                 row_bytes)
         every = max(1, n_steps // 100)
-        t = start_time
-        for k in range(n_steps):
-            row = base + k * row_bytes
-            if k:
-                for do_step, component, fmi, name in steppers:
-                    if fmi == 2:
-                        status = do_step(component, t, step_size, 1)
-                    else:
-                        status = do_step(component, t, step_size, 1, flag_addresses[0],
-                                         flag_addresses[1], flag_addresses[2],
-                                         ctypes.addressof(last_time))
-                    if status > 1:
-                        raise CoSimulationError("%s: doStep at t = %r returned %s"
-                                                % (name, t, _STATUS.get(status, status)))
-                t = start_time + k * step_size
-            rows[k, 0] = t
-            for inst, sets, get_vrs, n_get, offset in plan:
-                for set_vrs, n_set, source in sets:
-                    if inst.fmi == 2:
-                        status = inst.set_real(inst.component, set_vrs, n_set, row + source)
-                    else:
-                        status = inst.set_real(inst.component, set_vrs, n_set, row + source,
-                                               n_set)
-                    if status > 1:
-                        raise CoSimulationError("%s: setting inputs at t = %r returned %s"
-                                                % (inst.name, t, _STATUS.get(status, status)))
-                if n_get:
-                    if inst.fmi == 2:
-                        status = inst.get_real(inst.component, get_vrs, n_get, row + offset)
-                    else:
-                        status = inst.get_real(inst.component, get_vrs, n_get, row + offset,
-                                               n_get)
-                    if status > 1:
-                        raise CoSimulationError("%s: reading outputs at t = %r returned %s"
-                                                % (inst.name, t, _STATUS.get(status, status)))
-            if progress is not None and (k + 1) % every == 0:
-                progress(k + 1)
+        for k0 in range(0, n_steps, every):
+            k1 = min(n_steps, k0 + every)
+            loop(k0, k1)
+            if progress is not None:
+                progress(k1)
+        rows[:, 0] = start_time + np.arange(len(rows)) * step_size  # cosimulate's t, same bits
         rows = rows[:n_steps]
         out = {"time": rows[:, 0].tolist()}
         for name, names in record.items():
