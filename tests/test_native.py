@@ -348,7 +348,7 @@ def host_run(host, fmus, run, folder, windows=False, record=None):
     unpacked = {name: chain.unpack(path, Path(folder) / name) for name, path in fmus.items()}
     record = record or {name: OUTS[name] for name in fmus}
     text, keys = chain.script(version, unpacked, start, connections, record, n, Ts,
-                              relative_to=folder)
+                              relative_to=folder if windows else None)
     cols, _, _ = chain.run(host, text, keys, folder, windows=windows)
     return cols
 
@@ -530,3 +530,68 @@ def test_fast_master_reports_the_fmus_log(native_fmus):
     start = {"DriftEstimator": {"R": -1.0}}
     with pytest.raises(CoSimulationError, match="R = -1.0 is out of range; allowed: R > 0"):
         cosimulate_fast(native_fmus[3], gaussian.CONNECTIONS, 5, 1e-3, start_values=start)
+
+
+# -- the SSP export, the cross-check artifacts, the command line ---------------------------------
+
+def test_ssp_export_of_the_native_fmus_simulates_as_the_python_one(built_fmus, native_fmus,
+                                                                   tmp_path):
+    from driftfmu.fmu_src import ssp
+    python = ssp.simulate(ssp.build_ssp(built_fmus, tmp_path / "py.ssp", n=100), 100)
+    native = ssp.simulate(ssp.build_ssp(native_fmus[2], tmp_path / "c.ssp", n=100), 100)
+    assert python.dtype.names == native.dtype.names
+    for column in python.dtype.names:
+        assert native[column].tolist() == python[column].tolist(), column
+
+
+def test_cross_check_tree_has_a_folder_per_fmi_version_and_platform(native_fmus, tmp_path):
+    from fmpy.cross_check.validate_vendor_repo import validate_test_fmu
+    from driftfmu import __version__
+    from driftfmu.fmu_src import crosscheck
+    written = []
+    for version in VERSIONS:   # each reference is checked against models/ as it is written
+        written += crosscheck.write_cross_check(native_fmus[version], tmp_path, n=50,
+                                                fmi_version=version, backend="native")
+    platforms = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
+    expected = {tmp_path / "fmus" / ("%d.0" % v) / "cs" / p / "driftfmu" / __version__ / name
+                for v in VERSIONS for p in platforms[v] for name in NAMES}
+    assert set(written) == expected
+    for d in written:
+        name = d.name
+        assert (d / (name + ".fmu")).is_file() and (d / (name + "_ref.csv")).is_file()
+        assert "native C twin" in (d / "ReadMe.txt").read_text()
+        if "/2.0/" in d.as_posix():
+            assert validate_test_fmu(str(d)) == []
+
+
+def test_command_line_takes_the_backend(native_fmus, tmp_path, capsys):
+    from driftfmu.simulations.cli import main
+    fmu_dir = native_fmus[2]["Excitation"].parent.parent.parent
+    out = tmp_path / "g"
+    assert main(["run", "gaussian", "--backend", "native", "--fmu-dir", str(fmu_dir), "--n",
+                 "200", "--out", str(out)]) == 0
+    assert (out / "results.csv").is_file()
+    assert main(["run", "sinusoidal", "--backend", "native", "--fmu-dir", str(fmu_dir),
+                 "--n", "200", "--out", str(tmp_path / "s")]) == 0
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "gaussian", "--backend", "java"])
+    assert exc.value.code == 2
+    assert "invalid choice: 'java'" in capsys.readouterr().err
+
+
+def test_montecarlo_fmu_engine_and_adxl203_experiment_on_the_native_fmus(native_fmus,
+                                                                        built_fmus):
+    from driftfmu.simulations import adxl203 as experiment
+    from driftfmu.simulations.montecarlo import montecarlo_gaussian
+    fmu_dir = native_fmus[2]["Excitation"].parent.parent.parent
+    kw = dict(runs=3, n=150, engine="fmu", workers=1, plot=False)
+    native = montecarlo_gaussian(fmu_dir=fmu_dir, backend="native", **kw)
+    python = montecarlo_gaussian(fmu_dir=built_fmus["Excitation"].parent, **kw)
+    for key in ("fig1_dc1", "fig1_dc2", "fig1_x", "fig1_z"):
+        assert native[key].tolist() == python[key].tolist(), key
+    small = dict(freqs=(150.0,), sets=4, held_out=1, n=1500, workers=1, plot=False)
+    a = experiment.run_adxl203(fmu_dir=fmu_dir, backend="native", **small)
+    b = experiment.run_adxl203(fmu_dir=built_fmus["Excitation"].parent, **small)
+    assert a["per_frequency"][0]["dc_ekf1"] == b["per_frequency"][0]["dc_ekf1"]
+    assert a["per_frequency"][0]["margin_db"] == b["per_frequency"][0]["margin_db"]
+    assert a["backend"] == "native" and b["backend"] == "python"

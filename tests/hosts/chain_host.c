@@ -183,7 +183,8 @@ static void load(const char *name, const char *dir, const char *id, const char *
         f->seti2 = sym(f->lib, "fmi2SetInteger");
         f->term2 = sym(f->lib, "fmi2Terminate");
         f->free2 = sym(f->lib, "fmi2FreeInstance");
-        snprintf(resources, sizeof resources, "file:///%s/resources", dir);
+        snprintf(resources, sizeof resources, "file://%s%s/resources", dir[0] == '/' ? "" : "/",
+                 dir);
         f->c = inst(name, fmi2CoSimulation, token, resources, &callbacks2, fmi2False, fmi2False);
     } else {
         fmi3InstantiateCoSimulationTYPE *inst = sym(f->lib, "fmi3InstantiateCoSimulation");
