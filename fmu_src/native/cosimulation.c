@@ -708,6 +708,7 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
             return STATUS_ERROR;
         }
     }
+    memset(s, 0, sizeof *s);   /* padding too: equal states serialise to equal bytes */
     fill_header(&s->header);
     s->v = comp->v;
     s->h = comp->h;
