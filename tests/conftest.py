@@ -19,16 +19,17 @@ def native_fmus(tmp_path_factory):
     return build_native_fmus(out, log=lambda line: None)
 
 
-#: The FMUs a behaviour test runs on: the pythonfmu FMUs and their native FMI 2.0 twins.
-BACKENDS = ("python", "native")
+#: The FMUs a behaviour test runs on: the pythonfmu FMUs and their native twins, FMI 2.0 and
+#: FMI 3.0 (fmpy's FMU3Slave behind the FMI 2.0 method names, simulations.cosim.Fmi3Slave).
+BACKENDS = ("python", "native-fmi2", "native-fmi3")
 
 
 @pytest.fixture(params=BACKENDS)
 def backend_fmus(request):
-    """The three FMUs of each backend (FMI 2.0), by name; the test runs once per backend."""
+    """The three FMUs of each backend, by name; the test runs once per backend."""
     if request.param == "python":
         return request.getfixturevalue("built_fmus")
-    return request.getfixturevalue("native_fmus")[2]
+    return request.getfixturevalue("native_fmus")[int(request.param[-1])]
 
 
 @pytest.fixture

@@ -306,7 +306,8 @@ Status cs_reset(ModelInstance *comp, const char *function)
 #define REAL_AT(comp, i) ((double *)((char *)&(comp)->v + MODEL_VARIABLES[i].offset))
 #define INT_AT(comp, i) ((int *)((char *)&(comp)->v + MODEL_VARIABLES[i].offset))
 
-static const char *TYPE_NAME[] = {"Real", "Integer"};
+static const char *TYPE_NAME[] = {FMI_VERSION == 2 ? "Real" : "Float64",
+                                  FMI_VERSION == 2 ? "Integer" : "Int32"};
 static const char *CAUSALITY_NAME[] = {"parameter", "input", "output"};
 
 typedef struct {
