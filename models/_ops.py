@@ -5,6 +5,10 @@ helpers below, so one instance inside an FMU runs them on floats with the standa
 and the batch engine runs the very same code on arrays of Monte-Carlo runs.  Every operation used
 is correctly rounded in IEEE 754 double precision (``sqrt`` included), so both paths give
 bit-identical results for the same inputs.  NumPy is imported lazily, only when an array arrives.
+
+``log``, ``exp`` and ``sin2pi`` are computed here by arithmetic only (libm's may differ in the
+last bit between platforms, and between ``math`` and ``numpy``); fmu_src/native/models/ops.c is
+their C port, operation for operation, and the native FMUs give the same bits.
 """
 import math
 
@@ -96,10 +100,9 @@ def exp(x):
 
     ``x = n ln 2 + r`` with ``n = floor(x / ln 2 + 1/2)``; ``r = (x - n LN2_HI) - n LN2_LO``,
     where ``x - n LN2_HI`` is exact (Cody and Waite), so ``|r| <= ln(2)/2 + 1e-16``.  Then
-    ``e^r`` is the Taylor series summed to ``r^14/14!`` in Horner form (coefficients
-    ``1.0 / k!``) (truncation below
-    ``0.35^15/15! = 1e-19`` relative, well under 1e-17), and ``e^x = e^r 2^n`` exactly
-    (:func:`ldexp`).  Unlike ``math.exp`` and ``numpy.exp``, which may differ in the last bit
+    ``e^r`` is the Taylor series summed to ``r^14/14!`` in Horner form, coefficients
+    ``1.0 / k!`` (truncation below ``0.35^15/15! = 1e-19`` relative, well under 1e-17), and
+    ``e^x = e^r 2^n`` exactly (:func:`ldexp`).  Unlike ``math.exp`` and ``numpy.exp``, which may differ in the last bit
     between platforms and paths, this gives the same bits everywhere.  Accuracy: a few ulp for
     ``EXP_LOW <= x <= EXP_HIGH`` (subnormal results lose bits); ``inf`` above, ``0.0`` below,
     ``nan`` for ``nan``.

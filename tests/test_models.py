@@ -22,10 +22,29 @@ def test_sin2pi_matches_libm():
         assert abs(_ops.sin2pi(float(c)) - math.sin(2 * math.pi * c)) < 1e-14
 
 
-@pytest.mark.parametrize("fn", [_ops.log, _ops.sin2pi])
+def test_exp_matches_libm_to_a_few_ulp():
+    xs = np.concatenate([np.random.default_rng(3).uniform(-708.0, 709.0, 5000),
+                         np.random.default_rng(4).uniform(-1.0, 1.0, 5000)])
+    for x in xs:
+        got, want = _ops.exp(float(x)), math.exp(x)
+        assert abs(got - want) <= 2 * math.ulp(want)
+    assert (_ops.exp(0.0), _ops.exp(800.0), _ops.exp(-800.0)) == (1.0, math.inf, 0.0)
+    assert math.isnan(_ops.exp(math.nan))
+
+
+@pytest.mark.parametrize("fn", [_ops.log, _ops.sin2pi, _ops.exp])
 def test_special_functions_same_bits_on_floats_and_arrays(fn):
     xs = np.random.default_rng(2).uniform(1e-6, 0.999, 2000)
     assert np.array_equal(fn(xs), np.array([fn(float(x)) for x in xs]))
+
+
+def test_exp_same_bits_on_floats_and_arrays_over_its_whole_range():
+    xs = np.concatenate([np.random.default_rng(5).uniform(-760.0, 720.0, 3000),
+                         [0.0, -0.0, _ops.EXP_HIGH, _ops.EXP_LOW, 1e4, -1e4, np.inf, -np.inf]])
+    got = _ops.exp(xs)
+    assert np.array_equal(got.view(np.uint64),
+                          np.array([_ops.exp(float(x)) for x in xs]).view(np.uint64))
+    assert np.isnan(_ops.exp(np.array([np.nan, 1.0])))[0]
 
 
 # -- noise ------------------------------------------------------------------------------------

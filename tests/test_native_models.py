@@ -565,7 +565,7 @@ def config_h(slave):
         from driftfmu.fmu_src import native_build
         if (NATIVE / "model.h").exists():
             return native_build.config_h(slave, "{test}", 2)
-    except ImportError:
+    except (ImportError, AttributeError, TypeError):  # not there (or another signature)
         pass
     lines = ["#include <stddef.h>", '#define MODEL_NAME "%s"' % slave.__name__,
              "#define N_VARIABLES %d" % len(slave.VARIABLES),
@@ -595,8 +595,22 @@ def write_generated(folder, name):
 
 
 def include_dirs(gen):
-    model_h = NATIVE if (NATIVE / "model.h").exists() else HARNESS
+    # the stand-in sits in its own folder: a quoted include looks first beside the includer
+    model_h = NATIVE if (NATIVE / "model.h").exists() else HARNESS / "standin"
     return ["-I", str(gen), "-I", str(model_h), "-I", str(generate.HERE)]
+
+
+def run_parallel(commands, timeout=300, env=None):
+    """Run the commands at once (two cores: the compilations overlap); their stdout, in order.
+    A failing command fails the test with its stderr."""
+    procs = [subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              env=env) for c in commands]
+    outs = []
+    for c, p in zip(commands, procs):
+        out, err = p.communicate(timeout=timeout)
+        assert p.returncode == 0, "%s failed (%d): %s" % (" ".join(c[:1]), p.returncode, err)
+        outs.append(out)
+    return outs
 
 
 H_SIGNATURES = {
@@ -619,13 +633,12 @@ def models(tmp_path_factory):
     if CC is None:
         pytest.skip("no C compiler (gcc or cc) on PATH: the C port cannot be compiled")
     root = tmp_path_factory.mktemp("native_steps")
-    libs = {}
-    for name in SLAVES:
-        gen = write_generated(root / name, name)
-        out = root / ("lib%s.so" % name)
-        subprocess.run([CC, *generate.CFLAGS, "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC",
-                        *include_dirs(gen), *map(str, step_sources(name)), "-o", str(out),
-                        "-lm"], check=True, capture_output=True, text=True)
+    libs, outs = {}, {name: root / ("lib%s.so" % name) for name in SLAVES}
+    run_parallel([[CC, *generate.CFLAGS, "-Wall", "-Wextra", "-Werror", "-shared", "-fPIC",
+                   *include_dirs(write_generated(root / name, name)),
+                   *map(str, step_sources(name)), "-o", str(out), "-lm"]
+                  for name, out in outs.items()])
+    for name, out in outs.items():
         lib = ctypes.CDLL(str(out))
         for fname, (res, *args) in H_SIGNATURES.items():
             f = getattr(lib, fname)
@@ -635,6 +648,12 @@ def models(tmp_path_factory):
 
 
 TOL = 1e-6  # slave_base.INSTANT_TOLERANCE
+
+
+def neumaier(s, c, h):
+    """slave_base's running sum of the step sizes: ``(s + h, compensation)`` (Neumaier)."""
+    t = s + h
+    return t, c + (((s - t) + h) if abs(s) >= h else ((h - t) + s))
 
 
 class CSlave:
@@ -684,18 +703,16 @@ class CSlave:
     def step(self, h):
         """slave_base._step's planning; the hooks do the rest."""
         Ts, k = self.raw("Ts"), self.k
-        elapsed, comp = slave_base._add(self.elapsed, self.comp, h) if VARIABLE_STEPS else \
+        elapsed, comp = neumaier(self.elapsed, self.comp, h) if VARIABLE_STEPS else \
             (self.elapsed + h, 0.0)
         position = (elapsed + comp) / Ts
         last = math.ceil(position - TOL)
         m = max(0, last + 1 - k)
         at = last <= position + TOL
         self.elapsed, self.comp = elapsed, comp
-        if not m:
-            return
-        if self.at_sample:
+        if m and self.at_sample:
             self.get(self.slave.VARIABLES[0]["name"])  # refresh of the pending sample
-        bad = self.lib.h_advance(self.p, k, m, self.at_sample, at, k + m)
+        bad = self.lib.h_advance(self.p, k, m, bool(m and self.at_sample), at, k + m)
         assert bad is None, bad
         self.k, self.at_sample, self.dirty = k + m, at, True
         self.lib.h_set_k(self.p, k + m)
@@ -894,3 +911,52 @@ def test_adxl203_preset_run_equals_models_bit_for_bit(models):
     es = dict(a0=2.5, a1=1.0, a2=0.01, R=1.2e-5, process=harmonic.HARMONIC, f=200.0, Qh=1e-8,
               P0=1.0, estimator=1)
     assert_run(models, 6000, ex, sp, es, 1e-4)
+
+
+# -- the same bits on Windows: mingw-w64 build under wine ---------------------------------------
+
+MINGW = shutil.which("x86_64-w64-mingw32-gcc")
+WINE = next((w for w in ("/usr/lib/wine/wine64", shutil.which("wine64") or "",
+                         shutil.which("wine") or "") if w and Path(w).exists()), None)
+
+
+def test_windows_build_under_wine_prints_the_linux_bits(tmp_path):
+    """tests/native_harness/bits_main.c (the models/ math over a grid, a 3000-step run of each
+    model's step logic with whole-sample and fractional steps, the check messages of a bad
+    parameter set) compiled with gcc and with x86_64-w64-mingw32-gcc: the Windows programs run
+    under wine print the same hex bits and messages, line for line."""
+    if CC is None:
+        pytest.skip("no C compiler (gcc or cc) on PATH")
+    if MINGW is None:
+        pytest.skip("x86_64-w64-mingw32-gcc not installed (Debian: gcc-mingw-w64-x86-64)")
+    if WINE is None:
+        pytest.skip("wine64 not installed (Debian: wine64); /usr/lib/wine/wine64 is absent")
+    builds = []
+    for name in SLAVES:
+        gen = write_generated(tmp_path / name, name)
+        sources = [*map(str, step_sources(name)), str(HARNESS / "bits_main.c")]
+        flags = [*generate.CFLAGS, "-Wall", "-Wextra", "-Werror", *include_dirs(gen)]
+        builds.append([CC, *flags, *sources, "-o", str(tmp_path / (name + ".elf")), "-lm"])
+        builds.append([MINGW, *flags, "-D__USE_MINGW_ANSI_STDIO=1", *sources, "-o",
+                       str(tmp_path / (name + ".exe")), "-lm"])
+    run_parallel(builds)
+    linux = run_parallel([[str(tmp_path / (name + ".elf"))] for name in SLAVES])
+    env = dict(__import__("os").environ, WINEDEBUG="-all")
+    windows = []
+    for name in SLAVES:
+        # to files, one after the other: a wineserver started by the first program inherits
+        # its pipes, so reading a pipe to its end would wait for the wineserver to exit
+        out, err = tmp_path / (name + ".out"), tmp_path / (name + ".err")
+        with open(out, "w") as fo, open(err, "w") as fe:
+            rc = subprocess.run([WINE, str(tmp_path / (name + ".exe"))], stdout=fo, stderr=fe,
+                                stdin=subprocess.DEVNULL, env=env, timeout=600).returncode
+        assert rc == 0, "%s.exe under wine failed (%d): %s" % (name, rc, err.read_text()[-2000:])
+        windows.append(out.read_text().replace("\r\n", "\n"))
+    for name, lin, win in zip(SLAVES, linux, windows):
+        lines = lin.splitlines()
+        assert len(lines) > 3000 and lines[-1].startswith(("Ts = ", "kind = ", "noise = ",
+                                                           "estimator = ", "f = ", "fc = ")), \
+            lines[-3:]
+        for i, (a, b) in enumerate(zip(lines, win.splitlines())):
+            assert a == b, "%s, line %d: Linux %r, Windows %r" % (name, i + 1, a, b)
+        assert len(win.splitlines()) == len(lines), name
