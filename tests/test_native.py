@@ -595,3 +595,12 @@ def test_montecarlo_fmu_engine_and_adxl203_experiment_on_the_native_fmus(native_
     assert a["per_frequency"][0]["dc_ekf1"] == b["per_frequency"][0]["dc_ekf1"]
     assert a["per_frequency"][0]["margin_db"] == b["per_frequency"][0]["margin_db"]
     assert a["backend"] == "native" and b["backend"] == "python"
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_doctor_says_a_native_fmu_needs_no_python(native_fmus, version, capsys):
+    from driftfmu.simulations.cli import main
+    assert main(["doctor", str(native_fmus[version]["DriftEstimator"])]) == 0
+    out = capsys.readouterr().out
+    assert "a native FMU (no Python inside)" in out and "PROBLEM" not in out
+    assert ("linux64" if version == 2 else "x86_64-linux") in out

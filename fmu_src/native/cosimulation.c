@@ -340,10 +340,10 @@ static Status initialisation_outputs(ModelInstance *comp, const char *function)
             !isfinite(*(double *)((char *)&computed + MODEL_VARIABLES[i].offset)))
             bad = MODEL_VARIABLES[i].name;
     if (bad) {
+        char bt[32];
         cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample 1 (t = %s s): the "
                "start values overflow the model; allowed: values whose outputs stay finite "
-               "(nothing was changed)", function, bad, repr_double(comp->startTime,
-                                                                     (char[32]){0}));
+               "(nothing was changed)", function, bad, repr_double(comp->startTime, bt));
         return STATUS_ERROR;
     }
     for (int i = 0; i < N_VARIABLES; i++)
