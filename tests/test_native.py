@@ -330,6 +330,27 @@ def test_non_whole_steps_fmi2_equals_fmi3_and_samples_stay_on_the_grid(native_fm
         assert python == rows[2]
 
 
+@pytest.mark.parametrize("case", range(6))
+def test_random_parameters_and_non_whole_steps(built_fmus, native_fmus, case):
+    """Random parameter sets with steps of fractions and non-whole multiples of Ts and a state
+    restore in the middle: FMI 2.0 and 3.0 agree bit for bit, the restored run repeats the
+    first, and so do the Python FMUs wherever they accept such steps (STEP_RULE.md)."""
+    rng = random.Random(777 + case)
+    start, _ = random_case(rng)
+    Ts = start["Excitation"]["Ts"]
+    steps = [rng.choice((0.25, 0.3, 1 / 3, 0.5, 1.5, 2.5, 1.0, 4.75)) * Ts for _ in range(80)]
+    runs = {v: schedule(native_fmus[v], start, steps, 40) for v in VERSIONS}
+    assert runs[2] == runs[3]
+    rows, again = runs[2]
+    assert again == rows[41:]
+    try:
+        python = schedule(built_fmus, start, steps, 40)
+    except Exception as exc:
+        assert "status 3" in str(exc) or "whole number of sample periods" in str(exc)
+    else:
+        assert python == runs[2]
+
+
 # -- hosts without Python: the C host, wine, the rebuilt source FMU -----------------------------
 
 @pytest.fixture(scope="module")
