@@ -177,6 +177,16 @@ def test_fast_master_equals_fmpy_master_on_the_python_fmus(built_fmus, python_re
         python_results["gaussian"]
 
 
+def test_fast_master_without_a_c_compiler_falls_back_to_the_same_bits(native_fmus,
+                                                                      python_results,
+                                                                      monkeypatch):
+    from driftfmu.simulations import fastcosim
+    monkeypatch.setattr(fastcosim, "loop_library", lambda: None)
+    start, connections, n, Ts = RUNS["adxl203"]()
+    assert cosimulate_fast(native_fmus[3], connections, n, Ts, start_values=start) == \
+        python_results["adxl203"]
+
+
 def test_run_gaussian_and_sinusoidal_take_the_backend(native_fmus):
     fmu_dir = native_fmus[2]["Excitation"].parent.parent.parent
     g = gaussian.run_gaussian(fmu_dir=fmu_dir, backend="native", n=300, plot=False)
