@@ -11,6 +11,7 @@
 #include "model.h"
 #include "noise.h"
 #include "ops.h"
+#include "parameters.h"
 
 ModelInstance *h_new(void);
 int h_index(const char *name);
@@ -65,6 +66,16 @@ int main(void)
         put("exp", ops_exp(-745.0 + 1454.0 * u));
         put("sin2pi", ops_sin2pi((u - 0.5) * ldexp(1.0, i % 60)));
         put("normal", noise_normal((uint64_t)i, 2, UINT64_C(0xFFFFFFFFFFFFFFFF) - (uint64_t)i));
+    }
+    /* Python's repr of doubles (the messages), from random bit patterns and short decimals */
+    for (i = 0; i < 2000; i++) {
+        char buf[40];
+        double v;
+        r = noise_mix(r + 1);
+        memcpy(&v, &r, sizeof v);
+        if (i % 2) v = (double)(int64_t)(r >> 40) / ldexp(1.0, (int)(r % 30)) * 1e-3;
+        parameters_repr_float(v, buf, sizeof buf);
+        printf("repr %s\n", buf);
     }
     /* the step logic */
     comp = h_new();
