@@ -39,7 +39,9 @@ from driftfmu.fmu_src import builder
 
 NATIVE_DIR = Path(__file__).resolve().parent / "native"
 MODELS_DIR = NATIVE_DIR / "models"
-NAMES = builder.NAMES
+#: The models with a native twin: those of the builder with a C step logic
+#: (fmu_src/native/models/<Name>_step.c), in the builder's order.
+NAMES = tuple(n for n in builder.NAMES if (MODELS_DIR / ("%s_step.c" % n)).is_file())
 DEFAULT_OUT = "build/fmus/native"
 FMI_VERSIONS = (2, 3)
 #: Flags of every compilation: no contraction into FMAs, no fast-math, C99.

@@ -1,8 +1,5 @@
 """What real masters do to an FMU: reset, many instances, state save/restore, long steps,
-thousands of instantiations, and errors that must reach the host's logger.
-
-Every test runs on both backends (``backend_fmus``: the pythonfmu FMUs and their native C twins,
-FMI 2.0)."""
+thousands of instantiations, and errors that must reach the host's logger."""
 import gc
 import os
 
@@ -16,11 +13,18 @@ pytestmark = pytest.mark.integration
 OUTS = ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]
 
 
+@pytest.fixture
+def built_fmus(backend_fmus):
+    """Every test of this module runs on every backend: the pythonfmu FMUs and their native
+    twins, FMI 2.0 and FMI 3.0 (``backend_fmus``, tests/conftest.py)."""
+    return backend_fmus
+
+
 class Wired:
     """The three FMUs in one process, wired like the master wires them."""
 
-    def __init__(self, fmus, suffix="", logging_on=False):
-        self.inst = {n: Instance(n + suffix, fmus[n], logging_on=logging_on)
+    def __init__(self, built_fmus, suffix="", logging_on=False):
+        self.inst = {n: Instance(n + suffix, built_fmus[n], logging_on=logging_on)
                      for n in FMU_NAMES}
         for i in self.inst.values():
             i.fmu.setupExperiment(startTime=0.0)
@@ -55,8 +59,8 @@ def reference(n, seed=1):
     return [tuple(ref[c][k] for c in ["x", "z"] + OUTS) for k in range(n)]
 
 
-def test_reset_returns_an_instance_to_its_start(backend_fmus):
-    w = Wired(backend_fmus)
+def test_reset_returns_an_instance_to_its_start(built_fmus):
+    w = Wired(built_fmus)
     first = w.run(40)
     for i in w.inst.values():
         i.fmu.reset()
@@ -68,8 +72,8 @@ def test_reset_returns_an_instance_to_its_start(backend_fmus):
     w.free()
 
 
-def test_instances_in_one_process_stay_independent(backend_fmus):
-    a, b = Wired(backend_fmus, "_a"), Wired(backend_fmus, "_b")
+def test_instances_in_one_process_stay_independent(built_fmus):
+    a, b = Wired(built_fmus, "_a"), Wired(built_fmus, "_b")
     # b gets another seed and another a2; interleave their steps
     for inst in b.inst.values():
         inst.fmu.reset()
@@ -92,8 +96,8 @@ def test_instances_in_one_process_stay_independent(backend_fmus):
 
 
 @pytest.mark.parametrize("serialise", [False, True])
-def test_fmu_state_continues_bit_for_bit(backend_fmus, serialise):
-    w = Wired(backend_fmus)
+def test_fmu_state_continues_bit_for_bit(built_fmus, serialise):
+    w = Wired(built_fmus)
     w.run(100)
     saved = {}
     for n, i in w.inst.items():
@@ -113,8 +117,8 @@ def test_fmu_state_continues_bit_for_bit(backend_fmus, serialise):
     w.free()
 
 
-def test_communication_step_of_several_sample_periods(backend_fmus):
-    w = Wired(backend_fmus)
+def test_communication_step_of_several_sample_periods(built_fmus):
+    w = Wired(built_fmus)
     w.propagate()
     row = w.step(h=5e-3)  # five samples in one step: now at sample 6
     ref = reference(6)
@@ -129,8 +133,8 @@ def test_communication_step_of_several_sample_periods(backend_fmus):
     w.free()
 
 
-def test_variable_step_size(backend_fmus):
-    w = Wired(backend_fmus)
+def test_variable_step_size(built_fmus):
+    w = Wired(built_fmus)
     w.propagate()
     rows = [w.step(h) for h in (1e-3, 3e-3, 2e-3)]  # samples 2, 5, 7
     ref = reference(7)
@@ -144,8 +148,8 @@ def _rss_bytes():
 
 
 @pytest.mark.parametrize("name", FMU_NAMES)
-def test_thousand_instantiate_free_cycles_leave_memory_flat(backend_fmus, name, report):
-    inst = Instance(name, backend_fmus[name])
+def test_thousand_instantiate_free_cycles_leave_memory_flat(built_fmus, name, report):
+    inst = Instance(name, built_fmus[name])
     fmu = inst.fmu
 
     def cycle():
@@ -171,8 +175,8 @@ def test_thousand_instantiate_free_cycles_leave_memory_flat(backend_fmus, name, 
     inst.free()
 
 
-def test_errors_reach_the_logger_with_debug_logging_off(backend_fmus):
-    inst = Instance("quiet", backend_fmus["DriftEstimator"], logging_on=False)
+def test_errors_reach_the_logger_with_debug_logging_off(built_fmus):
+    inst = Instance("quiet", built_fmus["DriftEstimator"], logging_on=False)
     inst.fmu.setupExperiment(startTime=0.0)
     inst.fmu.enterInitializationMode()
     inst.set({"R": -2.0})
@@ -184,16 +188,16 @@ def test_errors_reach_the_logger_with_debug_logging_off(backend_fmus):
     inst.free()
 
 
-def test_info_messages_stay_quiet_with_debug_logging_off(backend_fmus):
-    w = Wired(backend_fmus)
+def test_info_messages_stay_quiet_with_debug_logging_off(built_fmus):
+    w = Wired(built_fmus)
     w.run(10)
     assert all(not i.messages for i in w.inst.values())
     w.free()
 
 
 @pytest.mark.parametrize("call", ["getReal", "getInteger", "setInteger", "getBoolean"])
-def test_bad_value_reference_is_an_error_not_a_crash(backend_fmus, call, report):
-    inst = Instance("badref", backend_fmus["Accelerometer"])
+def test_bad_value_reference_is_an_error_not_a_crash(built_fmus, call, report):
+    inst = Instance("badref", built_fmus["Accelerometer"])
     fmu = inst.fmu
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
@@ -210,8 +214,8 @@ def test_bad_value_reference_is_an_error_not_a_crash(backend_fmus, call, report)
     inst.free()
 
 
-def test_garbage_serialised_state_is_refused(backend_fmus):
-    inst = Instance("garbage", backend_fmus["DriftEstimator"])
+def test_garbage_serialised_state_is_refused(built_fmus):
+    inst = Instance("garbage", built_fmus["DriftEstimator"])
     fmu = inst.fmu
     fmu.setupExperiment(startTime=0.0)
     fmu.enterInitializationMode()
