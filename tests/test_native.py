@@ -404,6 +404,21 @@ def test_c_host_without_python_gives_the_python_fmus_bits(native_fmus, python_re
 
 
 @pytest.mark.parametrize("version", VERSIONS)
+def test_valgrind_sees_no_invalid_access_in_the_c_host(native_fmus, hosts, version, tmp_path):
+    if not shutil.which("valgrind"):
+        pytest.skip("valgrind is not installed")
+    start, connections, _, Ts = RUNS["adxl203"]()
+    unpacked = {n: chain.unpack(p, tmp_path / n) for n, p in native_fmus[version].items()}
+    text, keys = chain.script(version, unpacked, start, connections, OUTS, 200, Ts)
+    (tmp_path / "script.txt").write_text(text)
+    result = subprocess.run(["valgrind", "-q", "--error-exitcode=9", str(hosts["linux"]),
+                             "script.txt"], cwd=tmp_path, capture_output=True, text=True,
+                            timeout=600)
+    assert result.returncode == 0, result.stderr[-3000:]
+    assert result.stderr == "" and result.stdout.count("ROW") == 200
+
+
+@pytest.mark.parametrize("version", VERSIONS)
 def test_windows_binaries_under_wine_give_the_linux_bits(native_fmus, hosts, version, tmp_path):
     if hosts["windows"] is None:
         pytest.skip("mingw-w64 or wine64 is not installed (.ci/run installs both)")
