@@ -446,7 +446,8 @@ Status cs_get(ModelInstance *comp, const char *function, VariableType type,
                     STATE_TERMINATED))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
+        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
+               (unsigned long)n);
         return STATUS_ERROR;
     }
     for (size_t i = 0; i < n; i++)
@@ -476,7 +477,8 @@ Status cs_set(ModelInstance *comp, const char *function, VariableType type,
                     STATE_TERMINATED))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
+        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
+               (unsigned long)n);
         return STATUS_ERROR;
     }
     /* every problem of the call first (all but the last logged, the last with the error):
@@ -536,7 +538,8 @@ Status cs_no_such_type(ModelInstance *comp, const char *function, const char *ty
     if (n == 0)
         return STATUS_OK;
     if (!vr) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %zu values", function, n);
+        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
+               (unsigned long)n);
         return STATUS_ERROR;
     }
     char text[MESSAGE_SIZE];
@@ -774,8 +777,8 @@ Status cs_serialize(ModelInstance *comp, const char *function, const void *state
     if (!s || !header_ok(comp, function, &s->header))
         return STATUS_ERROR;
     if (!bytes || size < sizeof *s) {
-        cs_log(comp, STATUS_ERROR, "%s: a buffer of %zu bytes; a state of %s needs %zu",
-               function, size, MODEL_NAME, sizeof *s);
+        cs_log(comp, STATUS_ERROR, "%s: a buffer of %lu bytes; a state of %s needs %lu",
+               function, (unsigned long)size, MODEL_NAME, (unsigned long)sizeof *s);
         return STATUS_ERROR;
     }
     memcpy(bytes, s, sizeof *s);
@@ -797,8 +800,8 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
             if (!header_ok(comp, function, &s.header))
                 return STATUS_ERROR;
         }
-        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: %zu bytes, a state has %zu",
-               function, MODEL_NAME, size, sizeof s);
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: %lu bytes, a state has %lu",
+               function, MODEL_NAME, (unsigned long)size, (unsigned long)sizeof s);
         return STATUS_ERROR;
     }
     memcpy(&s, bytes, sizeof s);

@@ -150,8 +150,9 @@ static int counts_match(fmi3Instance instance, const char *function, size_t nvr,
 {
     if (nvr == nValues)
         return 1;
-    cs_log(COMP, STATUS_ERROR, "%s: %zu value references but %zu values; every variable is a "
-           "scalar, allowed: as many values as value references", function, nvr, nValues);
+    cs_log(COMP, STATUS_ERROR, "%s: %lu value references but %lu values; every variable is a "
+           "scalar, allowed: as many values as value references", function, (unsigned long)nvr,
+           (unsigned long)nValues);
     return 0;
 }
 
