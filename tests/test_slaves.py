@@ -211,7 +211,9 @@ def test_bad_parameter_is_logged_at_end_of_initialisation(make, slave_cls, name,
     s.exit_initialization_mode()
     assert any(text in m for m in messages(s))
     assert s.do_step(0.0, 1e-3) is False
-    assert "initialisation did not complete" in messages(s)[0]
+    refused = messages(s)[0]  # an FMU's state machine may refuse the step first, in its words
+    assert "initialisation did not complete" in refused or (
+        isinstance(s, FmuSlave) and "fmi2DoStep is not allowed in" in refused), refused
 
 
 def test_nyquist_is_checked_for_the_sinusoid():
