@@ -1,7 +1,11 @@
 """FMI cross-check artifacts for the three FMUs, in the layout of the FMI cross-check rules.
 
 For each FMU ``<Model>`` the folder ``fmus/2.0/cs/linux64/driftfmu/<version>/<Model>/`` holds
-(https://github.com/modelica/fmi-cross-check, README "Add FMUs"):
+(https://github.com/modelica/fmi-cross-check, README "Add FMUs"); the native (C) FMUs get a
+folder per FMI version and platform they carry a binary for,
+``fmus/2.0/cs/{linux64,win64}/...`` and ``fmus/3.0/cs/{x86_64-linux,x86_64-windows}/...``, each
+with the same files (the reference is computed on this machine; the Windows binary gives the
+same bits, tests/test_native.py):
 
 ``<Model>.fmu``
     the FMU as built;
@@ -55,9 +59,18 @@ OUTPUTS = {"Excitation": ("x",), "Accelerometer": ("z",),
 DEFAULT_ESTIMATOR = 1
 
 
-def model_dir(root, name, version):
-    """``root/fmus/2.0/cs/linux64/driftfmu/<version>/<name>``."""
-    return Path(root) / "fmus" / "2.0" / "cs" / "linux64" / TOOL_ID / version / name
+def model_dir(root, name, version, fmi_version=2, platform="linux64"):
+    """``root/fmus/<fmi_version>.0/cs/<platform>/driftfmu/<version>/<name>``."""
+    return (Path(root) / "fmus" / ("%d.0" % fmi_version) / "cs" / platform / TOOL_ID / version
+            / name)
+
+
+def fmu_platforms(fmu):
+    """The binary folders of an FMU (``linux64``, ``win64``, ``x86_64-linux``, ...)."""
+    import zipfile
+    with zipfile.ZipFile(fmu) as archive:
+        return sorted({n.split("/")[1] for n in archive.namelist()
+                       if n.startswith("binaries/") and n.count("/") >= 2 and n.split("/")[1]})
 
 
 def defaults():
@@ -184,12 +197,11 @@ def simulate_reference(fmu, name, inputs, n, Ts):
 README = """\
 {name}.fmu: {doc}
 
-Exported by driftfmu {version} (pythonfmu 0.7.0 slave, C loader shim as
-binaries/linux64/{name}.so; libpython 3 must be loadable, e.g. on the library path).
+Exported by driftfmu {version} {kind}
 
 Files
   {name}.fmu
-                   the FMU, FMI 2.0 co-simulation, default parameters (the letter's Sec. III)
+                   the FMU, FMI {fmi}.0 co-simulation, default parameters (the letter's Sec. III)
   {name}_in.csv
                    {inputs}
   {name}_ref.csv
@@ -222,7 +234,17 @@ TIMING = {
 }
 
 
-def write_cross_check(fmus, out_dir="build/cross-check", n=N_SAMPLES, version=None):
+#: How each backend's FMU is made, for the ReadMe.
+KIND = {
+    "python": "(pythonfmu 0.7.0 slave, C loader shim as\nbinaries/linux64/{name}.so; libpython 3 "
+              "must be loadable, e.g. on the library path).",
+    "native": "(native C twin of the pythonfmu FMU, FMI {fmi}.0, the same bits;\n"
+              "needs nothing but the C runtime; also a source FMU: sources/).",
+}
+
+
+def write_cross_check(fmus, out_dir="build/cross-check", n=N_SAMPLES, version=None,
+                      fmi_version=2, backend="python"):
     """Write the cross-check folders of the three FMUs under ``out_dir``.
 
     Parameters
@@ -235,6 +257,11 @@ def write_cross_check(fmus, out_dir="build/cross-check", n=N_SAMPLES, version=No
         Samples in each reference run.
     version : str, optional
         Tool version in the tree (default: the FMUs' version).
+    fmi_version : int
+        FMI version of the FMUs (2 or 3): the tree's ``2.0`` or ``3.0`` folder.
+    backend : str
+        ``"python"`` (one folder, linux64) or ``"native"`` (one folder per binary platform of
+        the FMU).
 
     Returns
     -------
@@ -255,9 +282,12 @@ def write_cross_check(fmus, out_dir="build/cross-check", n=N_SAMPLES, version=No
     master = chain_columns(n)
     written = []
     for name in FMU_NAMES:
-        d = model_dir(out_dir, name, version)
-        if d.exists():
-            shutil.rmtree(d)
+        platforms = ["linux64"] if backend == "python" else fmu_platforms(fmus[name])
+        folders = [model_dir(out_dir, name, version, fmi_version, p) for p in platforms]
+        d = folders[0]
+        for folder in folders:
+            if folder.exists():
+                shutil.rmtree(folder)
         d.mkdir(parents=True)
         inputs = {c: master[c] for c in INPUTS[name]}
         for c, start in other_inputs(fmus[name], name).items():
@@ -286,6 +316,10 @@ def write_cross_check(fmus, out_dir="build/cross-check", n=N_SAMPLES, version=No
                     + ", ".join(sorted(set(inputs) - set(INPUTS[name]))) + " (not wired) at "
                     "its start value" if set(inputs) - set(INPUTS[name]) else "")) if inputs
             else "(none: the FMU has no inputs)",
-            outputs=", ".join(OUTPUTS[name]), timing=TIMING[name], tol=TOLERANCE))
+            outputs=", ".join(OUTPUTS[name]), timing=TIMING[name], tol=TOLERANCE,
+            kind=KIND[backend].format(name=name, fmi=fmi_version), fmi=fmi_version))
         written.append(d)
+        for folder in folders[1:]:
+            shutil.copytree(d, folder)
+            written.append(folder)
     return written

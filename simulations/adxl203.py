@@ -19,7 +19,8 @@ Choices: ``fs = 10 kHz`` (``Ts = 1e-4``): 50-100 samples per period, 60,000 samp
 the error of a 6 s mean, while the part stays in range; transverse motion 5 % of ``X``.
 
 Sets run in parallel (one process per core); each worker loads the FMUs once per set through
-:func:`simulations.cosim.cosimulate`.
+the master of the backend (:func:`simulations.gaussian.master`: fmpy's wrappers for the Python
+FMUs, direct FMI calls for the native ones).
 """
 import math
 import os
@@ -30,7 +31,8 @@ from concurrent.futures import as_completed
 from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
 from driftfmu.models.noise import STREAM_PHASE, normal, uniform
 from driftfmu.simulations import batch, output
-from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, fmu_paths
+from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, check_backend, fmu_paths, \
+    master
 from driftfmu.simulations.sinusoidal import CONNECTIONS, check_frequency
 from driftfmu.simulations.errors import DataError, UsageError
 
@@ -80,8 +82,8 @@ def true_drift(drive, sensor):
 
 def _run_set(task):
     """Worker: co-simulate one set.  Training: fit the model.  Held out: EKF1 and references."""
-    from driftfmu.simulations.cosim import cosimulate
-    paths, f, seed, n, Ts, model, validate = task
+    paths, f, seed, n, Ts, model, validate, backend = task
+    cosimulate = master(backend)
     ex = dict(set_drive(seed, f), Ts=Ts)
     sp = dict(adxl203.ADXL203, seed=seed, Ts=Ts, noise=1)
     if model is None:
@@ -144,17 +146,20 @@ def check_settings(freqs, sets, held_out, n, Ts):
 
 
 def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS, seed=SEED,
-                fmu_dir="build/fmus", workers=None, progress=None, validate=True, plot=True):
+                fmu_dir="build/fmus", workers=None, progress=None, validate=True, plot=True,
+                backend="python"):
     """Run the experiment; with ``out`` write adxl203.csv/.json/.npz, fig4.png and fig5.png
     (all or none).  Returns the summary dict (``per_frequency`` holds the margins).
 
     Raises ValueError for bad settings (before anything runs), ValidationError when a held-out
-    set's FMU outputs differ from models/ by more than ``TOLERANCE``.
+    set's FMU outputs differ from models/ by more than ``TOLERANCE``.  ``backend`` picks the
+    FMUs: ``"python"`` or ``"native"`` (the C twins, same bits, much faster).
     """
+    check_backend(backend)
     freqs = tuple(float(f) for f in freqs)
     check_settings(freqs, sets, held_out, n, Ts)
     t0 = time.perf_counter()
-    paths = {k: str(v) for k, v in fmu_paths(fmu_dir).items()}
+    paths = {k: str(v) for k, v in fmu_paths(fmu_dir, backend).items()}
     train = sets - held_out
     workers = workers or os.cpu_count() or 1
     done = [0]
@@ -168,7 +173,8 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
     tests = {f: [None] * held_out for f in freqs}
     models = {}
     with batch.process_pool(workers, "driftfmu.simulations.adxl203") as pool:
-        futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False)): (f, s)
+        futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False,
+                                       backend)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
         for fut in as_completed(futs):
             f, s = futs[fut]
@@ -177,7 +183,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         for f in freqs:
             models[f] = identify.average(fits[f])
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, train + s), n, Ts, models[f],
-                                       validate)): (f, s)
+                                       validate, backend)): (f, s)
                 for i, f in enumerate(freqs) for s in range(held_out)}
         for fut in as_completed(futs):
             f, s = futs[fut]
@@ -218,7 +224,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         "claim_holds": all(p["margin_db"] >= CLAIM_DB for p in per),
         "validation": {"reference": "models.adxl203.simulate, same seed (held-out sets)",
                        "tolerance": TOLERANCE, "max_abs_diff": worst if validate else None},
-        "wall_time_s": wall, "workers": workers,
+        "wall_time_s": wall, "workers": workers, "backend": backend,
     }
     if out is not None:
         import numpy as np
@@ -495,6 +501,7 @@ def add_cli(groups):
                    help="parallel processes (default: the number of cores)")
     cli.add_out(g, "results/adxl203")
     cli.add_fmu_dir(g)
+    cli.add_backend(g)
     g.set_defaults(func=_cmd_experiment)
 
     i = top.add_parser("identify", help="fit a0, a1, a2, R from recordings (CSV: time, x, z) "
@@ -519,7 +526,7 @@ def _cmd_experiment(args):
     with cli.progress(total, "sets", "set") as update:
         s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
-                        workers=args.workers, progress=update)
+                        workers=args.workers, progress=update, backend=args.backend)
     print("wrote %s/adxl203.csv, adxl203.json, adxl203.npz, fig4.png, fig5.png" % args.out)
     for p in s["per_frequency"]:
         m = p["model"]
@@ -529,8 +536,8 @@ def _cmd_experiment(args):
                                            p["margin_db"]))
     print("claim (difference at least %g dB below the drift at every frequency): %s"
           % (CLAIM_DB, "holds" if s["claim_holds"] else "FAILS"))
-    print("wall time %.1f s on %d worker(s) (%d sets x %d samples x %d frequencies)"
-          % (s["wall_time_s"], s["workers"], args.sets, args.n, len(args.freqs)))
+    print("wall time %.1f s on %d worker(s) (%d sets x %d samples x %d frequencies, %s FMUs)"
+          % (s["wall_time_s"], s["workers"], args.sets, args.n, len(args.freqs), s["backend"]))
 
 
 def _cmd_identify(args):

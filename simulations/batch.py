@@ -216,13 +216,13 @@ def dual_simulate(n, seeds, excitation_values, sensor_values, estimator_values, 
 # -- the FMU engine -------------------------------------------------------------------------
 def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
                  Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
-                 filter_Q=None, fmu_dir="build/fmus", record=()):
+                 filter_Q=None, fmu_dir="build/fmus", record=(), backend="python"):
     """One run co-simulated with the three FMUs (FMU seed ``seed``); same outputs as one row of
     :func:`simulate`: the :data:`FINALS` as floats and the recorded trajectories as arrays.
 
     Gaussian runs go through :func:`simulations.gaussian.run_gaussian`, sinusoidal ones through
     :func:`simulations.sinusoidal.run_sinusoidal` with the Gauss-Markov filter; both also check
-    the FMUs against models/.
+    the FMUs against models/.  ``backend`` picks the FMUs (``"python"`` or ``"native"``).
     """
     from driftfmu.simulations import gaussian
     fA = A if filter_A is None else filter_A
@@ -231,12 +231,13 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
         P0 = default_P0(fA, fQ)
     if kind == excitation.GAUSSIAN and (fA, fQ) == (A, Q):
         cols = gaussian.run_gaussian(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed,
-                                     Ts=Ts, x0=x0, P0=P0, fmu_dir=fmu_dir, plot=False)["columns"]
+                                     Ts=Ts, x0=x0, P0=P0, fmu_dir=fmu_dir, plot=False,
+                                     backend=backend)["columns"]
     elif kind == excitation.SINUSOIDAL:
         from driftfmu.simulations.sinusoidal import run_sinusoidal
         cols = run_sinusoidal(X=X, f=f, phi=phi, Ts=Ts, n=n, seed=seed, a0=a0, a1=a1, a2=a2,
                               R=R, process=harmonic.GAUSS_MARKOV, A=fA, Q=fQ, P0=P0, x0=x0,
-                              fmu_dir=fmu_dir, plot=False)["columns"]
+                              fmu_dir=fmu_dir, plot=False, backend=backend)["columns"]
     else:
         raise UsageError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
                          "the Gaussian excitation with the filter's A and Q equal to the "
@@ -256,7 +257,7 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
 
 # -- tasks: chunks of runs for workers ------------------------------------------------------
 def make_tasks(n, seeds, per_run, common, record=(), chunk=CHUNK, engine="batch",
-               fmu_dir=None):
+               fmu_dir=None, backend="python"):
     """Split runs into tasks of at most ``chunk`` runs.
 
     ``seeds`` (runs,) and the arrays in ``per_run`` (each (runs,)) are sliced; ``common`` holds
@@ -269,7 +270,8 @@ def make_tasks(n, seeds, per_run, common, record=(), chunk=CHUNK, engine="batch"
         kw = dict(common)
         kw.update({name: np.asarray(v)[lo:hi] for name, v in per_run.items()})
         tasks.append({"engine": engine, "n": n, "seeds": np.asarray(seeds[lo:hi]),
-                      "kwargs": kw, "record": tuple(record), "fmu_dir": fmu_dir})
+                      "kwargs": kw, "record": tuple(record), "fmu_dir": fmu_dir,
+                      "backend": backend})
     return tasks
 
 
@@ -300,7 +302,8 @@ def fmu_task(task):
     for r, seed in enumerate(task["seeds"]):
         one = {key: (v[r].item() if isinstance(v, np.ndarray) else v) for key, v in kw.items()}
         rows.append(fmu_simulate(task["n"], int(seed), fmu_dir=task["fmu_dir"],
-                                 record=task["record"], **one))
+                                 record=task["record"], backend=task.get("backend", "python"),
+                                 **one))
     return {key: np.stack([np.asarray(row[key], dtype=float) for row in rows])
             for key in rows[0]}
 

@@ -107,16 +107,26 @@ def cmd_build(args):
     with removing_new_folders(args.out):  # no empty folder left by a failed or stopped build
         paths = build_fmus(args.out)  # logs one line per FMU
     fmus = {p.stem: p for p in map(Path, paths)}
+    native = None
+    if args.native or args.backend == "native":
+        from driftfmu.fmu_src.native_build import build_native_fmus
+        native = build_native_fmus(Path(args.out) / "native")  # one line per FMU
     if args.cross_check:
         from driftfmu.fmu_src.crosscheck import write_cross_check
         with removing_new_folders(args.cross_check):
-            for d in write_cross_check(fmus, args.cross_check):
-                print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
+            sets = ([(2, fmus, "python")] if native is None
+                    else [(v, native[v], "native") for v in sorted(native)])
+            for fmi_version, chosen, backend in sets:
+                for d in write_cross_check(chosen, args.cross_check, fmi_version=fmi_version,
+                                           backend=backend):
+                    print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)"
+                          % d)
     if args.ssp:
         from driftfmu.fmu_src.ssp import build_ssp
+        chosen = fmus if args.backend == "python" else native[2]
         with removing_new_folders(Path(args.ssp).parent):
-            print("%s (SSP: the wired chain, start values of the letter's Gaussian run)"
-                  % build_ssp(fmus, args.ssp))
+            print("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
+                  "Gaussian run)" % (build_ssp(chosen, args.ssp), args.backend))
 
 
 def check_build_args(args):
@@ -136,7 +146,7 @@ def cmd_run_gaussian(args):
         res = run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
                            Q=args.Q, R=args.R, n=args.n, seed=args.seed, Ts=args.Ts,
                            P0=args.P0, estimator=args.estimator, fmu_dir=args.fmu_dir,
-                           progress=update)
+                           progress=update, backend=args.backend)
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)
@@ -191,6 +201,13 @@ def make_parser():
                    "(default: build/DriftChain.ssp); an existing FILE is kept unless --force")
     p.add_argument("--force", action="store_true",
                    help="replace an existing --ssp FILE")
+    p.add_argument("--native", action="store_true",
+                   help="also build the native (C) twins of the FMUs, FMI 2.0 and FMI 3.0 source "
+                   "FMUs with x86-64 Linux and Windows binaries, as DIR/native/fmi2/<Name>.fmu "
+                   "and DIR/native/fmi3/<Name>.fmu (validated with fmpy)")
+    add_backend(p, what="the FMUs of the cross-check artifacts and the SSP export: python, or "
+                "native (implies --native; the cross-check then has folders for FMI 2.0 and "
+                "3.0 and for each platform)")
     p.set_defaults(func=cmd_build)
 
     run = sub.add_parser("run", help="co-simulate the FMUs with an fmpy master")
@@ -204,6 +221,7 @@ def make_parser():
                    help="estimator whose drift is subtracted in z_comp (default: 1, EKF1)")
     add_out(g, "results/gaussian")
     add_fmu_dir(g)
+    add_backend(g)
     g.set_defaults(func=cmd_run_gaussian)
 
     import importlib
@@ -224,6 +242,15 @@ def add_fmu_dir(parser):
     """The common ``--fmu-dir DIR`` option."""
     parser.add_argument("--fmu-dir", default="build/fmus", metavar="DIR",
                         help="folder of the FMUs, built there if missing (default: build/fmus)")
+
+
+def add_backend(parser, what=None):
+    """The common ``--backend python|native`` option."""
+    parser.add_argument("--backend", choices=("python", "native"), default="python",
+                        help=(what or "the FMUs to run: python, the pythonfmu FMUs in FMU_DIR "
+                              "(need a libpython), or native, their C twins in "
+                              "FMU_DIR/native/fmi2 (need nothing; same bits); built there if "
+                              "missing") + " (default: python)")
 
 
 def check_out(args):

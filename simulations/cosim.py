@@ -1,4 +1,4 @@
-"""A fixed-step fmpy master for FMI 2.0 co-simulation FMUs wired by connections.
+"""A fixed-step fmpy master for FMI 2.0 (and FMI 3.0) co-simulation FMUs wired by connections.
 
 The loop is written out in the open, as in FMPy's ``examples/custom_input.py``: the FMUs are
 stepped and their outputs copied along the connections in the order the connections are given
@@ -11,6 +11,9 @@ estimator's ``k``-th update with ``z_k``; there is no one-step lag.
 libcosim): every FMU steps with the inputs of the previous point, outputs are read right after
 the steps, and only then copied along the connections, so each connection delays its signal by
 one step.  It is there to compare with such masters, not to get the letter's results.
+
+FMI 3.0 FMUs (the native twins' fmi3 build) run through the same loop: :class:`Fmi3Slave` gives
+fmpy's ``FMU3Slave`` the FMI 2.0 method names the loop calls.
 """
 import contextlib
 import shutil
@@ -127,6 +130,9 @@ class Instance:
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         try:
+            if self.md.fmiVersion.startswith("3"):
+                self.fmu = Fmi3Slave(self, name, logging_on)
+                return
             self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
                                  modelIdentifier=self.md.coSimulation.modelIdentifier,
                                  instanceName=name)
@@ -142,8 +148,8 @@ class Instance:
 
     def set(self, values):
         """Set start values or inputs given by name (Real and Integer variables)."""
-        reals = {n: v for n, v in values.items() if self.types[n] == "Real"}
-        ints = {n: v for n, v in values.items() if self.types[n] == "Integer"}
+        reals = {n: v for n, v in values.items() if self.types.get(n) in ("Real", "Float64")}
+        ints = {n: v for n, v in values.items() if self.types.get(n) in ("Integer", "Int32")}
         unknown = set(values) - set(reals) - set(ints)
         if unknown:
             raise CoSimulationError("%s has no Real or Integer variable %s"
@@ -159,6 +165,92 @@ class Instance:
         finally:
             self.fmu.freeInstance()
             _remove(self.unzipdir)
+
+
+class Fmi3Slave:
+    """fmpy's ``FMU3Slave`` behind the FMI 2.0 method names of ``FMU2Slave`` that the master
+    and the tests call (setupExperiment, getReal/setReal, getInteger/setInteger, doStep,
+    get/set/free/serialise/deserialise FMU state, instantiate, fmi2FreeInstance); log messages
+    go to the owning :class:`Instance` in its format."""
+
+    def __init__(self, owner, name, logging_on=False):
+        from fmpy.fmi3 import FMU3Slave
+        self._owner = owner
+        self._name = name
+        self._start = 0.0
+        self._fmu = FMU3Slave(guid=owner.md.guid, unzipDirectory=owner.unzipdir,
+                              modelIdentifier=owner.md.coSimulation.modelIdentifier,
+                              instanceName=name)
+        self.instantiate(loggingOn=logging_on)
+
+    def _log(self, env, status, category, message):
+        self._owner.messages.append("%s [%s] %s" % (
+            self._name, _STATUS.get(status, status), (message or b"").decode("utf-8",
+                                                                              "replace")))
+
+    @property
+    def component(self):
+        return self._fmu.component
+
+    def instantiate(self, callbacks=None, loggingOn=False):
+        self._fmu.instantiate(loggingOn=loggingOn, logMessage=self._log)
+
+    def fmi2FreeInstance(self, component):
+        """Free the instance, keep the library loaded (fmpy's freeInstance also unloads it)."""
+        self._fmu.fmi3FreeInstance(component)
+
+    def freeInstance(self):
+        self._fmu.freeInstance()
+
+    def setupExperiment(self, tolerance=None, startTime=0.0, stopTime=None):
+        self._start = startTime
+
+    def enterInitializationMode(self):
+        self._fmu.enterInitializationMode(startTime=self._start)
+
+    def exitInitializationMode(self):
+        self._fmu.exitInitializationMode()
+
+    def doStep(self, currentCommunicationPoint, communicationStepSize,
+               noSetFMUStatePriorToCurrentPoint=True):
+        return self._fmu.doStep(currentCommunicationPoint, communicationStepSize,
+                                noSetFMUStatePriorToCurrentPoint)
+
+    def getReal(self, vr):
+        return self._fmu.getFloat64(vr)
+
+    def setReal(self, vr, value):
+        self._fmu.setFloat64(vr, value)
+
+    def getInteger(self, vr):
+        return self._fmu.getInt32(vr)
+
+    def setInteger(self, vr, value):
+        self._fmu.setInt32(vr, value)
+
+    def getBoolean(self, vr):
+        return self._fmu.getBoolean(vr)
+
+    def getFMUstate(self):
+        return self._fmu.getFMUState()
+
+    def setFMUstate(self, state):
+        self._fmu.setFMUState(state)
+
+    def freeFMUstate(self, state):
+        self._fmu.freeFMUState(state)
+
+    def serializeFMUstate(self, state):
+        return self._fmu.serializeFMUState(state)
+
+    def deSerializeFMUstate(self, data):
+        return self._fmu.deserializeFMUState(data)
+
+    def reset(self):
+        self._fmu.reset()
+
+    def terminate(self):
+        self._fmu.terminate()
 
 
 COUPLINGS = ("gauss-seidel", "jacobi")

@@ -19,7 +19,11 @@ from pathlib import Path
 OK, WARN, FAIL = "ok", "warning", "problem"
 
 
-def _platform_dir():
+def _platform_dir(fmi_version="2.0"):
+    if fmi_version.startswith("3"):  # FMI 3.0 platform tuples: x86_64-linux, aarch64-darwin
+        machine = {"amd64": "x86_64", "arm64": "aarch64"}.get(platform.machine().lower(),
+                                                              platform.machine().lower())
+        return "%s-%s" % (machine, platform.system().lower())
     bits = "64" if sys.maxsize > 2 ** 32 else "32"
     return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(
         platform.system(), "unknown") + bits
@@ -81,9 +85,8 @@ def diagnose(fmu):
     ident = md.coSimulation.modelIdentifier
     out.append((OK, "FMI %s co-simulation FMU '%s' (%s)" % (md.fmiVersion, md.modelName,
                                                           md.generationTool)))
-    plat = _platform_dir()
-    ext = {"linux": ".so", "darwi": ".dylib", "win": ".dll"}.get(plat[:5].rstrip("36"),
-                                                                   ".so")
+    plat = _platform_dir(md.fmiVersion)
+    ext = {"Linux": ".so", "Darwin": ".dylib", "Windows": ".dll"}.get(platform.system(), ".so")
     binary = "binaries/%s/%s%s" % (plat, ident, ext)
     present = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and
                       n.count("/") >= 2})
@@ -103,6 +106,13 @@ def diagnose(fmu):
         out.append((OK, "this process runs Python %s; the FMU was built with %s — fine for "
                         "Python hosts, whose own interpreter runs the FMU's code"
                     % (host_py, built_py)))
+    pyfiles = [n for n in names if n.startswith("resources/") and n.endswith(".py")]
+    if not pyfiles and not record:  # a native FMU (fmu_src/native): no Python inside
+        if "sources/" in {n[:8] for n in names}:
+            out.append((OK, "a native FMU (no Python inside): a host needs no libpython; it is "
+                            "also a source FMU (sources/) for platforms without a binary"))
+        out.append(_try_instantiate(fmu, md.fmiVersion))
+        return out
     # libpython for hosts that are not Python
     found = [s for s in _libpython_candidates(record) if _loadable(s)]
     if found:
@@ -116,7 +126,6 @@ def diagnose(fmu):
                           "DRIFTFMU_LIBPYTHON to its path. Python hosts are not affected."
                     % libdir))
     # the bundled Python code
-    pyfiles = [n for n in names if n.startswith("resources/") and n.endswith(".py")]
     bundled = {n.split("/")[1].rsplit(".py", 1)[0] for n in pyfiles}
     eager, lazy = set(), set()
     for n in pyfiles:
@@ -152,8 +161,21 @@ def _importable(module):
     return importlib.util.find_spec(module) is not None
 
 
-def _try_instantiate(fmu):
+def _try_instantiate(fmu, fmi_version="2.0"):
     # the child removes the folder it extracts the FMU to, also when it fails or is interrupted
+    if fmi_version.startswith("3"):
+        code = ("import shutil, sys, tempfile\nfrom fmpy import read_model_description, "
+                "extract\nfrom fmpy.fmi3 import FMU3Slave\n"
+                "md = read_model_description(sys.argv[1]); d = tempfile.mkdtemp()\n"
+                "try:\n"
+                "    extract(sys.argv[1], unzipdir=d)\n"
+                "    s = FMU3Slave(guid=md.guid, unzipDirectory=d, "
+                "modelIdentifier=md.coSimulation.modelIdentifier, instanceName='doctor')\n"
+                "    s.instantiate(); s.enterInitializationMode(startTime=0.0)\n"
+                "    s.exitInitializationMode(); s.terminate(); s.freeInstance()\n"
+                "finally:\n"
+                "    shutil.rmtree(d, ignore_errors=True)\n")
+        return _run_instantiate(code, fmu)
     code = ("import shutil, sys, tempfile\nfrom fmpy import read_model_description, extract\n"
             "from fmpy.fmi2 import FMU2Slave\n"
             "md = read_model_description(sys.argv[1]); d = tempfile.mkdtemp()\n"
@@ -166,6 +188,10 @@ def _try_instantiate(fmu):
             "    s.terminate(); s.freeInstance()\n"
             "finally:\n"
             "    shutil.rmtree(d, ignore_errors=True)\n")
+    return _run_instantiate(code, fmu)
+
+
+def _run_instantiate(code, fmu):
     try:
         r = subprocess.run([sys.executable, "-c", code, str(fmu)], capture_output=True,
                            text=True, timeout=120)

@@ -25,8 +25,36 @@ class ValidationError(RuntimeError):
     """The co-simulation's outputs disagree with models/ run directly."""
 
 
-def fmu_paths(fmu_dir):
-    """Paths of the three FMUs in ``fmu_dir``; build them first when any is missing."""
+#: The FMUs a master can run: the pythonfmu FMUs (``<fmu_dir>/<Name>.fmu``) or their native C
+#: twins, FMI 2.0 (``<fmu_dir>/native/fmi2/<Name>.fmu``), bit-identical.
+BACKENDS = ("python", "native")
+
+
+def check_backend(backend):
+    """ValueError unless ``backend`` is one of :data:`BACKENDS`."""
+    if backend not in BACKENDS:
+        raise ValueError("backend = %r is not allowed; allowed: %s"
+                         % (backend, " or ".join(repr(b) for b in BACKENDS)))
+
+
+def master(backend="python"):
+    """The co-simulation loop of ``backend``: fmpy's FMU2Slave wrappers
+    (:func:`simulations.cosim.cosimulate`) for the Python FMUs, direct FMI calls
+    (:func:`simulations.fastcosim.cosimulate_fast`, same results) for the native ones."""
+    check_backend(backend)
+    if backend == "native":
+        from driftfmu.simulations.fastcosim import cosimulate_fast
+        return cosimulate_fast
+    return cosimulate
+
+
+def fmu_paths(fmu_dir, backend="python"):
+    """Paths of the three FMUs of ``backend`` under ``fmu_dir``; build them first when any is
+    missing."""
+    check_backend(backend)
+    if backend == "native":
+        from driftfmu.fmu_src.native_build import native_fmu_paths
+        return native_fmu_paths(fmu_dir, 2)
     fmu_dir = Path(fmu_dir)
     paths = {n: fmu_dir / ("%s.fmu" % n) for n in FMU_NAMES}
     if not all(p.is_file() for p in paths.values()):
@@ -73,11 +101,12 @@ def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3
 
 def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=2000, seed=1,
                  Ts=1e-3, x0=0.0, P0=None, estimator=1, fmu_dir="build/fmus", progress=None,
-                 plot=True):
+                 plot=True, backend="python"):
     """Co-simulate the three FMUs under Gaussian excitation; optionally write the results.
 
     Parameters are the letter's names (defaults: its Sec. III settings, 2000 samples).  ``P0``
-    defaults to the stationary variance ``Q / (1 - A^2)``.  With ``out`` set, ``results.csv``,
+    defaults to the stationary variance ``Q / (1 - A^2)``.  ``backend`` picks the FMUs
+    (:data:`BACKENDS`).  With ``out`` set, ``results.csv``,
     ``summary.json`` and ``drift.png`` are written there, all of them or none.
 
     Returns
@@ -105,8 +134,8 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
                          estimator=estimator)
     record = {"Excitation": ["x"], "Accelerometer": ["z"],
               "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
-    raw = cosimulate(fmu_paths(fmu_dir), CONNECTIONS, n, Ts, start_values=start, record=record,
-                     progress=progress)
+    raw = master(backend)(fmu_paths(fmu_dir, backend), CONNECTIONS, n, Ts, start_values=start,
+                          record=record, progress=progress)
     cols = {"time": raw["time"]}
     for name, names in record.items():
         for v in names:

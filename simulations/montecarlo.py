@@ -79,20 +79,20 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
 
 
 def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu_dir,
-         progress):
+         progress, backend="python"):
     seeds = batch.run_seeds(seed, runs)
     per_run = {k: v(seeds) if callable(v) else v for k, v in per_run.items()}
     if engine not in ("batch", "fmu"):
         raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     if engine == "fmu":
         from driftfmu.simulations.gaussian import fmu_paths
-        fmu_paths(fmu_dir)
+        fmu_paths(fmu_dir, backend)
         chunk = max(1, min(8, runs // (4 * batch.workers_default())))
     else:
         w = batch.workers_default() if workers is None else max(1, workers)
         chunk = max(64, min(batch.CHUNK, -(-runs // (2 * w))))
     tasks = batch.make_tasks(n, seeds, per_run, common, record=RECORD, chunk=chunk,
-                             engine=engine, fmu_dir=fmu_dir)
+                             engine=engine, fmu_dir=fmu_dir, backend=backend)
     t0 = time.perf_counter()
     res = batch.gather(batch.run_tasks(tasks, scheduler=scheduler, client=client,
                                        workers=workers, progress=progress))
@@ -102,7 +102,7 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
 def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4,
                         seed=1, Ts=1e-3, x0=0.0, P0=None, engine="batch", scheduler=None,
                         client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
-                        progress=None):
+                        progress=None, backend="python"):
     """``runs`` Gaussian runs of ``n`` samples (the letter's Fig. 1 as a population).
 
     Returns the ``montecarlo.npz`` arrays (``fig1_x``, ``fig1_z``, ``fig1_dc1``, ``fig1_dc2``,
@@ -115,7 +115,7 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     batch.check_parameters(params)
     common = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, Ts=Ts, x0=x0, P0=P0)
     res, seconds = _run(n, runs, seed, {}, common, engine, scheduler, client, workers,
-                        fmu_dir, progress)
+                        fmu_dir, progress, backend)
     result = {key: res[name] for key, name in GAUSSIAN_KEYS.items()}
     summary = summarise(res, ("realised", "empirical"), a1=a1, Q=Q, R=R, A=A)
     summary["parameters"] = dict(params, runs=runs, engine=engine,
@@ -134,7 +134,7 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
 def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=1.0, f=150.0,
                           Ts=1e-3, seed=1, A=0.0, Q=None, engine="batch", scheduler=None,
                           client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
-                          progress=None):
+                          progress=None, backend="python"):
     """``runs`` sinusoidal runs ``x_k = X sin(2 pi f (k-1) Ts + phi_r)`` of ``n`` samples.
 
     ``phi_r`` is :func:`simulations.batch.sine_phase` of the run's seed; the filter is the
@@ -154,7 +154,7 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     common = dict(a0=a0, a1=a1, a2=a2, R=R, Ts=Ts, X=X, f=f, kind=excitation.SINUSOIDAL,
                   filter_A=A, filter_Q=Q)
     res, seconds = _run(n, runs, seed, {"phi": batch.sine_phase}, common, engine, scheduler,
-                        client, workers, fmu_dir, progress)
+                        client, workers, fmu_dir, progress, backend)
     result = {key: res[name] for key, name in SINE_KEYS.items()}
     result["sine_phi"] = batch.sine_phase(batch.run_seeds(seed, runs))
     summary = summarise(res, ("empirical", "realised"))
@@ -274,6 +274,7 @@ def add_cli(groups):
     batch.add_engine_options(g)
     cli.add_out(g, "results/montecarlo/gaussian")
     cli.add_fmu_dir(g)
+    cli.add_backend(g)
     g.set_defaults(func=cmd_gaussian)
 
     s = sub.add_parser("sinusoidal", help="x = X sin(2 pi f t + phi), random phase per run")
@@ -286,6 +287,7 @@ def add_cli(groups):
     batch.add_engine_options(s)
     cli.add_out(s, "results/montecarlo/sinusoidal")
     cli.add_fmu_dir(s)
+    cli.add_backend(s)
     s.set_defaults(func=cmd_sinusoidal)
 
 
@@ -296,7 +298,7 @@ def _with_bar(args, fn, **kw):
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
                   a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
                   scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
-                  out=args.out, progress=update, **kw)
+                  out=args.out, progress=update, backend=args.backend, **kw)
 
 
 def cmd_gaussian(args):

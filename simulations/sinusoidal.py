@@ -16,9 +16,9 @@ import sys
 
 from driftfmu.models import adxl203, chain, drift, excitation, harmonic, identify, parameters
 from driftfmu.simulations import output
-from driftfmu.simulations.cosim import cosimulate
-from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, compare, fmu_paths, settled_from
 from driftfmu.simulations.errors import UsageError
+from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, compare, fmu_paths, master, \
+    settled_from
 
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Excitation", "y", "Accelerometer", "y"),
@@ -54,7 +54,7 @@ def nominal_model(sensor_values, Ts):
 def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a0=0.0, a1=1.0,
                    a2=0.01, R=1e-4, process=harmonic.HARMONIC, Qh=None, A=0.0, Q=None, P0=None,
                    x0=0.0, estimator=1, preset=None, sensor=None, Xy=0.0, phiy=0.0,
-                   fmu_dir="build/fmus", progress=None, plot=True):
+                   fmu_dir="build/fmus", progress=None, plot=True, backend="python"):
     """Co-simulate the three FMUs under sinusoidal excitation; optionally write the results.
 
     Parameters
@@ -74,6 +74,8 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     sensor : dict, optional
         Further accelerometer parameters (``a3``, ``cross``, ``fc``, ``Vs``, ``bits``,
         ``density``, ``axes``) over the preset.
+    backend : str
+        ``"python"`` (the pythonfmu FMUs) or ``"native"`` (their C twins, FMI 2.0).
 
     Returns
     -------
@@ -114,8 +116,8 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
         "DriftEstimator": dict(model, process=process, f=f, Qh=Qh, A=A, Q=Q, x0=x0, P0=P0,
                                Ts=Ts, estimator=estimator),
     }
-    raw = cosimulate(fmu_paths(fmu_dir), CONNECTIONS, n, Ts, start_values=start, record=RECORD,
-                     progress=progress)
+    raw = master(backend)(fmu_paths(fmu_dir, backend), CONNECTIONS, n, Ts, start_values=start,
+                          record=RECORD, progress=progress)
     cols = {"time": raw["time"]}
     for name, names in RECORD.items():
         for v in names:
@@ -197,6 +199,7 @@ def add_cli(groups):
     cli.add_params(g, ("Xy", "phiy"))
     cli.add_out(g, "results/sinusoidal")
     cli.add_fmu_dir(g)
+    cli.add_backend(g)
     g.set_defaults(func=_cmd)
 
 
@@ -208,7 +211,7 @@ def _cmd(args):
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
                              P0=args.P0, estimator=args.estimator, preset=args.preset,
                              Xy=args.Xy, phiy=args.phiy, fmu_dir=args.fmu_dir,
-                             progress=update)
+                             progress=update, backend=args.backend)
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)

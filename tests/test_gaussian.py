@@ -85,9 +85,9 @@ def _run(built_fmus, start, n=5, step=1e-3):
      "estimator = 7 is out of range; allowed: 1 <= estimator <= 3"),
     ({"Accelerometer": {"x": math.nan}}, "x = nan is not finite"),
 ])
-def test_bad_value_gives_fmi2error_with_log_message(built_fmus, start, text, report):
-    with pytest.raises(CoSimulationError) as info:
-        _run(built_fmus, start)
+def test_bad_value_gives_fmi2error_with_log_message(backend_fmus, start, text, report):
+    with pytest.raises(CoSimulationError) as info:  # on every backend (tests/conftest.py)
+        _run(backend_fmus, start)
     msg = str(info.value)
     report("BAD INPUT %s -> %s" % (start, " | ".join(msg.splitlines())))
     assert "status 3 (error)" in msg

@@ -1,0 +1,824 @@
+/*
+ * cosimulation.c - lifecycle, state machine, variable access, the step rule and FMU states,
+ * shared by the FMI 2.0 and FMI 3.0 adapters and by the three models.
+ *
+ * Behaviour mirrors fmu_src/slave_base.py (the Python FMUs): errors are logged with status
+ * error, naming what was wrong and what is allowed, and a rejected call changes nothing; error
+ * lines reach the host's logger even with debug logging off.
+ */
+#define __USE_MINGW_ANSI_STDIO 1
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "cosimulation.h"
+
+#define MESSAGE_SIZE 1024
+
+static const char *CATEGORY[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard",
+                                 "logStatusError", "logStatusFatal"};
+
+/* ---- logging -------------------------------------------------------------------------------- */
+
+static void vlog(ModelInstance *comp, Status status, const char *format, va_list args)
+{
+    if (!comp || !comp->hostLog)
+        return;
+    if (status < STATUS_WARNING && !comp->loggingOn)
+        return;
+    char message[MESSAGE_SIZE];
+    int used = snprintf(message, sizeof message, "%s: %s",
+                        comp->instanceName ? comp->instanceName : "",
+                        status >= STATUS_WARNING && comp->logContext ? comp->logContext : "");
+    if (used < 0 || (size_t)used >= sizeof message)
+        used = 0;
+    vsnprintf(message + used, sizeof message - (size_t)used, format, args);
+    comp->hostLog(comp, status, CATEGORY[status], message);
+}
+
+void cs_log(ModelInstance *comp, Status status, const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    vlog(comp, status, format, args);
+    va_end(args);
+}
+
+void model_log_error(ModelInstance *comp, const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    vlog(comp, STATUS_ERROR, format, args);
+    va_end(args);
+}
+
+void model_log_info(ModelInstance *comp, const char *format, ...)
+{
+    va_list args;
+    va_start(args, format);
+    vlog(comp, STATUS_OK, format, args);
+    va_end(args);
+}
+
+const char *repr_double(double value, char *buf)
+{
+    if (isnan(value)) {
+        strcpy(buf, "nan");
+        return buf;
+    }
+    if (isinf(value)) {
+        strcpy(buf, value > 0 ? "inf" : "-inf");
+        return buf;
+    }
+    if (value == 0.0) {
+        strcpy(buf, signbit(value) ? "-0.0" : "0.0");
+        return buf;
+    }
+    /* shortest "%.{p-1}e" that reads back to the same double */
+    char sci[40];
+    int p;
+    for (p = 1; p <= 17; p++) {
+        snprintf(sci, sizeof sci, "%.*e", p - 1, value);
+        if (strtod(sci, NULL) == value)
+            break;
+    }
+    /* split into sign, digits and decimal exponent */
+    char digits[24];
+    int nd = 0, neg = 0;
+    const char *s = sci;
+    if (*s == '-') {
+        neg = 1;
+        s++;
+    }
+    for (; *s && *s != 'e'; s++)
+        if (*s >= '0' && *s <= '9')
+            digits[nd++] = *s;
+    digits[nd] = 0;
+    int e = atoi(s + 1);
+    while (nd > 1 && digits[nd - 1] == '0')
+        digits[--nd] = 0;
+    char *o = buf;
+    if (neg)
+        *o++ = '-';
+    if (e >= -4 && e < 16) {   /* Python's repr: fixed notation */
+        if (e < 0) {
+            *o++ = '0';
+            *o++ = '.';
+            for (int i = 0; i < -e - 1; i++)
+                *o++ = '0';
+            for (int i = 0; i < nd; i++)
+                *o++ = digits[i];
+        } else {
+            for (int i = 0; i <= e; i++)
+                *o++ = i < nd ? digits[i] : '0';
+            *o++ = '.';
+            if (nd > e + 1)
+                for (int i = e + 1; i < nd; i++)
+                    *o++ = digits[i];
+            else
+                *o++ = '0';
+        }
+        *o = 0;
+    } else {
+        *o++ = digits[0];
+        if (nd > 1) {
+            *o++ = '.';
+            for (int i = 1; i < nd; i++)
+                *o++ = digits[i];
+        }
+        sprintf(o, "e%c%02d", e < 0 ? '-' : '+', e < 0 ? -e : e);
+    }
+    return buf;
+}
+
+/* ---- the state machine ------------------------------------------------------------------ */
+
+static const char *mode_name(ModelState state)
+{
+    switch (state) {
+    case STATE_INSTANTIATED: return "the instantiated mode";
+    case STATE_INITIALIZATION: return "initialisation mode";
+    case STATE_STEP: return "step mode";
+    case STATE_TERMINATED: return "the terminated mode";
+    case STATE_ERROR: return "the error mode";
+    default: return "the fatal mode";
+    }
+}
+
+int cs_allowed(ModelInstance *comp, const char *function, int allowed)
+{
+    if (comp->state & allowed)
+        return 1;
+    char modes[256] = "";
+    const ModelState all[] = {STATE_INSTANTIATED, STATE_INITIALIZATION, STATE_STEP,
+                              STATE_TERMINATED};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; i++) {
+        if (allowed & all[i]) {
+            if (modes[0])
+                strcat(modes, ", ");
+            strcat(modes, mode_name(all[i]));
+        }
+    }
+    cs_log(comp, STATUS_ERROR, "%s is not allowed in %s; allowed in: %s", function,
+           mode_name(comp->state), modes);
+    return 0;
+}
+
+Status cs_unsupported(ModelInstance *comp, const char *function)
+{
+    cs_log(comp, STATUS_ERROR, "%s is not supported: this is a co-simulation FMU without "
+           "events, clocks or derivatives", function);
+    return STATUS_ERROR;
+}
+
+/* ---- lifecycle -------------------------------------------------------------------------- */
+
+static const ModelVariables START = MODEL_START_VALUES;
+
+static void to_start(ModelInstance *comp)
+{
+    comp->v = START;
+    memset(&comp->h, 0, sizeof comp->h);
+    comp->startTime = 0.0;
+    comp->time = 0.0;
+    comp->elapsed = comp->elapsed_c = 0.0;
+    comp->logContext = NULL;
+    comp->k = 1;
+    comp->pending = 1;
+    comp->dirty = 1;
+    comp->initialised = 0;
+    comp->state = STATE_INSTANTIATED;
+}
+
+ModelInstance *cs_instantiate(const char *instanceName, const char *token, int loggingOn,
+                              HostLogger log, void *const hostData[4], const char *function)
+{
+    ModelInstance probe;   /* logs the reason a NULL comes back */
+    memset(&probe, 0, sizeof probe);
+    probe.instanceName = (char *)(instanceName ? instanceName : "");
+    probe.hostLog = log;
+    for (int i = 0; i < 4; i++)
+        probe.hostData[i] = hostData[i];
+    if (!instanceName) {
+        cs_log(&probe, STATUS_ERROR, "%s: instanceName is NULL; allowed: a string", function);
+        return NULL;
+    }
+    if (!token || strcmp(token, INSTANTIATION_TOKEN) != 0) {
+        cs_log(&probe, STATUS_ERROR, "%s: %s %s does not match %s of this FMU (%s %s); "
+               "the model description and the binary are from different builds", function,
+               MODEL_TOKEN_NAME, token ? token : "NULL", MODEL_TOKEN_NAME, MODEL_NAME,
+               INSTANTIATION_TOKEN);
+        return NULL;
+    }
+    ModelInstance *comp = calloc(1, sizeof *comp);
+    char *name = comp ? malloc(strlen(instanceName) + 1) : NULL;
+    if (!name) {
+        free(comp);
+        cs_log(&probe, STATUS_ERROR, "%s: out of memory", function);
+        return NULL;
+    }
+    strcpy(name, instanceName);
+    *comp = probe;
+    comp->instanceName = name;
+    comp->loggingOn = loggingOn;
+    to_start(comp);
+    model_log_info(comp, "%s: instantiated %s %s", function, MODEL_NAME, MODEL_VERSION);
+    return comp;
+}
+
+void cs_free(ModelInstance *comp)
+{
+    if (!comp)
+        return;
+    free(comp->instanceName);
+    free(comp);
+}
+
+Status cs_set_debug_logging(ModelInstance *comp, int loggingOn)
+{
+    comp->loggingOn = loggingOn;
+    return STATUS_OK;
+}
+
+Status cs_setup(ModelInstance *comp, const char *function, double startTime)
+{
+    if (!cs_allowed(comp, function, STATE_INSTANTIATED))
+        return STATUS_ERROR;
+    if (!isfinite(startTime)) {
+        char b[32];
+        cs_log(comp, STATUS_ERROR, "%s: start time %s is not finite; allowed: a finite time",
+               function, repr_double(startTime, b));
+        return STATUS_ERROR;
+    }
+    comp->startTime = startTime;
+    comp->time = startTime;
+    comp->dirty = 1;
+    return STATUS_OK;
+}
+
+Status cs_enter_initialization(ModelInstance *comp, const char *function)
+{
+    if (!cs_allowed(comp, function, STATE_INSTANTIATED))
+        return STATUS_ERROR;
+    comp->state = STATE_INITIALIZATION;
+    comp->dirty = 1;
+    return STATUS_OK;
+}
+
+Status cs_exit_initialization(ModelInstance *comp, const char *function)
+{
+    if (!cs_allowed(comp, function, STATE_INITIALIZATION))
+        return STATUS_ERROR;
+    comp->state = STATE_STEP;   /* as the Python FMUs: a failed check leaves it unable to step */
+    comp->time = comp->startTime;
+    comp->elapsed = comp->elapsed_c = 0.0;
+    if (model_check(comp) > 0) {
+        comp->initialised = 0;
+        return STATUS_ERROR;
+    }
+    comp->k = 1;
+    comp->pending = 1;
+    model_start(comp);
+    comp->dirty = 1;
+    comp->initialised = 1;
+    return STATUS_OK;
+}
+
+Status cs_terminate(ModelInstance *comp, const char *function)
+{
+    if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP))
+        return STATUS_ERROR;
+    comp->state = STATE_TERMINATED;
+    return STATUS_OK;
+}
+
+Status cs_reset(ModelInstance *comp, const char *function)
+{
+    (void)function;
+    to_start(comp);
+    return STATUS_OK;
+}
+
+/* ---- variables -------------------------------------------------------------------------- */
+
+#define REAL_AT(comp, i) ((double *)((char *)&(comp)->v + MODEL_VARIABLES[i].offset))
+#define INT_AT(comp, i) ((int *)((char *)&(comp)->v + MODEL_VARIABLES[i].offset))
+
+static const char *TYPE_NAME[] = {FMI_VERSION == 2 ? "Real" : "Float64",
+                                  FMI_VERSION == 2 ? "Integer" : "Int32"};
+static const char *CAUSALITY_NAME[] = {"parameter", "input", "output"};
+
+typedef struct {
+    ModelVariables v;
+    ModelHidden h;
+} Backup;
+
+/* The outputs of sample 1 read in Initialization Mode, from the start values and inputs set so
+ * far (as the Python FMUs and the InitialUnknowns say): checked, computed on a copy, and only
+ * the outputs kept. */
+static Status initialisation_outputs(ModelInstance *comp, const char *function)
+{
+    Backup backup = {comp->v, comp->h};
+    comp->logContext = "cannot compute the outputs in Initialization Mode: ";
+    int problems = model_check(comp);
+    comp->logContext = NULL;
+    if (problems)
+        return STATUS_ERROR;
+    const int64_t k = comp->k;
+    comp->k = 1;
+    model_start(comp);
+    const char *bad = MODEL_HAS_FEEDTHROUGH ? model_compute(comp) : NULL;
+    ModelVariables computed = comp->v;
+    comp->v = backup.v;
+    comp->h = backup.h;
+    comp->k = k;
+    for (int i = 0; !bad && i < N_VARIABLES; i++)
+        if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT &&
+            MODEL_VARIABLES[i].type == TYPE_REAL &&
+            !isfinite(*(double *)((char *)&computed + MODEL_VARIABLES[i].offset)))
+            bad = MODEL_VARIABLES[i].name;
+    if (bad) {
+        char bt[32];
+        cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample 1 (t = %s s): the "
+               "start values overflow the model; allowed: values whose outputs stay finite "
+               "(nothing was changed)", function, bad, repr_double(comp->startTime, bt));
+        return STATUS_ERROR;
+    }
+    for (int i = 0; i < N_VARIABLES; i++)
+        if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT)
+            memcpy((char *)&comp->v + MODEL_VARIABLES[i].offset,
+                   (char *)&computed + MODEL_VARIABLES[i].offset,
+                   MODEL_VARIABLES[i].type == TYPE_REAL ? sizeof(double) : sizeof(int));
+    comp->dirty = 0;
+    return STATUS_OK;
+}
+
+/* The feedthrough outputs of the pending sample, computed when inputs changed. The state is
+ * restored and an error returned when a value comes out non-finite. */
+static Status refresh(ModelInstance *comp, const char *function)
+{
+    if (comp->dirty && comp->state == STATE_INITIALIZATION)
+        return initialisation_outputs(comp, function);
+    if (!(MODEL_HAS_FEEDTHROUGH && comp->dirty && comp->initialised && comp->pending))
+        return STATUS_OK;
+    Backup backup = {comp->v, comp->h};
+    const char *bad = model_compute(comp);
+    if (bad) {
+        comp->v = backup.v;
+        comp->h = backup.h;
+        char b[32];
+        cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample %lld (t = %s s): the "
+               "inputs and parameters overflow the model; allowed: values whose outputs and "
+               "state stay finite (nothing was changed)", function, bad, (long long)comp->k,
+               repr_double(comp->startTime + (double)(comp->k - 1) * comp->v.Ts, b));
+        return STATUS_ERROR;
+    }
+    comp->dirty = 0;
+    return STATUS_OK;
+}
+
+/* FMI 3.0: the independent variable time has the value reference after the table's. */
+#define VR_TIME ((unsigned int)N_VARIABLES)
+#define IS_TIME(vr) (FMI_VERSION == 3 && (vr) == VR_TIME)
+
+static int bad_reference(unsigned int vr, VariableType type, int reading)
+{
+    if (IS_TIME(vr))
+        return !(type == TYPE_REAL && reading);
+    return vr >= N_VARIABLES || MODEL_VARIABLES[vr].type != (VariableType)type;
+}
+
+/* What is wrong with the value references of a call on `type` variables, worded as the Python
+ * FMUs word it: "value reference 999 does not exist; allowed: the Real value references of
+ * modelDescription.xml (0, 1, ...)". */
+static void bad_references(char *out, size_t size, const unsigned int vr[], size_t n,
+                           const char *type, int type_code, int reading)
+{
+    size_t used = 0;
+    out[0] = 0;
+#define PUT(...)                                                                           \
+    do {                                                                                   \
+        if (used < size) {                                                                 \
+            int w = snprintf(out + used, size - used, __VA_ARGS__);                        \
+            used += w > 0 ? (size_t)w : 0;                                                 \
+        }                                                                                  \
+    } while (0)
+    int first = 1;
+    for (size_t i = 0; i < n; i++) {
+        if (type_code >= 0 && !bad_reference(vr[i], (VariableType)type_code, reading))
+            continue;
+        if (!first)
+            PUT(", ");
+        first = 0;
+        if (IS_TIME(vr[i]))
+            PUT("value reference %u is time, the independent variable: a Float64 that can be "
+                "read, not set", vr[i]);
+        else if (vr[i] >= N_VARIABLES)
+            PUT("value reference %u does not exist", vr[i]);
+        else
+            PUT("value reference %u is %s, %s %s variable, not %s %s variable", vr[i],
+                MODEL_VARIABLES[vr[i]].name,
+                MODEL_VARIABLES[vr[i]].type == TYPE_REAL ? "a" : "an",
+                TYPE_NAME[MODEL_VARIABLES[vr[i]].type],
+                (type[0] == 'I' || type[0] == 'U') ? "an" : "a", type);
+    }
+    PUT("; allowed: the %s value references of modelDescription.xml (", type);
+    int any = 0;
+    for (int i = 0; type_code >= 0 && i < N_VARIABLES; i++)
+        if ((int)MODEL_VARIABLES[i].type == type_code) {
+            PUT(any ? ", %d" : "%d", i);
+            any = 1;
+        }
+    if (FMI_VERSION == 3 && type_code == TYPE_REAL && reading) {
+        PUT(any ? ", %d" : "%d", N_VARIABLES);
+        any = 1;
+    }
+    PUT("%s)", any ? "" : "none");
+#undef PUT
+}
+
+Status cs_get(ModelInstance *comp, const char *function, VariableType type,
+              const unsigned int vr[], size_t n, double reals[], int ints[])
+{
+    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
+                    STATE_TERMINATED))
+        return STATUS_ERROR;
+    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
+        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
+               (unsigned long)n);
+        return STATUS_ERROR;
+    }
+    for (size_t i = 0; i < n; i++)
+        if (bad_reference(vr[i], type, 1)) {
+            char text[MESSAGE_SIZE];
+            bad_references(text, sizeof text, vr, n, TYPE_NAME[type], type, 1);
+            cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
+            return STATUS_ERROR;
+        }
+    if (refresh(comp, function) != STATUS_OK)
+        return STATUS_ERROR;
+    for (size_t i = 0; i < n; i++) {
+        if (IS_TIME(vr[i]))
+            reals[i] = comp->time;
+        else if (type == TYPE_REAL)
+            reals[i] = *REAL_AT(comp, vr[i]);
+        else
+            ints[i] = *INT_AT(comp, vr[i]);
+    }
+    return STATUS_OK;
+}
+
+Status cs_set(ModelInstance *comp, const char *function, VariableType type,
+              const unsigned int vr[], size_t n, const double reals[], const int ints[])
+{
+    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
+                    STATE_TERMINATED))
+        return STATUS_ERROR;
+    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
+        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
+               (unsigned long)n);
+        return STATUS_ERROR;
+    }
+    /* every problem of the call first (all but the last logged, the last with the error):
+     * a rejected call changes nothing */
+    char problems[8][MESSAGE_SIZE];
+    int np = 0;
+    if (comp->state == STATE_TERMINATED)
+        snprintf(problems[np++], MESSAGE_SIZE, "the instance is terminated (%s); allowed: %s, "
+                 "%s, the get functions and %s", FMI_VERSION == 2 ? "fmi2Terminate" :
+                 "fmi3Terminate", FMI_VERSION == 2 ? "fmi2Reset" : "fmi3Reset",
+                 FMI_VERSION == 2 ? "fmi2FreeInstance" : "fmi3FreeInstance",
+                 FMI_VERSION == 2 ? "fmi2SetFMUstate" : "fmi3SetFMUState");
+    for (size_t i = 0; i < n; i++)
+        if (bad_reference(vr[i], type, 0)) {
+            bad_references(problems[np++], MESSAGE_SIZE, vr, n, TYPE_NAME[type], type, 0);
+            break;
+        }
+    for (size_t i = 0; i < n && np < 8; i++) {
+        if (bad_reference(vr[i], type, 0))
+            continue;
+        const VariableInfo *info = &MODEL_VARIABLES[vr[i]];
+        char b[32];
+        if (info->causality == CAUSALITY_OUTPUT)
+            snprintf(problems[np++], MESSAGE_SIZE, "%s is an output; only parameters and "
+                     "inputs can be set", info->name);
+        else if (type == TYPE_REAL && !isfinite(reals[i]))
+            snprintf(problems[np++], MESSAGE_SIZE, "%s = %s is not finite; %s accepts finite "
+                     "values only", info->name, repr_double(reals[i], b),
+                     CAUSALITY_NAME[info->causality]);
+        else if (info->causality == CAUSALITY_PARAMETER && comp->initialised)
+            snprintf(problems[np++], MESSAGE_SIZE, "%s is a fixed parameter and cannot be "
+                     "changed after initialisation (it stays %s)", info->name,
+                     info->type == TYPE_REAL ? repr_double(*REAL_AT(comp, vr[i]), b)
+                     : (snprintf(b, sizeof b, "%d", *INT_AT(comp, vr[i])), b));
+    }
+    if (np) {
+        for (int i = 0; i < np - 1; i++)
+            cs_log(comp, STATUS_ERROR, "%s: %s", function, problems[i]);
+        cs_log(comp, STATUS_ERROR, "%s: %s%s", function, problems[np - 1],
+               n > 1 ? "; nothing was set" : "");
+        return STATUS_ERROR;
+    }
+    for (size_t i = 0; i < n; i++) {
+        if (type == TYPE_REAL)
+            *REAL_AT(comp, vr[i]) = reals[i];
+        else
+            *INT_AT(comp, vr[i]) = ints[i];
+    }
+    if (n)
+        comp->dirty = 1;
+    return STATUS_OK;
+}
+
+Status cs_no_such_type(ModelInstance *comp, const char *function, const char *type,
+                       const unsigned int vr[], size_t n)
+{
+    if (n == 0)
+        return STATUS_OK;
+    if (!vr) {
+        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
+               (unsigned long)n);
+        return STATUS_ERROR;
+    }
+    char text[MESSAGE_SIZE];
+    bad_references(text, sizeof text, vr, n, type, -1, 0);
+    cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
+    return STATUS_ERROR;
+}
+
+/* ---- the step rule (STEP_RULE.md), as fmu_src/slave_base.py keeps it ---------------------- */
+
+/* Neumaier's compensated sum of the step sizes (slave_base._add). */
+static void add_step(double *s, double *c, double x)
+{
+    double t = *s + x;
+    if (fabs(*s) >= fabs(x))
+        *c += (*s - t) + x;
+    else
+        *c += (x - t) + *s;
+    *s = t;
+}
+
+Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h)
+{
+    (void)currentTime;   /* the FMU keeps its own time */
+    char bh[32], bt[32], bl[32];
+    if (comp->state == STATE_TERMINATED) {
+        cs_log(comp, STATUS_ERROR, "cannot step: the instance is terminated (%s); allowed: %s, "
+               "then initialise again", FMI_VERSION == 2 ? "fmi2Terminate" : "fmi3Terminate",
+               FMI_VERSION == 2 ? "fmi2Reset" : "fmi3Reset");
+        return STATUS_ERROR;
+    }
+    if (!cs_allowed(comp, function, STATE_STEP))
+        return STATUS_ERROR;
+    if (!comp->initialised) {
+        cs_log(comp, STATUS_ERROR, "cannot step: initialisation did not complete (see the "
+               "errors above)");
+        return STATUS_ERROR;
+    }
+    if (!(isfinite(h) && h > 0.0)) {
+        cs_log(comp, STATUS_ERROR, "communication step h = %s s; allowed: a finite h > 0",
+               repr_double(h, bh));
+        return STATUS_ERROR;
+    }
+    const double Ts = comp->v.Ts, tol = SAMPLE_TOLERANCE;
+    const int64_t k = comp->k;
+    double elapsed = comp->elapsed, elapsed_c = comp->elapsed_c;
+    add_step(&elapsed, &elapsed_c, h);
+    const double position = (elapsed + elapsed_c) / Ts;   /* t + h in sample periods */
+    const double limit = (double)MAX_SAMPLES_PER_STEP;
+    if (!(position - tol <= limit + (double)k - 1.0)) {
+        cs_log(comp, STATUS_ERROR, "communication step h = %s s spans more than %lld sample "
+               "instants of Ts = %s s; allowed: at most MAX_SAMPLES_PER_STEP = %lld sample "
+               "instants per step, h <= about %s s", repr_double(h, bh),
+               (long long)MAX_SAMPLES_PER_STEP, repr_double(Ts, bt),
+               (long long)MAX_SAMPLES_PER_STEP, repr_double(limit * Ts, bl));
+        return STATUS_ERROR;
+    }
+    const int64_t last = (int64_t)ceil(position - tol);   /* first instant at or after t + h */
+    const int64_t m = last + 1 - k > 0 ? last + 1 - k : 0;   /* instants in [t, t + h) */
+    StepPlan plan;
+    plan.k_first = k;
+    plan.n = m;
+    plan.first_pending = comp->pending && m > 0;
+    plan.end_pending = (double)last <= position + tol;
+    plan.k_end = k + m;
+
+    Backup backup = {comp->v, comp->h};
+    if (plan.first_pending && refresh(comp, function) != STATUS_OK)
+        return STATUS_ERROR;
+    const char *bad = model_advance(comp, &plan);
+    if (!bad) {   /* the output guard */
+        for (int i = 0; i < N_VARIABLES; i++)
+            if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT &&
+                MODEL_VARIABLES[i].type == TYPE_REAL && !isfinite(*REAL_AT(comp, i))) {
+                bad = MODEL_VARIABLES[i].name;
+                break;
+            }
+    }
+    if (bad) {
+        comp->v = backup.v;
+        comp->h = backup.h;
+        cs_log(comp, STATUS_ERROR, "%s would not be finite in the step from t = %s s by h = %s "
+               "s: the inputs and parameters overflow the model; allowed: values whose outputs "
+               "and state stay finite (nothing was changed)", bad, repr_double(comp->time, bt),
+               repr_double(h, bh));
+        return STATUS_ERROR;
+    }
+    comp->elapsed = elapsed;
+    comp->elapsed_c = elapsed_c;
+    comp->time = comp->startTime + (elapsed + elapsed_c);
+    comp->k = k + m;
+    comp->pending = plan.end_pending;
+    comp->dirty = 1;
+    return STATUS_OK;
+}
+
+/* ---- FMU states ------------------------------------------------------------------------- */
+
+#define STATE_MAGIC "driftfmu-state-1"
+
+typedef struct {
+    char magic[24];             /* STATE_MAGIC */
+    char model[32];             /* MODEL_NAME */
+    char token[64];             /* INSTANTIATION_TOKEN */
+    char version[24];           /* MODEL_VERSION */
+    uint64_t size;              /* sizeof(Snapshot) */
+} StateHeader;
+
+typedef struct {
+    StateHeader header;
+    ModelVariables v;
+    ModelHidden h;
+    double startTime, time, elapsed, elapsed_c;
+    int64_t k;
+    int32_t pending, dirty, initialised, state;
+} Snapshot;
+
+static void fill_header(StateHeader *header)
+{
+    memset(header, 0, sizeof *header);
+    strncpy(header->magic, STATE_MAGIC, sizeof header->magic - 1);
+    strncpy(header->model, MODEL_NAME, sizeof header->model - 1);
+    strncpy(header->token, INSTANTIATION_TOKEN, sizeof header->token - 1);
+    strncpy(header->version, MODEL_VERSION, sizeof header->version - 1);
+    header->size = sizeof(Snapshot);
+}
+
+static int header_ok(ModelInstance *comp, const char *function, const StateHeader *header)
+{
+    StateHeader mine;
+    fill_header(&mine);
+    if (memcmp(header, &mine, sizeof mine) == 0)
+        return 1;
+    if (strncmp(header->magic, STATE_MAGIC, sizeof header->magic) != 0) {
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: no driftfmu state header",
+               function, MODEL_NAME);
+    } else {
+        char model[33] = "", token[65] = "", version[25] = "";
+        memcpy(model, header->model, sizeof header->model);
+        memcpy(token, header->token, sizeof header->token);
+        memcpy(version, header->version, sizeof header->version);
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s %s (%s): it is a state of %s %s "
+               "(%s)", function, MODEL_NAME, MODEL_VERSION, INSTANTIATION_TOKEN, model, version,
+               token);
+    }
+    return 0;
+}
+
+static int state_allowed(ModelInstance *comp, const char *function)
+{
+    return cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
+                      STATE_TERMINATED);
+}
+
+Status cs_get_state(ModelInstance *comp, const char *function, void **state)
+{
+    if (!state_allowed(comp, function))
+        return STATUS_ERROR;
+    if (!state) {
+        cs_log(comp, STATUS_ERROR, "%s: the FMU state pointer is NULL", function);
+        return STATUS_ERROR;
+    }
+    Snapshot *s = *state;
+    if (s && !header_ok(comp, function, &s->header))
+        return STATUS_ERROR;
+    if (!s) {
+        s = malloc(sizeof *s);
+        if (!s) {
+            cs_log(comp, STATUS_ERROR, "%s: out of memory", function);
+            return STATUS_ERROR;
+        }
+    }
+    memset(s, 0, sizeof *s);   /* padding too: equal states serialise to equal bytes */
+    fill_header(&s->header);
+    s->v = comp->v;
+    s->h = comp->h;
+    s->startTime = comp->startTime;
+    s->time = comp->time;
+    s->elapsed = comp->elapsed;
+    s->elapsed_c = comp->elapsed_c;
+    s->k = comp->k;
+    s->pending = comp->pending;
+    s->dirty = comp->dirty;
+    s->initialised = comp->initialised;
+    s->state = (int32_t)comp->state;
+    *state = s;
+    return STATUS_OK;
+}
+
+Status cs_set_state(ModelInstance *comp, const char *function, const void *state)
+{
+    if (!state_allowed(comp, function))
+        return STATUS_ERROR;
+    const Snapshot *s = state;
+    if (!s) {
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: NULL", function, MODEL_NAME);
+        return STATUS_ERROR;
+    }
+    if (!header_ok(comp, function, &s->header))
+        return STATUS_ERROR;
+    comp->v = s->v;
+    comp->h = s->h;
+    comp->startTime = s->startTime;
+    comp->time = s->time;
+    comp->elapsed = s->elapsed;
+    comp->elapsed_c = s->elapsed_c;
+    comp->k = s->k;
+    comp->pending = s->pending;
+    comp->dirty = s->dirty;
+    comp->initialised = s->initialised;
+    comp->state = (ModelState)s->state;
+    return STATUS_OK;
+}
+
+Status cs_free_state(ModelInstance *comp, const char *function, void **state)
+{
+    (void)comp;
+    (void)function;
+    if (state) {
+        free(*state);
+        *state = NULL;
+    }
+    return STATUS_OK;
+}
+
+size_t cs_serialized_size(void)
+{
+    return sizeof(Snapshot);
+}
+
+Status cs_serialize(ModelInstance *comp, const char *function, const void *state,
+                    unsigned char *bytes, size_t size)
+{
+    const Snapshot *s = state;
+    if (!s || !header_ok(comp, function, &s->header))
+        return STATUS_ERROR;
+    if (!bytes || size < sizeof *s) {
+        cs_log(comp, STATUS_ERROR, "%s: a buffer of %lu bytes; a state of %s needs %lu",
+               function, (unsigned long)size, MODEL_NAME, (unsigned long)sizeof *s);
+        return STATUS_ERROR;
+    }
+    memcpy(bytes, s, sizeof *s);
+    return STATUS_OK;
+}
+
+Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned char *bytes,
+                      size_t size, void **state)
+{
+    if (!state || !bytes) {
+        cs_log(comp, STATUS_ERROR, "%s: a NULL argument", function);
+        return STATUS_ERROR;
+    }
+    Snapshot s;
+    memset(&s, 0, sizeof s);
+    if (size != sizeof s) {
+        if (size >= sizeof s.header) {
+            memcpy(&s.header, bytes, sizeof s.header);
+            if (!header_ok(comp, function, &s.header))
+                return STATUS_ERROR;
+        }
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: %lu bytes, a state has %lu",
+               function, MODEL_NAME, (unsigned long)size, (unsigned long)sizeof s);
+        return STATUS_ERROR;
+    }
+    memcpy(&s, bytes, sizeof s);
+    if (!header_ok(comp, function, &s.header))
+        return STATUS_ERROR;
+    if (s.state != STATE_INSTANTIATED && s.state != STATE_INITIALIZATION &&
+        s.state != STATE_STEP && s.state != STATE_TERMINATED) {
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: mode %d", function,
+               MODEL_NAME, (int)s.state);
+        return STATUS_ERROR;
+    }
+    Snapshot *copy = malloc(sizeof *copy);
+    if (!copy) {
+        cs_log(comp, STATUS_ERROR, "%s: out of memory", function);
+        return STATUS_ERROR;
+    }
+    *copy = s;
+    *state = copy;
+    return STATUS_OK;
+}

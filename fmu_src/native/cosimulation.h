@@ -1,0 +1,56 @@
+/*
+ * cosimulation.h - the FMI-version-independent half of the plumbing (cosimulation.c): the
+ * lifecycle, the state machine, get/set by value reference, the step rule, FMU states.
+ * fmi2Functions.c and fmi3Functions.c are thin adapters onto these calls.
+ */
+#ifndef DRIFTFMU_COSIMULATION_H
+#define DRIFTFMU_COSIMULATION_H
+
+#include "model.h"
+
+/* A new instance in state Instantiated, or NULL (after logging why through `log`). */
+ModelInstance *cs_instantiate(const char *instanceName, const char *token, int loggingOn,
+                              HostLogger log, void *const hostData[4], const char *function);
+void cs_free(ModelInstance *comp);
+
+Status cs_set_debug_logging(ModelInstance *comp, int loggingOn);
+Status cs_setup(ModelInstance *comp, const char *function, double startTime);
+Status cs_enter_initialization(ModelInstance *comp, const char *function);
+Status cs_exit_initialization(ModelInstance *comp, const char *function);
+Status cs_terminate(ModelInstance *comp, const char *function);
+Status cs_reset(ModelInstance *comp, const char *function);
+
+/* Get/set `n` variables of `type` (TYPE_REAL: `reals`, TYPE_INTEGER: `ints`). A rejected call
+ * changes nothing. */
+Status cs_get(ModelInstance *comp, const char *function, VariableType type,
+              const unsigned int vr[], size_t n, double reals[], int ints[]);
+Status cs_set(ModelInstance *comp, const char *function, VariableType type,
+              const unsigned int vr[], size_t n, const double reals[], const int ints[]);
+/* A get/set of a type the model has no variable of (Boolean, String, ...). */
+Status cs_no_such_type(ModelInstance *comp, const char *function, const char *type,
+                       const unsigned int vr[], size_t n);
+
+Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h);
+
+/* FMU states: opaque copies of the variables, hidden state, time, sample index and mode. */
+Status cs_get_state(ModelInstance *comp, const char *function, void **state);
+Status cs_set_state(ModelInstance *comp, const char *function, const void *state);
+Status cs_free_state(ModelInstance *comp, const char *function, void **state);
+size_t cs_serialized_size(void);
+Status cs_serialize(ModelInstance *comp, const char *function, const void *state,
+                    unsigned char *bytes, size_t size);
+Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned char *bytes,
+                      size_t size, void **state);
+
+/* "<function>: <call> is not allowed in <mode>; allowed in: ..." when the mode is not in
+ * `allowed` (a mask of ModelState); returns nonzero when the call may go on. */
+int cs_allowed(ModelInstance *comp, const char *function, int allowed);
+/* A function the FMU does not support (Model Exchange, clocks, ...). */
+Status cs_unsupported(ModelInstance *comp, const char *function);
+void cs_log(ModelInstance *comp, Status status, const char *format, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 3, 4)))
+#endif
+    ;
+
+#endif
