@@ -279,7 +279,7 @@ def fmi_headers(fmi_version):
 
 def _generate():
     """fmu_src/native/models/generate.py: the C units of each FMU and the generated parameter
-    table of models.parameters (branch native-math)."""
+    table of models.parameters."""
     return importlib.import_module("driftfmu.fmu_src.native.models.generate")
 
 

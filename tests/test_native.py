@@ -321,7 +321,7 @@ def test_random_parameters_and_steps_equal_the_python_fmus(built_fmus, native_fm
 
 
 def test_non_whole_steps_fmi2_equals_fmi3_and_samples_stay_on_the_grid(native_fmus, built_fmus):
-    """Steps that are not whole sample periods (STEP_RULE.md): both FMI versions agree bit for
+    """Steps that are not whole sample periods (the step rule of slave_base): both FMI versions agree bit for
     bit; at points on the sample grid the excitation and the plain sensor (no filter) give the
     values of the whole-step run; where the Python FMUs accept such steps they agree too."""
     start, _, _, Ts = gaussian_run()
@@ -351,7 +351,7 @@ def test_non_whole_steps_fmi2_equals_fmi3_and_samples_stay_on_the_grid(native_fm
 def test_random_parameters_and_non_whole_steps(built_fmus, native_fmus, case):
     """Random parameter sets with steps of fractions and non-whole multiples of Ts and a state
     restore in the middle: FMI 2.0 and 3.0 agree bit for bit, the restored run repeats the
-    first, and so do the Python FMUs wherever they accept such steps (STEP_RULE.md)."""
+    first, and so do the Python FMUs wherever they accept such steps (the step rule of slave_base)."""
     rng = random.Random(777 + case)
     start, _ = random_case(rng)
     Ts = start["Excitation"]["Ts"]

@@ -555,7 +555,7 @@ HARNESS = Path(__file__).resolve().parent / "native_harness"
 NATIVE = generate.HERE.parent
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
           "DriftEstimator": DriftEstimator}
-#: The step rule of STEP_RULE.md (any h > 0) is in slave_base when the harden-py branch is in.
+#: The step rule of slave_base (any h > 0).
 VARIABLE_STEPS = hasattr(slave_base, "MAX_SAMPLES_PER_STEP")
 
 

@@ -548,7 +548,7 @@ Status cs_no_such_type(ModelInstance *comp, const char *function, const char *ty
     return STATUS_ERROR;
 }
 
-/* ---- the step rule (STEP_RULE.md), as fmu_src/slave_base.py keeps it ---------------------- */
+/* ---- the step rule (slave_base.STEP_RULE), as fmu_src/slave_base.py keeps it ---------------------- */
 
 /* Neumaier's compensated sum of the step sizes (slave_base._add). */
 static void add_step(double *s, double *c, double x)

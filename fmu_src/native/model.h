@@ -17,7 +17,7 @@
  * model_advance, and the plain-data struct ModelHidden (no pointers: FMU states copy it with
  * memcpy and serialise its bytes).
  *
- * Timing (STEP_RULE.md): sample k = 1, 2, ... sits at t_k = startTime + (k - 1) Ts.  The FMU
+ * Timing (slave_base.STEP_RULE): sample k = 1, 2, ... sits at t_k = startTime + (k - 1) Ts.  The FMU
  * keeps its own time (startTime plus the sum of the accepted steps).  After initialisation it
  * is at sample 1, pending: its input-dependent outputs are computed from the inputs set at this
  * communication point.
@@ -59,7 +59,7 @@ struct ModelInstance;
 typedef void (*HostLogger)(struct ModelInstance *comp, Status status, const char *category,
                            const char *message);
 
-/* The largest number of sample instants one doStep may process (STEP_RULE.md). */
+/* The largest number of sample instants one doStep may process (slave_base.STEP_RULE). */
 #define MAX_SAMPLES_PER_STEP 1000000LL
 /* A sample instant is "at" a time within this fraction of a sample period. */
 #define SAMPLE_TOLERANCE 1e-6
@@ -109,7 +109,7 @@ void model_start(ModelInstance *comp);
  * the state as it was before the call and returns an error naming it). */
 const char *model_compute(ModelInstance *comp);
 
-/* Process the sample instants of one step (STEP_RULE.md): commit plan->k_first if
+/* Process the sample instants of one step (slave_base.STEP_RULE): commit plan->k_first if
  * plan->first_pending, process the other instants with the inputs held from t (zero-order
  * hold), and, if plan->end_pending, make plan->k_end pending (outputs that depend on no input
  * computed; the others are computed by model_compute from the inputs set at t + h).  Otherwise

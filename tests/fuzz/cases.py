@@ -22,8 +22,8 @@ from . import DISCARD, ERROR, WARNING, Sequence, header, run_script, word
 CASES = {}
 WHERE = {}
 ALL_MODELS = set()
-#: Cases that fail on this branch because of a bug on the Python side (harden-py's part of
-#: issue 9), with the bug; tests/test_fuzz.py marks them xfail.
+#: Cases known to fail because of a bug on the Python side, with the bug; tests/test_fuzz.py
+#: marks them xfail (none today: keep it empty).
 PYTHON_SIDE = {}
 
 

@@ -1,4 +1,4 @@
-/* A stand-in for fmu_src/native/model.h (the native helper's plumbing contract) with only what
+/* A stand-in for fmu_src/native/model.h (the plumbing's contract) with only what
  * the step-logic units use: the tests of fmu_src/native/models compile against it when the real
  * header is not in the tree (tests/test_native_models.py uses the real one when it is).  Field
  * and type names are those of the real header. */
