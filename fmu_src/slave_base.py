@@ -204,8 +204,12 @@ class SlaveBase(Fmi2Slave):
                     for vr in vrs]
         if self._dirty and self._at_sample and (self._in_init or (
                 self._initialised and self.DEPENDENCIES)):
-            self._call(self._refresh)  # outputs at this communication point, from its inputs
-        return [float(getattr(self, name)) for name in wanted]
+            try:  # outputs at this communication point, from its inputs
+                self._refresh()
+            except Exception as exc:
+                self._failed("_refresh", exc)
+        d = self.__dict__
+        return [float(d[name]) for name in wanted]
 
     def get_integer(self, vrs):
         return self._get_typed("fmi2GetInteger", "Integer", vrs, 0, int)
@@ -324,13 +328,16 @@ class SlaveBase(Fmi2Slave):
         """Run the body of an FMI call; return True, or False after logging what went wrong."""
         try:
             action(*args)
-            return True
-        except ModelError:
-            return False
-        except Exception as exc:  # a bug must reach the host's log, not crash or vanish
-            self._log_error("internal error in %s: %s: %s"
-                            % (getattr(action, "__name__", "call"), type(exc).__name__, exc))
-            return False
+        except Exception as exc:
+            return self._failed(getattr(action, "__name__", "call"), exc)
+        return True
+
+    def _failed(self, where, exc):
+        """False, for an FMI call whose body ``where`` raised ``exc``: a ModelError is logged
+        already; anything else is a bug, which must reach the host's log, not crash or vanish."""
+        if not isinstance(exc, ModelError):
+            self._log_error("internal error in %s: %s: %s" % (where, type(exc).__name__, exc))
+        return False
 
     def _not_finite(self, name, value, k):
         """Refuse a sample whose output or hidden state ``name`` would be ``value`` (not
@@ -411,7 +418,11 @@ class SlaveBase(Fmi2Slave):
         self._dirty = False
 
     def do_step(self, current_time, step_size):
-        return self._call(self._step, step_size)
+        try:  # (_call written out: this runs once per communication step)
+            self._step(step_size)
+        except Exception as exc:
+            return self._failed("_step", exc)
+        return True
 
     def _step(self, h):
         if self._terminated:
