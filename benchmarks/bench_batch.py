@@ -3,11 +3,11 @@
 All three run the letter's Gaussian chain (a1 = 1, a2 = 0.01, Q = 0.01, R = 1e-4, A = 0): the
 scalar EKF and the three drift estimators.
 
-- batch engine, one process: :func:`simulations.batch.simulate` on ``--runs`` runs of ``--n``
+- batch engine, one process: :func:`driftfmu.simulations.batch.simulate` on ``--runs`` runs of ``--n``
   samples at once (noise, excitation, sensor, EKF, estimators, references);
 - batch engine, the default ``driftfmu sweep`` (6 x 5 grid, 1000 runs of 1000 samples) on all
   local cores, wall time;
-- FMU path: one run co-simulated with the three FMUs (:func:`simulations.batch.fmu_simulate`),
+- FMU path: one run co-simulated with the three FMUs (:func:`driftfmu.simulations.batch.fmu_simulate`),
   ``--fmu-n`` samples with the instantiation included, and per additional sample;
 - filterpy: ``filterpy.kalman.ExtendedKalmanFilter`` (1 state, 1 measurement) in a Python loop,
   ``predict`` + ``update`` with the same ``h`` and Jacobian, plus the three drift estimators in

@@ -1,7 +1,7 @@
 """Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + v, and the richer
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
-noise density) of :mod:`models.adxl203`, every extra off by default; or (``dual = 1``) the
-dual-axis bilinear sensor of :mod:`models.dualaxis`, z = a0 + a1 x + a2 x^2 + bx x y + v_x and
+noise density) of :mod:`driftfmu.models.adxl203`, every extra off by default; or (``dual = 1``) the
+dual-axis bilinear sensor of :mod:`driftfmu.models.dualaxis`, z = a0 + a1 x + a2 x^2 + bx x y + v_x and
 z_y = a0y + a1y y + a2y y^2 + by x y + v_y."""
 
 import math

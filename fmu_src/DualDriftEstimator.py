@@ -1,5 +1,5 @@
 """DualDriftEstimator FMU: the EKF over both axes of a dual-axis sensor with a bilinear cross
-term, and each axis's drift a2 E[x^2] + b E[x y] by EKF1, EKF2, EKF3 (:mod:`models.dualaxis`);
+term, and each axis's drift a2 E[x^2] + b E[x y] by EKF1, EKF2, EKF3 (:mod:`driftfmu.models.dualaxis`);
 process model Gauss-Markov over (x, y) or two harmonic oscillators at a known frequency.
 
 A new FMU rather than a mode of DriftEstimator: DriftEstimator's interface (its variables and

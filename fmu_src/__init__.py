@@ -1,5 +1,5 @@
 """pythonfmu slave classes (one per file) and the FMU builder.
 
-Each slave is a thin adapter over :mod:`models`: it reads inputs, calls one models/ function and
-stores outputs.  The FMI plumbing they share lives once in :mod:`fmu_src.slave_base`.
+Each slave is a thin adapter over :mod:`driftfmu.models`: it reads inputs, calls one models/ function and
+stores outputs.  The FMI plumbing they share lives once in :mod:`driftfmu.fmu_src.slave_base`.
 """

@@ -89,7 +89,7 @@ def var(name, causality, start=None, unit=None, description=None, type="Real",
         variability=None, low=None, high=None):
     """One row of a slave's ``VARIABLES`` table.
 
-    Parameters named as in :data:`models.parameters.PARAMETERS` take their start value, unit,
+    Parameters named as in :data:`driftfmu.models.parameters.PARAMETERS` take their start value, unit,
     range and description from there unless given here; an open bound there (``R > 0``) is
     declared as the accepted double next to it (FMI 2 bounds are closed).
     """

@@ -1,7 +1,7 @@
 """A richer accelerometer that can play the ADXL203, and the chain around it.
 
 Every extra effect is off by default, and then the output is the letter's sensor,
-``z = a0 + a1 x + a2 x^2 + sqrt(R) v`` (:func:`models.sensor.measure`, same bits).  Switched on:
+``z = a0 + a1 x + a2 x^2 + sqrt(R) v`` (:func:`driftfmu.models.sensor.measure`, same bits).  Switched on:
 
 * cubic term ``a3 u^3`` and cross-axis coupling: each axis senses its own acceleration plus
   ``cross`` times the other's, ``u_x = x + cross y``, ``u_y = y + cross x``;
@@ -28,7 +28,7 @@ Per sample, with ``s`` the pre-filter signal in volts above zero-g:
 
 All functions run on floats (one FMU) and arrays (a batch of sets) with the same bits; the
 filter coefficient and the other constants are computed once, from scalars (``alpha`` with the
-arithmetic-only :func:`models._ops.exp`, so that the C port gives the same bits).
+arithmetic-only :func:`driftfmu.models._ops.exp`, so that the C port gives the same bits).
 """
 import math
 from collections import namedtuple
@@ -154,7 +154,7 @@ def measure(prev, own, other, v, cfg):
     """One sample of an axis: ``(filter state, output z)``.
 
     ``prev`` is the filter state after the previous sample (None before the first).  With every
-    extra off this is :func:`models.sensor.measure` (state None).
+    extra off this is :func:`driftfmu.models.sensor.measure` (state None).
     """
     if cfg.plain:
         return None, sensor.measure(own, cfg.a0, cfg.a1, cfg.a2, cfg.R, v)

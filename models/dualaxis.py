@@ -10,12 +10,12 @@ cross term:
 
 so the drift (DC offset) of each axis is ``a2 E[x^2] + bx E[x y]`` and ``a2y E[y^2] + by E[x y]``.
 For ``x = X sin(theta)``, ``y = Y sin(theta - dphi)``: ``E[x y] = X Y cos(dphi) / 2``; for the 2-D
-Gauss-Markov excitation (:func:`models.excitation.gaussian_pair`): ``E[x y] = rho sigma_x sigma_y``.
+Gauss-Markov excitation (:func:`driftfmu.models.excitation.gaussian_pair`): ``E[x y] = rho sigma_x sigma_y``.
 A single-axis estimator cannot see the cross term.
 
 The filter is an EKF over ``s = (x, y)`` (Gauss-Markov process ``s_k = A s_{k-1} + w_k``,
 ``Cov w = [[Q, rho sqrt(Q Qy)], [., Qy]]``) or over two harmonic oscillators at the known
-frequency, ``s = (c_x, d_x, c_y, d_y)`` (each rotated as in :mod:`models.harmonic`), with both
+frequency, ``s = (c_x, d_x, c_y, d_y)`` (each rotated as in :mod:`driftfmu.models.harmonic`), with both
 outputs as the measurement vector and the 2 x n Jacobian with the cross terms,
 
 .. math::
@@ -34,7 +34,7 @@ processed one output at a time; algebraically identical, no 2 x 2 inverse).  The
 are written out with scalars so an FMU needs only the standard library, and the same code runs
 on floats and on NumPy arrays with the same bits.  Each scalar update is arranged so that with
 ``bx = by = 0`` and no cross covariance (``rho = 0``) every cross contribution is an exact zero:
-the filter is then the single-axis filters of :mod:`models.ekf` / :mod:`models.harmonic` on
+the filter is then the single-axis filters of :mod:`driftfmu.models.ekf` / :mod:`driftfmu.models.harmonic` on
 each axis, bit for bit.
 
 Drift estimators, generalised (``k = 1, 2, ...``, posterior moments of the measured components):
@@ -48,7 +48,7 @@ Drift estimators, generalised (``k = 1, 2, ...``, posterior moments of the measu
     \\text{EKF3:}\\; s_{xx}, s_{xy} = \\text{running means of } x^{+2}, x^+ y^+, \\quad
                     dc_{x,k} = \\text{running mean of } a_2 s_{xx,k} + b_x s_{xy,k}
 
-and likewise for ``y`` with ``a2y, by``; ``b = 0`` gives :mod:`models.drift` bit for bit.
+and likewise for ``y`` with ``a2y, by``; ``b = 0`` gives :mod:`driftfmu.models.drift` bit for bit.
 """
 import math
 from collections import namedtuple
@@ -91,7 +91,7 @@ def measure(x, y, ax, ay, vx, vy):
 
 def noise(seed, k):
     """The two axes' standard normal measurement draws at sample ``k`` (streams of
-    :mod:`models.adxl203`: the x axis is the single-axis sensor's stream)."""
+    :mod:`driftfmu.models.adxl203`: the x axis is the single-axis sensor's stream)."""
     return normal(seed, STREAM_MEASUREMENT, k), normal(seed, STREAM_MEASUREMENT_Y, k)
 
 
@@ -130,7 +130,7 @@ def scale(ax, ay, Exx, Exy_max, Eyy):
 
 def _row2(o, t, Poo, Pot, Ptt, H, G, e, R):
     """Update ``(own, other)`` with one output whose Jacobian row is ``(H, G)`` (own, other) and
-    innovation ``e``; Joseph form.  ``G = Pot = 0`` is :func:`models.ekf.update`, same bits."""
+    innovation ``e``; Joseph form.  ``G = Pot = 0`` is :func:`driftfmu.models.ekf.update`, same bits."""
     S = H * H * Poo + (2.0 * H * G * Pot + G * G * Ptt) + R
     Ko = (Poo * H + Pot * G) / S
     Kt = (Pot * H + Ptt * G) / S
@@ -149,7 +149,7 @@ def _row2(o, t, Poo, Pot, Ptt, H, G, e, R):
 def _row4(o, od, t, td, P, H, G, e, R):
     """The same for the harmonic model, states ``1 = own c, 2 = own d, 3 = other c, 4 = other
     d``, Jacobian row ``(H, 0, G, 0)``, ``P = (P11, P12, P22, P13, P14, P23, P24, P33, P34,
-    P44)``.  ``G = 0`` with no cross covariance is :func:`models.harmonic.update`, same bits."""
+    P44)``.  ``G = 0`` with no cross covariance is :func:`driftfmu.models.harmonic.update`, same bits."""
     P11, P12, P22, P13, P14, P23, P24, P33, P34, P44 = P
     S = H * H * P11 + (2.0 * H * G * P13 + G * G * P33) + R
     K1 = (P11 * H + P13 * G) / S
@@ -210,14 +210,14 @@ def update2(x, y, Pxx, Pxy, Pyy, zx, zy, ax, ay):
 
 
 def predict2(x, y, Pxx, Pxy, Pyy, A, Q, Qy, Qxy):
-    """Time update ``(A s, A^2 P + Q)`` of the Gauss-Markov filter (as :func:`models.ekf.predict`
+    """Time update ``(A s, A^2 P + Q)`` of the Gauss-Markov filter (as :func:`driftfmu.models.ekf.predict`
     per axis)."""
     AA = A * A
     return A * x, A * y, AA * Pxx + Q, AA * Pxy + Qxy, AA * Pyy + Qy
 
 
 def predict4(st, C, S, Qh):
-    """Time update of the two oscillators: each block as :func:`models.harmonic.predict`, the
+    """Time update of the two oscillators: each block as :func:`driftfmu.models.harmonic.predict`, the
     cross block ``F B F^T`` (no cross process noise).  ``st`` is a :class:`DualHarmonicState`;
     returns the tuple ``(x, dx, y, dy, P11, P12, P22, P33, P34, P44, P13, P14, P23, P24)``."""
     x, dx, p11, p12, p22 = harmonic.predict(st.x, st.dx, st.P11, st.P12, st.P22, C, S, Qh)

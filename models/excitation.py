@@ -10,7 +10,7 @@ white for ``A = 0``; stationary variance ``Q / (1 - A^2)`` for ``|A| < 1``.
 
 Sinusoidal (Sec. IV): ``x_k = X sin(2 pi f t_k + phi)``, variance ``X^2 / 2`` over whole periods.
 
-Two axes (:mod:`models.dualaxis`): a second Gauss-Markov axis ``y`` whose process noise is
+Two axes (:mod:`driftfmu.models.dualaxis`): a second Gauss-Markov axis ``y`` whose process noise is
 correlated with ``x``'s (:func:`gaussian_pair`), or a second sinusoid at the same frequency.
 """
 from . import _ops

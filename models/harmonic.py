@@ -19,10 +19,10 @@ Predict ``P^- = F P F^T + Q_h I``; update with ``K = P^- H^T / (H P^- H^T + R)``
 ``P^+ = (I - K H) P^- (I - K H)^T + K R K^T``.  The 2x2 algebra is written out with scalars
 (``P`` is the triple ``P11, P12, P22``), so every function runs on floats (one FMU) and on arrays
 (a batch of runs) with the same bits.  ``C`` and ``S`` come from the arithmetic-only
-:func:`models._ops.sin2pi`.
+:func:`driftfmu.models._ops.sin2pi`.
 
 EKF1's drift uses the posterior second moment of the measured component, ``x+^2 + P+_11``
-(:func:`models.drift.update` with ``P = P11``); with this model on a pure sinusoid it converges
+(:func:`driftfmu.models.drift.update` with ``P = P11``); with this model on a pure sinusoid it converges
 to ``a2 X^2 / 2``.
 """
 from collections import namedtuple

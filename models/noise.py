@@ -8,7 +8,7 @@ size.  Nothing here keeps state.
 Bits: SplitMix64 (Steele, Lea and Flood, 2014) finaliser over a key derived from (seed, stream)
 plus ``k`` times the golden-ratio increment.  Uniform: the top 52 bits, centred, in (0, 1).
 Normal: Acklam's rational approximation of the inverse normal CDF (relative error below
-1.2e-9), evaluated with the arithmetic-only ``log`` of :mod:`models._ops` so that Python floats
+1.2e-9), evaluated with the arithmetic-only ``log`` of :mod:`driftfmu.models._ops` so that Python floats
 and NumPy arrays give the same bits.
 
 Integers: Python ``int`` for one instance; NumPy ``uint64`` arrays (seed per run, index per

@@ -2,11 +2,11 @@
 
 For each drive frequency, ``sets`` recordings of ``n`` samples are co-simulated with the FMUs:
 Excitation (sinusoid, per-set amplitude and phase; small transverse motion ``y``) ->
-Accelerometer (the ADXL203 preset of :mod:`models.adxl203`, whose truth holds more than the
+Accelerometer (the ADXL203 preset of :mod:`driftfmu.models.adxl203`, whose truth holds more than the
 filter's model: cubic term, cross-axis coupling, output low-pass, 12-bit ratiometric ADC, noise of
 the datasheet's density).  The first ``sets - held_out`` sets (drive ``x`` known, as from a
 reference accelerometer) fit one averaged 2nd-order model by harmonic analysis
-(:mod:`models.identify`); on the ``held_out`` remaining sets the DriftEstimator FMU (harmonic
+(:mod:`driftfmu.models.identify`); on the ``held_out`` remaining sets the DriftEstimator FMU (harmonic
 process model at the drive frequency, the fitted model, truth unknown to it) runs EKF1.  Per
 held-out set: empirical drift ``z̄ - a0`` over whole periods (``a0`` fitted), EKF1 drift at the last
 sample, and their difference.  Margin per frequency: ``10 log10(mean drift / rms difference)``
@@ -19,7 +19,7 @@ Choices: ``fs = 10 kHz`` (``Ts = 1e-4``): 50-100 samples per period, 60,000 samp
 the error of a 6 s mean, while the part stays in range; transverse motion 5 % of ``X``.
 
 Sets run in parallel (one process per core); each worker loads the FMUs once per set through
-the master of the backend (:func:`simulations.gaussian.master`: fmpy's wrappers for the Python
+the master of the backend (:func:`driftfmu.simulations.gaussian.master`: fmpy's wrappers for the Python
 FMUs, direct FMI calls for the native ones).
 """
 import math

@@ -1,11 +1,11 @@
 """Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
 
 Runs sit on the leading axis of NumPy arrays.  Sample ``k`` of every run is computed by calling
-:mod:`models.excitation`, :mod:`models.sensor`, :mod:`models.chain` (EKF and drift estimators)
-and :func:`models.drift.running_mean` on arrays of shape ``(runs,)``, exactly as one FMU calls
+:mod:`driftfmu.models.excitation`, :mod:`driftfmu.models.sensor`, :mod:`driftfmu.models.chain` (EKF and drift estimators)
+and :func:`driftfmu.models.drift.running_mean` on arrays of shape ``(runs,)``, exactly as one FMU calls
 them on floats.  Every operation in those functions is correctly rounded IEEE arithmetic, so run
 ``r`` of a batch gives bit for bit the outputs of the FMU co-simulation of that run.  The noise
-is counter-based (:mod:`models.noise`), a pure function of (seed, stream, sample), so it is
+is counter-based (:mod:`driftfmu.models.noise`), a pure function of (seed, stream, sample), so it is
 generated in blocks of ``(block, runs)`` samples at once and still equals what the FMUs draw.
 
 Seeds: run ``r`` of a batch under ``--seed S`` uses the FMU seed :func:`run_seed` ``(S, r) =
@@ -198,12 +198,12 @@ def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
 
 
 def dual_simulate(n, seeds, excitation_values, sensor_values, estimator_values, Ts, record=()):
-    """The dual-axis chain of :mod:`models.dualaxis` for ``len(seeds)`` runs at once (the batch
+    """The dual-axis chain of :mod:`driftfmu.models.dualaxis` for ``len(seeds)`` runs at once (the batch
     engine of ``driftfmu experiment dual-axis``): run ``r`` is the co-simulation of Excitation ->
     Accelerometer (``dual = 1``) -> DualDriftEstimator and the two single-axis DriftEstimators
     with both FMU seeds ``seeds[r]``, bit for bit.
 
-    Returns :func:`models.dualaxis.simulate`'s ``final_<column>`` and ``mean_xx``, ``mean_xy``,
+    Returns :func:`driftfmu.models.dualaxis.simulate`'s ``final_<column>`` and ``mean_xx``, ``mean_xy``,
     ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each ``(runs, n)``.
     """
     from driftfmu.models import dualaxis
@@ -220,8 +220,8 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
     """One run co-simulated with the three FMUs (FMU seed ``seed``); same outputs as one row of
     :func:`simulate`: the :data:`FINALS` as floats and the recorded trajectories as arrays.
 
-    Gaussian runs go through :func:`simulations.gaussian.run_gaussian`, sinusoidal ones through
-    :func:`simulations.sinusoidal.run_sinusoidal` with the Gauss-Markov filter; both also check
+    Gaussian runs go through :func:`driftfmu.simulations.gaussian.run_gaussian`, sinusoidal ones through
+    :func:`driftfmu.simulations.sinusoidal.run_sinusoidal` with the Gauss-Markov filter; both also check
     the FMUs against models/.  ``backend`` picks the FMUs (``"python"`` or ``"native"``).
     """
     from driftfmu.simulations import gaussian

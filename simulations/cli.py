@@ -4,7 +4,7 @@ One convention for every sub-command: model parameters by their paper names (``-
 ``--R 1e-4``), ``--n`` samples, ``--runs`` Monte-Carlo runs, ``--seed``, ``--out DIR`` (created if
 missing; results written whole or not at all).
 
-Exit statuses, the same for every sub-command (:mod:`simulations.errors`): 0 done; 2 a usage
+Exit statuses, the same for every sub-command (:mod:`driftfmu.simulations.errors`): 0 done; 2 a usage
 error (an option argparse refuses, or a setting the run cannot start with, such as a frequency
 above the Nyquist rate), one line on standard error; 1 a failed run (the data cannot support the
 result, an FMU or a file operation failed), one line; 130 interrupted (Ctrl-C or SIGTERM), one

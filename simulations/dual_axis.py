@@ -23,9 +23,9 @@ sweep), against which the errors are judged, so a drift that crosses zero is not
 relative error.
 
 Engines: ``fmu`` (default) co-simulates every run with the five FMU instances and checks every
-recorded output against :func:`models.dualaxis.simulate` on the same seeds, bit for bit;
+recorded output against :func:`driftfmu.models.dualaxis.simulate` on the same seeds, bit for bit;
 ``batch`` runs many runs at once through the same models/ functions
-(:func:`simulations.batch.dual_simulate`), for Monte-Carlo error bars.
+(:func:`driftfmu.simulations.batch.dual_simulate`), for Monte-Carlo error bars.
 """
 import math
 import os
@@ -50,7 +50,7 @@ CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Accelerometer", "z_y", "DualDriftEstimator", "z_y"),
                ("Accelerometer", "z", "SingleX", "z"),
                ("Accelerometer", "z_y", "SingleY", "z"))
-#: Recorded FMU outputs -> the column of :func:`models.dualaxis.simulate` they must equal.
+#: Recorded FMU outputs -> the column of :func:`driftfmu.models.dualaxis.simulate` they must equal.
 RECORD = {"Excitation": {"x": "x", "y": "y"},
           "Accelerometer": {"z": "z_x", "z_y": "z_y"},
           "DualDriftEstimator": {v: v for v in ("x_hat", "y_hat", "P_xx", "P_xy", "P_yy",
@@ -156,7 +156,7 @@ def _fmu_task(task):
 
 
 def _finals_of_columns(cols):
-    """The finals and realised moments of one FMU run (as :func:`models.dualaxis.simulate`)."""
+    """The finals and realised moments of one FMU run (as :func:`driftfmu.models.dualaxis.simulate`)."""
     mxx = mxy = myy = 0.0
     for k, (x, y) in enumerate(zip(cols["x"], cols["y"]), start=1):
         mxx = drift.running_mean(mxx, x * x, k)
@@ -184,7 +184,7 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
         Co-simulate every run through the FMUs (checked against models/ bit for bit), or run
         them at once through models/ (Monte-Carlo error bars), in chunks of
         ``batch.CHUNK`` runs on local worker processes or, with ``scheduler``, on a Dask cluster
-        (:func:`simulations.batch.run_tasks`).
+        (:func:`driftfmu.simulations.batch.run_tasks`).
     settings
         Overrides of :data:`DEFAULTS` (``n``, ``Ts``, ``f``, ``X``, ``Xy``, ``phi``, ``A``,
         ``Q``, ``Qy``, the sensor's ``a0 a1 a2 bx R a0y a1y a2y by Ry`` and ``Qh``).

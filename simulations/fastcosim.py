@@ -1,4 +1,4 @@
-"""A fast fixed-step master: the loop of :func:`simulations.cosim.cosimulate` with the FMI
+"""A fast fixed-step master: the loop of :func:`driftfmu.simulations.cosim.cosimulate` with the FMI
 functions called directly through ctypes on preallocated arrays, for FMI 2.0 and FMI 3.0.
 
 fmpy's ``FMU2Slave`` wrappers build argument arrays and check statuses in Python on every call
@@ -321,7 +321,7 @@ def _raw(function, argtypes):
 
 def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, record=None,
                     start_time=0.0, progress=None, logging_on=False):
-    """:func:`simulations.cosim.cosimulate` (Gauss-Seidel) with direct FMI calls.
+    """:func:`driftfmu.simulations.cosim.cosimulate` (Gauss-Seidel) with direct FMI calls.
 
     Parameters and result as ``cosimulate``; the FMUs may be FMI 2.0 or FMI 3.0 (mixed too).
 

@@ -1,7 +1,7 @@
 """The letter's Gaussian simulation (Sec. III, Fig. 1) as an FMU co-simulation.
 
 Excitation (Gaussian) -> Accelerometer -> DriftEstimator, fixed step ``Ts``, one row per sample.
-The master checks the FMUs against :func:`models.chain.simulate` on the same seed, sample by
+The master checks the FMUs against :func:`driftfmu.models.chain.simulate` on the same seed, sample by
 sample, and reports the drift estimates against the three references.
 """
 import math
@@ -39,8 +39,8 @@ def check_backend(backend):
 
 def master(backend="python"):
     """The co-simulation loop of ``backend``: fmpy's FMU2Slave wrappers
-    (:func:`simulations.cosim.cosimulate`) for the Python FMUs, direct FMI calls
-    (:func:`simulations.fastcosim.cosimulate_fast`, same results) for the native ones."""
+    (:func:`driftfmu.simulations.cosim.cosimulate`) for the Python FMUs, direct FMI calls
+    (:func:`driftfmu.simulations.fastcosim.cosimulate_fast`, same results) for the native ones."""
     check_backend(backend)
     if backend == "native":
         from driftfmu.simulations.fastcosim import cosimulate_fast

@@ -7,7 +7,7 @@ stream ``STREAM_PHASE`` under the run's seed), estimated with the same scalar Ga
 (filter model ``A = 0``, ``Q = X^2 / 2`` by default).
 
 The summary gives, per estimator, the fraction of runs that have settled by sample 250 (within
-10 % of the reference from that sample on, as in :func:`simulations.gaussian.settled_from`) and
+10 % of the reference from that sample on, as in :func:`driftfmu.simulations.gaussian.settled_from`) and
 the EKF1-EKF2 gap ``10 log10(dc1 / dc2)`` at the last sample over the runs.
 """
 import math
@@ -36,7 +36,7 @@ def settled_from(estimate, reference, band=SETTLE_BAND):
     """First sample (1-based) from which ``|estimate - reference| <= band |reference|`` holds to
     the end, per run (rows of ``(runs, n)`` arrays); ``n + 1`` when the last sample is outside.
 
-    The batch form of :func:`simulations.gaussian.settled_from` (which returns None for
+    The batch form of :func:`driftfmu.simulations.gaussian.settled_from` (which returns None for
     ``n + 1``).
     """
     estimate, reference = np.atleast_2d(estimate), np.atleast_2d(reference)
@@ -137,7 +137,7 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
                           progress=None, backend="python"):
     """``runs`` sinusoidal runs ``x_k = X sin(2 pi f (k-1) Ts + phi_r)`` of ``n`` samples.
 
-    ``phi_r`` is :func:`simulations.batch.sine_phase` of the run's seed; the filter is the
+    ``phi_r`` is :func:`driftfmu.simulations.batch.sine_phase` of the run's seed; the filter is the
     scalar Gauss-Markov EKF with ``A`` (default 0) and ``Q`` (default ``X^2 / 2``).  Returns
     ``sine_dc1`` ``(runs, n)`` and the other ``sine_*`` trajectories, ``sine_phi``,
     ``summary`` and ``seconds``; with ``out``: ``montecarlo.npz``, ``summary.json`` and

@@ -4,9 +4,9 @@ Excitation (``x = X sin(2 pi f t + phi)``, and ``y`` for the second axis) -> Acc
 DriftEstimator, fixed step ``Ts``, one row per sample.  The filter's process model is the letter's
 Gauss-Markov one (``process = 1``, ``A``, ``Q``) or a harmonic oscillator at ``f``
 (``process = 2``, ``Qh``).  With ``preset="adxl203"`` the accelerometer is the ADXL203 stand-in of
-:mod:`models.adxl203`, and the filter gets that part's nominal quadratic model.
+:mod:`driftfmu.models.adxl203`, and the filter gets that part's nominal quadratic model.
 
-The master checks the FMUs against :func:`models.adxl203.simulate` on the same seed, sample by
+The master checks the FMUs against :func:`driftfmu.models.adxl203.simulate` on the same seed, sample by
 sample, and reports the drift estimates against the references: the expected drift
 ``a2 E[u^2]`` (``a2 X^2 / 2`` for one axis), the realised drift and the empirical drift
 ``z̄ - a0`` over the largest whole number of periods, which is the natural reference here.

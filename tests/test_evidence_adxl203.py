@@ -2,7 +2,7 @@
 
 The experiment's margin compares EKF1 with the empirical drift ``z̄ - a0``, and both use the same
 fitted ``a0`` and ``a2``: a wrong fit moves both alike.  The stand-in knows its true drift
-(:func:`simulations.adxl203.true_drift`, checked here against the DC of the noise-free sensed
+(:func:`driftfmu.simulations.adxl203.true_drift`, checked here against the DC of the noise-free sensed
 signal); here EKF1 is held against it, at small sizes through models/ (seconds), and through
 the FMUs in the experiment itself (integration).
 """

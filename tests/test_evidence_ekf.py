@@ -3,7 +3,7 @@
 - filterpy's ``ExtendedKalmanFilter`` (a second implementation, dense matrices) with the same
   model, sample by sample, where the linearisation matters: ``A != 0`` (so the predicted state
   is not 0 and ``H = a1 + 2 a2 x-`` moves) and ``a2`` large; for the scalar filter
-  (:mod:`models.ekf`) and for the 2-state harmonic filter (:mod:`models.harmonic`).
+  (:mod:`driftfmu.models.ekf`) and for the 2-state harmonic filter (:mod:`driftfmu.models.harmonic`).
 - Joseph's covariance update where it differs from the simple form ``(1 - K H) P-``: at a
   suboptimal gain (against the Monte-Carlo error variance of that gain) and at a tiny ``R``
   (where the simple form cancels to 0).

@@ -9,7 +9,7 @@
 - The EKF1-EKF2 gap over a population against ``10 log10(1 + R / (a1^2 Q))``, with the
   population's standard error as tolerance.
 
-Runs go through the batch engine (:mod:`simulations.batch`) or vectorised models/ calls.
+Runs go through the batch engine (:mod:`driftfmu.simulations.batch`) or vectorised models/ calls.
 """
 import math
 

@@ -1,7 +1,7 @@
 """The chain as an SSP archive: schema-valid, loaded and simulated by fmpy's SSP support.
 
 fmpy's ``simulate_ssp`` is a Jacobi master (each connection delays its signal by one step, see
-fmu_src/ssp.py); its rows are compared to 1e-12 with :func:`fmu_src.ssp.jacobi_reference`, and
+fmu_src/ssp.py); its rows are compared to 1e-12 with :func:`driftfmu.fmu_src.ssp.jacobi_reference`, and
 the signal no connection feeds (the excitation) with our master's rows shifted by one.
 """
 import zipfile

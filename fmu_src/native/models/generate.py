@@ -1,8 +1,8 @@
-"""Generated C of the native models: the parameter table of :mod:`models.parameters`.
+"""Generated C of the native models: the parameter table of :mod:`driftfmu.models.parameters`.
 
-``parameters_table.h`` is written from :data:`models.parameters.PARAMETERS` (the one
+``parameters_table.h`` is written from :data:`driftfmu.models.parameters.PARAMETERS` (the one
 definition), so the C checks (``parameters.c``) use the same names, ranges and allowed-range
-texts as :func:`models.parameters.problem`.  The native build and the tests write it next to
+texts as :func:`driftfmu.models.parameters.problem`.  The native build and the tests write it next to
 the generated ``config.h``::
 
     (build_dir / "parameters_table.h").write_text(generate.parameters_table())
@@ -40,7 +40,7 @@ def _c_string(s):
 
 def parameters_table():
     """Text of ``parameters_table.h``: one row per parameter, in :data:`PARAMETERS` order, with
-    its allowed-range text (:func:`models.parameters.allowed`) written out."""
+    its allowed-range text (:func:`driftfmu.models.parameters.allowed`) written out."""
     rows = ["    {%s, %d, %s, %d, %s, %d, %d, %d, %d,\n     %s}," % (
         _c_string(p.name), p.low is not None, _c_double(p.low), p.high is not None,
         _c_double(p.high), bool(p.low_open), bool(p.high_open), isinstance(p.default, int),
