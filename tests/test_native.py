@@ -657,3 +657,22 @@ def test_doctor_says_a_native_fmu_needs_no_python(native_fmus, version, capsys):
     out = capsys.readouterr().out
     assert "a native FMU (no Python inside)" in out and "PROBLEM" not in out
     assert ("linux64" if version == 2 else "x86_64-linux") in out
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+@pytest.mark.parametrize("name,values,text", [
+    ("Excitation", {"Qy": 0.01}, "Qy = 0.01: the native FMU does not implement the dual-axis "
+                                 "extension yet; allowed: 0.0 (use the Python FMU)"),
+    ("Excitation", {"rho": 0.5}, "rho = 0.5: the native FMU does not implement"),
+    ("Accelerometer", {"dual": 1}, "dual = 1: the native FMU does not implement the dual-axis "
+                                   "extension yet; allowed: 0 (use the Python FMU)"),
+])
+def test_dual_axis_parameters_the_native_fmus_do_not_implement_are_refused(
+        native_fmus, version, name, values, text):
+    inst = FastInstance("dual", native_fmus[version][name])
+    try:
+        with pytest.raises(Exception):  # fmi2Error / fmi3Error at the end of initialisation
+            inst.initialise(values, 0.0)
+        assert any(text in m for m in inst.messages), inst.messages
+    finally:
+        inst.free()

@@ -22,6 +22,7 @@ int model_check(ModelInstance *comp)
     const ModelVariables *v = &comp->v;
     int n = slave_check_parameters(comp, EXTRA, 1);
     n += adxl203_problems(v->Vs, v->fc, report, comp);
+    n += slave_check_unported(comp, "dual", (double)v->dual, 1, 0.0);
     if (n == 0) { /* the effective values of the config must be finite */
         Config cfg = config_of(v);
         const char *names[5] = {"a0", "a1", "a2", "a3", "sigma"};

@@ -14,6 +14,8 @@ int model_check(ModelInstance *comp)
     int n;
     n = slave_check_parameters(comp, EXTRA, 1);
     if (v->kind == EXCITATION_SINUSOIDAL) n += slave_check_nyquist(comp, v->f, v->Ts);
+    n += slave_check_unported(comp, "Qy", v->Qy, 0, 0.0);
+    n += slave_check_unported(comp, "rho", v->rho, 0, 0.0);
     return n;
 }
 
