@@ -35,6 +35,11 @@ CHAIN = gaussian.FMU_NAMES  # Excitation -> Accelerometer -> DriftEstimator
 ALL_OUTPUTS = None  # cosimulate's default: every output of every FMU
 
 
+def chain_of(fmus):
+    """The FMUs of the chain Excitation -> Accelerometer -> DriftEstimator among ``fmus``."""
+    return {n: fmus[n] for n in CHAIN}
+
+
 # -- the runs of the issue: start values, connections -------------------------------------------
 
 def gaussian_run():
@@ -172,10 +177,10 @@ def test_windows_binaries_need_only_system_dlls(native_fmus, tmp_path):
 @pytest.mark.parametrize("version", VERSIONS)
 def test_runs_equal_the_python_fmus_bit_for_bit(native_fmus, python_results, run, version):
     start, connections, n, Ts = RUNS[run]()
-    fast = cosimulate_fast(native_fmus[version], connections, n, Ts, start_values=start)
+    fast = cosimulate_fast(chain_of(native_fmus[version]), connections, n, Ts, start_values=start)
     assert fast == python_results[run]
     if version == 2:  # fmpy's FMU2Slave master on the native FMUs
-        assert cosimulate(native_fmus[2], connections, n, Ts, start_values=start) == fast
+        assert cosimulate(chain_of(native_fmus[2]), connections, n, Ts, start_values=start) == fast
 
 
 def test_fast_master_equals_fmpy_master_on_the_python_fmus(python_chain, python_results):
@@ -190,7 +195,7 @@ def test_fast_master_without_a_c_compiler_falls_back_to_the_same_bits(native_fmu
     from driftfmu.simulations import fastcosim
     monkeypatch.setattr(fastcosim, "loop_library", lambda: None)
     start, connections, n, Ts = RUNS["adxl203"]()
-    assert cosimulate_fast(native_fmus[3], connections, n, Ts, start_values=start) == \
+    assert cosimulate_fast(chain_of(native_fmus[3]), connections, n, Ts, start_values=start) == \
         python_results["adxl203"]
 
 
@@ -395,7 +400,7 @@ def host_run(host, fmus, run, folder, windows=False, record=None):
 @pytest.mark.parametrize("run", ["gaussian", "adxl203"])
 def test_c_host_without_python_gives_the_python_fmus_bits(native_fmus, python_results, hosts,
                                                           version, run, tmp_path):
-    cols = host_run(hosts["linux"], native_fmus[version], run, tmp_path)
+    cols = host_run(hosts["linux"], chain_of(native_fmus[version]), run, tmp_path)
     ref = python_results[run]
     assert cols["time"] == ref["time"]
     for key in cols:
@@ -423,8 +428,8 @@ def test_windows_binaries_under_wine_give_the_linux_bits(native_fmus, hosts, ver
     if hosts["windows"] is None:
         pytest.skip("mingw-w64 or wine64 is not installed (.ci/run installs both)")
     for run in ("gaussian", "adxl203"):
-        linux = host_run(hosts["linux"], native_fmus[version], run, tmp_path / ("l" + run))
-        windows = host_run(hosts["windows"], native_fmus[version], run, tmp_path / ("w" + run),
+        linux = host_run(hosts["linux"], chain_of(native_fmus[version]), run, tmp_path / ("l" + run))
+        windows = host_run(hosts["windows"], chain_of(native_fmus[version]), run, tmp_path / ("w" + run),
                            windows=True)
         assert len(windows["time"]) == RUNS[run]()[2]
         assert windows == linux, run
@@ -452,8 +457,8 @@ def test_source_fmu_rebuilt_with_the_plain_compiler_call_gives_the_same_bits(
                 dst.writestr(item, data)
         rebuilt[name] = target
     for run in ("gaussian", "sinusoidal-harmonic"):
-        a = host_run(hosts["linux"], native_fmus[version], run, tmp_path / ("a" + run))
-        b = host_run(hosts["linux"], rebuilt, run, tmp_path / ("b" + run))
+        a = host_run(hosts["linux"], chain_of(native_fmus[version]), run, tmp_path / ("a" + run))
+        b = host_run(hosts["linux"], chain_of(rebuilt), run, tmp_path / ("b" + run))
         assert a == b, run
 
 
@@ -582,7 +587,7 @@ def test_fmi3_time_is_the_independent_variable(native_fmus):
 def test_fast_master_reports_the_fmus_log(native_fmus):
     start = {"DriftEstimator": {"R": -1.0}}
     with pytest.raises(CoSimulationError, match="R = -1.0 is out of range; allowed: R > 0"):
-        cosimulate_fast(native_fmus[3], gaussian.CONNECTIONS, 5, 1e-3, start_values=start)
+        cosimulate_fast(chain_of(native_fmus[3]), gaussian.CONNECTIONS, 5, 1e-3, start_values=start)
 
 
 # -- the SSP export, the cross-check artifacts, the command line ---------------------------------
@@ -591,7 +596,7 @@ def test_ssp_export_of_the_native_fmus_simulates_as_the_python_one(python_chain,
                                                                    tmp_path):
     from driftfmu.fmu_src import ssp
     python = ssp.simulate(ssp.build_ssp(python_chain, tmp_path / "py.ssp", n=100), 100)
-    native = ssp.simulate(ssp.build_ssp(native_fmus[2], tmp_path / "c.ssp", n=100), 100)
+    native = ssp.simulate(ssp.build_ssp(chain_of(native_fmus[2]), tmp_path / "c.ssp", n=100), 100)
     assert python.dtype.names == native.dtype.names
     for column in python.dtype.names:
         assert native[column].tolist() == python[column].tolist(), column
@@ -607,7 +612,7 @@ def test_cross_check_tree_has_a_folder_per_fmi_version_and_platform(native_fmus,
                                                 fmi_version=version, backend="native")
     platforms = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}
     expected = {tmp_path / "fmus" / ("%d.0" % v) / "cs" / p / "driftfmu" / __version__ / name
-                for v in VERSIONS for p in platforms[v] for name in NAMES}
+                for v in VERSIONS for p in platforms[v] for name in crosscheck.FMU_NAMES}
     assert set(written) == expected
     for d in written:
         name = d.name
@@ -659,20 +664,63 @@ def test_doctor_says_a_native_fmu_needs_no_python(native_fmus, version, capsys):
     assert ("linux64" if version == 2 else "x86_64-linux") in out
 
 
+
+# -- the dual-axis chain (issue 11): the native twins gain the same, bit for bit -----------------
+
+def _dual_chain_start(sweep, value, seed):
+    from driftfmu.models import dualaxis
+    from driftfmu.simulations import dual_axis
+    ex, sp, es = dual_axis.start_values(sweep, value, dual_axis.DEFAULTS)
+    full = dualaxis.estimator_values(**es)
+    return {"Excitation": dict(ex, seed=seed), "Accelerometer": dict(sp, seed=seed),
+            "DualDriftEstimator": es, "SingleX": dualaxis.single_values(full, 1),
+            "SingleY": dualaxis.single_values(full, 2)}
+
+
+DUAL_INSTANCES = {"Excitation": "Excitation", "Accelerometer": "Accelerometer",
+                  "DualDriftEstimator": "DualDriftEstimator", "SingleX": "DriftEstimator",
+                  "SingleY": "DriftEstimator"}
+
+
+@pytest.fixture(scope="module")
+def dual_python_results(built_fmus):
+    from driftfmu.simulations import dual_axis
+    paths = {i: built_fmus[f] for i, f in DUAL_INSTANCES.items()}
+    return {(sweep, value): cosimulate(paths, dual_axis.CONNECTIONS, 400, 1e-3,
+                                       start_values=_dual_chain_start(sweep, value, 3))
+            for sweep, value in DUAL_POINTS}
+
+
+DUAL_POINTS = (("dphi", 0.0), ("dphi", 2.0), ("rho", -0.9), ("rho", 0.5))
+
+
+@pytest.mark.parametrize("sweep,value", DUAL_POINTS)
 @pytest.mark.parametrize("version", VERSIONS)
-@pytest.mark.parametrize("name,values,text", [
-    ("Excitation", {"Qy": 0.01}, "Qy = 0.01: the native FMU does not implement the dual-axis "
-                                 "extension yet; allowed: 0.0 (use the Python FMU)"),
-    ("Excitation", {"rho": 0.5}, "rho = 0.5: the native FMU does not implement"),
-    ("Accelerometer", {"dual": 1}, "dual = 1: the native FMU does not implement the dual-axis "
-                                   "extension yet; allowed: 0 (use the Python FMU)"),
-])
-def test_dual_axis_parameters_the_native_fmus_do_not_implement_are_refused(
-        native_fmus, version, name, values, text):
-    inst = FastInstance("dual", native_fmus[version][name])
+def test_dual_chain_equals_the_python_fmus_bit_for_bit(native_fmus, dual_python_results,
+                                                       version, sweep, value):
+    """Excitation (Qy, rho; the second sinusoid) -> Accelerometer (dual = 1) ->
+    DualDriftEstimator (both process models) and the two single-axis estimators."""
+    from driftfmu.simulations import dual_axis
+    paths = {i: native_fmus[version][f] for i, f in DUAL_INSTANCES.items()}
+    start = _dual_chain_start(sweep, value, 3)
+    fast = cosimulate_fast(paths, dual_axis.CONNECTIONS, 400, 1e-3, start_values=start)
+    ref = dual_python_results[(sweep, value)]
+    assert fast == ref
+    assert any(v != 0.0 for v in ref["Excitation.y"]) and any(
+        v != 0.0 for v in ref["DualDriftEstimator.dc_ekf1_y"])
+    if version == 2:  # fmpy's FMU2Slave master on the native FMUs
+        assert cosimulate(paths, dual_axis.CONNECTIONS, 400, 1e-3, start_values=start) == fast
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_native_dual_sensor_refuses_the_adxl203_extras_in_the_python_words(native_fmus,
+                                                                           version):
+    inst = FastInstance("dual", native_fmus[version]["Accelerometer"])
     try:
         with pytest.raises(Exception):  # fmi2Error / fmi3Error at the end of initialisation
-            inst.initialise(values, 0.0)
-        assert any(text in m for m in inst.messages), inst.messages
+            inst.initialise({"dual": 1, "fc": 100.0, "bits": 12}, 0.0)
+        assert any("dual = 1 is not allowed with fc = 100.0, bits = 12; allowed: dual = 1 "
+                   "with a3 = cross = fc = Vs = bits = density = 0" in m
+                   for m in inst.messages), inst.messages
     finally:
         inst.free()

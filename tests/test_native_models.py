@@ -14,12 +14,12 @@ import subprocess
 import pytest
 
 from driftfmu.fmu_src.native.models import generate
-from driftfmu.models import _ops, adxl203, chain, drift, ekf, excitation, harmonic, noise, \
-    parameters, sensor
+from driftfmu.models import _ops, adxl203, chain, drift, dualaxis, ekf, excitation, harmonic, \
+    noise, parameters, sensor
 
 CC = shutil.which("gcc") or shutil.which("cc")
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c")
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c")
 
 D, I64, U64 = ctypes.c_double, ctypes.c_int64, ctypes.c_uint64
 PD, PI64 = ctypes.POINTER(D), ctypes.POINTER(I64)
@@ -45,7 +45,43 @@ class Config(ctypes.Structure):
 
 REPORT = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p)
 
+
+class Axis(ctypes.Structure):
+    _fields_ = [(n, D) for n in dualaxis.Axis._fields]
+
+
+class DualDrift(ctypes.Structure):
+    _fields_ = [("k", I64)] + [(n, D) for n in dualaxis.DualDrift._fields[1:]]
+
+
+class DualState(ctypes.Structure):
+    _fields_ = [(n, D) for n in dualaxis.DualState._fields[:-1]] + [("drift", DualDrift)]
+
+
+class DualHarmonicState(ctypes.Structure):
+    _fields_ = [(n, D) for n in dualaxis.DualHarmonicState._fields[:-1]] + \
+        [("drift", DualDrift)]
+
+
+class DualEstimator(ctypes.Structure):
+    _fields_ = [("g", DualState), ("h", DualHarmonicState)]
+
+
+class DualModel(ctypes.Structure):
+    _fields_ = [("process", I64)] + [(n, D) for n in ("A", "Q", "Qy", "Qxy", "C", "S", "Qh")]
+
 SIGNATURES = {
+    "excitation_gaussian_pair": (None, D, D, D, D, D, D, I64, I64, PD, PD),
+    "sensor_h_bilinear": (D, D, D, D, D, D, D),
+    "sensor_measure_bilinear": (D, D, D, D, D, D, D, D, D),
+    "dualaxis_measure": (None, D, D, Axis, Axis, D, D, PD, PD),
+    "dualaxis_noise": (None, I64, I64, PD, PD),
+    "dualaxis_sensor_problems": (ctypes.c_int, I64, D, D, D, D, I64, D, REPORT, ctypes.c_void_p),
+    "dualaxis_model": (DualModel, I64, D, D, D, D, D, D, D),
+    "dualaxis_estimator_init": (DualEstimator, I64, D, D, D, D),
+    "dualaxis_estimator_predict": (DualEstimator, DualEstimator, ctypes.POINTER(DualModel)),
+    "dualaxis_estimator_step": (DualEstimator, DualEstimator, D, D, Axis, Axis,
+                                ctypes.POINTER(DualModel)),
     "ops_sqrt": (D, D), "ops_floor": (D, D), "ops_frexp": (None, D, PD, PI64),
     "ops_ldexp": (D, D, I64), "ops_log": (D, D), "ops_exp": (D, D), "ops_sin2pi": (D, D),
     "noise_mix": (U64, U64), "noise_key": (U64, U64, U64), "noise_bits": (U64, U64, U64, U64),
@@ -118,6 +154,98 @@ def c(tmp_path_factory):
 
 def bits(x):
     return struct.pack("<d", x)
+
+
+def _pair(c, *args):
+    x, y = D(), D()
+    c.excitation_gaussian_pair(*args, ctypes.byref(x), ctypes.byref(y))
+    return x.value, y.value
+
+
+def test_gaussian_pair_and_bilinear_sensor_equal_models(c):
+    rng = random.Random(RNG_SEED + 30)
+    for _ in range(2000):
+        x, y, A = rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-0.999, 0.999)
+        Q, Qy, rho = rng.uniform(0, 3), rng.choice((0.0, -0.0, rng.uniform(0, 3))), \
+            rng.uniform(-1, 1)
+        seed, k = rng.randrange(2 ** 31), rng.randint(1, 10 ** 9)
+        assert_same(excitation.gaussian_pair(x, y, A, Q, Qy, rho, seed, k),
+                    _pair(c, x, y, A, Q, Qy, rho, seed, k), "gaussian_pair")
+        a0, a1, a2, b = rng.uniform(-3, 3), rng.uniform(-2, 2), rng.uniform(-1, 1), \
+            rng.choice((0.0, rng.uniform(-1, 1)))
+        R, v = 10.0 ** rng.uniform(-8, 0), rng.gauss(0, 1)
+        assert same(sensor.h_bilinear(x, y, a0, a1, a2, b), c.sensor_h_bilinear(x, y, a0, a1, a2, b))
+        assert same(sensor.measure_bilinear(x, y, a0, a1, a2, b, R, v),
+                    c.sensor_measure_bilinear(x, y, a0, a1, a2, b, R, v))
+        ax = dualaxis.Axis(a0, a1, a2, b, R)
+        ay = dualaxis.Axis(rng.uniform(-3, 3), rng.uniform(-2, 2), rng.uniform(-1, 1),
+                           rng.uniform(-1, 1), 10.0 ** rng.uniform(-8, 0))
+        vy = rng.gauss(0, 1)
+        zx, zy = D(), D()
+        c.dualaxis_measure(x, y, Axis(*ax), Axis(*ay), v, vy, ctypes.byref(zx), ctypes.byref(zy))
+        assert_same(dualaxis.measure(x, y, ax, ay, v, vy), (zx.value, zy.value), "measure")
+        c.dualaxis_noise(seed, k, ctypes.byref(zx), ctypes.byref(zy))
+        assert_same(dualaxis.noise(seed, k), (zx.value, zy.value), "noise")
+
+
+def _dual_tuple(st, process):
+    s = st.g if process == dualaxis.GAUSS_MARKOV else st.h
+    names = (dualaxis.DualState if process == dualaxis.GAUSS_MARKOV
+             else dualaxis.DualHarmonicState)._fields[:-1]
+    return tuple(getattr(s, n) for n in names) + tuple(
+        getattr(s.drift, n) for n in dualaxis.DualDrift._fields)
+
+
+@pytest.mark.parametrize("process", [dualaxis.GAUSS_MARKOV, dualaxis.HARMONIC])
+def test_dual_estimator_equals_models_over_both_process_models(c, process):
+    """init, step (predict2/4, update2/4 with _row2/_row4, drift_update) and predict over a long
+    random sequence, every field of the state bit for bit; with and without cross terms."""
+    rng = random.Random(RNG_SEED + 31 + process)
+    for case in range(8):
+        b = (lambda: 0.0) if case % 4 == 0 else (lambda: rng.uniform(-0.2, 0.2))
+        ax = dualaxis.Axis(rng.uniform(-1, 1), rng.uniform(0.5, 2), rng.uniform(-0.1, 0.1), b(),
+                           10.0 ** rng.uniform(-6, -2))
+        ay = dualaxis.Axis(rng.uniform(-1, 1), rng.uniform(0.5, 2), rng.uniform(-0.1, 0.1), b(),
+                           10.0 ** rng.uniform(-6, -2))
+        A, Q, Qy = rng.uniform(-0.9, 0.9), rng.uniform(0.001, 0.1), rng.uniform(0.001, 0.1)
+        rho = 0.0 if case % 4 == 0 else rng.uniform(-1, 1)
+        f, Ts, Qh = rng.uniform(1, 300), rng.choice((1e-3, 1e-4)), 10.0 ** rng.uniform(-10, -4)
+        m = dualaxis.model(process, A=A, Q=Q, Qy=Qy, rho=rho, f=f, Ts=Ts, Qh=Qh)
+        cm = c.dualaxis_model(process, A, Q, Qy, rho, f, Ts, Qh)
+        assert_same([m[n] for n in ("A", "Q", "Qy", "Qxy", "C", "S", "Qh")],
+                    [getattr(cm, n) for n in ("A", "Q", "Qy", "Qxy", "C", "S", "Qh")], "model")
+        x0, y0, P0, P0y = rng.uniform(-1, 1), rng.uniform(-1, 1), rng.uniform(0, 0.5), \
+            rng.uniform(0, 0.5)
+        py = dualaxis.estimator_init(process, x0, y0, P0, P0y)
+        cs = c.dualaxis_estimator_init(process, x0, y0, P0, P0y)
+        assert_same(_flat(py), _dual_tuple(cs, process), "init")
+        for i in range(300):
+            if rng.random() < 0.8:
+                zx, zy = rng.uniform(-2, 3), rng.uniform(-2, 3)
+                py = dualaxis.estimator_step(py, zx, zy, ax, ay, m)
+                cs = c.dualaxis_estimator_step(cs, zx, zy, Axis(*ax), Axis(*ay), ctypes.byref(cm))
+            else:
+                py = dualaxis.estimator_predict(py, m)
+                cs = c.dualaxis_estimator_predict(cs, ctypes.byref(cm))
+            assert_same(_flat(py), _dual_tuple(cs, process), (case, i))
+
+
+def _flat(st):
+    return tuple(st[:-1]) + tuple(st.drift)
+
+
+@pytest.mark.parametrize("values", [dict(dual=0, fc=100.0), dict(dual=1),
+                                    dict(dual=1, fc=100.0, bits=12),
+                                    dict(dual=1, a3=0.5, cross=-0.1, Vs=5.0, density=1e-5),
+                                    dict(dual=2, bits=3, density=float("nan"))])
+def test_dual_sensor_problems_same_messages(c, values):
+    p = dict(dict.fromkeys(dualaxis.EXTRAS, 0.0), bits=0)
+    p.update(values)
+    got = []
+    cb = REPORT(lambda ctx, msg: got.append(msg.decode()))
+    n = c.dualaxis_sensor_problems(p["dual"], p["a3"], p["cross"], p["fc"], p["Vs"], p["bits"],
+                                   p["density"], cb, None)
+    assert got == dualaxis.sensor_problems(p) and n == len(got)
 
 
 def same(a, b):
@@ -549,12 +677,13 @@ from pathlib import Path  # noqa: E402
 from driftfmu.fmu_src import slave_base  # noqa: E402
 from driftfmu.fmu_src.Accelerometer import Accelerometer  # noqa: E402
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator  # noqa: E402
+from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator  # noqa: E402
 from driftfmu.fmu_src.Excitation import Excitation  # noqa: E402
 
 HARNESS = Path(__file__).resolve().parent / "native_harness"
 NATIVE = generate.HERE.parent
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
-          "DriftEstimator": DriftEstimator}
+          "DriftEstimator": DriftEstimator, "DualDriftEstimator": DualDriftEstimator}
 #: The step rule of slave_base (any h > 0).
 VARIABLE_STEPS = hasattr(slave_base, "MAX_SAMPLES_PER_STEP")
 
@@ -764,18 +893,39 @@ def random_values(name, rng):
         return dict(kind=rng.choice((1, 2)), A=rng.uniform(-0.95, 0.95), Q=rng.uniform(0, 0.1),
                     x0=rng.uniform(-1, 1), X=rng.uniform(0, 2), f=rng.uniform(1, 120),
                     phi=rng.uniform(-3, 3), Xy=rng.uniform(0, 1), phiy=rng.uniform(-3, 3),
-                    Ts=rng.choice((1e-3, 2.5e-3, 1e-4)), seed=rng.randrange(2 ** 31))
+                    Ts=rng.choice((1e-3, 2.5e-3, 1e-4)), seed=rng.randrange(2 ** 31),
+                    Qy=rng.choice((0.0, rng.uniform(0, 0.1))), rho=rng.uniform(-1, 1))
     if name == "Accelerometer":
         p = random_sensor(rng, every_extra=rng.random() < 0.5)
         p.update(noise=rng.choice((0, 1)), seed=rng.randrange(2 ** 31),
                  axes=rng.choice((1, 2)), Ts=rng.choice((1e-3, 1e-4)))
         p["fc"] = min(p["fc"], 0.4 / p["Ts"])
+        if rng.random() < 0.4:  # the dual-axis bilinear sensor (models.dualaxis)
+            p.update({n: 0 if n == "bits" else 0.0 for n in dualaxis.EXTRAS})
+            p.update(random_dual_sensor(rng), dual=1)
+        return p
+    if name == "DualDriftEstimator":
+        p = random_dual_sensor(rng)
+        p.update(A=rng.uniform(-0.9, 0.9), Q=rng.uniform(0.001, 0.1), Qy=rng.uniform(0.001, 0.1),
+                 rho=rng.uniform(-1, 1), x0=rng.uniform(-0.5, 0.5), y0=rng.uniform(-0.5, 0.5),
+                 P0=rng.uniform(0, 0.1), P0y=rng.uniform(0, 0.1), Ts=rng.choice((1e-3, 1e-4)),
+                 estimator=rng.randint(1, 3), process=rng.choice((1, 2)),
+                 f=rng.uniform(1, 300), Qh=10.0 ** rng.uniform(-10, -4))
         return p
     return dict(a0=rng.uniform(-1, 1), a1=rng.uniform(0.5, 2), a2=rng.uniform(-0.1, 0.1),
                 A=rng.uniform(-0.9, 0.9), Q=rng.uniform(0.001, 0.1), R=10.0 ** rng.uniform(-6, -2),
                 x0=rng.uniform(-0.5, 0.5), P0=rng.uniform(0, 0.1), Ts=rng.choice((1e-3, 1e-4)),
                 estimator=rng.randint(1, 3), process=rng.choice((1, 2)), f=rng.uniform(1, 300),
                 Qh=10.0 ** rng.uniform(-10, -4))
+
+
+def random_dual_sensor(rng):
+    """Both axes of the dual-axis sensor, with cross terms (sometimes 0)."""
+    b = (lambda: rng.choice((0.0, rng.uniform(-0.1, 0.1))))
+    return dict(a0=rng.uniform(-1, 1), a1=rng.uniform(0.5, 2), a2=rng.uniform(-0.1, 0.1),
+                bx=b(), R=10.0 ** rng.uniform(-6, -2), a0y=rng.uniform(-1, 1),
+                a1y=rng.uniform(0.5, 2), a2y=rng.uniform(-0.1, 0.1), by=b(),
+                Ry=10.0 ** rng.uniform(-6, -2))
 
 
 def random_steps(rng, Ts, count):
@@ -836,6 +986,8 @@ BAD = {"Ts": (0.0, -1e-3, 1e-12, 1e-9, 5.0), "R": (0.0, -1.0, 5e-324), "A": (1.0
        "f": (-1.0, 600.0, 499.99), "X": (-1.0,), "noise": (2, -1), "bits": (25, -1, 12),
        "axes": (0, 3), "Vs": (2.0, 6.5, 5.0), "fc": (3000.0, -1.0), "cross": (1.5,),
        "density": (-1e-6,), "estimator": (0, 4), "process": (0, 3, 2), "Qh": (-1e-9,),
+       "Qy": (-0.1,), "rho": (1.5, -1.0, float("nan")), "Ry": (0.0, -1.0), "a1y": (0.0,),
+       "dual": (1, 2, -1), "P0y": (-1.0,),
        **({"a2": (1e308,), "a3": (1.7e308,)} if VARIABLE_STEPS else {})}
 
 

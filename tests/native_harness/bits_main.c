@@ -37,10 +37,13 @@ static const Start RUN[] = {
     {"seed", 11}, {"a0", 2.5}, {"a1", 1.0}, {"a2", 0.01}, {"a3", 0.002}, {"R", 1.2e-5},
     {"cross", 0.015}, {"fc", 1063.829787}, {"Vs", 5.0}, {"bits", 12}, {"density", 110e-6},
     {"axes", 2}, {"noise", 1}, {"process", 2}, {"Qh", 1e-8}, {"P0", 1.0}, {"Ts", 1e-4},
-    {"A", 0.3}, {"Q", 0.02}, {"estimator", 1}};
+    {"A", 0.3}, {"Q", 0.02}, {"estimator", 1},
+    {"bx", 0.02}, {"by", -0.015}, {"a2y", 0.008}, {"a0y", 0.3}, {"Ry", 2e-5}, {"Qy", 0.01},
+    {"rho", 0.4}, {"P0y", 0.5}};
 static const Start BAD[] = {{"Ts", 1e-12}, {"process", 2}, {"R", -1.0}, {"f", 7e3}, {"Vs", 2.0}, {"fc", 3e3},
                             {"seed", -3}, {"A", 1.0}, {"kind", 3}, {"estimator", 0},
-                            {"noise", 2}, {"a1", 0.0}, {"Qh", -2.5e-9}};
+                            {"noise", 2}, {"a1", 0.0}, {"Qh", -2.5e-9}, {"Ry", 0.0},
+                            {"rho", 1.5}};
 
 static void set_all(ModelInstance *comp, const Start *s, size_t n)
 {

@@ -4,6 +4,7 @@
 #include <stdio.h>
 
 #include "adxl203.h"
+#include "dualaxis.h"
 #include "model.h"
 #include "slave.h"
 
@@ -22,7 +23,8 @@ int model_check(ModelInstance *comp)
     const ModelVariables *v = &comp->v;
     int n = slave_check_parameters(comp, EXTRA, 1);
     n += adxl203_problems(v->Vs, v->fc, report, comp);
-    n += slave_check_unported(comp, "dual", (double)v->dual, 1, 0.0);
+    n += dualaxis_sensor_problems(v->dual, v->a3, v->cross, v->fc, v->Vs, v->bits, v->density,
+                                  report, comp);
     if (n == 0) { /* the effective values of the config must be finite */
         Config cfg = config_of(v);
         const char *names[5] = {"a0", "a1", "a2", "a3", "sigma"};
@@ -51,6 +53,8 @@ int model_check(ModelInstance *comp)
 void model_start(ModelInstance *comp)
 {
     comp->h.cfg = config_of(&comp->v);
+    dualaxis_axes(comp->v.a0, comp->v.a1, comp->v.a2, comp->v.bx, comp->v.R, comp->v.a0y,
+                  comp->v.a1y, comp->v.a2y, comp->v.by, comp->v.Ry, &comp->h.ax, &comp->h.ay);
     comp->h.lp_set = comp->h.lpy_set = 0;
     comp->h.lp = comp->h.lpy = 0.0;
     comp->h.lp_pending_set = comp->h.lpy_pending_set = 0;
@@ -76,6 +80,22 @@ static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_
     if (!comp->h.cfg.has_alpha && n > 1) {
         k0 = k0 + n - 1;
         n = 1;
+    }
+    if (comp->v.dual) { /* Accelerometer._dual: no filter (dual = 1 needs fc = 0) */
+        double vx = 0.0, vy = 0.0;
+        int64_t k = k0 + n - 1;
+        if (comp->v.noise) {
+            vx = adxl203_noise(comp->v.seed, k, 1);
+            vy = adxl203_noise(comp->v.seed, k, 2);
+        }
+        dualaxis_measure(comp->v.x, comp->v.y, comp->h.ax, comp->h.ay, vx, vy, &z, &z_y);
+        *lp_set = *lpy_set = 0;
+        *lp = *lpy = 0.0;
+        comp->v.z = z;
+        comp->v.z_y = z_y;
+        if (!isfinite(z)) return "z";
+        if (!isfinite(z_y)) return "z_y";
+        return NULL;
     }
     for (i = 0; i < n; i++) {
         axis_sample(comp, lp_set, lp, comp->v.x, comp->v.y, k0 + i, 1, &z);

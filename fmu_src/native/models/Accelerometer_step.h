@@ -8,12 +8,14 @@
 #include <stdint.h>
 
 #include "adxl203.h"
+#include "dualaxis.h"
 
 /* Accelerometer.HIDDEN (_lp, _lpy: the output filters after the last sample processed), the
  * same after the pending sample (computed by model_compute), and the derived config; a *_set
  * flag of 0 is Python's None. */
 typedef struct {
     Config cfg;                       /* adxl203.config(**parameter_values()) (self._cfg) */
+    Axis ax, ay;                      /* dualaxis.axes(parameter_values()) (self._axes) */
     int64_t lp_set, lpy_set;
     double lp, lpy;
     int64_t lp_pending_set, lpy_pending_set;

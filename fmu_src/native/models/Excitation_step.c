@@ -14,38 +14,34 @@ int model_check(ModelInstance *comp)
     int n;
     n = slave_check_parameters(comp, EXTRA, 1);
     if (v->kind == EXCITATION_SINUSOIDAL) n += slave_check_nyquist(comp, v->f, v->Ts);
-    n += slave_check_unported(comp, "Qy", v->Qy, 0, 0.0);
-    n += slave_check_unported(comp, "rho", v->rho, 0, 0.0);
     return n;
 }
 
-/* Excitation._sample and _sample_y */
-static double sample_x(const ModelVariables *v, double x_prev, int64_t k)
+/* Excitation._sample: sample k of (x, y) from (x_prev, y_prev). */
+static void sample_xy(const ModelVariables *v, double x_prev, double y_prev, int64_t k,
+                      double *x, double *y)
 {
-    if (v->kind == EXCITATION_GAUSSIAN)
-        return excitation_gaussian_sample(x_prev, v->A, v->Q, v->seed, k);
-    return excitation_sine(k, v->X, v->f, v->Ts, v->phi);
-}
-
-static double sample_y(const ModelVariables *v, int64_t k)
-{
-    if (v->kind == EXCITATION_GAUSSIAN) return 0.0;
-    return excitation_sine(k, v->Xy, v->f, v->Ts, v->phiy);
+    if (v->kind == EXCITATION_GAUSSIAN) {
+        excitation_gaussian_pair(x_prev, y_prev, v->A, v->Q, v->Qy, v->rho, v->seed, k, x, y);
+    } else {
+        *x = excitation_sine(k, v->X, v->f, v->Ts, v->phi);
+        *y = excitation_sine(k, v->Xy, v->f, v->Ts, v->phiy);
+    }
 }
 
 /* Excitation.hold: n >= 1 samples from k0 (the sinusoid needs no history); the outputs of the
  * last.  Returns the name of a value that is not finite, or NULL. */
-static const char *hold(ModelInstance *comp, double *x, int64_t k0, int64_t n)
+static const char *hold(ModelInstance *comp, double *x, double *y, int64_t k0, int64_t n)
 {
     const ModelVariables *v = &comp->v;
     int64_t k;
     if (v->kind == EXCITATION_GAUSSIAN) {
-        for (k = k0; k < k0 + n; k++) *x = sample_x(v, *x, k);
+        for (k = k0; k < k0 + n; k++) sample_xy(v, *x, *y, k, x, y);
     } else {
-        *x = sample_x(v, *x, k0 + n - 1);
+        sample_xy(v, *x, *y, k0 + n - 1, x, y);
     }
     comp->v.x = *x;
-    comp->v.y = sample_y(v, k0 + n - 1);
+    comp->v.y = *y;
     if (!isfinite(comp->v.x)) return "x";
     if (!isfinite(comp->v.y)) return "y";
     return NULL;
@@ -54,9 +50,10 @@ static const char *hold(ModelInstance *comp, double *x, int64_t k0, int64_t n)
 /* Sample k becomes pending: its outputs depend on no input, so they are computed now. */
 static const char *make_pending(ModelInstance *comp, int64_t k)
 {
-    double x = comp->h.x;
-    const char *bad = hold(comp, &x, k, 1);
+    double x = comp->h.x, y = comp->h.y;
+    const char *bad = hold(comp, &x, &y, k, 1);
     comp->h.x_pending = x;
+    comp->h.y_pending = y;
     comp->h.has_pending = 1;
     return bad;
 }
@@ -64,6 +61,7 @@ static const char *make_pending(ModelInstance *comp, int64_t k)
 void model_start(ModelInstance *comp)
 {
     comp->h.x = comp->v.x0;
+    comp->h.y = 0.0;
     make_pending(comp, 1);
 }
 
@@ -77,24 +75,26 @@ const char *model_compute(ModelInstance *comp)
 const char *model_advance(ModelInstance *comp, const StepPlan *plan)
 {
     const char *bad = NULL;
-    double x = comp->h.x;
+    double x = comp->h.x, y = comp->h.y;
     if (plan->n > 0) {
         int64_t start = plan->k_first;
         if (plan->first_pending) { /* sample k: committed */
             if (comp->h.has_pending) {
                 x = comp->h.x_pending;
+                y = comp->h.y_pending;
             } else {
-                bad = hold(comp, &x, plan->k_first, 1);
+                bad = hold(comp, &x, &y, plan->k_first, 1);
                 if (bad) return bad;
             }
             start = plan->k_first + 1;
         }
         if (plan->k_first + plan->n > start) { /* the other instants */
-            bad = hold(comp, &x, start, plan->k_first + plan->n - start);
+            bad = hold(comp, &x, &y, start, plan->k_first + plan->n - start);
             if (bad) return bad;
         }
     }
     comp->h.x = x;
+    comp->h.y = y;
     comp->h.has_pending = 0;
     if (plan->end_pending) return make_pending(comp, plan->k_end);
     return NULL;

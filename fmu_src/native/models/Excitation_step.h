@@ -7,12 +7,13 @@
 
 #include <stdint.h>
 
-/* Excitation.HIDDEN (_x: the excitation after the last sample processed, x0 before sample 1)
- * and the state after the pending sample (Python's _pending), computed when it became pending. */
+/* Excitation.HIDDEN (_x, _y: the excitation after the last sample processed, x0 and 0 before
+ * sample 1) and the state after the pending sample (Python's _pending), computed when it became
+ * pending. */
 typedef struct {
-    double x;
+    double x, y;
     int32_t has_pending;
-    double x_pending;
+    double x_pending, y_pending;
 } ModelHidden;
 
 #endif

@@ -16,6 +16,19 @@ double excitation_gaussian_sample(double x_prev, double A, double Q, int64_t see
         x_prev, A, Q, noise_normal((uint64_t)seed, NOISE_STREAM_PROCESS, (uint64_t)k));
 }
 
+void excitation_gaussian_pair(double x_prev, double y_prev, double A, double Q, double Qy,
+                              double rho, int64_t seed, int64_t k, double *x, double *y)
+{
+    double w1 = noise_normal((uint64_t)seed, NOISE_STREAM_PROCESS, (uint64_t)k), w2;
+    *x = excitation_gauss_markov(x_prev, A, Q, w1);
+    if (Qy == 0.0) {
+        *y = 0.0;
+        return;
+    }
+    w2 = noise_normal((uint64_t)seed, NOISE_STREAM_SENSOR_Y, (uint64_t)k);
+    *y = A * y_prev + ops_sqrt(Qy) * (rho * w1 + ops_sqrt(1.0 - rho * rho) * w2);
+}
+
 double excitation_sine(int64_t k, double X, double f, double Ts, double phi)
 {
     return X * ops_sin2pi(f * Ts * (double)(k - 1) + phi / (2.0 * OPS_PI));

@@ -11,6 +11,9 @@
 double excitation_gauss_markov(double x_prev, double A, double Q, double w);
 /* Sample k of the Gauss-Markov excitation under seed (process-noise stream). */
 double excitation_gaussian_sample(double x_prev, double A, double Q, int64_t seed, int64_t k);
+/* Sample k of the 2-D Gauss-Markov excitation (models.excitation.gaussian_pair): (*x, *y). */
+void excitation_gaussian_pair(double x_prev, double y_prev, double A, double Q, double Qy,
+                              double rho, int64_t seed, int64_t k, double *x, double *y);
 /* Sample k of X sin(2 pi f t_k + phi), t_k = (k - 1) Ts. */
 double excitation_sine(int64_t k, double X, double f, double Ts, double phi);
 /* Q / (1 - A^2) (Gaussian) or X^2 / 2 (sinusoidal); NaN for another kind (Python raises). */

@@ -18,3 +18,14 @@ double sensor_measurement_noise(int64_t seed, int64_t k)
 }
 
 double sensor_drift(double a2, double variance) { return a2 * variance; }
+
+double sensor_h_bilinear(double own, double other, double a0, double a1, double a2, double b)
+{
+    return sensor_h(own, a0, a1, a2) + b * own * other;
+}
+
+double sensor_measure_bilinear(double own, double other, double a0, double a1, double a2,
+                               double b, double R, double v)
+{
+    return sensor_h_bilinear(own, other, a0, a1, a2, b) + ops_sqrt(R) * v;
+}

@@ -58,20 +58,3 @@ int slave_check_nyquist(ModelInstance *comp, double f, double Ts)
              "allowed: f < %s Hz", rf, rn, rn);
     return slave_problem(comp, msg);
 }
-
-int slave_check_unported(ModelInstance *comp, const char *name, double value, int is_integer,
-                         double allowed)
-{
-    char msg[PARAMETERS_MESSAGE_MAX], rv[40], ra[40];
-    if (value == allowed) return 0;
-    if (is_integer) {
-        snprintf(rv, sizeof rv, "%.0f", value);
-        snprintf(ra, sizeof ra, "%.0f", allowed);
-    } else {
-        parameters_repr_float(value, rv, sizeof rv);
-        parameters_repr_float(allowed, ra, sizeof ra);
-    }
-    snprintf(msg, sizeof msg, "%s = %s: the native FMU does not implement the dual-axis "
-             "extension yet; allowed: %s (use the Python FMU)", name, rv, ra);
-    return slave_problem(comp, msg);
-}

@@ -25,10 +25,4 @@ int slave_problem(ModelInstance *comp, const char *message);
  * is not positive: its own range check refuses it). */
 int slave_check_nyquist(ModelInstance *comp, double f, double Ts);
 
-/* A parameter the native step logic does not implement yet: 1 (logged) unless value equals
- * allowed ("<name> = <value>: the native FMU does not implement the dual-axis extension yet;
- * allowed: <allowed> (use the Python FMU)"). */
-int slave_check_unported(ModelInstance *comp, const char *name, double value, int is_integer,
-                         double allowed);
-
 #endif
