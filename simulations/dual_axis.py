@@ -129,13 +129,21 @@ def check_settings(s, points, runs, engine):
     check_frequency(s["f"], s["Ts"])
 
 
-def fmu_paths(fmu_dir):
-    """Paths of the FMUs the chain needs in ``fmu_dir``; built first when any is missing."""
-    fmu_dir = Path(fmu_dir)
-    paths = {n: fmu_dir / ("%s.fmu" % n) for n in set(INSTANCES.values())}
-    if not all(p.is_file() for p in paths.values()):
-        from driftfmu.fmu_src.builder import build_fmus
-        build_fmus(fmu_dir)
+def fmu_paths(fmu_dir, backend="python"):
+    """Paths of the FMUs the chain needs in ``fmu_dir`` (``backend`` python: the pythonfmu
+    FMUs; native: their FMI 2.0 C twins in ``fmu_dir/native/fmi2``), by instance; built first
+    when any is missing."""
+    from driftfmu.simulations.gaussian import check_backend
+    check_backend(backend)
+    if backend == "native":
+        from driftfmu.fmu_src.native_build import native_fmu_paths
+        paths = native_fmu_paths(fmu_dir, 2)
+    else:
+        fmu_dir = Path(fmu_dir)
+        paths = {n: fmu_dir / ("%s.fmu" % n) for n in set(INSTANCES.values())}
+        if not all(p.is_file() for p in paths.values()):
+            from driftfmu.fmu_src.builder import build_fmus
+            build_fmus(fmu_dir)
     return {inst: str(paths[fmu]) for inst, fmu in INSTANCES.items()}
 
 
@@ -143,8 +151,9 @@ def fmu_paths(fmu_dir):
 
 def _fmu_task(task):
     """Worker: co-simulate one run of one sweep point; the recorded columns by models/ name."""
-    from driftfmu.simulations.cosim import cosimulate
-    paths, ex, sp, es, n, Ts, seed = task
+    from driftfmu.simulations.gaussian import master
+    paths, ex, sp, es, n, Ts, seed, backend = task
+    cosimulate = master(backend)
     start = {"Excitation": dict(ex, Ts=Ts, seed=seed), "Accelerometer": dict(sp, Ts=Ts, seed=seed),
              "DualDriftEstimator": dict(es, Ts=Ts),
              "SingleX": dict(dualaxis.single_values(dualaxis.estimator_values(**es), 1), Ts=Ts),
@@ -170,7 +179,8 @@ def _finals_of_columns(cols):
 # -- the experiment -----------------------------------------------------------------------------
 
 def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_dir="build/fmus",
-                  workers=None, scheduler=None, progress=None, plot=True, **settings):
+                  workers=None, scheduler=None, progress=None, plot=True, backend="python",
+                  **settings):
     """Run both sweeps; with ``out`` write ``dual_axis.csv``, ``dual_axis.json`` and
     ``dual_axis.png`` (all or none).  Returns the summary (the JSON's content).
 
@@ -185,6 +195,9 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
         them at once through models/ (Monte-Carlo error bars), in chunks of
         ``batch.CHUNK`` runs on local worker processes or, with ``scheduler``, on a Dask cluster
         (:func:`driftfmu.simulations.batch.run_tasks`).
+    backend : {"python", "native"}
+        With the FMU engine: the pythonfmu FMUs or their native (C, FMI 2.0) twins, which give
+        the same bits (the check against models/ holds for both).
     settings
         Overrides of :data:`DEFAULTS` (``n``, ``Ts``, ``f``, ``X``, ``Xy``, ``phi``, ``A``,
         ``Q``, ``Qy``, the sensor's ``a0 a1 a2 bx R a0y a1y a2y by Ry`` and ``Qh``).
@@ -212,9 +225,9 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
     worst = 0.0
     done = 0
     if engine == "fmu":
-        paths = fmu_paths(fmu_dir)
+        paths = fmu_paths(fmu_dir, backend)
         with batch.process_pool(workers, "driftfmu.simulations.dual_axis") as pool:
-            futs = {pool.submit(_fmu_task, (paths, *start_values(sw, v, s), n, Ts, int(sd))):
+            futs = {pool.submit(_fmu_task, (paths, *start_values(sw, v, s), n, Ts, int(sd), backend)):
                     (i, r) for i, (sw, v) in enumerate(grid) for r, sd in enumerate(seeds)}
             cols = {}
             for fut in as_completed(futs):
@@ -280,6 +293,7 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
                         "max_abs_diff": worst, "bit_identical": worst == 0.0}
                        if engine == "fmu" else None),
         "wall_time_s": wall, "workers": workers,
+        "backend": backend if engine == "fmu" else None,
     }
     if out is not None:
         with output.staged(out) as stage:
@@ -419,6 +433,7 @@ def add_cli(groups):
                         "tcp://host:8786); default: local worker processes")
     cli.add_out(g, "results/dual_axis")
     cli.add_fmu_dir(g)
+    cli.add_backend(g)
     g.set_defaults(func=_cmd)
 
 
@@ -446,6 +461,7 @@ def _cmd(args):
     with cli.progress(total, "runs", "run", monitor=False) as update:
         s = run_dual_axis(out=args.out, points=args.points, runs=runs, engine=args.engine,
                           seed=args.seed, fmu_dir=args.fmu_dir, workers=args.workers,
+                          backend=args.backend,
                           scheduler=args.scheduler, progress=update, **settings)
     print("wrote %s/dual_axis.csv, dual_axis.json, dual_axis.png" % args.out)
     print("%-5s %9s %4s | %11s %11s | %12s %12s | %11s %s"

@@ -388,6 +388,16 @@ def test_experiment_through_the_fmus(experiment):
 
 
 @pytest.mark.integration
+def test_native_backend_gives_the_python_fmus_numbers(experiment, native_fmus):
+    _, s = experiment
+    fmu_dir = native_fmus[2]["Excitation"].parent.parent.parent  # <dir>/native/fmi2/X.fmu
+    n = dual_axis.run_dual_axis(fmu_dir=fmu_dir, backend="native", **SMALL)
+    assert n["backend"] == "native" and s["backend"] == "python"
+    assert n["validation"]["bit_identical"] is True
+    assert n["points"] == s["points"]
+
+
+@pytest.mark.integration
 def test_batch_engine_gives_the_fmu_engines_numbers(experiment):
     _, s = experiment
     b = dual_axis.run_dual_axis(engine="batch", **SMALL)
