@@ -48,9 +48,8 @@ class DriftEstimator(SlaveBase):
 
     def check_parameters(self):
         problems = super().check_parameters()
-        if self.process == harmonic.HARMONIC and self.Ts > 0 and self.f >= 0.5 / self.Ts:
-            problems.append("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; "
-                            "allowed: f < %r Hz" % (self.f, 0.5 / self.Ts, 0.5 / self.Ts))
+        if self.process == harmonic.HARMONIC:
+            problems += self.nyquist_problems()
         return problems
 
     def prepare(self):

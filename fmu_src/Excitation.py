@@ -38,9 +38,8 @@ class Excitation(SlaveBase):
 
     def check_parameters(self):
         problems = super().check_parameters()
-        if self.kind == excitation.SINUSOIDAL and self.Ts > 0 and self.f >= 0.5 / self.Ts:
-            problems.append("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; "
-                            "allowed: f < %r Hz" % (self.f, 0.5 / self.Ts, 0.5 / self.Ts))
+        if self.kind == excitation.SINUSOIDAL:
+            problems += self.nyquist_problems()
         return problems
 
     def _sample(self, x_prev, y_prev, k):

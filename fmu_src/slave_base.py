@@ -368,6 +368,15 @@ class SlaveBase(Fmi2Slave):
                                     % (s["name"], v, low, s["name"], high))
         return problems
 
+    def nyquist_problems(self):
+        """The Nyquist check of a slave with a sinusoid at ``f`` (a list of at most one problem;
+        none where ``Ts`` itself is refused by its range).  C twin: ``slave_check_nyquist``."""
+        if self.Ts > 0 and self.f >= 0.5 / self.Ts:
+            nyquist = 0.5 / self.Ts
+            return ["f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
+                    "f < %r Hz" % (self.f, nyquist, nyquist)]
+        return []
+
     def _check_and_prepare(self, context):
         problems = self.check_parameters()
         for msg in problems[:-1]:
