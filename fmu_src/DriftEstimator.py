@@ -1,9 +1,8 @@
 """DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
 Gauss-Markov (the letter's scalar filter) or a harmonic oscillator at a known frequency."""
 
-import math
 
-from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, check_estimator_plain, var
 from driftfmu.models import chain, drift, harmonic
 
 
@@ -96,15 +95,9 @@ class DriftEstimator(SlaveBase):
     def parse_hidden(self, name, value):
         if value is None:
             return None
-        if not isinstance(value, list) or len(value) not in (3, 6):
-            raise ValueError("not an estimator state [x, P, drift] or [x, d, P, P12, P22, drift]")
-        *head, d = value
-        if not (isinstance(d, list) and len(d) == 5 and isinstance(d[0], int)
-                and not isinstance(d[0], bool) and d[0] >= 0):
-            raise ValueError("not a drift-estimator state [k, s1, dc2, s3, dc3]")
-        for v in head + d[1:]:
-            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)):
-                raise ValueError("%r is not a finite number" % (v,))
+        check_estimator_plain(value, (3, 6), 5,
+                              "an estimator state [x, P, drift] or [x, d, P, P12, P22, drift]",
+                              "a drift-estimator state [k, s1, dc2, s3, dc3]")
         return harmonic.from_plain(value)
 
     def hidden_problems(self, hidden):

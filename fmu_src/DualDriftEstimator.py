@@ -5,9 +5,8 @@ process model Gauss-Markov over (x, y) or two harmonic oscillators at a known fr
 A new FMU rather than a mode of DriftEstimator: DriftEstimator's interface (its variables and
 value references) stays exactly as it is, and this one has a measurement vector (z_x, z_y)."""
 
-import math
 
-from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, check_estimator_plain, var
 from driftfmu.models import chain, drift, dualaxis, harmonic
 
 #: Outputs, each depending on both inputs.
@@ -124,16 +123,10 @@ class DualDriftEstimator(SlaveBase):
         if value is None:
             return None
         sizes = (len(dualaxis.DualState._fields), len(dualaxis.DualHarmonicState._fields))
-        if not isinstance(value, list) or len(value) not in sizes:
-            raise ValueError("not a dual estimator state [x, y, Pxx, Pxy, Pyy, drift] or "
-                             "[x, dx, y, dy, P11 .. P24, drift]")
-        *head, d = value
-        if not (isinstance(d, list) and len(d) == len(dualaxis.DualDrift._fields)
-                and isinstance(d[0], int) and not isinstance(d[0], bool) and d[0] >= 0):
-            raise ValueError("not a dual drift-estimator state [k, s1xx, .., dc3y]")
-        for v in head + d[1:]:
-            if not (isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)):
-                raise ValueError("%r is not a finite number" % (v,))
+        check_estimator_plain(value, sizes, len(dualaxis.DualDrift._fields),
+                              "a dual estimator state [x, y, Pxx, Pxy, Pyy, drift] or "
+                              "[x, dx, y, dy, P11 .. P24, drift]",
+                              "a dual drift-estimator state [k, s1xx, .., dc3y]")
         return dualaxis.from_plain(value)
 
     def hidden_problems(self, hidden):

@@ -712,6 +712,23 @@ def _is_number(v):
     return isinstance(v, (int, float)) and not isinstance(v, bool)
 
 
+def check_estimator_plain(value, sizes, drift_size, state_text, drift_text):
+    """Check the JSON form of an estimator's hidden state (for a slave's ``parse_hidden``): a
+    list of one of ``sizes`` entries, the last the drift estimators' ``[k, ...]`` of
+    ``drift_size`` entries with ``k`` a count, every other entry a finite number.  Raises
+    ValueError saying what was expected (``state_text``, ``drift_text``) or which entry is not
+    finite."""
+    if not isinstance(value, list) or len(value) not in sizes:
+        raise ValueError("not %s" % state_text)
+    *head, d = value
+    if not (isinstance(d, list) and len(d) == drift_size and isinstance(d[0], int)
+            and not isinstance(d[0], bool) and d[0] >= 0):
+        raise ValueError("not %s" % drift_text)
+    for v in head + d[1:]:
+        if not (_is_number(v) and math.isfinite(v)):
+            raise ValueError("%r is not a finite number" % (v,))
+
+
 def _numbers(name, value):
     """``(path, number)`` of every number in a hidden state value (namedtuples nested)."""
     if value is None:
