@@ -468,18 +468,11 @@ class SlaveBase(Fmi2Slave):
         if at_sample and not self.DEPENDENCIES:
             pending, outputs = self._samples(self._committed if hidden is None else hidden,
                                              k + m, 1, True)
-        # commit (nothing above changed the instance)
-        if hidden is not None:
-            self._committed = hidden
-        if outputs is not None:
-            self.__dict__.update(outputs)
-        self.k = k + m
-        self._at_sample = at_sample
-        self._elapsed, self._elapsed_c = elapsed, comp
-        self._pending = pending
-        self._dirty = pending is None
+        self._commit(hidden, k + m, at_sample, elapsed, comp, outputs, pending)
 
     def _commit(self, hidden, k, at_sample, elapsed, comp, outputs, pending):
+        """The one place a step or an initialisation changes the instance, after everything
+        it needed was computed (so a refused call changes nothing)."""
         if hidden is not None:
             self._committed = hidden
         if outputs is not None:
