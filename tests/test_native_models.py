@@ -724,9 +724,8 @@ def write_generated(folder, name):
 
 
 def include_dirs(gen):
-    # the stand-in sits in its own folder: a quoted include looks first beside the includer
-    model_h = NATIVE if (NATIVE / "model.h").exists() else HARNESS / "standin"
-    return ["-I", str(gen), "-I", str(model_h), "-I", str(generate.HERE)]
+    """The generated headers, the plumbing's model.h and the C port's headers."""
+    return ["-I", str(gen), "-I", str(NATIVE), "-I", str(generate.HERE)]
 
 
 def run_parallel(commands, timeout=300, env=None):
