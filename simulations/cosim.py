@@ -111,6 +111,23 @@ class CoSimulationError(RuntimeError):
     """A co-simulation failed; the message carries what the FMUs logged."""
 
 
+def failed(exc, insts):
+    """The CoSimulationError of a master over ``insts`` (name -> Instance) that met ``exc``:
+    its message and, one per line, what the FMUs logged."""
+    log = [m for inst in insts.values() for m in inst.messages]
+    return CoSimulationError("%s%s" % (exc, "".join("\n  " + m for m in log)))
+
+
+def free_all(insts):
+    """Free every instance of a master at its end, whatever happened (a failing free does not
+    hide the others or the master's own error)."""
+    for inst in insts.values():
+        try:
+            inst.free()
+        except Exception:
+            pass
+
+
 _STATUS = {0: "ok", 1: "warning", 2: "discard", 3: "error", 4: "fatal", 5: "pending"}
 
 
@@ -348,11 +365,6 @@ def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, sta
                 progress(i + 1)
         return out
     except Exception as exc:
-        log = [m for inst in insts.values() for m in inst.messages]
-        raise CoSimulationError("%s%s" % (exc, "".join("\n  " + m for m in log))) from exc
+        raise failed(exc, insts) from exc
     finally:
-        for inst in insts.values():
-            try:
-                inst.free()
-            except Exception:
-                pass
+        free_all(insts)

@@ -22,7 +22,7 @@ from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
 import numpy as np
 from fmpy import read_model_description
 
-from driftfmu.simulations.cosim import CoSimulationError, _STATUS
+from driftfmu.simulations.cosim import _STATUS, CoSimulationError, failed, free_all
 
 
 class FastInstance:
@@ -394,11 +394,6 @@ def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, re
                 out[key] = rows[:, index[key]].tolist()
         return out
     except Exception as exc:
-        log = [m for inst in insts.values() for m in inst.messages]
-        raise CoSimulationError("%s%s" % (exc, "".join("\n  " + m for m in log))) from exc
+        raise failed(exc, insts) from exc
     finally:
-        for inst in insts.values():
-            try:
-                inst.free()
-            except Exception:
-                pass
+        free_all(insts)
