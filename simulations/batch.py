@@ -406,12 +406,30 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
-    from concurrent.futures import as_completed as cf_completed
-    with process_pool(min(workers, len(tasks))) as pool:
-        futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
-        for fut in cf_completed(futures):
-            finished(futures[fut], fut.result())
+    workers = min(workers, len(tasks))
+    with process_pool(workers) as pool:
+        for i, res in bounded_map(pool, run_task, tasks, ahead=2 * workers):
+            finished(i, res)
     return results
+
+
+def bounded_map(pool, fn, items, ahead):
+    """Yield ``(i, fn(items[i]))`` as the tasks finish on ``pool``, with at most ``ahead`` of
+    them submitted and not yet done: the pool's queues then hold a few tasks, not all of them
+    (less memory; an interrupt has little to cancel)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+    pending = {}
+    it = iter(enumerate(items))
+    while True:
+        for i, item in it:
+            pending[pool.submit(fn, item)] = i
+            if len(pending) >= ahead:
+                break
+        if not pending:
+            return
+        done, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in done:
+            yield pending.pop(fut), fut.result()
 
 
 def _worker_init():
@@ -476,10 +494,23 @@ class _Pool(ProcessPoolExecutor):
             return super().submit(*args, **kwargs)
 
 
-def stop_pool(pool, timeout=5.0):
+def stop_pool(pool, timeout=2.0):
     """Cancel the queued tasks of ``pool``, SIGTERM its worker processes (each removes its
-    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``."""
+    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``.
+
+    Then nothing of the pool may keep this process waiting: the queue feeder thread may be
+    blocked writing a task to the pipe that the stopped workers read (this process holds the
+    pipe's read end too, so the write never fails); the executor's manager thread may be
+    reading half a result that a stopped worker was sending (this process holds the pipe's
+    write end, so no end of file comes); the manager thread joins the feeder, and the
+    interpreter's exit joins the manager thread.  So both pipes' ends held here are closed
+    (the write fails, the read sees the end of the file) and the queue is told not to join
+    its feeder; the manager thread is waited for at most ``timeout`` more seconds.
+    """
     procs = list((getattr(pool, "_processes", None) or {}).values())
+    call_queue = getattr(pool, "_call_queue", None)
+    result_queue = getattr(pool, "_result_queue", None)
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         with contextlib.suppress(Exception):
@@ -490,6 +521,16 @@ def stop_pool(pool, timeout=5.0):
         if p.is_alive():
             p.kill()
             p.join(1.0)
+    if call_queue is not None:
+        with contextlib.suppress(Exception):
+            call_queue.cancel_join_thread()
+        with contextlib.suppress(Exception):
+            call_queue._reader.close()
+    if result_queue is not None:  # a worker stopped half-way through sending its result
+        with contextlib.suppress(Exception):  # leaves the manager reading: this ends the read
+            result_queue._writer.close()
+    if manager is not None:
+        manager.join(timeout)
 
 
 def mp_context(preload="driftfmu.simulations.batch"):

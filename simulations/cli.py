@@ -16,6 +16,7 @@ import math
 import os
 import signal
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -308,10 +309,33 @@ def main(argv=None):
         with warnings.catch_warnings():
             warnings.simplefilter("always", UserWarning)  # every doubt, each on its own line
             warnings.showwarning = _show_warning
-            return _main(argv, previous)
+            status = _main(argv, previous)
     except KeyboardInterrupt:  # in the instant before _main's own handling
         sys.stderr.write("driftfmu: interrupted\n")
-        return EXIT_INTERRUPTED
+        status = EXIT_INTERRUPTED
+    if status == EXIT_INTERRUPTED and argv is None:
+        exit_watchdog(status)
+    return status
+
+
+#: Seconds the interpreter may take to exit after an interrupt before :func:`exit_watchdog`
+#: ends the process.
+EXIT_GRACE = 10.0
+
+
+def exit_watchdog(status, seconds=EXIT_GRACE):
+    """End this process with ``status`` if it is still alive ``seconds`` from now: after an
+    interrupt, nothing (a library's thread joined at the interpreter's exit, a worker that
+    never answers) may keep the command waiting for ever.  A daemon thread, so a clean exit
+    does not wait for it."""
+    import threading
+
+    def end():
+        time.sleep(seconds)
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+        os._exit(status)
+    threading.Thread(target=end, name="driftfmu-exit-watchdog", daemon=True).start()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):
