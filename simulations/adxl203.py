@@ -129,6 +129,11 @@ def check_settings(freqs, sets, held_out, n, Ts):
     """ValueError (value and what is allowed) for bad experiment settings."""
     if not freqs:
         raise UsageError("freqs is empty; allowed: one or more frequencies")
+    twice = sorted({f for f in freqs if list(freqs).count(f) > 1})
+    if twice:
+        raise UsageError("freqs = %s names %s more than once; allowed: distinct frequencies"
+                         % (",".join("%g" % f for f in freqs), ", ".join("%g Hz" % f
+                                                                        for f in twice)))
     for f in freqs:
         check_frequency(f, Ts)
     if held_out < 1 or sets - held_out < 2:

@@ -561,11 +561,32 @@ def add_engine_options(p):
     p.add_argument("--engine", choices=("batch", "fmu"), default="batch",
                    help="batch: many runs at once through models/ (default); fmu: every run "
                         "co-simulated with the three FMUs")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", type=scheduler_address,
                    help="run on the Dask distributed cluster at ADDRESS (e.g. "
-                        "tcp://host:8786); default: local worker processes")
+                        "tcp://host:8786; needs the extra driftfmu[dask]); default: local "
+                        "worker processes")
     p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                    help="local worker processes (default: one per core)")
+
+
+#: What ``--scheduler`` accepts.
+SCHEDULER_ALLOWED = ("the address of a Dask scheduler, [tcp:// | tls:// | ws:// | wss:// | "
+                     "ucx://]HOST:PORT (e.g. tcp://127.0.0.1:8786) or inproc://NAME")
+
+
+def scheduler_address(text):
+    """argparse type of ``--scheduler``: an address a Dask client can connect to, checked by
+    its form only (whether something answers there is the run's to find out)."""
+    import argparse
+    import re
+    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
+                     r"(\d{1,5})", text.strip())
+    if text.strip().startswith("inproc://") and len(text.strip()) > len("inproc://"):
+        return text.strip()
+    if m is None or not 0 < int(m.group(3)) < 65536:
+        raise argparse.ArgumentTypeError("scheduler = %r is not allowed; allowed: %s"
+                                         % (text, SCHEDULER_ALLOWED))
+    return text.strip()
 
 
 def _positive_int(text):

@@ -29,7 +29,19 @@ class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one readable line."""
 
     def error(self, message):
+        choices = self.command_choices()
+        if choices and message.startswith("the following arguments are required"):
+            # a bare ``driftfmu`` or ``driftfmu run``: the usage and the list of commands
+            self.print_help(sys.stderr)
+            message = "%s needs one of: %s" % (self.prog, ", ".join(choices))
         self.exit(EXIT_USAGE, "%s: error: %s\n" % (self.prog.split()[0], message))
+
+    def command_choices(self):
+        """The names of this parser's sub-commands (empty when it has none)."""
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                return list(action.choices)
+        return []
 
 
 def param_type(name):
@@ -182,8 +194,9 @@ PLUGINS = ("driftfmu.simulations.doctor", "driftfmu.simulations.sweep", "driftfm
 
 def make_parser():
     parser = _Parser(prog="driftfmu", description=(
-        "FMI 2.0 co-simulation FMUs of a weakly nonlinear accelerometer and an EKF drift "
-        "compensator (Chorti et al., Sensor Letters 2006), and fmpy masters around them."))
+        "Co-simulation FMUs (FMI 2.0; their native C twins FMI 2.0 and 3.0) of a weakly "
+        "nonlinear accelerometer and an EKF drift compensator (Chorti et al., Sensor Letters "
+        "2006), and fmpy masters around them."))
     from driftfmu import __version__
     parser.add_argument("--version", action="version", version="driftfmu %s" % __version__)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -255,11 +268,44 @@ def add_backend(parser, what=None):
 
 
 def check_out(args):
-    """Usage error when ``--out`` names something that is not a folder."""
-    out = getattr(args, "out", None)
-    if out is not None and os.path.exists(out) and not os.path.isdir(out):
-        raise UsageError("--out %s is an existing file; allowed: a folder (created if missing)"
-                         % out)
+    """Usage errors of the output options (``--out``, and ``build``'s ``--cross-check`` and
+    ``--ssp``), found before anything runs: an empty path, an existing file where a folder is
+    meant, a folder that cannot be created or written."""
+    for option, attr in (("--out", "out"), ("--cross-check", "cross_check")):
+        value = getattr(args, attr, None)
+        if value is not None:
+            check_folder(option, value)
+    ssp = getattr(args, "ssp", None)
+    if ssp is not None:
+        if not ssp.strip():
+            raise UsageError("--ssp '' is empty; allowed: the path of the .ssp file to write")
+        check_folder("--ssp", str(Path(ssp).parent), what="the folder of")
+
+
+def check_folder(option, value, what=""):
+    """Usage error unless ``value`` names a folder that exists and can be written to, or that
+    can be created: its nearest existing parent is a folder this process can write to (tried
+    with a temporary folder, so it holds for root and for read-only file systems alike)."""
+    if not value.strip():
+        raise UsageError("%s %r is empty; allowed: a folder path, e.g. results/run1"
+                         % (option, value))
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise UsageError("%s %s is an existing file; allowed: a folder (created if missing)"
+                         % (option, value))
+    parent = path
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise UsageError("%s %s cannot be created: %s is a file; allowed: a folder path"
+                         % (option, value, parent))
+    import tempfile
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".driftfmu-write-test-", dir=parent))
+    except OSError as exc:
+        raise UsageError("%s %s cannot be written: %s%s: %s; allowed: a folder you can write "
+                         "to" % (option, value, what + " " if what else "", parent,
+                                 exc.strerror or exc)) from None
 
 
 #: Set by the first SIGINT/SIGTERM: whatever exception the interrupted code then raises (an

@@ -428,9 +428,10 @@ def add_cli(groups):
                                                "a2", "bx", "R", "a2y", "by", "Ry")})
     g.add_argument("--workers", type=_int_at_least(1, "workers"), default=None,
                    help="parallel processes (default: the number of cores)")
-    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS", type=batch.scheduler_address,
                    help="batch engine: run on the Dask distributed cluster at ADDRESS (e.g. "
-                        "tcp://host:8786); default: local worker processes")
+                        "tcp://host:8786; needs the extra driftfmu[dask]); default: local "
+                        "worker processes")
     cli.add_out(g, "results/dual_axis")
     cli.add_fmu_dir(g)
     cli.add_backend(g)

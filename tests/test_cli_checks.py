@@ -1,0 +1,129 @@
+"""Issue 19: checks before the work, help for a bare command, reasons in the messages.
+
+Every usage error exits 2 with one line naming the value and what is allowed, before anything
+is built, run or written."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from driftfmu.simulations.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _status(argv):
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+def _last_line(err):
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert lines and "Traceback" not in err, err
+    return lines[-1]
+
+
+def _one_line(err):
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+# -- help ----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv,commands", [
+    ([], ("build", "run", "doctor", "sweep", "montecarlo", "experiment", "identify")),
+    (["run"], ("gaussian", "sinusoidal")),
+    (["experiment"], ("adxl203", "dual-axis")),
+    (["montecarlo"], ("gaussian", "sinusoidal")),
+])
+def test_a_bare_command_prints_its_usage_and_names_its_choices(argv, commands, capsys):
+    assert _status(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: driftfmu")
+    last = _last_line(err)
+    assert last.startswith("driftfmu: error:") and "needs one of" in last
+    for c in commands:
+        assert c in last
+
+
+def test_the_help_names_both_fmi_versions(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "FMI 2.0 and 3.0" in " ".join(out.split())
+
+
+# -- checks before the work ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv,words", [
+    (["sweep", "--scheduler", "nonsense"], ("scheduler = 'nonsense'", "HOST:PORT")),
+    (["sweep", "--scheduler", "tcp://host:99999"], ("99999", "HOST:PORT")),
+    (["montecarlo", "gaussian", "--scheduler", "tcp//x"], ("tcp//x",)),
+    (["experiment", "dual-axis", "--scheduler", "x y"], ("'x y'",)),
+    (["sweep", "--out", ""], ("--out ''", "is empty")),
+    (["run", "gaussian", "--out", " "], ("is empty",)),
+    (["build", "--out", ""], ("is empty",)),
+    (["build", "--ssp", ""], ("--ssp", "is empty")),
+    (["experiment", "adxl203", "--freqs", "100,100"], ("100 Hz more than once", "distinct")),
+    (["experiment", "adxl203", "--freqs", "100,200,100.0"], ("100 Hz more than once",)),
+])
+def test_a_bad_setting_is_a_usage_error_before_anything_runs(argv, words, tmp_path, capsys,
+                                                             monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    rc = _status(argv)
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2, line
+    for w in words:
+        assert w in line, line
+    assert os.listdir(tmp_path) == []  # nothing built, run or written
+
+
+def test_a_cross_check_path_that_is_a_file_is_refused_before_the_build(tmp_path, capsys):
+    f = tmp_path / "afile.txt"
+    f.write_text("x")
+    rc = _status(["build", "--out", str(tmp_path / "fmus"), "--cross-check", str(f)])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "--cross-check" in line and "existing file" in line
+    assert not (tmp_path / "fmus").exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "--runs", "10"],
+    ["run", "gaussian", "--n", "10"],
+    ["build"],
+])
+def test_an_out_folder_that_cannot_be_written_is_refused_before_the_run(argv, tmp_path, capsys):
+    # /proc/1 cannot take a new folder, not even for root; a file as a parent cannot either
+    parent_file = tmp_path / "file"
+    parent_file.write_text("x")
+    for out in ("/proc/1/driftfmu-out", str(parent_file / "sub")):
+        rc = _status(argv + ["--out", out])
+        line = _one_line(capsys.readouterr().err)
+        assert rc == 2, line
+        assert "--out %s cannot be" % out in line and "allowed:" in line, line
+    assert sorted(os.listdir(tmp_path)) == ["file"]
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write into a read-only folder")
+def test_a_read_only_out_folder_is_refused_before_the_run(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        rc = _status(["sweep", "--runs", "10", "--out", str(ro / "res")])
+        line = _one_line(capsys.readouterr().err)
+        assert rc == 2 and "cannot be written" in line
+    finally:
+        ro.chmod(0o700)
+
+
+def test_the_scheduler_check_accepts_real_addresses():
+    from driftfmu.simulations.batch import scheduler_address
+    for ok in ("tcp://127.0.0.1:8786", "localhost:8786", "tls://host.example:1",
+               "tcp://[::1]:8786", "inproc://abc"):
+        assert scheduler_address(ok) == ok
