@@ -316,10 +316,7 @@ def workers_default():
 def connect(scheduler, timeout=CONNECT_TIMEOUT):
     """A ``dask.distributed.Client`` of the cluster at ``scheduler``; a clear error within
     ``timeout`` seconds when nothing answers there."""
-    try:
-        from dask.distributed import Client
-    except ImportError as exc:  # pragma: no cover - dask[distributed] is a dependency
-        raise RuntimeError("--scheduler needs dask[distributed]: %s" % exc) from exc
+    Client = dask_client_class()
     def fail(why, exc):
         raise ConnectionError("no Dask scheduler answered at %r (%s); allowed: the address of "
                               "a running dask scheduler, e.g. tcp://host:8786"
@@ -337,6 +334,21 @@ def connect(scheduler, timeout=CONNECT_TIMEOUT):
         fail(_first_line(exc), exc)
     except Exception as exc:  # something answered, but not a Dask scheduler
         fail("something answered but not as a Dask scheduler: %s" % _first_line(exc), exc)
+
+
+#: How to get what ``--scheduler`` needs.
+DASK_EXTRA = "pip install 'driftfmu[dask]'"
+
+
+def dask_client_class():
+    """``dask.distributed.Client``; a usage error naming the extra to install when Dask is
+    missing (it is not part of the default install)."""
+    try:
+        from dask.distributed import Client
+    except ImportError as exc:
+        raise UsageError("--scheduler needs Dask, which is not installed (%s); install the "
+                         "extra: %s" % (_first_line(exc), DASK_EXTRA)) from None
+    return Client
 
 
 def _first_line(exc):
@@ -578,7 +590,11 @@ def scheduler_address(text):
     """argparse type of ``--scheduler``: an address a Dask client can connect to, checked by
     its form only (whether something answers there is the run's to find out)."""
     import argparse
+    import importlib.util
     import re
+    if importlib.util.find_spec("distributed") is None:
+        raise argparse.ArgumentTypeError("%r: --scheduler needs Dask, which is not installed; "
+                                         "install the extra: %s" % (text, DASK_EXTRA))
     m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
                      r"(\d{1,5})", text.strip())
     if text.strip().startswith("inproc://") and len(text.strip()) > len("inproc://"):

@@ -302,7 +302,9 @@ def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path
 
 
 def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
-    from dask.distributed import Client, LocalCluster
+    dd = pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not "
+                             "installed")
+    Client, LocalCluster = dd.Client, dd.LocalCluster
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster, Client(cluster) as client:
         def busy():

@@ -127,3 +127,43 @@ def test_the_scheduler_check_accepts_real_addresses():
     for ok in ("tcp://127.0.0.1:8786", "localhost:8786", "tls://host.example:1",
                "tcp://[::1]:8786", "inproc://abc"):
         assert scheduler_address(ok) == ok
+
+
+# -- dependencies ----------------------------------------------------------------------------------
+
+#: Make these imports fail, as in a default install without the extras.
+WITHOUT_EXTRAS = ("import sys\n"
+                  "for m in ('dask', 'distributed', 'scipy'):\n"
+                  "    sys.modules[m] = None\n"
+                  "from driftfmu.simulations.cli import main\n")
+
+
+def test_the_main_jobs_run_without_the_extras(tmp_path):
+    script = WITHOUT_EXTRAS + ("rc = main(['sweep', '--runs', '20', '--n', '50', '--out', 'sw'])\n"
+                               "rc = rc or main(['montecarlo', 'gaussian', '--runs', '8', '--n', "
+                               "'40', '--out', 'mc'])\n"
+                               "sys.exit(rc)\n")
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "sw" / "sweep.npz").exists() and (tmp_path / "mc" / "fig1.png").exists()
+
+
+def test_scheduler_without_dask_names_the_extra_to_install(tmp_path):
+    script = WITHOUT_EXTRAS + "sys.exit(main(['sweep', '--scheduler', 'tcp://127.0.0.1:8786']))\n"
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 2
+    line = _one_line(r.stderr)
+    assert "needs Dask" in line and "pip install 'driftfmu[dask]'" in line
+    assert os.listdir(tmp_path) == []
+
+
+def test_the_default_install_leaves_the_extras_out():
+    tomllib = pytest.importorskip("tomllib")
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    names = [d.split(">")[0].split("=")[0].split("[")[0].split(";")[0].strip().lower()
+             for d in project["dependencies"]]
+    assert "dask" not in names and "scipy" not in names, names
+    assert any(d.startswith("dask[distributed]") for d in project["optional-dependencies"]["dask"])
+    assert any(d.startswith("scipy") for d in project["optional-dependencies"]["dev"])
