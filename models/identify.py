@@ -211,6 +211,10 @@ def read_csv(path):
             rows = list(csv.reader(fh))
     except OSError as exc:
         raise ValueError("%s: cannot be read (%s)" % (path, exc.strerror or exc)) from None
+    except (UnicodeDecodeError, csv.Error) as exc:  # a binary file, NUL bytes
+        raise ValueError("%s: not a text CSV file (%s); allowed: a UTF-8 text file with a "
+                         "header row with columns %s, then numbers"
+                         % (path, str(exc).splitlines()[0], ", ".join(CSV_COLUMNS))) from None
     if not rows:
         raise ValueError("%s: empty file; allowed: a header row with columns %s, then numbers"
                          % (path, ", ".join(CSV_COLUMNS)))

@@ -167,3 +167,22 @@ def test_the_default_install_leaves_the_extras_out():
     assert "dask" not in names and "scipy" not in names, names
     assert any(d.startswith("dask[distributed]") for d in project["optional-dependencies"]["dask"])
     assert any(d.startswith("scipy") for d in project["optional-dependencies"]["dev"])
+
+
+# -- input files ---------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("content,words", [
+    (bytes(range(256)) * 4, ("not a text CSV file", "time, x, z")),       # not UTF-8
+    (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", ("not a text CSV file",)),  # a picture
+    (b"time,x,z\n0,0,0\n\x00\x01,1,1\n", ("line 3", "not a finite number")),  # NUL bytes
+])
+def test_identify_on_a_binary_file_names_the_file(content, words, tmp_path, capsys):
+    f = tmp_path / "rec.bin"
+    f.write_bytes(content)
+    rc = _status(["identify", str(f), "--f", "50", "--out", str(tmp_path / "o")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1, line
+    assert str(f) in line and "allowed:" in line, line
+    for w in words:
+        assert w in line, line
+    assert not (tmp_path / "o").exists()
