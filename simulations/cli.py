@@ -154,7 +154,9 @@ def check_build_args(args):
 
 
 def cmd_run_gaussian(args):
+    from driftfmu.simulations import budget
     from driftfmu.simulations.gaussian import run_gaussian
+    budget.check_run("gaussian", args.n, args.out, args.backend)
     with progress(args.n, "co-simulation", "sample") as update:
         res = run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
                            Q=args.Q, R=args.R, n=args.n, seed=args.seed, Ts=args.Ts,

@@ -292,7 +292,8 @@ def add_cli(groups):
 
 
 def _with_bar(args, fn, **kw):
-    from driftfmu.simulations import cli
+    from driftfmu.simulations import budget, cli
+    budget.check_montecarlo(args.experiment, args.runs, args.n, args.workers, args.out)
     desc = "montecarlo (%s engine)" % args.engine
     with cli.progress(args.runs, desc, "run", monitor=False) as update:
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,

@@ -186,3 +186,59 @@ def test_identify_on_a_binary_file_names_the_file(content, words, tmp_path, caps
     for w in words:
         assert w in line, line
     assert not (tmp_path / "o").exists()
+
+
+# -- size checks before a run ----------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv,words", [
+    (["montecarlo", "gaussian", "--runs", "1000000"],
+     ("montecarlo gaussian --runs 1000000 --n 1000 needs about", "of memory",
+      "at most --runs", "driftfmu sweep")),
+    (["montecarlo", "sinusoidal", "--runs", "300000", "--n", "5000"], ("at most --runs",)),
+    (["run", "gaussian", "--n", "100000000"], ("run gaussian --n 100000000", "at most --n")),
+    (["run", "sinusoidal", "--n", "100000000"], ("at most --n",)),
+])
+def test_a_run_that_cannot_fit_the_memory_is_refused_before_it_starts(argv, words, tmp_path):
+    # under an address-space limit of 3 GB, as `ulimit -v 3000000` sets it
+    script = ("import resource, sys\n"
+              "resource.setrlimit(resource.RLIMIT_AS, (3 * 10**9, resource.RLIM_INFINITY))\n"
+              "from driftfmu.simulations.cli import main\n"
+              "sys.exit(main(%r))\n" % (argv + ["--out", "res", "--fmu-dir", "fmus"]))
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    line = _one_line(r.stderr)
+    assert r.returncode == 2, line
+    for w in words:
+        assert w in line, line
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_run_that_cannot_fit_the_disk_is_refused(tmp_path, capsys, monkeypatch):
+    from driftfmu.simulations import budget
+    monkeypatch.setattr(budget, "free_disk", lambda out: 2_000_000)
+    rc = _status(["montecarlo", "gaussian", "--runs", "100", "--n", "1000",
+                  "--out", str(tmp_path / "res")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2, line
+    assert "5.6 MB of disk" in line and "2 MB free at" in line and "at most --runs 35 " in line
+    assert not (tmp_path / "res").exists()
+
+
+def test_a_long_run_is_announced_before_it_starts(tmp_path, capsys, monkeypatch):
+    from driftfmu.simulations import budget
+    monkeypatch.setattr(budget, "LONG", 0.0)
+    rc = _status(["montecarlo", "gaussian", "--runs", "8", "--n", "50", "--workers", "1",
+                  "--out", str(tmp_path / "res")])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert err.startswith("driftfmu: note: montecarlo gaussian --runs 8 --n 50: about "), err
+    assert (tmp_path / "res" / "montecarlo.npz").exists()
+
+
+def test_the_size_estimates_hold_for_the_default_montecarlo_run(tmp_path):
+    # the estimate of what is written is what montecarlo.npz weighs (within 5 %)
+    from driftfmu.simulations import budget
+    assert _status(["montecarlo", "gaussian", "--runs", "200", "--n", "500", "--workers", "1",
+                    "--out", str(tmp_path)]) == 0
+    written = (tmp_path / "montecarlo.npz").stat().st_size
+    assert abs(written / (budget.MONTECARLO_DISK * 200 * 500) - 1) < 0.05
