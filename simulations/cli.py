@@ -173,7 +173,8 @@ def cmd_run_gaussian(args):
         line += " (expected 10 log10(1 + R/(a1^2 Q)) = %.4f dB)" % s["ekf1_ekf2_gap_db_expected"]
     print(line)
     st = s["settled_from_sample"]
-    print("within 10 %% of the realised drift from sample: EKF1 %s, EKF2 %s, EKF3 %s"
+    print("within 10 %% of the realised drift from sample (and to the end): EKF1 %s, EKF2 %s, "
+          "EKF3 %s"
           % tuple(settled_text(st[e]) for e in ("ekf1", "ekf2", "ekf3")))
     print("validation: FMU outputs equal models/ (max |diff| %.3g, tolerance %g)"
           % (max(s["validation"]["max_abs_diff"].values()), s["validation"]["tolerance"]))
@@ -182,7 +183,7 @@ def cmd_run_gaussian(args):
 def settled_text(k, n=None):
     """A settling sample for people: ``"never"`` (None, or after the last sample ``n``)."""
     if k is None or (n is not None and k > n):
-        return "never (not within the band at the last sample)"
+        return "never (not within the band for the last 10 % of the samples)"
     return "%d" % k
 
 

@@ -19,6 +19,9 @@ CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
 TOLERANCE = 1e-12
 #: "Within 10 % of the realised drift".
 SETTLE_BAND = 0.10
+#: Share of a run's samples at its end that an estimate must stay inside the band for to count
+#: as settled (:func:`settled_from`).
+SETTLE_HOLD = 0.10
 
 
 class ValidationError(RuntimeError):
@@ -63,14 +66,25 @@ def fmu_paths(fmu_dir, backend="python"):
     return paths
 
 
+def settle_hold(n):
+    """Samples an estimate must stay inside the band at the end of a run of ``n`` samples to
+    count as settled: :data:`SETTLE_HOLD` of them, at least one."""
+    return max(1, math.ceil(SETTLE_HOLD * n))
+
+
 def settled_from(estimate, reference, band=SETTLE_BAND):
     """First sample (1-based) from which ``|estimate - reference| <= band |reference|`` holds
-    to the end, or None when the last sample is outside the band."""
+    to the end, or None when it does not hold for the last :func:`settle_hold` samples.
+
+    "Settled" means "stays inside from here on": a run that enters the band only in its last
+    few samples has not shown that it stays (a sinusoid's empirical drift passes through the
+    band at every whole number of periods), so it counts as not settled.
+    """
     last_out = 0
     for k, (e, r) in enumerate(zip(estimate, reference), start=1):
         if abs(e - r) > band * abs(r):
             last_out = k
-    return None if last_out == len(estimate) else last_out + 1
+    return None if last_out > len(estimate) - settle_hold(len(estimate)) else last_out + 1
 
 
 def compare(cols, ref, names=chain.FMU_COLUMNS, tolerance=None):
