@@ -116,17 +116,21 @@ def progress(total, desc, unit, monitor=True):
 
 def cmd_build(args):
     from driftfmu.fmu_src.builder import build_fmus
-    from driftfmu.simulations.output import removing_new_folders
-    with removing_new_folders(args.out):  # no empty folder left by a failed or stopped build
-        paths = build_fmus(args.out)  # logs one line per FMU
-    fmus = {p.stem: p for p in map(Path, paths)}
-    native = None
-    if args.native or args.backend == "native":
-        from driftfmu.fmu_src.native_build import build_native_fmus
-        native = build_native_fmus(Path(args.out) / "native")  # one line per FMU
-    if args.cross_check:
-        from driftfmu.fmu_src.crosscheck import write_cross_check
-        with removing_new_folders(args.cross_check):
+    from driftfmu.simulations.output import removing_new_trees
+    native_wanted = args.native or args.backend == "native"
+    trees = [args.out, Path(args.out) / "native"]
+    trees += [args.cross_check] if args.cross_check else []
+    trees += [Path(args.ssp).parent] if args.ssp else []
+    # a failed or stopped build leaves no folder it created, half-filled or empty
+    with removing_new_trees(*trees):
+        paths = build_fmus(args.out, log=build_log)  # logs one line per FMU
+        fmus = {p.stem: p for p in map(Path, paths)}
+        native = None
+        if native_wanted:
+            from driftfmu.fmu_src.native_build import build_native_fmus
+            native = build_native_fmus(Path(args.out) / "native", log=build_log)
+        if args.cross_check:
+            from driftfmu.fmu_src.crosscheck import write_cross_check
             sets = ([(2, fmus, "python")] if native is None
                     else [(v, native[v], "native") for v in sorted(native)])
             for fmi_version, chosen, backend in sets:
@@ -134,16 +138,30 @@ def cmd_build(args):
                                            backend=backend):
                     print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)"
                           % d)
-    if args.ssp:
-        from driftfmu.fmu_src.ssp import build_ssp
-        chosen = fmus if args.backend == "python" else native[2]
-        with removing_new_folders(Path(args.ssp).parent):
+        if args.ssp:
+            from driftfmu.fmu_src.ssp import build_ssp
+            chosen = fmus if args.backend == "python" else native[2]
             print("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
                   "Gaussian run)" % (build_ssp(chosen, args.ssp), args.backend))
 
 
+def build_log(line):
+    """The builders' log: a line about a built FMU to standard output; a warning to standard
+    error, one line, as the command's other warnings."""
+    if line.startswith("warning: "):
+        sys.stderr.write("driftfmu: %s\n" % first_line(line))
+        sys.stderr.flush()
+    else:
+        print(line, flush=True)
+
+
 def check_build_args(args):
     """Usage errors of ``driftfmu build`` found before anything is built."""
+    if args.native or args.backend == "native":
+        from driftfmu.fmu_src import native_build
+        problem = native_build.compiler_problem("linux64")
+        if problem:
+            raise UsageError("build --native needs a C compiler: %s" % problem)
     if args.ssp:
         ssp = Path(args.ssp)
         if ssp.is_dir():

@@ -34,6 +34,30 @@ def removing_new_folders(path):
 
 
 @contextlib.contextmanager
+def removing_new_trees(*paths):
+    """Run the block; when it fails (or is interrupted), remove every folder it would have
+    created for ``paths`` (each the highest folder of its path that did not exist before),
+    with whatever the block has put into it: a failed or stopped run leaves no folder it
+    created, not even a half-filled one.  Folders that existed before are left alone."""
+    new = []
+    for path in paths:
+        path = Path(path).absolute()
+        top = None
+        p = path
+        while not p.exists() and p != p.parent:
+            top = p
+            p = p.parent
+        if top is not None and top not in new:
+            new.append(top)
+    try:
+        yield
+    except BaseException:
+        for d in new:
+            shutil.rmtree(d, ignore_errors=True)
+        raise
+
+
+@contextlib.contextmanager
 def staged(out_dir):
     """Yield a staging folder; on success move its files into ``out_dir`` (created if missing).
 

@@ -242,3 +242,67 @@ def test_the_size_estimates_hold_for_the_default_montecarlo_run(tmp_path):
                     "--out", str(tmp_path)]) == 0
     written = (tmp_path / "montecarlo.npz").stat().st_size
     assert abs(written / (budget.MONTECARLO_DISK * 200 * 500) - 1) < 0.05
+
+
+# -- build: no half-built folders ------------------------------------------------------------------
+
+def test_build_native_with_a_missing_compiler_names_it_before_building(tmp_path, capsys,
+                                                                      monkeypatch):
+    monkeypatch.setenv("CC", "no-such-cc")
+    out = tmp_path / "x"
+    rc = _status(["build", "--native", "--out", str(out)])
+    captured = capsys.readouterr()
+    line = _one_line(captured.err)
+    assert rc == 2, line
+    assert "CC='no-such-cc' is not an installed program" in line and "allowed:" in line
+    assert captured.out == "" and not out.exists()
+
+
+def _fake_python_build(out_dir, log=print, **kw):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    log("warning: the loader shim could not be compiled")
+    paths = []
+    for name in ("Excitation", "Accelerometer", "DriftEstimator"):
+        (out / ("%s.fmu" % name)).write_bytes(b"fmu")
+        log("built %s" % (out / ("%s.fmu" % name)))
+        paths.append(str(out / ("%s.fmu" % name)))
+    return paths
+
+
+@pytest.mark.parametrize("stop,status", [(RuntimeError("gcc broke"), 1),
+                                         (KeyboardInterrupt(), 130)])
+@pytest.mark.parametrize("existing", [False, True])
+def test_a_failed_or_stopped_native_build_leaves_no_folder_it_created(stop, status, existing,
+                                                                     tmp_path, capsys,
+                                                                     monkeypatch):
+    from driftfmu.fmu_src import builder, native_build
+
+    def half_native(out_dir, **kw):
+        for v in (2, 3):
+            (Path(out_dir) / ("fmi%d" % v)).mkdir(parents=True, exist_ok=True)
+        raise stop
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.setattr(native_build, "build_native_fmus", half_native)
+    monkeypatch.setattr(native_build, "compiler_problem", lambda platform: None)
+    out = tmp_path / "new" / "fmus"
+    if existing:
+        out.mkdir(parents=True)
+        (out / "mine.txt").write_text("keep")
+    rc = _status(["build", "--native", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert rc == status, captured.err
+    if existing:  # what was there stays; the new native/ folder goes
+        assert sorted(os.listdir(out)) == ["Accelerometer.fmu", "DriftEstimator.fmu",
+                                           "Excitation.fmu", "mine.txt"]
+    else:
+        assert os.listdir(tmp_path) == []
+
+
+def test_build_warnings_go_to_stderr_with_the_prefix(tmp_path, capsys, monkeypatch):
+    from driftfmu.fmu_src import builder
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    assert _status(["build", "--out", str(tmp_path / "fmus")]) == 0
+    captured = capsys.readouterr()
+    assert _one_line(captured.err) == "driftfmu: warning: the loader shim could not be compiled"
+    assert "shim" not in captured.out and captured.out.count("built ") == 3
