@@ -182,7 +182,7 @@ def diagnose(fmu):
                     "the FMU's code needs modules that are neither bundled nor in the standard "
                     "library: %s%s" % (", ".join(foreign), "; not installed here: "
                                        + ", ".join(missing) if missing else "")))
-    else:
+    elif bundled:
         out.append((OK, "the FMU's code needs only the standard library and its bundled "
                         "modules (%s): any host with a matching libpython runs it"
                     % ", ".join(sorted(bundled))))
