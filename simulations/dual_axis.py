@@ -235,6 +235,8 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
                 done += 1
                 if progress is not None:
                     progress(done)
+        from driftfmu.simulations.cli import start_phase
+        start_phase(progress, "validation (FMU outputs against models/)", len(grid), "point")
         for i, (sw, v) in enumerate(grid):
             ex, sp, es = start_values(sw, v, s)
             ref = batch.dual_simulate(n, seeds, ex, sp, es, Ts, record=dualaxis.COLUMNS)
@@ -244,6 +246,8 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
                     worst = max(worst, d) if d == d else math.inf
             one = [_finals_of_columns(cols[(i, r)]) for r in range(runs)]
             finals[i] = {k: np.array([o[k] for o in one]) for k in one[0]}
+            if progress is not None:
+                progress(i + 1)
         if worst != 0.0:
             raise ValidationError("FMU outputs differ from models/ run directly by %.3g; "
                                   "allowed: equal bit for bit" % worst)

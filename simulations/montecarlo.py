@@ -98,7 +98,10 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
     t0 = time.perf_counter()
     res = batch.gather(batch.run_tasks(tasks, scheduler=scheduler, client=client,
                                        workers=workers, progress=progress))
-    return res, time.perf_counter() - t0
+    seconds = time.perf_counter() - t0
+    from driftfmu.simulations.cli import start_phase
+    start_phase(progress, "the summary, the files and the figure", 0, "step")
+    return res, seconds
 
 
 def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4,

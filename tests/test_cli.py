@@ -212,7 +212,8 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
     ran when the signal was sent)."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
-    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT),
+               DRIFTFMU_PROGRESS_EVERY="3600")  # stderr: the interrupt's line only
     p = subprocess.Popen([sys.executable, "-m", "driftfmu", *argv], cwd=tmp_path, env=env,
                          start_new_session=True, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
