@@ -47,18 +47,29 @@ def backend_fmus(request):
 
 @pytest.fixture
 def report(request):
-    """``report(line)``: write a line to the terminal past pytest's output capture, so the CI
-    log shows what a passing test saw (which importer stepped the FMUs, the error texts of bad
-    inputs, the memory figure): ``pytest -ra`` hides passing tests' output."""
-    plugins = request.config.pluginmanager
-    reporter = plugins.get_plugin("terminalreporter")
-    capture = plugins.get_plugin("capturemanager")
-
+    """``report(line)``: note what a passing test saw (which importer stepped the FMUs, the
+    error texts of bad inputs, the memory figure).  The lines are listed together after the
+    test session, under their own heading and each with its test's name, so that the CI log
+    shows them (``pytest -ra`` hides passing tests' output) without mixing them into the
+    progress lines, where they read as failures.  They travel as the test's user properties,
+    so pytest-xdist's workers hand them on too."""
     def write(line):
-        if reporter is None or capture is None:
-            print(line)
-            return
-        with capture.global_and_fixture_disabled():
-            reporter.ensure_newline()
-            reporter.write_line(line)
+        request.node.user_properties.append(("report", str(line)))
     return write
+
+
+#: ``(test id, line)`` of every :func:`report` line of this session.
+_REPORTED = []
+
+
+def pytest_runtest_logreport(report):
+    if report.when == "call":
+        _REPORTED.extend((report.nodeid, v) for k, v in report.user_properties if k == "report")
+
+
+def pytest_terminal_summary(terminalreporter):
+    if _REPORTED:
+        terminalreporter.section("what passing tests saw (their report lines; not failures)",
+                                 sep="-")
+        for nodeid, line in _REPORTED:
+            terminalreporter.write_line("%s: %s" % (nodeid, line))

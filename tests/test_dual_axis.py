@@ -335,7 +335,7 @@ def test_bad_dual_value_gives_fmi2error_with_log_message(built_fmus, start, text
     with pytest.raises(CoSimulationError) as info:
         cosimulate(paths, dual_axis.CONNECTIONS, 5, 1e-3, start_values=start)
     msg = str(info.value)
-    report("BAD INPUT %s -> %s" % (start, " | ".join(msg.splitlines())))
+    report("refused, as it must be: %s -> %s" % (start, " | ".join(msg.splitlines())))
     assert "status 3 (error)" in msg and text in msg
 
 
