@@ -312,7 +312,8 @@ def plot_fig4(path, per, traces, train, n, Ts):
                  "the empirical drift on the held-out sets, %d samples per set at fs = %g kHz"
                  % (n, 1e-3 / Ts), width=120)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    from driftfmu.simulations.output import savefig
+    savefig(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -350,7 +351,8 @@ def plot_fig5(path, per):
                  "difference against frequency, in dB re 1 V (10 log10(v / 1 V)); labelled, the "
                  "margin (the letter claims at least %g dB)" % CLAIM_DB, width=80)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    from driftfmu.simulations.output import savefig
+    savefig(fig, path, dpi=120)
     plt.close(fig)
 
 

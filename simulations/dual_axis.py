@@ -405,7 +405,7 @@ def plot_dual_axis(path, summary):
         labels += l
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.12, 1, 0.96))
-    fig.savefig(path, dpi=120)
+    output.savefig(fig, path, dpi=120)
     plt.close(fig)
 
 

@@ -259,7 +259,7 @@ def plot_population(path, result, prefix, title):
     axes[1].set_xlim(1, max(n, 2))
     output.caption(fig, title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    output.savefig(fig, path, dpi=120)
     plt.close(fig)
 
 

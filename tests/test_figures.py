@@ -60,6 +60,26 @@ def _check(fig, series):
         if legend is not None:
             overlap = legend.get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
             assert not overlap, "legend on the data: %s" % ax.get_title()
+    # nothing clipped without a mark: a labelled curve that leaves the y range has its
+    # triangles on the frame and a note (output.mark_clipping)
+    for ax in axes:
+        y0, y1 = sorted(ax.get_ylim())
+        x0, x1 = sorted(ax.get_xlim())
+        marks = {line.get_label()[len("_clipped "):] for line in ax.get_lines()
+                 if line.get_label().startswith("_clipped ")}
+        for line in ax.get_lines():
+            if line.get_label().startswith("_"):
+                continue
+            x, y = (np.asarray(v, dtype=float) for v in line.get_data())
+            if x.shape != y.shape:
+                continue
+            ok = np.isfinite(x) & np.isfinite(y) & (x >= x0) & (x <= x1)
+            if ax.get_yscale() == "log":
+                ok &= y > 0
+            if (ok & ((y < y0) | (y > y1))).any():
+                assert line.get_label() in marks, "clipped without a mark: %s in %r" % (
+                    line.get_label(), ax.get_title())
+                assert any("off the scale" in t.get_text() for t in ax.texts)
     # labels written on the data (margins, "k = 250") stay inside their axes, not over the
     # tick labels or cut at the frame
     for ax in axes:
@@ -98,6 +118,21 @@ def test_drift_png(figures, tmp_path, kind):
     assert (tmp_path / "drift.png").stat().st_size > 10000
 
 
+def test_drift_png_marks_what_its_range_clips(figures, tmp_path):
+    # a Gaussian run: the empirical drift z̄ - a0 starts far outside the bottom panel's range
+    # (its linear term a1 x̄ dwarfs the drift for k < 100)
+    cols = _one_run(n=2000, kind=1, Q=0.01)
+    output.plot_drift(tmp_path / "drift.png", cols, "Drift estimates of one Gaussian run, "
+                      "with enough words to be a caption")
+    (fig,) = figures
+    _check(fig, {0: ["EKF1"], 1: ["empirical", "EKF1"]})
+    bottom = fig.axes[1]
+    marks = [line for line in bottom.get_lines() if line.get_label().startswith("_clipped empirical")]
+    assert marks and all(np.all(np.asarray(m.get_xdata()) < 200) for m in marks)
+    note = [t.get_text() for t in bottom.texts if "off the scale" in t.get_text()]
+    assert note and "empirical" in note[0]
+
+
 def test_drift_png_of_one_sample_draws_without_warning(figures, tmp_path):
     output.plot_drift(tmp_path / "drift.png", _one_run(n=1), "One sample: still a figure, "
                       "without a warning from matplotlib")
@@ -127,6 +162,19 @@ def test_fig2_fig3_png(figures, tmp_path):
     assert len(figures) == 2
     for fig in figures:
         _check(fig, {i: ["R = 1e-06", "R = 1e-04", "R = 1e-02", "the drift"] for i in (0, 1)})
+    # one scale: EKF1 (fig2) against EKF3 (fig3) can be compared by eye
+    limits = {tuple(np.round(np.log10(ax.get_ylim()), 9)) for fig in figures for ax in fig.axes}
+    assert len(limits) == 1, limits
+    # every curve distinguishable even where curves coincide: its own colour, dash and marker
+    # size (coincident hollow markers show as concentric rings)
+    for fig in figures:
+        for ax in fig.axes:
+            curves = [line for line in ax.get_lines() if line.get_label().startswith("R = ")]
+            assert len(curves) == 3
+            for attr in ("get_color", "get_linestyle", "get_markersize", "get_marker"):
+                values = [getattr(c, attr)() for c in curves]
+                assert len({str(v) for v in values}) == len(values), (attr, values)
+            assert all(c.get_markerfacecolor() == "none" for c in curves)
 
 
 def _per(freqs, held_out=3):
