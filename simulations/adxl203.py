@@ -340,7 +340,10 @@ def plot_fig5(path, per):
                     xytext=(4, 0), textcoords="offset points", ha="left", va="center",
                     fontsize=8)
     ax.set_xlabel("drive frequency [Hz]")
-    ax.set_ylabel("drift and difference [dB re 1 V]")
+    # the letter writes its margin as 10 log10 of a voltage ratio; kept so that the margins
+    # compare with its numbers (20 log10, the usual one for voltages, doubles every value)
+    ax.set_ylabel("10·log10(v / 1 V) [dB re 1 V]\n10 log10 of a voltage, as the letter;\n"
+                  "20 log10 would double every value", fontsize=9)
     ax.set_xticks(f)
     step = float(np.min(np.diff(f))) if len(f) > 1 else max(f[0] * 0.2, 1.0)
     ax.set_xlim(f[0] - 0.4 * step, f[-1] + 0.6 * step)

@@ -165,15 +165,17 @@ def mark_clipping(ax):
     y0, y1 = sorted(ax.get_ylim())
     x0, x1 = sorted(ax.get_xlim())
     logy = ax.get_yscale() == "log"
-    xname = "k" if ax.get_xlabel().startswith("sample k") else "x"
+    xname = "k" if any(a.get_xlabel().startswith("sample k")
+                       for a in ax.get_shared_x_axes().get_siblings(ax)) else "x"
     ylabel = ax.get_ylabel()
     unit = (" " + ylabel[ylabel.rindex("[") + 1:ylabel.rindex("]")]
             if "[" in ylabel and ylabel.rstrip().endswith("]") else "")
     notes = []
     for line in list(ax.get_lines()):
         label = line.get_label()
-        if label.startswith("_"):
-            continue
+        if label.startswith(("_child", "_nolegend_", "_clipped")):
+            continue  # unnamed helpers (axhline, axvline) and the marks themselves
+        label = label.lstrip("_")  # "_EKF1 5 %": named, kept out of the legend
         x, y = (np.asarray(v, dtype=float) for v in line.get_data())
         if x.shape != y.shape or not x.size:
             continue

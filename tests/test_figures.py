@@ -68,8 +68,8 @@ def _check(fig, series):
         marks = {line.get_label()[len("_clipped "):] for line in ax.get_lines()
                  if line.get_label().startswith("_clipped ")}
         for line in ax.get_lines():
-            if line.get_label().startswith("_"):
-                continue
+            if line.get_label().startswith(("_child", "_nolegend_", "_clipped")):
+                continue  # axhline/axvline helpers, and the marks
             x, y = (np.asarray(v, dtype=float) for v in line.get_data())
             if x.shape != y.shape:
                 continue
@@ -77,7 +77,7 @@ def _check(fig, series):
             if ax.get_yscale() == "log":
                 ok &= y > 0
             if (ok & ((y < y0) | (y > y1))).any():
-                assert line.get_label() in marks, "clipped without a mark: %s in %r" % (
+                assert line.get_label().lstrip("_") in marks, "clipped without a mark: %s in %r" % (
                     line.get_label(), ax.get_title())
                 assert any("off the scale" in t.get_text() for t in ax.texts)
     # labels written on the data (margins, "k = 250") stay inside their axes, not over the
@@ -146,13 +146,22 @@ def test_fig1_and_sine_png(figures, tmp_path, which):
     else:
         montecarlo.montecarlo_sinusoidal(runs=64, n=300, workers=1, out=tmp_path)
     (fig,) = figures
-    _check(fig, {0: ["EKF1", "EKF2", "EKF3"], 1: ["empirical", "EKF1", "realised"]})
+    _check(fig, {0: ["EKF1", "EKF2", "EKF3"], 1: ["EKF1", "realised"],
+                 2: ["empirical", "realised"]})
+    # linear drift axes in mV (no symmetric-log axis), and the EKF1 median not hidden under
+    # the realised drift's: thinner and drawn on top of it
+    assert all(ax.get_yscale() == "linear" for ax in fig.axes)
+    middle = {line.get_label().split(" median")[0]: line for line in fig.axes[1].get_lines()}
+    ekf1, realised = middle["EKF1"], middle["realised"]
+    assert ekf1.get_zorder() > realised.get_zorder()
+    assert ekf1.get_linewidth() < realised.get_linewidth()
+    assert ekf1.get_color() != realised.get_color()
     # the median and both percentile lines of each estimator: 3 lines each, none hidden in a
     # filled band
     top = fig.axes[0]
     assert len([c for c in top.collections if c.get_label().startswith("EKF")]) == 0
-    assert len([line for line in top.get_lines() if line.get_color() in ("C0", "C1", "C2")]) \
-        == 9
+    assert len([line for line in top.get_lines() if line.get_color() in ("C0", "C1", "C2")
+                and not line.get_label().startswith("_clipped")]) == 9
     assert any(t.get_text() == "k = 250" for t in top.texts)  # the claim's sample, labelled
 
 
@@ -211,4 +220,7 @@ def test_fig5_png(figures, tmp_path):
     _check(fig, {0: ["drift", "rms(EKF1"]})
     ax = fig.axes[0]
     assert "dB re 1 V" in ax.get_ylabel() and "|value|" not in ax.get_ylabel()
+    # the convention and its reason, on the axis: 10 log10 of a voltage, as the letter
+    label = " ".join(ax.get_ylabel().split())
+    assert "10·log10(v / 1 V)" in label and "20 log10" in label and "letter" in label
     assert len([t for t in ax.texts if t.get_text().endswith(" dB")]) == 3
