@@ -211,6 +211,15 @@ def test_fig4_png_shows_every_held_out_set_of_every_frequency(figures, tmp_path)
     marks = [line for line in left.get_lines() if line.get_linestyle() in ("None", "none", "")]
     assert len(marks) == 2 * len(freqs)  # markers, not lines joining discrete sets
     assert sum(len(line.get_xdata()) for line in marks) == 2 * 3 * len(freqs)
+    # right: every held-out set of every frequency (not one of them), each over its own
+    # empirical drift, against one reference line that needs no matching
+    right = fig.axes[1]
+    traces = [line for line in right.get_lines() if "Hz" in line.get_label()
+              and not line.get_label().startswith("_clipped")]
+    assert len(traces) == 3 * len(freqs)
+    refs = [line for line in right.get_lines() if "empirical drift" in line.get_label()]
+    assert len(refs) == 1 and set(refs[0].get_ydata()) == {100.0}
+    assert "[%]" in right.get_ylabel()
 
 
 def test_fig5_png(figures, tmp_path):
