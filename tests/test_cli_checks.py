@@ -306,3 +306,18 @@ def test_build_warnings_go_to_stderr_with_the_prefix(tmp_path, capsys, monkeypat
     captured = capsys.readouterr()
     assert _one_line(captured.err) == "driftfmu: warning: the loader shim could not be compiled"
     assert "shim" not in captured.out and captured.out.count("built ") == 3
+
+
+# -- words that match the code -------------------------------------------------------------------
+
+def test_the_method_page_names_the_dual_axis_model_as_the_command_line_does():
+    page = ROOT / "docs" / "method.md"
+    if not page.exists():
+        pytest.skip("not a source checkout")
+    text = page.read_text()
+    assert "## 8. The dual-axis model" in text and "driftfmu experiment dual-axis" in text
+    assert "a_xy" not in text  # the cross term is bx (by), as --bx, --by and the FMU say
+    from driftfmu.simulations.cli import make_parser
+    dual = make_parser().parse_args(["experiment", "dual-axis"])
+    for name in ("bx", "by", "a2y", "Ry", "Xy", "Qy"):
+        assert hasattr(dual, name) and "`--%s`" % name in text, name
