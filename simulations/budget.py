@@ -20,6 +20,8 @@ BASE_MEMORY = 250e6
 MONTECARLO_MEMORY = 2 * 7 * 8 + 8
 #: Bytes written per run and sample by ``montecarlo`` (montecarlo.npz, 7 float64 trajectories).
 MONTECARLO_DISK = 7 * 8
+#: Bytes per run of ``--summary-only``'s per-run summaries (6 settling samples, 2 drifts).
+SUMMARY_BYTES = 8 * 8
 #: Seconds per run and sample of the batch engine on one core (measured ~5e-6 under load).
 MONTECARLO_SECONDS = 5e-6
 #: Bytes of memory per sample of one co-simulation (``run``): the recorded columns, the models/
@@ -133,17 +135,28 @@ def check(what, memory, disk, seconds, out, proceed, fit=None):
     return {"memory": memory, "disk": disk, "seconds": seconds}
 
 
-def check_montecarlo(command, runs, n, workers, out):
-    """The size check of ``driftfmu montecarlo``: every trajectory of every run is kept."""
+def check_montecarlo(command, runs, n, workers, out, summary_only=False):
+    """The size check of ``driftfmu montecarlo``: every trajectory of every run is kept, or
+    (``summary_only``) per-run summaries and the figure's runs' trajectories."""
     cores = max(1, workers or os.cpu_count() or 1)
+    what = "montecarlo %s --runs %d --n %d%s" % (command, runs, n,
+                                                " --summary-only" if summary_only else "")
+    seconds = MONTECARLO_SECONDS * runs * n / cores
+    if summary_only:
+        from driftfmu.simulations.montecarlo import FIGURE_RUNS
+        kept = min(runs, FIGURE_RUNS)
+        # workers hold their chunk's trajectories while they reduce them
+        chunk = min(runs, 4096) * min(cores, 2)
+        memory = MONTECARLO_MEMORY * (kept + chunk) * n + SUMMARY_BYTES * runs
+        disk = (MONTECARLO_DISK * kept * n + SUMMARY_BYTES * runs) if out else 0
+        return check(what, memory, disk, seconds, out, "a smaller --n")
 
     def fit(share):
         return "at most --runs %d at --n %d" % (max(1, int(runs * share)), n)
-    return check("montecarlo %s --runs %d --n %d" % (command, runs, n),
-                 MONTECARLO_MEMORY * runs * n, MONTECARLO_DISK * runs * n if out else 0,
-                 MONTECARLO_SECONDS * runs * n / cores, out,
-                 "fewer --runs or a smaller --n; for statistics over many runs without their "
-                 "trajectories use `driftfmu sweep`", fit)
+    return check(what, MONTECARLO_MEMORY * runs * n, MONTECARLO_DISK * runs * n if out else 0,
+                 seconds, out,
+                 "--summary-only, which keeps per-run summaries instead of trajectories; or "
+                 "fewer --runs or a smaller --n", fit)
 
 
 def check_run(command, n, out, backend="python"):

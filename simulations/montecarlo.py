@@ -9,6 +9,10 @@ stream ``STREAM_PHASE`` under the run's seed), estimated with the same scalar Ga
 The summary gives, per estimator, the fraction of runs that have settled by sample 250 (within
 10 % of the reference from that sample on, as in :func:`driftfmu.simulations.gaussian.settled_from`) and
 the EKF1-EKF2 gap ``10 log10(dc1 / dc2)`` at the last sample over the runs.
+
+``--summary-only`` has the workers send back, per run, only the settling samples and the final
+drifts (:func:`reduce_chunk`), and whole trajectories of the first :data:`FIGURE_RUNS` runs for
+the figure: the same summary, with memory and disk that grow with the runs, not with runs x n.
 """
 import math
 import time
@@ -49,10 +53,34 @@ def settled_from(estimate, reference, band=SETTLE_BAND):
     return np.where(last_out > n - settle_hold(n), n + 1, last_out + 1)
 
 
+#: Runs whose whole trajectories ``--summary-only`` still keeps, for the figure.
+FIGURE_RUNS = 1000
+
+
+def reduce_chunk(traj, task):
+    """What a worker sends back under ``--summary-only``: per run, the settling sample of each
+    estimator against each reference and the final EKF1 and EKF2 drifts; whole trajectories
+    only of the first ``task["keep"]`` runs of the chunk (the figure's)."""
+    out = {"settled_%s_%s" % (ref, e): settled_from(traj["dc_%s" % e], traj["dc_%s" % ref])
+           for ref in ("realised", "empirical") for e in ("ekf1", "ekf2", "ekf3")}
+    out["final_dc_ekf1"] = traj["dc_ekf1"][:, -1].copy()
+    out["final_dc_ekf2"] = traj["dc_ekf2"][:, -1].copy()
+    keep = task["keep"]
+    out.update({name: traj[name][:keep].copy() for name in RECORD})
+    return out
+
+
 def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTLE_BY,
               band=SETTLE_BAND):
-    """Fractions of runs settled by ``settle_by`` per estimator and reference; EKF1-EKF2 gap."""
-    summary = {"runs": int(traj["dc_ekf1"].shape[0]), "n": int(traj["dc_ekf1"].shape[1]),
+    """Fractions of runs settled by ``settle_by`` per estimator and reference; EKF1-EKF2 gap.
+
+    ``traj`` holds the trajectories ``(runs, n)``, or (``--summary-only``, from
+    :func:`reduce_chunk`) ``settled_<ref>_<estimator>`` and ``final_dc_ekf1/2`` per run, with
+    ``n`` the trajectories' length."""
+    reduced = "settled_realised_ekf1" in traj
+    n = int(traj["dc_ekf1"].shape[1])
+    runs = int(traj["final_dc_ekf1"].shape[0] if reduced else traj["dc_ekf1"].shape[0])
+    summary = {"runs": runs, "n": n,
                "settle_by": settle_by, "band": band, "settled_fraction": {},
                "median_settled_from": {}}
     for ref in references:
@@ -60,12 +88,14 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
         summary["settled_fraction"][ref] = {}
         summary["median_settled_from"][ref] = {}
         for e in ("ekf1", "ekf2", "ekf3"):
-            s = settled_from(traj["dc_%s" % e], r, band)
+            s = (traj["settled_%s_%s" % (ref, e)] if reduced
+                 else settled_from(traj["dc_%s" % e], r, band))
             # n + 1: not settled by the last sample, whatever settle_by is
             summary["settled_fraction"][ref][e] = float(np.mean((s <= settle_by) &
                                                                 (s <= summary["n"])))
             summary["median_settled_from"][ref][e] = float(np.median(s))
-    d1, d2 = traj["dc_ekf1"][:, -1], traj["dc_ekf2"][:, -1]
+    d1, d2 = ((traj["final_dc_ekf1"], traj["final_dc_ekf2"]) if reduced
+              else (traj["dc_ekf1"][:, -1], traj["dc_ekf2"][:, -1]))
     with np.errstate(divide="ignore", invalid="ignore"):
         gaps = 10.0 * np.log10(d1 / d2)
     gaps = gaps[np.isfinite(gaps)]
@@ -81,7 +111,7 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
 
 
 def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu_dir,
-         progress, backend="python"):
+         progress, backend="python", summary_only=False):
     seeds = batch.run_seeds(seed, runs)
     per_run = {k: v(seeds) if callable(v) else v for k, v in per_run.items()}
     if engine not in ("batch", "fmu"):
@@ -95,6 +125,12 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
         chunk = max(64, min(batch.CHUNK, -(-runs // (2 * w))))
     tasks = batch.make_tasks(n, seeds, per_run, common, record=RECORD, chunk=chunk,
                              engine=engine, fmu_dir=fmu_dir, backend=backend)
+    if summary_only:  # the workers send back summaries, and the figure's first runs whole
+        lo = 0
+        for task in tasks:
+            task["reduce"] = "driftfmu.simulations.montecarlo:reduce_chunk"
+            task["keep"] = max(0, min(len(task["seeds"]), FIGURE_RUNS - lo))
+            lo += len(task["seeds"])
     t0 = time.perf_counter()
     res = batch.gather(batch.run_tasks(tasks, scheduler=scheduler, client=client,
                                        workers=workers, progress=progress))
@@ -107,7 +143,7 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
 def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4,
                         seed=1, Ts=1e-3, x0=0.0, P0=None, engine="batch", scheduler=None,
                         client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
-                        progress=None, backend="python"):
+                        progress=None, backend="python", summary_only=False):
     """``runs`` Gaussian runs of ``n`` samples (the letter's Fig. 1 as a population).
 
     Returns the ``montecarlo.npz`` arrays (``fig1_x``, ``fig1_z``, ``fig1_dc1``, ``fig1_dc2``,
@@ -120,26 +156,28 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     batch.check_parameters(params)
     common = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, Ts=Ts, x0=x0, P0=P0)
     res, seconds = _run(n, runs, seed, {}, common, engine, scheduler, client, workers,
-                        fmu_dir, progress, backend)
+                        fmu_dir, progress, backend, summary_only)
     result = {key: res[name] for key, name in GAUSSIAN_KEYS.items()}
+    result.update(_per_run(res))
     summary = summarise(res, ("realised", "empirical"), a1=a1, Q=Q, R=R, A=A)
     summary["parameters"] = dict(params, runs=runs, engine=engine,
                                  P0=batch.default_P0(A, Q) if P0 is None else P0)
     summary["dc_expected"] = a2 * excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q)
     summary["seconds"] = seconds
+    summary["trajectories_kept"] = int(result["fig1_dc1"].shape[0])
     result["summary"] = summary
     if out is not None:
         _write(out, result, GAUSSIAN_KEYS, "fig1.png",
-               "Drift estimation error over %d runs (the letter's Fig. 1 as a population): "
+               "Drift estimation error over %s (the letter's Fig. 1 as a population): "
                "Gaussian state, a1 = %g V/g, a2 = %g V/g², Q = %g g², R = %g V², A = %g, "
-               "n = %d" % (runs, a1, a2, Q, R, A, n))
+               "n = %d" % (_runs_text(runs, summary), a1, a2, Q, R, A, n))
     return result
 
 
 def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=1.0, f=150.0,
                           Ts=1e-3, seed=1, A=0.0, Q=None, engine="batch", scheduler=None,
                           client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
-                          progress=None, backend="python"):
+                          progress=None, backend="python", summary_only=False):
     """``runs`` sinusoidal runs ``x_k = X sin(2 pi f (k-1) Ts + phi_r)`` of ``n`` samples.
 
     ``phi_r`` is :func:`driftfmu.simulations.batch.sine_phase` of the run's seed; the filter is the
@@ -159,22 +197,39 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     common = dict(a0=a0, a1=a1, a2=a2, R=R, Ts=Ts, X=X, f=f, kind=excitation.SINUSOIDAL,
                   filter_A=A, filter_Q=Q)
     res, seconds = _run(n, runs, seed, {"phi": batch.sine_phase}, common, engine, scheduler,
-                        client, workers, fmu_dir, progress, backend)
+                        client, workers, fmu_dir, progress, backend, summary_only)
     result = {key: res[name] for key, name in SINE_KEYS.items()}
+    result.update(_per_run(res))
     result["sine_phi"] = batch.sine_phase(batch.run_seeds(seed, runs))
     summary = summarise(res, ("empirical", "realised"))
     summary["parameters"] = dict(params, runs=runs, engine=engine,
                                  filter="Gauss-Markov EKF, A = %g, Q = %g" % (A, Q))
     summary["dc_expected"] = a2 * excitation.stationary_variance(excitation.SINUSOIDAL, X=X)
     summary["seconds"] = seconds
+    summary["trajectories_kept"] = int(result["sine_dc1"].shape[0])
     result["summary"] = summary
     if out is not None:
         _write(out, result, SINE_KEYS, "sine.png",
-               "Drift estimation error over %d runs: sinusoidal state X = %g g at f = %g Hz "
+               "Drift estimation error over %s: sinusoidal state X = %g g at f = %g Hz "
                "(random phase per run), a1 = %g V/g, a2 = %g V/g², R = %g V², n = %d at "
                "Ts = %g s; Gauss-Markov filter A = %g, Q = %g g²"
-               % (runs, X, f, a1, a2, R, n, Ts, A, Q))
+               % (_runs_text(runs, summary), X, f, a1, a2, R, n, Ts, A, Q))
     return result
+
+
+def _per_run(res):
+    """The per-run summaries of a ``--summary-only`` run (``settled_<ref>_<estimator>``,
+    ``final_dc_ekf1/2``), for montecarlo.npz; empty otherwise."""
+    if "settled_realised_ekf1" not in res:
+        return {}
+    return {k: res[k] for k in res if k.startswith("settled_")
+            or k in ("final_dc_ekf1", "final_dc_ekf2")}
+
+
+def _runs_text(runs, summary):
+    kept = summary["trajectories_kept"]
+    return ("%d runs" % runs if kept == runs
+            else "%d runs (the figure: the first %d of them)" % (runs, kept))
 
 
 def _write(out, result, keys, figure, title):
@@ -285,6 +340,7 @@ def add_cli(groups):
     g.add_argument("--P0", type=cli.param_type("P0"), default=None, metavar="P0",
                    help="initial error variance of the filter [g2] (default: Q / (1 - A^2))")
     batch.add_engine_options(g)
+    add_summary_only(g)
     cli.add_out(g, "results/montecarlo/gaussian")
     cli.add_fmu_dir(g)
     cli.add_backend(g)
@@ -298,21 +354,32 @@ def add_cli(groups):
     s.add_argument("--Q", type=cli.param_type("Q"), default=None, metavar="Q",
                    help="the filter's process noise variance [g2] (default: X^2 / 2)")
     batch.add_engine_options(s)
+    add_summary_only(s)
     cli.add_out(s, "results/montecarlo/sinusoidal")
     cli.add_fmu_dir(s)
     cli.add_backend(s)
     s.set_defaults(func=cmd_sinusoidal)
 
 
+def add_summary_only(p):
+    p.add_argument("--summary-only", action="store_true",
+                   help="keep per-run summaries (settling samples, final drifts) instead of "
+                        "every run's trajectories, and the trajectories of the first %d runs "
+                        "for the figure: memory and disk grow with --runs, not with --runs x "
+                        "--n" % FIGURE_RUNS)
+
+
 def _with_bar(args, fn, **kw):
     from driftfmu.simulations import budget, cli
-    budget.check_montecarlo(args.experiment, args.runs, args.n, args.workers, args.out)
+    budget.check_montecarlo(args.experiment, args.runs, args.n, args.workers, args.out,
+                            summary_only=args.summary_only)
     desc = "montecarlo (%s engine)" % args.engine
     with cli.progress(args.runs, desc, "run", monitor=False) as update:
         return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
                   a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
                   scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
-                  out=args.out, progress=update, backend=args.backend, **kw)
+                  out=args.out, progress=update, backend=args.backend,
+                  summary_only=args.summary_only, **kw)
 
 
 def cmd_gaussian(args):

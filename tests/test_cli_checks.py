@@ -321,3 +321,14 @@ def test_the_method_page_names_the_dual_axis_model_as_the_command_line_does():
     dual = make_parser().parse_args(["experiment", "dual-axis"])
     for name in ("bx", "by", "a2y", "Ry", "Xy", "Qy"):
         assert hasattr(dual, name) and "`--%s`" % name in text, name
+
+
+def test_the_refusal_names_summary_only_and_summary_only_fits(tmp_path, capsys, monkeypatch):
+    from driftfmu.simulations import budget
+    monkeypatch.setattr(budget, "available_memory", lambda: 4e9)
+    rc = _status(["montecarlo", "gaussian", "--runs", "1000000", "--out", str(tmp_path / "r")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "--summary-only" in line, line
+    est = budget.check_montecarlo("gaussian", 1000000, 1000, 2, None, summary_only=True)
+    assert est["memory"] < 0.8 * 4e9  # the same run fits with --summary-only
+    assert not (tmp_path / "r").exists()
