@@ -170,7 +170,7 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
         _write(out, result, GAUSSIAN_KEYS, "fig1.png",
                "Drift estimation error over %s (the letter's Fig. 1 as a population): "
                "Gaussian state, a1 = %g V/g, a2 = %g V/g², Q = %g g², R = %g V², A = %g, "
-               "n = %d" % (_runs_text(runs, summary), a1, a2, Q, R, A, n))
+               "n = %d" % (_runs_text(runs, summary), a1, a2, Q, R, A, n), plot)
     return result
 
 
@@ -213,7 +213,7 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
                "Drift estimation error over %s: sinusoidal state X = %g g at f = %g Hz "
                "(random phase per run), a1 = %g V/g, a2 = %g V/g², R = %g V², n = %d at "
                "Ts = %g s; Gauss-Markov filter A = %g, Q = %g g²"
-               % (_runs_text(runs, summary), X, f, a1, a2, R, n, Ts, A, Q))
+               % (_runs_text(runs, summary), X, f, a1, a2, R, n, Ts, A, Q), plot)
     return result
 
 
@@ -232,13 +232,14 @@ def _runs_text(runs, summary):
             else "%d runs (the figure: the first %d of them)" % (runs, kept))
 
 
-def _write(out, result, keys, figure, title):
+def _write(out, result, keys, figure, title, plot=True):
     arrays = {k: v for k, v in result.items() if isinstance(v, np.ndarray)}
     with output.staged(out) as stage:
         np.savez(stage / "montecarlo.npz", **arrays)
         output.write_json(stage / "summary.json", result["summary"])
         prefix = next(iter(keys)).split("_")[0]
-        plot_population(stage / figure, result, prefix, title)
+        if plot:
+            plot_population(stage / figure, result, prefix, title)
 
 
 def plot_population(path, result, prefix, title):
