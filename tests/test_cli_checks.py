@@ -193,7 +193,7 @@ def test_identify_on_a_binary_file_names_the_file(content, words, tmp_path, caps
 @pytest.mark.parametrize("argv,words", [
     (["montecarlo", "gaussian", "--runs", "1000000"],
      ("montecarlo gaussian --runs 1000000 --n 1000 needs about", "of memory",
-      "at most --runs", "driftfmu sweep")),
+      "at most --runs", "--summary-only")),
     (["montecarlo", "sinusoidal", "--runs", "300000", "--n", "5000"], ("at most --runs",)),
     (["run", "gaussian", "--n", "100000000"], ("run gaussian --n 100000000", "at most --n")),
     (["run", "sinusoidal", "--n", "100000000"], ("at most --n",)),
