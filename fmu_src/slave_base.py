@@ -663,10 +663,12 @@ class SlaveBase(Fmi2Slave):
                 bad = self.check_parameters()
                 if not bad:
                     self.prepare()
-                    if any(hidden[name] is None for name in self.HIDDEN
-                           if name in self.initial_hidden() and
-                           self.initial_hidden()[name] is not None):
-                        bad = ["the hidden state of an initialised instance is missing"]
+                    missing = [name for name in self.HIDDEN if hidden[name] is None
+                               and self.initial_hidden().get(name) is not None]
+                    if missing:
+                        bad = ["the hidden state %s of an initialised instance is missing "
+                               "(null); allowed: the hidden state of an initialised instance"
+                               % ", ".join(missing)]
                     else:
                         bad = self.hidden_problems(hidden) + self._timing_problems(
                             k, time, flags["at_sample"])

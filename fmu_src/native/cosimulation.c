@@ -1092,7 +1092,9 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
     }
     /* the size a host passes is compared, never used in arithmetic or to allocate */
     if (size != sizeof(Snapshot)) {
-        if (size >= sizeof(StateHeader)) {
+        /* the header is read only from a size a state could have (a host that says SIZE_MAX
+         * for a short buffer is not taken at its word) */
+        if (size >= sizeof(StateHeader) && size <= 16 * sizeof(Snapshot)) {
             StateHeader header;
             memcpy(&header, bytes, sizeof header);
             if (!header_ok(comp, function, &header))

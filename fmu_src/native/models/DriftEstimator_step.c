@@ -106,10 +106,21 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
 static int harmonic_state_problems(ModelInstance *comp, const char *which, const HarmonicState *s)
 {
     char name[64];
-#define REAL(field, nonneg) \
-    (snprintf(name, sizeof name, "%s.%s", which, #field), slave_hidden_real(comp, name, s->field, nonneg))
-    int n = REAL(x, 0) + REAL(d, 0) + REAL(P, 1) + REAL(P12, 0) + REAL(P22, 1) +
-            REAL(drift.s1, 0) + REAL(drift.dc2, 0) + REAL(drift.s3, 0) + REAL(drift.dc3, 0);
+    int n = 0;
+#define REAL(field, nonneg)                                                                  \
+    do {                                                                                     \
+        snprintf(name, sizeof name, "%s.%s", which, #field);                                 \
+        n += slave_hidden_real(comp, name, s->field, nonneg);                                \
+    } while (0)
+    REAL(x, 0);
+    REAL(d, 0);
+    REAL(P, 1);
+    REAL(P12, 0);
+    REAL(P22, 1);
+    REAL(drift.s1, 0);
+    REAL(drift.dc2, 0);
+    REAL(drift.s3, 0);
+    REAL(drift.dc3, 0);
 #undef REAL
     snprintf(name, sizeof name, "%s.drift.k", which);
     return n + slave_hidden_count(comp, name, s->drift.k);

@@ -160,9 +160,11 @@ static int dual_state_problems(ModelInstance *comp, const char *which, const Dua
 {
     char name[64];
     int n = 0;
-#define REAL(field, nonneg) \
-    (snprintf(name, sizeof name, "%s.%s", which, #field), \
-     n += slave_hidden_real(comp, name, s->field, nonneg))
+#define REAL(field, nonneg)                                                                  \
+    do {                                                                                     \
+        snprintf(name, sizeof name, "%s.%s", which, #field);                                 \
+        n += slave_hidden_real(comp, name, s->field, nonneg);                                \
+    } while (0)
     REAL(g.x, 0); REAL(g.y, 0); REAL(g.Pxx, 1); REAL(g.Pxy, 0); REAL(g.Pyy, 1);
     REAL(h.x, 0); REAL(h.dx, 0); REAL(h.y, 0); REAL(h.dy, 0); REAL(h.P11, 1); REAL(h.P12, 0);
     REAL(h.P22, 1); REAL(h.P33, 1); REAL(h.P34, 0); REAL(h.P44, 1); REAL(h.P13, 0);
@@ -172,8 +174,10 @@ static int dual_state_problems(ModelInstance *comp, const char *which, const Dua
         const DualDrift *d = drifts[i];
         const double values[] = {d->s1xx, d->s1xy, d->s1yy, d->dc2x, d->dc2y, d->s3xx, d->s3xy,
                                  d->s3yy, d->dc3x, d->dc3y};
+        static const char *names[] = {"s1xx", "s1xy", "s1yy", "dc2x", "dc2y", "s3xx", "s3xy",
+                                      "s3yy", "dc3x", "dc3y"};
         for (size_t j = 0; j < sizeof values / sizeof values[0]; j++) {
-            snprintf(name, sizeof name, "%s.%s.drift[%d]", which, i ? "h" : "g", (int)j + 1);
+            snprintf(name, sizeof name, "%s.%s.drift.%s", which, i ? "h" : "g", names[j]);
             n += slave_hidden_real(comp, name, values[j], 0);
         }
         snprintf(name, sizeof name, "%s.%s.drift.k", which, i ? "h" : "g");
