@@ -22,6 +22,7 @@ import tempfile
 import threading
 
 from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
     fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
@@ -179,6 +180,8 @@ class Instance:
     def free(self):
         try:
             self.fmu.terminate()
+        except FMICallException:
+            pass  # terminate is refused before initialisation and a second time: free anyway
         finally:
             self.fmu.freeInstance()
             _remove(self.unzipdir)

@@ -41,6 +41,8 @@ FMI3_DIFFERS = {
     "status": "FMI 3.0 has no status inquiries (fmi2Get*Status)",
 }
 BACKENDS = ("python", "native-fmi2", "native-fmi3")
+#: The models with native twins.
+MODELS = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
 
 
@@ -382,18 +384,25 @@ def child(dirs, seeds, n_calls, plant):
         driver.free()
 
 
-def run(dirs, seeds, n_calls=60, plant=None, time_limit=600):
-    """Run the scripts of ``seeds`` in a child process: a list of problem lines (a crash or a
-    hang of the child is one)."""
-    command = [sys.executable, "-m", "tests.fuzz.differential", "--child",
+#: valgrind options for :func:`run` (memory errors only: CPython's uninitialised-value reports
+#: are not the FMUs').
+VALGRIND = ["valgrind", "-q", "--undef-value-errors=no", "--error-exitcode=99"]
+
+
+def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False):
+    """Run the scripts of ``seeds`` in a child process (under valgrind if asked): a list of
+    problem lines (a crash, a hang or a valgrind error of the child is one)."""
+    command = (VALGRIND if valgrind else []) + [
+        sys.executable, "-m", "tests.fuzz.differential", "--child",
                json.dumps({k: str(v) for k, v in dirs.items()}), "--seeds",
                ",".join(map(str, seeds)), "--calls", str(n_calls)]
     if plant:
         command += ["--plant", plant]
     root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONMALLOC="malloc") if valgrind else None
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=time_limit,
-                              cwd=str(root))
+                              cwd=str(root), env=env)
     except subprocess.TimeoutExpired:
         return ["hang: the scripts did not end within %g s" % time_limit]
     problems, seen = [], set()
@@ -431,6 +440,39 @@ def unzip_all(python, native, folder):
                 fmpy.extract(str(fmu), unzipdir=str(target))
             dirs[name][backend] = target
     return dirs
+
+
+#: The defect of issue 20 planted back into a copy of a native twin's sources: the transition to
+#: step mode taken before the parameter check in fmi2ExitInitializationMode.
+PLANTED_DEFECT = ("""    if (model_check(comp) > 0)
+        return STATUS_ERROR;
+    comp->state = STATE_STEP;""", """    comp->state = STATE_STEP;
+    comp->initialised = 0;
+    if (model_check(comp) > 0)
+        return STATUS_ERROR;""")
+
+
+def plant_defect(unzipped, folder):
+    """A copy of the native FMU unzipped in ``unzipped``, in ``folder``, whose binary is rebuilt
+    from its own sources with :data:`PLANTED_DEFECT` (the twin that the differential fuzz must
+    tell from the others)."""
+    import shutil
+    from driftfmu.fmu_src import native_build
+    from fmpy import read_model_description
+    folder = Path(folder)
+    shutil.copytree(str(unzipped), str(folder))
+    source = folder / "sources" / "cosimulation.c"
+    text = source.read_text()
+    assert PLANTED_DEFECT[0] in text, "the exit of initialisation changed: update PLANTED_DEFECT"
+    source.write_text(text.replace(*PLANTED_DEFECT))
+    md = read_model_description(str(folder), validate=False)
+    identifier = md.coSimulation.modelIdentifier
+    subprocess.run(native_build.PLAIN_COMPILE.format(identifier=identifier), shell=True,
+                   cwd=str(folder), check=True, capture_output=True)
+    sub = "linux64" if md.fmiVersion.startswith("2") else "x86_64-linux"
+    shutil.copyfile(str(folder / (identifier + ".so")),
+                    str(folder / "binaries" / sub / (identifier + ".so")))
+    return folder
 
 
 def main(argv=None):

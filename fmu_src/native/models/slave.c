@@ -67,12 +67,12 @@ int slave_hidden_real(ModelInstance *comp, const char *name, double value, int n
     char b[32];
     if (!isfinite(value)) {
         model_log_error(comp, "hidden %s = %s is not finite; allowed: a finite number", name,
-                        repr_double(value, b));
+                        (parameters_repr_float(value, b, sizeof b), b));
         return 1;
     }
     if (nonnegative && !(value >= 0.0)) {
         model_log_error(comp, "hidden %s = %s is a negative variance; allowed: %s >= 0", name,
-                        repr_double(value, b), name);
+                        (parameters_repr_float(value, b, sizeof b), b), name);
         return 1;
     }
     return 0;
