@@ -393,16 +393,15 @@ def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False):
     """Run the scripts of ``seeds`` in a child process (under valgrind if asked): a list of
     problem lines (a crash, a hang or a valgrind error of the child is one)."""
     command = (VALGRIND if valgrind else []) + [
-        sys.executable, "-m", "tests.fuzz.differential", "--child",
+        sys.executable, str(Path(__file__).resolve()), "--child",
                json.dumps({k: str(v) for k, v in dirs.items()}), "--seeds",
                ",".join(map(str, seeds)), "--calls", str(n_calls)]
     if plant:
         command += ["--plant", plant]
-    root = Path(__file__).resolve().parents[2]
     env = dict(os.environ, PYTHONMALLOC="malloc") if valgrind else None
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=time_limit,
-                              cwd=str(root), env=env)
+                              env=env)
     except subprocess.TimeoutExpired:
         return ["hang: the scripts did not end within %g s" % time_limit]
     problems, seen = [], set()
