@@ -422,6 +422,9 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
     """
     results = [None] * len(tasks)
     done = 0
+    if any(task["engine"] == "batch" for task in tasks):
+        from driftfmu.simulations import kernel
+        kernel.library()  # compiled (or found) once here, loaded before local workers fork
 
     def finished(i, res):
         nonlocal done
