@@ -154,6 +154,14 @@ def _max_abs_diff(raw, ref):
     return max(float(np.max(d)) for d in diffs)
 
 
+def _preload_matplotlib():
+    """Import matplotlib (Agg) and pyplot now, in this process, which otherwise only waits for
+    its workers: the figures at the end then start at once."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+
+
 def _log_samples(n, points=400):
     """About ``points`` sample numbers from 1 to ``n``, spaced evenly on a log scale."""
     ks = sorted({int(round(n ** (i / (points - 1)))) for i in range(points)})
@@ -229,6 +237,8 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False,
                                        backend)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
+        if out is not None and plot:
+            _preload_matplotlib()  # while the workers (forked by now) run the sets
         for fut in as_completed(futs):
             f, s = futs[fut]
             fits[f][s] = identify.Fit(**spent(fut.result())["fit"])
