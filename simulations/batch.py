@@ -406,7 +406,7 @@ def _probe(address, timeout):
         pass
 
 
-def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
+def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, meanwhile=None):
     """Run ``tasks`` with :func:`run_task`; return their outputs in task order.
 
     Parameters
@@ -419,6 +419,9 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
         Local worker processes (default: one per core); 1 runs in this process.
     progress : callable, optional
         Called with the number of runs done whenever a task finishes.
+    meanwhile : callable, optional
+        Called once in this process while local workers run the tasks (after they started),
+        e.g. to import what comes after; before the tasks when they run in this process.
     """
     results = [None] * len(tasks)
     done = 0
@@ -455,12 +458,16 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
     if workers < 1:
         raise UsageError("workers = %r is not allowed; allowed: workers >= 1" % (workers,))
     if workers == 1 or len(tasks) == 1:
+        if meanwhile is not None:
+            meanwhile()
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
     from concurrent.futures import as_completed as cf_completed
     with process_pool(min(workers, len(tasks))) as pool:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
+        if meanwhile is not None:
+            meanwhile()
         for fut in cf_completed(futures):
             finished(futures[fut], fut.result())
     return results

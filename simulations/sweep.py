@@ -90,7 +90,9 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
                              fmu_dir=fmu_dir)
     t0 = time.perf_counter()
     res = batch.gather(batch.run_tasks(tasks, scheduler=scheduler, client=client,
-                                       workers=workers, progress=progress))
+                                       workers=workers, progress=progress,
+                                       meanwhile=_import_matplotlib if out is not None and plot
+                                       else None))
     seconds = time.perf_counter() - t0
     shape = (len(a2), len(R), runs)
     result = {"grid_a2": a2, "grid_R": R,
@@ -106,6 +108,13 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
     if out is not None:
         write(out, result, plot=plot)
     return result
+
+
+def _import_matplotlib():
+    """matplotlib (Agg) and pyplot imported while the workers run: the figures start at once."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
 
 
 def default_chunk(total, engine, workers=None):
