@@ -246,17 +246,27 @@ def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
         arr[j] = values[name]()
 
 
-def dual_simulate(n, seeds, excitation_values, sensor_values, estimator_values, Ts, record=()):
+def dual_simulate(n, seeds, excitation_values, sensor_values, estimator_values, Ts, record=(),
+                  kernel="auto"):
     """The dual-axis chain of :mod:`driftfmu.models.dualaxis` for ``len(seeds)`` runs at once (the batch
     engine of ``driftfmu experiment dual-axis``): run ``r`` is the co-simulation of Excitation ->
     Accelerometer (``dual = 1``) -> DualDriftEstimator and the two single-axis DriftEstimators
     with both FMU seeds ``seeds[r]``, bit for bit.
 
     Returns :func:`driftfmu.models.dualaxis.simulate`'s ``final_<column>`` and ``mean_xx``, ``mean_xy``,
-    ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each ``(runs, n)``.
+    ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each ``(runs, n)``.  ``kernel``
+    as in :func:`simulate` (the compiled kernel takes start values shared by all runs but the
+    seeds; per-run arrays of others run in NumPy).
     """
     from driftfmu.models import dualaxis
     seeds = np.asarray(seeds, dtype=np.uint64)
+    lib = _kernel_library(kernel)
+    if lib is not None:
+        from driftfmu.simulations import kernel as compiled
+        out = compiled.dual_simulate(lib, n, seeds, excitation_values, sensor_values,
+                                     estimator_values, Ts, record=record)
+        if out is not None:
+            return out
     return dualaxis.simulate(n, dict(excitation_values, seed=seeds),
                              dict(sensor_values, seed=seeds), estimator_values, Ts,
                              record=record)
@@ -425,7 +435,7 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
     """
     results = [None] * len(tasks)
     done = 0
-    if any(task["engine"] == "batch" for task in tasks):
+    if any(task["engine"] in ("batch", "dual") for task in tasks):
         from driftfmu.simulations import kernel
         kernel.library()  # compiled (or found) once here, loaded before local workers fork
 

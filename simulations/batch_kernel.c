@@ -2,13 +2,14 @@
  * models/adxl203.py (simulate) written out over the C port of models/ (fmu_src/native/models),
  * one run after another.  Built by simulations/kernel.py with the flags of the native FMUs
  * (-std=c99 -O2 -ffp-contract=off -fno-fast-math), so every sample gives the bits of the NumPy
- * batch engine and of the FMUs.  No state of its own: the caller owns every array. */
+ * batch engine and of the FMUs.  Also the dual-axis chain of models/dualaxis.py (simulate).  No state of its own: the caller owns every array. */
 #include <stddef.h>
 #include <stdint.h>
 
 #include "adxl203.h"
 #include "chain.h"
 #include "drift.h"
+#include "dualaxis.h"
 #include "excitation.h"
 #include "harmonic.h"
 #include "noise.h"
@@ -152,6 +153,115 @@ int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
         row[C_ZCOMP] = z - dc;
         for (int c = 0; c < N_COLUMNS; c++)
             if (cols[c]) cols[c][k - 1] = row[c];
+    }
+    return 0;
+}
+
+/* models.dualaxis.simulate's start values (resolved by the caller: excitation_values,
+ * sensor_values, estimator_values, single_values), in these orders. */
+enum { DE_KIND, DE_A, DE_Q, DE_QY, DE_RHO, DE_X0, DE_X, DE_F, DE_PHI, DE_XY, DE_PHIY,
+       N_DUAL_EXCITATION };
+enum { DS_A0, DS_A1, DS_A2, DS_BX, DS_R, DS_A0Y, DS_A1Y, DS_A2Y, DS_BY, DS_RY, DS_NOISE,
+       N_DUAL_SENSOR };
+enum { DD_A0, DD_A1, DD_A2, DD_BX, DD_R, DD_A0Y, DD_A1Y, DD_A2Y, DD_BY, DD_RY, DD_A, DD_Q,
+       DD_QY, DD_RHO, DD_X0, DD_Y0, DD_P0, DD_P0Y, DD_F, DD_QH, DD_PROCESS, DD_ESTIMATOR,
+       N_DUAL_ESTIMATOR };
+/* single_values of one axis: a0, a1, a2, R, Q, x0, P0, A, process, f, Qh. */
+enum { D1_A0, D1_A1, D1_A2, D1_R, D1_Q, D1_X0, D1_P0, D1_A, D1_PROCESS, D1_F, D1_QH,
+       N_SINGLE };
+/* models.dualaxis.COLUMNS, in this order, then the realised moments (finals only). */
+enum { DC_TIME, DC_X, DC_Y, DC_ZX, DC_ZY, DC_XHAT, DC_YHAT, DC_PXX, DC_PXY, DC_PYY,
+       DC_DC1X, DC_DC2X, DC_DC3X, DC_DC1Y, DC_DC2Y, DC_DC3Y, DC_ZCOMPX, DC_ZCOMPY,
+       DC_SINGLE1X, DC_SINGLE1Y, N_DUAL_COLUMNS };
+enum { DM_XX = N_DUAL_COLUMNS, DM_XY, DM_YY, N_DUAL_FINALS };
+
+/* models.dualaxis.simulate for `runs` runs (FMU seed seeds[r] for the Excitation and the
+ * Accelerometer), the other start values shared: the recorded columns are (runs, n) arrays
+ * (NULL: not recorded), finals[c] (runs,) arrays of every column's last sample and the three
+ * realised moments.  Returns 0, or 1 for an estimator or process the Python refuses. */
+int driftfmu_dual(int64_t n, int64_t runs, const uint64_t *seeds, double Ts, const double *ex,
+                  const double *sp, const double *es, const double *single,
+                  double *const *cols, double *const *finals)
+{
+    const int64_t process = (int64_t)es[DD_PROCESS], estimator = (int64_t)es[DD_ESTIMATOR];
+    const int gaussian = (int64_t)ex[DE_KIND] == EXCITATION_GAUSSIAN,
+              noise_on = sp[DS_NOISE] != 0.0;
+    Axis sx, sy, fx, fy;
+    DualModel m;
+    double C[2], S[2];
+    if (estimator < 1 || estimator > 3 ||
+        (process != DUALAXIS_GAUSS_MARKOV && process != DUALAXIS_HARMONIC))
+        return 1;
+    for (int i = 0; i < 2; i++) {
+        const int64_t p1 = (int64_t)single[i * N_SINGLE + D1_PROCESS];
+        if (p1 != HARMONIC_GAUSS_MARKOV && p1 != HARMONIC_HARMONIC) return 1;
+        harmonic_rotation(single[i * N_SINGLE + D1_F], Ts, &C[i], &S[i]);
+    }
+    dualaxis_axes(sp[DS_A0], sp[DS_A1], sp[DS_A2], sp[DS_BX], sp[DS_R], sp[DS_A0Y],
+                  sp[DS_A1Y], sp[DS_A2Y], sp[DS_BY], sp[DS_RY], &sx, &sy);
+    dualaxis_axes(es[DD_A0], es[DD_A1], es[DD_A2], es[DD_BX], es[DD_R], es[DD_A0Y],
+                  es[DD_A1Y], es[DD_A2Y], es[DD_BY], es[DD_RY], &fx, &fy);
+    m = dualaxis_model(process, es[DD_A], es[DD_Q], es[DD_QY], es[DD_RHO], es[DD_F], Ts,
+                       es[DD_QH]);
+    for (int64_t r = 0; r < runs; r++) {
+        const int64_t seed = (int64_t)seeds[r];
+        DualEstimator st = dualaxis_estimator_init(process, es[DD_X0], es[DD_Y0], es[DD_P0],
+                                                   es[DD_P0Y]);
+        HarmonicState sst[2];
+        double x = ex[DE_X0], y = 0.0, mxx = 0.0, mxy = 0.0, myy = 0.0, row[N_DUAL_COLUMNS];
+        for (int i = 0; i < 2; i++) {
+            const double *s1 = single + i * N_SINGLE;
+            sst[i] = harmonic_estimator_init((int64_t)s1[D1_PROCESS], s1[D1_X0], s1[D1_P0]);
+        }
+        for (int64_t k = 1; k <= n; k++) {
+            double vx = 0.0, vy = 0.0, zx, zy, dx[3], dy[3], mom[5];
+            if (gaussian) {
+                excitation_gaussian_pair(x, y, ex[DE_A], ex[DE_Q], ex[DE_QY], ex[DE_RHO], seed,
+                                         k, &x, &y);
+            } else {
+                x = excitation_sine(k, ex[DE_X], ex[DE_F], Ts, ex[DE_PHI]);
+                y = excitation_sine(k, ex[DE_XY], ex[DE_F], Ts, ex[DE_PHIY]);
+            }
+            if (noise_on) dualaxis_noise(seed, k, &vx, &vy);
+            dualaxis_measure(x, y, sx, sy, vx, vy, &zx, &zy);
+            st = dualaxis_estimator_step(st, zx, zy, fx, fy, &m);
+            dualaxis_estimates(dualaxis_drift_of(&st, process), fx, fy, dx, dy);
+            for (int i = 0; i < 2; i++) {
+                const double *s1 = single + i * N_SINGLE;
+                sst[i] = harmonic_estimator_step(sst[i], i == 0 ? zx : zy, s1[D1_A0],
+                                                 s1[D1_A1], s1[D1_A2], s1[D1_R],
+                                                 (int64_t)s1[D1_PROCESS], s1[D1_A], s1[D1_Q],
+                                                 C[i], S[i], s1[D1_QH]);
+            }
+            mxx = drift_running_mean(mxx, x * x, k);
+            mxy = drift_running_mean(mxy, x * y, k);
+            myy = drift_running_mean(myy, y * y, k);
+            dualaxis_moments(&st, process, mom);
+            row[DC_TIME] = (double)(k - 1) * Ts;
+            row[DC_X] = x;
+            row[DC_Y] = y;
+            row[DC_ZX] = zx;
+            row[DC_ZY] = zy;
+            row[DC_XHAT] = mom[0];
+            row[DC_YHAT] = mom[1];
+            row[DC_PXX] = mom[2];
+            row[DC_PXY] = mom[3];
+            row[DC_PYY] = mom[4];
+            for (int i = 0; i < 3; i++) {
+                row[DC_DC1X + i] = dx[i];
+                row[DC_DC1Y + i] = dy[i];
+            }
+            row[DC_ZCOMPX] = zx - drift_select(dx, estimator);
+            row[DC_ZCOMPY] = zy - drift_select(dy, estimator);
+            row[DC_SINGLE1X] = single[D1_A2] * sst[0].drift.s1;
+            row[DC_SINGLE1Y] = single[N_SINGLE + D1_A2] * sst[1].drift.s1;
+            for (int c = 0; c < N_DUAL_COLUMNS; c++)
+                if (cols[c]) cols[c][(size_t)r * (size_t)n + (size_t)(k - 1)] = row[c];
+        }
+        for (int c = 0; c < N_DUAL_COLUMNS; c++) finals[c][r] = row[c];
+        finals[DM_XX][r] = mxx;
+        finals[DM_XY][r] = mxy;
+        finals[DM_YY][r] = myy;
     }
     return 0;
 }

@@ -1,7 +1,7 @@
 """The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
 
-``batch_kernel.c`` (next to this file) writes the chain of :func:`driftfmu.simulations.batch.simulate`
-and of :func:`driftfmu.models.adxl203.simulate` out over the C port of models/
+``batch_kernel.c`` (next to this file) writes the chains of :func:`driftfmu.simulations.batch.simulate`,
+:func:`driftfmu.models.adxl203.simulate` and :func:`driftfmu.models.dualaxis.simulate` out over the C port of models/
 (``fmu_src/native/models``, proven bit-equal to models/ by ``tests/test_native_models.py``),
 one run after another.  It is compiled once per machine (the native FMUs' flags, ``-O2
 -ffp-contract=off -fno-fast-math``) into a shared library in the temporary directory, named by
@@ -26,7 +26,7 @@ HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
 #: The C units of models/ the kernel calls (with their own dependencies).
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c")
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c")
 #: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
 #: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``).
 PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "fA", "fQ")
@@ -39,6 +39,13 @@ SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "
 ESTIMATOR = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "estimator", "process", "f", "Qh")
 COLUMNS = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
            "z_comp")
+#: models.dualaxis.simulate's start values and the single-axis estimators', in the kernel's
+#: order (its columns are models.dualaxis.COLUMNS).
+DUAL_EXCITATION = ("kind", "A", "Q", "Qy", "rho", "x0", "X", "f", "phi", "Xy", "phiy")
+DUAL_SENSOR = ("a0", "a1", "a2", "bx", "R", "a0y", "a1y", "a2y", "by", "Ry", "noise")
+DUAL_ESTIMATOR = ("a0", "a1", "a2", "bx", "R", "a0y", "a1y", "a2y", "by", "Ry", "A", "Q", "Qy",
+                  "rho", "x0", "y0", "P0", "P0y", "f", "Qh", "process", "estimator")
+SINGLE = ("a0", "a1", "a2", "R", "Q", "x0", "P0", "A", "process", "f", "Qh")
 
 #: Added to the native FMUs' flags (which keep the bits: no FMA contraction, no fast math):
 #: inlining across the models/ units (link-time optimisation, -O3; the units' functions are
@@ -116,6 +123,8 @@ def _load(path):
     lib.driftfmu_batch_run.argtypes = [i64, i64, i64, i64, _P, i64, _P, _P, _P]
     lib.driftfmu_adxl203.restype = ctypes.c_int
     lib.driftfmu_adxl203.argtypes = [i64, d, _P, _P, _P, _P]
+    lib.driftfmu_dual.restype = ctypes.c_int
+    lib.driftfmu_dual.argtypes = [i64, i64, _P, d, _P, _P, _P, _P, _P, _P]
     return lib
 
 
@@ -184,4 +193,38 @@ def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values,
         raise ValueError("estimator = %r, process = %r; allowed: estimator 1, 2 or 3 and "
                          "process %d or %d" % (es["estimator"], es["process"],
                                                harmonic.GAUSS_MARKOV, harmonic.HARMONIC))
+    return out
+
+
+def dual_simulate(lib, n, seeds, excitation_values, sensor_values, estimator_values, Ts,
+                  record=()):
+    """:func:`driftfmu.models.dualaxis.simulate` for ``len(seeds)`` runs in the kernel (run ``r``
+    with both FMU seeds ``seeds[r]``), the same results as its batch form: ``final_<column>``,
+    ``mean_xx``, ``mean_xy``, ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each
+    ``(runs, n)``.  None when a start value other than the seeds is an array (per run): the
+    caller then uses the NumPy form."""
+    from driftfmu.models import dualaxis
+    ex = dualaxis.excitation_values(**excitation_values)
+    sp = dualaxis.sensor_values(**sensor_values)
+    es = dualaxis.estimator_values(**estimator_values)
+    singles = [dualaxis.single_values(es, axis) for axis in (1, 2)]
+    values = [(ex, DUAL_EXCITATION), (sp, DUAL_SENSOR), (es, DUAL_ESTIMATOR)] + \
+        [(s1, SINGLE) for s1 in singles]
+    if any(np.ndim(d[k]) for d, names in values for k in names):
+        return None
+    vectors = [np.array([float(d[k]) for k in names]) for d, names in values[:3]]
+    vectors.append(np.array([float(s1[k]) for s1 in singles for k in SINGLE]))
+    seeds = np.ascontiguousarray(seeds, dtype=np.uint64)
+    runs = seeds.shape[0]
+    cols = {c: np.empty((runs, n)) for c in record}
+    finals = [np.empty(runs) for _ in range(len(dualaxis.COLUMNS) + 3)]
+    if lib.driftfmu_dual(n, runs, seeds.ctypes.data, float(Ts),
+                         *[v.ctypes.data for v in vectors],
+                         _pointers([cols.get(c) for c in dualaxis.COLUMNS]), _pointers(finals)):
+        raise ValueError("estimator = %r, process = %r; allowed: estimator 1, 2 or 3 and "
+                         "process %d or %d" % (es["estimator"], es["process"],
+                                               dualaxis.GAUSS_MARKOV, dualaxis.HARMONIC))
+    out = {"final_" + c: v for c, v in zip(dualaxis.COLUMNS, finals)}
+    out.update(zip(("mean_xx", "mean_xy", "mean_yy"), finals[len(dualaxis.COLUMNS):]))
+    out.update(cols)
     return out

@@ -122,3 +122,53 @@ def test_kernel_equals_the_fmus_sample_by_sample(lib, built_fmus, kind):
                                  fmu_dir=fmu_dir, record=batch.TRAJECTORIES, **kw)
         for c in batch.TRAJECTORIES + tuple("final_" + f for f in batch.FINALS):
             assert np.array_equal(np.asarray(fmu[c]), res[c][r]), (r, c)
+
+
+def _dual_values(rng, process, kind):
+    from driftfmu.models import dualaxis
+    f = float(rng.uniform(5.0, 60.0))
+    ex = dict(kind=kind, A=float(rng.uniform(-0.9, 0.9)), Q=float(rng.uniform(0.01, 0.5)),
+              Qy=float(rng.uniform(0.0, 0.5)), rho=float(rng.uniform(-0.9, 0.9)),
+              x0=float(rng.normal()), X=float(rng.uniform(0.3, 1.5)), f=f,
+              phi=float(rng.uniform(0, 6.3)), Xy=float(rng.uniform(0, 1.0)),
+              phiy=float(rng.uniform(0, 6.3)))
+    poly = dict(a0=float(rng.normal()), a1=float(rng.uniform(0.5, 1.5)),
+                a2=float(rng.uniform(0, 0.2)), bx=float(rng.uniform(-0.1, 0.1)),
+                R=float(rng.uniform(1e-5, 1e-2)), a0y=float(rng.normal()),
+                a1y=float(rng.uniform(0.5, 1.5)), a2y=float(rng.uniform(0, 0.2)),
+                by=float(rng.uniform(-0.1, 0.1)), Ry=float(rng.uniform(1e-5, 1e-2)))
+    sp = dict(poly, noise=int(rng.uniform() < 0.8))
+    es = dict(poly, A=ex["A"], Q=ex["Q"], Qy=float(rng.uniform(0.01, 0.5)), rho=ex["rho"],
+              x0=0.1, y0=-0.2, P0=float(rng.uniform(0.01, 1.0)),
+              P0y=float(rng.uniform(0.01, 1.0)), f=f, Qh=1e-3, process=process,
+              estimator=int(rng.integers(1, 4)))
+    assert set(es) <= set(dualaxis.estimator_values())
+    return ex, sp, es
+
+
+@pytest.mark.parametrize("process", [harmonic.GAUSS_MARKOV, harmonic.HARMONIC])
+@pytest.mark.parametrize("kind", [excitation.GAUSSIAN, excitation.SINUSOIDAL])
+def test_dual_axis_chain_equals_numpy_over_random_parameters(lib, process, kind):
+    from driftfmu.models import dualaxis
+    rng = np.random.default_rng(10 * process + kind)
+    for _ in range(2):
+        ex, sp, es = _dual_values(rng, process, kind)
+        seeds = batch.run_seeds(int(rng.integers(0, 10 ** 6)), 5)
+        want = batch.dual_simulate(120, seeds, ex, sp, es, 1e-3, record=dualaxis.COLUMNS,
+                                   kernel="numpy")
+        got = batch.dual_simulate(120, seeds, ex, sp, es, 1e-3, record=dualaxis.COLUMNS,
+                                  kernel="c")
+        _same(want, got)
+
+
+def test_dual_axis_per_run_values_fall_back_to_numpy(lib):
+    seeds = batch.run_seeds(4, 3)
+    ex = dict(kind=excitation.SINUSOIDAL, phi=np.array([0.1, 0.2, 0.3]), Xy=0.5)
+    assert kernel.dual_simulate(lib, 10, seeds, ex, {}, {}, 1e-3) is None
+    _same(batch.dual_simulate(40, seeds, ex, {}, {}, 1e-3, record=("x",), kernel="numpy"),
+          batch.dual_simulate(40, seeds, ex, {}, {}, 1e-3, record=("x",), kernel="c"))
+
+
+def test_dual_axis_kernel_refuses_an_unknown_process(lib):
+    with pytest.raises(ValueError, match="process = 7"):
+        kernel.dual_simulate(lib, 10, batch.run_seeds(1, 2), {}, {}, dict(process=7), 1e-3)
