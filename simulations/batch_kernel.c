@@ -44,6 +44,15 @@ void driftfmu_batch_init(int64_t runs, const double *const *p, RunState *state)
  * processor overlaps the divisions and square roots of one with those of the others. */
 #define LANES 8
 
+/* Standard normal draw k under the key of (seed, stream): noise_normal with noise_key(seed,
+ * stream) computed once per run instead of at every sample (noise_bits is mix(key + k golden),
+ * noise_uniform and noise_inverse_normal_cdf as in noise.c), the same bits. */
+static double keyed_normal(uint64_t key, int64_t k)
+{
+    uint64_t bits = noise_mix(key + (uint64_t)k * NOISE_GOLDEN);
+    return noise_inverse_normal_cdf(((double)(bits >> 12) + 0.5) * 2.220446049250313e-16);
+}
+
 /* Samples k = k0 .. k1 - 1 of every run (the loop body of batch.simulate); the recorded
  * trajectories are (runs, n) arrays, sample k in column k - 1. */
 void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const uint64_t *seeds,
@@ -54,28 +63,30 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
     for (int64_t r0 = 0; r0 < runs; r0 += LANES) {
         const int lanes = runs - r0 < LANES ? (int)(runs - r0) : LANES;
         RunState s[LANES];
-        for (int i = 0; i < lanes; i++) s[i] = state[r0 + i];
+        double q[N_PARAMS][LANES];  /* this block's parameters, out of reach of the stores */
+        uint64_t key_process[LANES], key_measurement[LANES];
+        for (int i = 0; i < lanes; i++) {
+            s[i] = state[r0 + i];
+            for (int j = 0; j < N_PARAMS; j++) q[j][i] = p[j][r0 + i];
+            key_process[i] = noise_key(seeds[r0 + i], NOISE_STREAM_PROCESS);
+            key_measurement[i] = noise_key(seeds[r0 + i], NOISE_STREAM_MEASUREMENT);
+        }
         for (int64_t k = k0; k < k1; k++) {
             for (int i = 0; i < lanes; i++) {
-                const int64_t r = r0 + i;
-                const uint64_t seed = seeds[r];
-                const double a0 = p[P_A0][r], a1 = p[P_A1][r], a2 = p[P_A2][r],
-                             R = p[P_R][r];
+                const double a0 = q[P_A0][i], a1 = q[P_A1][i], a2 = q[P_A2][i], R = q[P_R][i];
                 double z, dc1, dc2, dc3;
                 if (gaussian)
-                    s[i].x = excitation_gauss_markov(
-                        s[i].x, p[P_A][r], p[P_Q][r],
-                        noise_normal(seed, NOISE_STREAM_PROCESS, (uint64_t)k));
+                    s[i].x = excitation_gauss_markov(s[i].x, q[P_A][i], q[P_Q][i],
+                                                     keyed_normal(key_process[i], k));
                 else
-                    s[i].x = excitation_sine(k, p[P_X][r], p[P_F][r], p[P_TS][r], p[P_PHI][r]);
-                z = sensor_measure(s[i].x, a0, a1, a2, R,
-                                   noise_normal(seed, NOISE_STREAM_MEASUREMENT, (uint64_t)k));
-                s[i].est = chain_estimator_step(s[i].est, z, a0, a1, a2, p[P_FA][r], p[P_FQ][r],
+                    s[i].x = excitation_sine(k, q[P_X][i], q[P_F][i], q[P_TS][i], q[P_PHI][i]);
+                z = sensor_measure(s[i].x, a0, a1, a2, R, keyed_normal(key_measurement[i], k));
+                s[i].est = chain_estimator_step(s[i].est, z, a0, a1, a2, q[P_FA][i], q[P_FQ][i],
                                                 R);
                 s[i].zbar = drift_running_mean(s[i].zbar, z, k);
                 s[i].x2bar = drift_running_mean(s[i].x2bar, s[i].x * s[i].x, k);
                 if (traj) {
-                    size_t j = (size_t)r * (size_t)n + (size_t)(k - 1);
+                    size_t j = (size_t)(r0 + i) * (size_t)n + (size_t)(k - 1);
                     drift_estimates(s[i].est.drift, a2, &dc1, &dc2, &dc3);
                     if (traj[T_X]) traj[T_X][j] = s[i].x;
                     if (traj[T_Z]) traj[T_Z][j] = z;
