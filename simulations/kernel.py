@@ -50,7 +50,8 @@ SINGLE = ("a0", "a1", "a2", "R", "Q", "x0", "P0", "A", "process", "f", "Qh")
 #: Added to the native FMUs' flags (which keep the bits: no FMA contraction, no fast math):
 #: inlining across the models/ units (link-time optimisation, -O3; the units' functions are
 #: not interposable from outside the library) and no errno for sqrt;
-#: from 110 to 58 ns per sample-run of the Gaussian chain on the development machine.
+#: from 110 to 58 ns per sample-run of the Gaussian chain on the development machine (52 ns
+#: with the per-run noise keys of batch_kernel.c), at a load average of about 20.
 SPEED_FLAGS = ("-O3", "-fno-math-errno", "-flto", "-fno-semantic-interposition")
 
 _LIBRARY = []
