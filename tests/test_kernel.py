@@ -172,3 +172,19 @@ def test_dual_axis_per_run_values_fall_back_to_numpy(lib):
 def test_dual_axis_kernel_refuses_an_unknown_process(lib):
     with pytest.raises(ValueError, match="process = 7"):
         kernel.dual_simulate(lib, 10, batch.run_seeds(1, 2), {}, {}, dict(process=7), 1e-3)
+
+
+def test_sweep_and_montecarlo_give_the_same_bits_with_the_kernel_or_numpy(lib, monkeypatch):
+    from driftfmu.simulations import montecarlo, sweep
+    kw = dict(a2=(0.01, 0.1), R=(1e-4, 1e-2), runs=6, n=80, workers=1, plot=False)
+    mc = dict(runs=4, n=60, workers=1, plot=False)
+    with_kernel = sweep.sweep(**kw), montecarlo.montecarlo_gaussian(**mc)
+    monkeypatch.setenv("DRIFTFMU_KERNEL", "numpy")
+    without = sweep.sweep(**kw), montecarlo.montecarlo_gaussian(**mc)
+    for a, b in zip(with_kernel, without):
+        keys = [k for k in a if isinstance(a[k], np.ndarray)]
+        assert keys
+        for key in keys:
+            assert a[key].tobytes() == b[key].tobytes(), key
+    for col in with_kernel[0]["table"]:
+        assert with_kernel[0]["table"][col].tobytes() == without[0]["table"][col].tobytes()
