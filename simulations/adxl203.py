@@ -18,9 +18,13 @@ Choices: ``fs = 10 kHz`` (``Ts = 1e-4``): 50-100 samples per period, 60,000 samp
 ``a2 X^2 / 2 = 11 mV`` is about 2.5 times the output noise (4.5 mg rms) per sample and far above
 the error of a 6 s mean, while the part stays in range; transverse motion 5 % of ``X``.
 
-Sets run in parallel (one process per core); each worker loads the FMUs once per set through
-the master of the backend (:func:`driftfmu.simulations.gaussian.master`: fmpy's wrappers for the Python
-FMUs, direct FMI calls for the native ones).
+Sets run in parallel (one process per core); each worker co-simulates its sets with the fast
+master (:func:`driftfmu.simulations.fastcosim.cosimulate_fast`: direct FMI calls, the stepping loop
+in C) for both backends, loading each FMU's library once and instantiating it anew per set.
+Every held-out set's FMU outputs are checked against :func:`driftfmu.models.adxl203.simulate`
+with the same seeds, computed by its C port in the compiled batch kernel
+(:mod:`driftfmu.simulations.kernel`), or by models/ itself without a C compiler.  Where the time
+goes is in the summary's ``timing`` and on the command line (docs/performance-jobs.md).
 """
 import math
 import os
@@ -31,8 +35,7 @@ from concurrent.futures import as_completed
 from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
 from driftfmu.models.noise import STREAM_PHASE, normal, uniform
 from driftfmu.simulations import batch, output
-from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, check_backend, fmu_paths, \
-    master
+from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, check_backend, fmu_paths
 from driftfmu.simulations.sinusoidal import CONNECTIONS, check_frequency
 from driftfmu.simulations.errors import DataError, UsageError
 

@@ -1,8 +1,9 @@
-/* The compiled batch kernel: the chains of simulations/batch.py (simulate) and of
- * models/adxl203.py (simulate) written out over the C port of models/ (fmu_src/native/models),
- * one run after another.  Built by simulations/kernel.py with the flags of the native FMUs
- * (-std=c99 -O2 -ffp-contract=off -fno-fast-math), so every sample gives the bits of the NumPy
- * batch engine and of the FMUs.  Also the dual-axis chain of models/dualaxis.py (simulate).  No state of its own: the caller owns every array. */
+/* The compiled batch kernel: the chains of simulations/batch.py (simulate), models/adxl203.py
+ * (simulate) and models/dualaxis.py (simulate) written out over the C port of models/
+ * (fmu_src/native/models), one run after another.  Built by simulations/kernel.py with the
+ * flags of the native FMUs (-std=c99 -O2 -ffp-contract=off -fno-fast-math, and inlining), so
+ * every sample gives the bits of the NumPy batch engine and of the FMUs.  No state of its own:
+ * the caller owns every array. */
 #include <stddef.h>
 #include <stdint.h>
 

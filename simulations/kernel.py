@@ -1,7 +1,8 @@
 """The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
 
-``batch_kernel.c`` (next to this file) writes the chains of :func:`driftfmu.simulations.batch.simulate`,
-:func:`driftfmu.models.adxl203.simulate` and :func:`driftfmu.models.dualaxis.simulate` out over the C port of models/
+``batch_kernel.c`` (next to this file) writes the chains of
+:func:`driftfmu.simulations.batch.simulate`, :func:`driftfmu.models.adxl203.simulate` and
+:func:`driftfmu.models.dualaxis.simulate` out over the C port of models/
 (``fmu_src/native/models``, proven bit-equal to models/ by ``tests/test_native_models.py``),
 one run after another.  It is compiled once per machine (the native FMUs' flags, ``-O2
 -ffp-contract=off -fno-fast-math``) into a shared library in the temporary directory, named by
