@@ -157,10 +157,29 @@ def write(out, result, plot=True):
         output.write_csv(stage / "sweep.csv", result["table"], CSV_COLUMNS)
         if plot:
             p = result["parameters"]
-            for name, est in (("fig2.png", "ekf1"), ("fig3.png", "ekf3")):
-                plot_grid(stage / name, result, est, "a1 = %g, Q = %g, A = %g; %d runs of "
-                          "n = %d samples per point" % (p["a1"], p["Q"], p["A"], p["runs"],
-                                                        p["n"]))
+            subtitle = "a1 = %g, Q = %g, A = %g; %d runs of n = %d samples per point" % (
+                p["a1"], p["Q"], p["A"], p["runs"], p["n"])
+            figures = [(stage / "fig2.png", "ekf1"), (stage / "fig3.png", "ekf3")]
+            if not _fork_is_cheap():
+                for path, est in figures:
+                    plot_grid(path, result, est, subtitle)
+                return
+            # two cores: Fig. 3 in a forked process while this one draws Fig. 2
+            drawn = {k: result[k] for k in ("table", "grid_a2", "grid_R")}
+            with batch.process_pool(1, "driftfmu.simulations.sweep") as pool:
+                later = pool.submit(plot_grid, figures[1][0], drawn, figures[1][1], subtitle)
+                plot_grid(figures[0][0], drawn, figures[0][1], subtitle)
+                later.result()
+
+
+def _fork_is_cheap():
+    """More than one core, and a worker would be forked (this process is single-threaded)
+    with matplotlib already imported, so that drawing a figure beside costs no start-up."""
+    import os
+    import sys
+    import threading
+    return ((os.cpu_count() or 1) > 1 and threading.active_count() == 1
+            and "matplotlib.pyplot" in sys.modules and hasattr(os, "fork"))
 
 
 def plot_grid(path, result, estimator, subtitle):
