@@ -475,8 +475,11 @@ def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = N
     Returns
     -------
     dict
-        The arrays of ``sweep.npz`` (mean errors per grid point against the realised, empirical
-        and expected drift) and ``"rows"``, the rows of ``sweep.csv``.
+        ``grid_a2``, ``grid_R`` and the final values of each run, ``grid_dc1``, ``grid_dc2``,
+        ``grid_dc3`` (EKF1-3), ``grid_zbar`` and ``grid_x2bar`` (the running means of ``z`` and
+        ``x^2``), each of shape ``(len(a2), len(R), runs)``; ``table``, the columns of
+        ``sweep.csv`` (mean errors per grid point against the realised, empirical and expected
+        drift); ``seconds``, the wall time of the runs.
 
     Raises
     ------
@@ -570,8 +573,11 @@ def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
     Returns
     -------
     dict
-        ``"model"`` (the fitted ``a0, a1, a2, R``), their standard errors, per-file fits and,
-        with ``held_out``, EKF1's drift and its margin against the empirical drift.
+        ``"model"``: the fitted ``a0, a1, a2, R`` averaged over the fitted files, with their
+        spread ``sd_a0 .. sd_R`` (None for one file) and ``sets``; ``"fits"``: one fit per
+        file (``a0, a1, a2, R``, the drive's ``X``, ``phi``, ``lag``, ``samples``, ``periods``); ``"warnings"``: doubts about the fit; with
+        ``held_out``, ``"held_out"`` (EKF1's drift against the empirical drift per file) and
+        ``"margin_db"``.
 
     Raises
     ------
