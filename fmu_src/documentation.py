@@ -178,7 +178,7 @@ def license_text():
     from importlib.metadata import distribution
     for f in distribution("driftfmu").files or ():
         if f.name in ("LICENSE", "LICENSE.txt"):
-            return f.read_text().encode()
+            return Path(f.locate()).read_bytes()
     return b"MIT License\n\nCopyright (c) driftfmu contributors\n"
 
 
