@@ -77,7 +77,7 @@ KINDS = {
         "linux64 only. Any other binary in the FMU is pythonfmu's stock library and is not "
         "tested; for Windows, macOS and hosts without Python take the native FMU."),
     "native": (
-        "Native FMU (C, no Python needed). It carries binaries for the platforms listed below "
+        "Native FMU (C, no Python needed). It carries binaries for the platforms listed above "
         "and all its C sources in sources/ (a source FMU: compile with any C99 compiler). "
         "Its results equal the Python FMU's bit for bit (tested on linux64, and on win64 "
         "under wine)."),
@@ -96,14 +96,15 @@ def _text(value, kind):
     return str(int(value)) if kind == "Integer" else repr(float(value))
 
 
-def variable_rows(name):
+def variable_rows(name, slave=None):
     """One dict per variable of FMU ``name``, in value-reference order.
 
     Keys: ``vr``, ``name``, ``causality``, ``variability``, ``type``, ``unit``, ``min``,
     ``max``, ``start``, ``description`` (all str except ``vr``).
     """
     rows = []
-    for vr, spec in enumerate(slave_class(name).VARIABLES):
+    slave = slave_class(name) if slave is None else slave
+    for vr, spec in enumerate(slave.VARIABLES):
         kind = spec["type"]
         rows.append({"vr": vr, "name": spec["name"], "causality": spec["causality"],
                      "variability": spec["variability"], "type": kind,
@@ -118,7 +119,7 @@ COLUMNS = ("vr", "name", "causality", "variability", "type", "unit", "min", "max
            "description")
 
 
-def index_html(name, kind, fmi_version, platforms=()):
+def index_html(name, kind, fmi_version, platforms=(), slave=None):
     """``documentation/index.html`` of FMU ``name``.
 
     Parameters
@@ -131,12 +132,15 @@ def index_html(name, kind, fmi_version, platforms=()):
         Its FMI version.
     platforms : sequence of str
         The folder names under ``binaries/`` it carries.
+    slave : class, optional
+        The slave class (its ``VARIABLES``, ``DESCRIPTION``); default ``fmu_src/<name>.py``'s.
     """
     e = html.escape
-    slave = slave_class(name)
+    slave = slave_class(name) if slave is None else slave
+    description = getattr(slave, "DESCRIPTION", None) or (slave.__doc__ or name).strip()
     rows = "\n".join(
         "<tr>" + "".join("<td>%s</td>" % e(str(r[c])) for c in COLUMNS) + "</tr>"
-        for r in variable_rows(name))
+        for r in variable_rows(name, slave))
     extra = ("<p>FMI 3.0: the types are Float64 and Int32 with the same value references; the "
              "independent variable <code>time</code> follows them.</p>\n"
              if kind == "native" and fmi_version == 3 else "")
@@ -161,10 +165,10 @@ def index_html(name, kind, fmi_version, platforms=()):
         "evidence behind every claim are in the driftfmu documentation "
         "(docs/method.md, docs/evidence.md).</p>\n%(licences)s"
         "</body>\n</html>\n") % dict(
-            name=e(name), version=e(__version__), description=e(slave.DESCRIPTION),
+            name=e(name), version=e(__version__), description=e(description),
             kind_title="Python" if kind == "python" else "native C", fmi=fmi_version,
             platforms=e(", ".join(platforms) or "none (compile from sources/)"),
-            equations=e(EQUATIONS[name]), step_rule=e(STEP_RULE), kind_text=e(KINDS[kind]),
+            equations=e(EQUATIONS.get(name, description)), step_rule=e(STEP_RULE), kind_text=e(KINDS[kind]),
             extra=extra, head="".join("<th>%s</th>" % c for c in COLUMNS), rows=rows,
             letter=e(LETTER), licences=licences)
 
@@ -188,10 +192,11 @@ def platforms_of(entries):
                    and n.count("/") >= 2})
 
 
-def entries(name, kind, fmi_version, archive_names=()):
+def entries(name, kind, fmi_version, archive_names=(), slave=None):
     """The ``documentation/`` files of an FMU: {archive name: bytes}."""
     out = {"documentation/index.html":
-           index_html(name, kind, fmi_version, platforms_of(archive_names)).encode("utf-8")}
+           index_html(name, kind, fmi_version, platforms_of(archive_names),
+                      slave).encode("utf-8")}
     if fmi_version == 3:
         out["documentation/licenses/LICENSE.txt"] = license_text()
     return out
