@@ -531,6 +531,7 @@ def test_b_zero_dual_slave_under_any_step_is_two_single_axis_slaves(process):
 
 
 def test_batch_engine_on_an_unreachable_scheduler_fails_fast_and_writes_nothing(tmp_path):
+    pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not installed")
     with pytest.raises(ConnectionError, match="no Dask scheduler answered"):
         dual_axis.run_dual_axis(out=tmp_path / "o", engine="batch", runs=2, points=2, n=10,
                                 scheduler="tcp://127.0.0.1:1")
