@@ -165,7 +165,8 @@ def test_fig1_and_sine_png(figures, tmp_path, which):
     assert any(t.get_text() == "k = 250" for t in top.texts)  # the claim's sample, labelled
 
 
-def test_fig2_fig3_png(figures, tmp_path):
+def test_fig2_fig3_png(figures, tmp_path, monkeypatch):
+    monkeypatch.setattr(sweep, "_fork_is_cheap", lambda: False)  # both figures in this process
     sweep.sweep(a2=[1e-3, 1e-2, 1e-1], R=[1e-6, 1e-4, 1e-2], runs=16, n=200, workers=1,
                 out=tmp_path)
     assert len(figures) == 2
