@@ -105,11 +105,14 @@ def _build():
         command = compiler + list(generate.CFLAGS) + list(SPEED_FLAGS) + [
             "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
             str(s) for s in sources] + ["-o", str(partial), "-lm"]
+        # the compiler's own temporary files (link-time optimisation writes several) go into
+        # the work folder, so an interrupted compile leaves none behind in TMPDIR
+        env = dict(os.environ, TMPDIR=work)
         try:
-            subprocess.run(command, check=True, capture_output=True)
+            subprocess.run(command, check=True, capture_output=True, env=env)
         except subprocess.CalledProcessError:  # a compiler without link-time optimisation
             command = [c for c in command if c not in SPEED_FLAGS]
-            subprocess.run(command, check=True, capture_output=True)
+            subprocess.run(command, check=True, capture_output=True, env=env)
         staged = target.with_name(target.name + ".part%d" % os.getpid())
         shutil.move(str(partial), str(staged))
         os.replace(staged, target)
