@@ -21,6 +21,7 @@ from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
 
 import numpy as np
 from fmpy import read_model_description
+from fmpy.fmi1 import FMICallException
 
 from driftfmu.simulations.cosim import _STATUS, CoSimulationError, failed, free_all
 
@@ -114,6 +115,8 @@ class FastInstance:
     def free(self):
         try:
             self.fmu.terminate()
+        except FMICallException:
+            pass  # terminate is refused before initialisation and a second time: free anyway
         finally:
             if self._key is None:
                 self.fmu.freeInstance()
