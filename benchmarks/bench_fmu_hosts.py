@@ -18,7 +18,12 @@ master <= 1.3.  Each figure is the median of ``--repeats`` runs, the sets altern
 run.  A step's wall time and the process's CPU time are both printed: on a machine shared with
 other work the wall time grows with the load, the CPU time much less.
 
+With ``--compare-shim OLD.c`` the driftfmu FMUs also run in the C host with the loader shim
+compiled from OLD.c (e.g. ``git show <commit>:fmu_src/loader/fmi2_shim.c > OLD.c``): a before
+and after in one run.
+
     python benchmarks/bench_fmu_hosts.py [--steps 5000] [--repeats 5] [--fmu-dir build/fmus]
+                                         [--compare-shim OLD.c]
 """
 import argparse
 import os
@@ -58,6 +63,24 @@ def behind_shim(fmu, dest, loader):
     return target
 
 
+def with_shim(fmu, dest, source):
+    """A copy of the driftfmu ``fmu`` in ``dest`` whose loader shim is compiled from ``source``
+    (as the builder compiles fmu_src/loader/fmi2_shim.c)."""
+    shim = Path(dest) / ("%s.so" % fmu.stem)
+    subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-fvisibility=hidden",
+                    "-I%s" % builder._fmi2_headers(),
+                    '-DDRIFTFMU_BUILD_LIBPYTHON="%s"' % builder.libpython_soname(),
+                    "-o", str(shim), str(source), "-ldl", "-lpthread"], check=True)
+    with zipfile.ZipFile(fmu) as archive:
+        entries = {i.filename: archive.read(i) for i in archive.infolist() if not i.is_dir()}
+    entries["binaries/linux64/%s.so" % fmu.stem] = shim.read_bytes()
+    target = Path(dest) / fmu.name
+    with zipfile.ZipFile(target, "w", zipfile.ZIP_DEFLATED) as archive:
+        for name, data in sorted(entries.items()):
+            archive.writestr(name, data)
+    return target
+
+
 def c_host(host, fmus, steps, work, values, env):
     """(wall ns, CPU ns) per step of the chain in the C host."""
     unpacked = {name: chain.unpack(path, work / name) for name, path in fmus.items()}
@@ -88,6 +111,8 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=5000)
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--fmu-dir", default="build/fmus")
+    ap.add_argument("--compare-shim", metavar="OLD.c",
+                    help="also run the driftfmu FMUs with the loader shim compiled from OLD.c")
     args = ap.parse_args(argv)
     ours = {k: str(v) for k, v in fmu_paths(args.fmu_dir, "python").items()}
     shim_env = chain.python_fmu_env()
@@ -116,6 +141,11 @@ def main(argv=None):
             ("fmpy master, pass-through", lambda w: master(
                 {k: str(v) for k, v in stock.items()}, args.steps, None)),
         ]
+        if args.compare_shim:
+            (tmp / "old").mkdir()
+            old = {k: with_shim(Path(p), tmp / "old", args.compare_shim) for k, p in ours.items()}
+            sets.insert(1, ("C host, driftfmu, OLD.c shim", lambda w: c_host(
+                host, old, args.steps, w, values, shim_env)))
         for r in range(args.repeats):
             for i, (label, measure) in enumerate(sets):
                 work = tmp / ("r%d_%d" % (r, i))
@@ -146,6 +176,9 @@ def main(argv=None):
           % ratio("fmpy master, driftfmu FMUs", "fmpy master, pass-through", 1.3))
     print("stock pythonfmu / behind the shim, C host:  %s  (the per-call thread state)"
           % ratio("C host, pass-through stock", "C host, pass-through + shim"))
+    if args.compare_shim:
+        print("C host, driftfmu FMUs, OLD.c shim / this:   %s"
+              % ratio("C host, driftfmu, OLD.c shim", "C host, driftfmu FMUs"))
 
 
 if __name__ == "__main__":
