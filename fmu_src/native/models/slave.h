@@ -24,5 +24,7 @@ int slave_problem(ModelInstance *comp, const char *message);
 /* The Nyquist check of Excitation and DriftEstimator: 1 (logged) if f >= 0.5 / Ts (0 where Ts
  * is not positive: its own range check refuses it). */
 int slave_check_nyquist(ModelInstance *comp, double f, double Ts);
+/* The same check of the frequency parameter `name` (SlaveBase.nyquist_problems(name)). */
+int slave_check_nyquist_named(ModelInstance *comp, const char *name, double f, double Ts);
 
 #endif
