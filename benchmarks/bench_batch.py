@@ -4,7 +4,9 @@ All three run the letter's Gaussian chain (a1 = 1, a2 = 0.01, Q = 0.01, R = 1e-4
 scalar EKF and the three drift estimators.
 
 - batch engine, one process: :func:`driftfmu.simulations.batch.simulate` on ``--runs`` runs of ``--n``
-  samples at once (noise, excitation, sensor, EKF, estimators, references);
+  samples at once (noise, excitation, sensor, EKF, estimators, references); and the same with
+  a quartic term ``a4 = 0.05`` (the general sensor of issue 16: ``h``, ``h'`` and the 3rd/4th
+  moments of the estimators), printed beside it with the ratio;
 - batch engine, the default ``driftfmu sweep`` (6 x 5 grid, 1000 runs of 1000 samples) on all
   local cores, wall time;
 - FMU path: one run co-simulated with the three FMUs (:func:`driftfmu.simulations.batch.fmu_simulate`),
@@ -30,6 +32,8 @@ from driftfmu.simulations import batch, sweep
 from machine import cpu
 
 P = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4)
+#: The general sensor (issue 16): a quartic term in the sensor, the filter and the estimators.
+P4 = dict(P, a4=0.05)
 
 
 def best(fn, repeats):
@@ -41,9 +45,9 @@ def best(fn, repeats):
     return min(times)
 
 
-def bench_batch(runs, n, repeats):
+def bench_batch(runs, n, repeats, params=P):
     seeds = batch.run_seeds(1, runs)
-    return best(lambda: batch.simulate(n, seeds, **P), repeats) / (runs * n)
+    return best(lambda: batch.simulate(n, seeds, **params), repeats) / (runs * n)
 
 
 def bench_sweep(repeats):
@@ -108,6 +112,7 @@ def main(argv=None):
     fmu_paths(args.fmu_dir)
 
     t_batch = bench_batch(args.runs, args.n, args.repeats)
+    t_batch4 = bench_batch(args.runs, args.n, args.repeats, P4)
     t_sweep_wall, t_sweep = bench_sweep(args.repeats)
     t_fmu, t_fmu_step = bench_fmu(args.fmu_n, args.fmu_dir, args.repeats)
     t_fp, diff = bench_filterpy(args.filterpy_n, args.repeats)
@@ -118,6 +123,8 @@ def main(argv=None):
     print("%-58s %12s" % ("", "ns/sample-run"))
     print("%-58s %12.1f" % ("batch engine, 1 process (%d runs x %d samples)"
                             % (args.runs, args.n), t_batch * 1e9))
+    print("%-58s %12.1f" % ("batch engine, 1 process, a4 = %g (general sensor; %.2f x)"
+                            % (P4["a4"], t_batch4 / t_batch), t_batch4 * 1e9))
     print("%-58s %12.1f" % ("batch engine, default sweep on %d cores (wall, %.2f s)"
                             % (batch.workers_default(), t_sweep_wall), t_sweep * 1e9))
     print("%-58s %12.0f" % ("FMU path, 1 run of %d samples (instantiation included)"

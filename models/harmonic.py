@@ -117,12 +117,12 @@ def from_plain(values):
 
 
 def run(zs, a0, a1, a2, R, x0=0.0, P0=1.0, process=HARMONIC, f=150.0, Ts=1e-3, A=0.0, Q=0.0,
-        Qh=1e-8):
+        Qh=1e-8, a3=0.0, a4=0.0):
     """Run the estimator over recorded outputs ``zs`` (one measurement per sample, floats or
     arrays of runs); return the final state.  The same steps as the DriftEstimator FMU."""
     C, S = rotation(f, Ts)
     model = dict(process=process, A=A, Q=Q, C=C, S=S, Qh=Qh)
     state = estimator_init(process, x0, P0)
     for z in zs:
-        state = estimator_step(state, z, a0, a1, a2, R, **model)
+        state = estimator_step(state, z, a0, a1, a2, R, a3=a3, a4=a4, **model)
     return state
