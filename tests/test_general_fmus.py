@@ -96,3 +96,19 @@ def test_native_dual_axis_refuses_a4(native_fmus):
             raised = True
         fmu.freeInstance()
         assert raised == refused, a4
+
+
+@pytest.mark.integration
+def test_cli_run_gaussian_takes_the_general_parameters(built_fmus, tmp_path, capsys):
+    import json
+
+    from driftfmu.simulations.cli import main
+    fmu_dir = str(built_fmus["Excitation"].parent)
+    assert main(["run", "gaussian", "--a3", "0.02", "--a4", "0.03", "--B", "0.8", "--drive",
+                 "1", "--Qu", "0.3", "--n", "200", "--fmu-dir", fmu_dir,
+                 "--out", str(tmp_path / "o")]) == 0
+    s = json.loads((tmp_path / "o" / "summary.json").read_text())
+    assert s["validation"]["passed"]
+    with pytest.raises(SystemExit) as exc:
+        main(["run", "gaussian", "--drive", "3", "--fmu-dir", fmu_dir])
+    assert exc.value.code == 2 and "drive" in capsys.readouterr().err
