@@ -100,6 +100,14 @@ def test_posterior_moments_equal_quadrature_of_the_gaussian(m, P):
         assert abs(g - density_moment(p)) <= 1e-9 * max(1.0, abs(want)), (p, g)
 
 
+def test_expected_drift_default_is_the_gaussian_fourth_moment():
+    # eq. 5 for a zero-mean Gaussian state: E[a4 x^4] = 3 a4 sigma^4
+    assert sensor.drift(0.02, 0.6, 0.005) == pytest.approx(0.02 * 0.6 + 3 * 0.005 * 0.36,
+                                                           rel=1e-15)
+    m2, m4 = excitation.state_moments(A=0.5, Q=0.45)
+    assert sensor.drift(0.02, m2, 0.005) == sensor.drift(0.02, m2, 0.005, m4)
+
+
 def test_derivative_is_the_slope_of_the_characteristic():
     coeffs = dict(a0=0.1, a1=0.9, a2=-0.3, a3=0.2, a4=0.05)
     for x in np.linspace(-2.0, 2.0, 17):
@@ -288,10 +296,3 @@ def test_batch_engine_equals_the_chain_bit_for_bit_for_the_general_model(drive):
         assert np.array_equal(got[name].view(np.uint64), ref[name].view(np.uint64)), name
     assert np.array_equal(got["final_dc_ekf1"], ref["dc_ekf1"][:, -1])
 
-
-def test_expected_drift_default_is_the_gaussian_fourth_moment():
-    # eq. 5 for a zero-mean Gaussian state: E[a4 x^4] = 3 a4 sigma^4
-    assert sensor.drift(0.02, 0.6, 0.005) == pytest.approx(0.02 * 0.6 + 3 * 0.005 * 0.36,
-                                                           rel=1e-15)
-    m2, m4 = excitation.state_moments(A=0.5, Q=0.45)
-    assert sensor.drift(0.02, m2, 0.005) == sensor.drift(0.02, m2, 0.005, m4)
