@@ -77,6 +77,7 @@ _STATE_FIELDS = ("k", "time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
 _ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
 _INF = math.inf
+_ceil = math.ceil
 _TERMINATED = ("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
                "fmi2FreeInstance, the get functions and fmi2GetFMUstate/fmi2SetFMUstate")
 
@@ -164,6 +165,7 @@ class SlaveBase(Fmi2Slave):
         self._in_init = False
         self._terminated = False
         self._pending = None    # hidden state after the pending sample, when not dirty
+        self._feedthrough = bool(self.DEPENDENCIES)  # outputs follow the inputs when read
         #: the committed hidden state, {name: value} over HIDDEN (replaced, never mutated)
         self._committed = {name: None for name in self.HIDDEN}
         self._specs = {}
@@ -196,6 +198,16 @@ class SlaveBase(Fmi2Slave):
     # -- getters ----------------------------------------------------------------------------
     def get_real(self, vrs):
         names = self._real_names
+        if len(vrs) == 1:  # the per-sample fast path: one value (the same checks, in order)
+            name = names.get(vrs[0])
+            if name is not None:
+                if self._dirty and self._at_sample and (self._in_init or (
+                        self._initialised and self._feedthrough)):
+                    try:  # outputs at this communication point, from its inputs
+                        self._refresh()
+                    except Exception as exc:
+                        self._failed("_refresh", exc)
+                return [float(self.__dict__[name])]
         try:
             wanted = [names[vr] for vr in vrs]
         except KeyError:  # the whole call is refused, and changes nothing
@@ -203,7 +215,7 @@ class SlaveBase(Fmi2Slave):
             return [float(getattr(self, names[vr])) if vr in names else math.nan
                     for vr in vrs]
         if self._dirty and self._at_sample and (self._in_init or (
-                self._initialised and self.DEPENDENCIES)):
+                self._initialised and self._feedthrough)):
             try:  # outputs at this communication point, from its inputs
                 self._refresh()
             except Exception as exc:
@@ -449,10 +461,18 @@ class SlaveBase(Fmi2Slave):
         position = (elapsed + comp) / Ts  # t + h in sample periods from the start
         limit = self.MAX_SAMPLES_PER_STEP
         if not position - tol <= limit + k - 1:
+            # the room left before the limit, in seconds (C twin: cs_do_step)
+            room = (limit + k - 1) * Ts - (self._elapsed + self._elapsed_c)
+            if not (math.isfinite(position) and math.isfinite(room)):
+                self._fail("communication step h = %r s from t = %r s with Ts = %r s: the time "
+                           "in sample periods, (t + h - startTime)/Ts, is not a finite number; "
+                           "allowed: steps whose end is a finite number of sample periods "
+                           "after the start" % (h, self.start_time + (self._elapsed +
+                                                                       self._elapsed_c), Ts))
             self._fail("communication step h = %r s spans more than %d sample instants of "
                        "Ts = %r s; allowed: at most MAX_SAMPLES_PER_STEP = %d sample instants "
-                       "per step, h <= about %r s" % (h, limit, Ts, limit, limit * Ts))
-        last = math.ceil(position - tol)      # index (k - 1) of the first instant at or after t+h
+                       "per step, h <= about %r s" % (h, limit, Ts, limit, room))
+        last = _ceil(position - tol)          # index (k - 1) of the first instant at or after t+h
         m = max(0, last + 1 - k)              # instants in [t, t + h)
         at_sample = last <= position + tol    # t + h is that instant
         hidden = outputs = pending = None  # hidden None: the committed state stays
@@ -498,18 +518,17 @@ class SlaveBase(Fmi2Slave):
                        "allowed: inputs and parameters whose outputs stay finite (nothing was "
                        "changed)" % (k0 + n - 1, self._sample_time(k0 + n - 1),
                                      type(exc).__name__, exc))
-        k = k0 + n - 1
-        for value in outputs.values():
-            if value - value != 0.0:  # not finite (v - v is 0 for every finite v)
-                for name, value in outputs.items():
-                    if not math.isfinite(value):
-                        self._not_finite(name, value, k)
+        total = sum(outputs.values())  # not finite if any output is not (or if they overflow)
+        if total - total != 0.0:  # then look at each (v - v is 0 for every finite v)
+            for name, value in outputs.items():
+                if not math.isfinite(value):
+                    self._not_finite(name, value, k0 + n - 1)
         check = self.hidden_finite
         if check is not None and not check(hidden):
             for name, value in hidden.items():
                 for part, v in _numbers(name, value):
                     if not math.isfinite(v):
-                        self._not_finite("hidden state " + part, v, k)
+                        self._not_finite("hidden state " + part, v, k0 + n - 1)
         return hidden, outputs
 
     # -- hooks for the slaves ---------------------------------------------------------------
@@ -657,10 +676,12 @@ class SlaveBase(Fmi2Slave):
                 bad = self.check_parameters()
                 if not bad:
                     self.prepare()
-                    if any(hidden[name] is None for name in self.HIDDEN
-                           if name in self.initial_hidden() and
-                           self.initial_hidden()[name] is not None):
-                        bad = ["the hidden state of an initialised instance is missing"]
+                    missing = [name for name in self.HIDDEN if hidden[name] is None
+                               and self.initial_hidden().get(name) is not None]
+                    if missing:
+                        bad = ["the hidden state %s of an initialised instance is missing "
+                               "(null); allowed: the hidden state of an initialised instance"
+                               % ", ".join(missing)]
                     else:
                         bad = self.hidden_problems(hidden) + self._timing_problems(
                             k, time, flags["at_sample"])
