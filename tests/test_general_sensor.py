@@ -296,3 +296,14 @@ def test_batch_engine_equals_the_chain_bit_for_bit_for_the_general_model(drive):
         assert np.array_equal(got[name].view(np.uint64), ref[name].view(np.uint64)), name
     assert np.array_equal(got["final_dc_ekf1"], ref["dc_ekf1"][:, -1])
 
+
+
+def test_compiled_kernel_refuses_the_general_model_and_auto_runs_numpy():
+    from driftfmu.simulations import batch
+    from driftfmu.simulations.errors import UsageError
+    seeds = batch.run_seeds(1, 3)
+    with pytest.raises(UsageError, match="kernel = 'c' has the letter's quadratic sensor only"):
+        batch.simulate(10, seeds, a4=0.1, kernel="c")
+    auto = batch.simulate(40, seeds, a4=0.1, B=0.5, drive=excitation.GAUSSIAN, Qu=0.2)
+    ref = chain.simulate(40, seeds, a4=0.1, B=0.5, drive=excitation.GAUSSIAN, Qu=0.2)
+    assert np.array_equal(auto["final_dc_ekf1"], ref["dc_ekf1"][:, -1])
