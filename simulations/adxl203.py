@@ -32,7 +32,7 @@ import time
 import warnings
 from concurrent.futures import as_completed
 
-from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
+from driftfmu.models import adxl203, drift, excitation, harmonic, identify, parameters
 from driftfmu.models.noise import STREAM_PHASE, normal, uniform
 from driftfmu.simulations import batch, output
 from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, check_backend, fmu_paths
@@ -439,7 +439,7 @@ def plot_fig5(path, per):
 
 # -- identification from recordings (CSV), the same pipeline on real data -----------------------
 
-def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
+def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0, order=2):
     """Fit the averaged 2nd-order model on recordings ``files`` (CSV ``time, x, z``) and run EKF1
     (harmonic model at ``f``) on the last ``held_out`` of them (``z`` only).
 
@@ -462,10 +462,10 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
     train = len(files) - held_out
     fits, doubts = [], []
     for p, (t, x, z) in zip(files[:train], data[:train]):
-        fits.append(_fit_file(p, t, x, z, f, doubts))
+        fits.append(_fit_file(p, t, x, z, f, doubts, order))
     for p, (t, x, _) in zip(files[train:], data[train:]):
         # a held-out recording is checked too: its drive must be at f for EKF1's model
-        _fit_file(p, t, x, x, f, doubts)
+        _fit_file(p, t, x, x, f, doubts, order)
     if train == 1:
         doubts.append("the model comes from one recording: no spread (sd) to report; fit two "
                       "or more to see how much the coefficients scatter")
@@ -473,15 +473,16 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
     model = identify.average(fits)
     summary = {"frequency": f, "files": files[:train], "model": model,
                "fits": [fi._asdict() for fi in fits], "method": "harmonic analysis",
-               "warnings": doubts}
+               "warnings": doubts, "order": order}
+    higher = dict(a3=model.get("a3", 0.0), a4=model.get("a4", 0.0))
     rows = {"file": [], "dc_empirical": [], "dc_ekf1": [], "difference": []}
     for p, (t, _, z) in zip(files[train:], data[train:]):
         ts = identify.sample_period(t)
         m = identify.whole_periods(len(z), f, ts)
         emp = float(sum(z[:m]) / m - model["a0"])
         st = harmonic.run([float(v) for v in z], model["a0"], model["a1"], model["a2"],
-                          model["R"], P0=P0, f=f, Ts=ts, Qh=Qh)
-        ekf = model["a2"] * st.drift.s1
+                          model["R"], P0=P0, f=f, Ts=ts, Qh=Qh, **higher)
+        ekf = drift.estimates(st.drift, model["a2"], higher["a3"], higher["a4"])[0]
         rows["file"].append(p)
         rows["dc_empirical"].append(emp)
         rows["dc_ekf1"].append(ekf)
@@ -502,13 +503,13 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0):
     return summary
 
 
-def _fit_file(path, t, x, z, f, doubts):
+def _fit_file(path, t, x, z, f, doubts, order=2):
     """fit_set on one recording; its errors and warnings name the file (warnings are also
     appended to ``doubts``)."""
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", identify.IdentificationWarning)
         try:
-            fit = identify.fit_set(t, x, z, f)
+            fit = identify.fit_set(t, x, z, f, order=order)
         except identify.IdentificationError as exc:
             raise identify.IdentificationError("%s: %s" % (path, exc)) from None
     for w in caught:
@@ -603,6 +604,10 @@ def add_cli(groups):
                    help="the last K files are held out: the model is fitted on the others "
                         "and EKF1 runs on these (z only), with the margin against their "
                         "empirical drift; allowed: 0 <= K < number of files (default: 0)")
+    i.add_argument("--order", type=int, choices=identify.ORDERS, default=2,
+                   help="order of the characteristic a0 + a1 x + ... + a_order x^order to fit "
+                        "from the harmonics 0..order (with standard errors); an order whose "
+                        "harmonics reach the Nyquist rate is refused (default: 2)")
     cli.add_out(i, "results/identify")
     i.set_defaults(func=_cmd_identify)
 
@@ -641,11 +646,18 @@ def timing_line(t):
 
 
 def _cmd_identify(args):
-    s = run_identify(args.files, args.f, held_out=args.held_out, out=args.out)
+    s = run_identify(args.files, args.f, held_out=args.held_out, out=args.out,
+                     order=args.order)
     m = s["model"]
     print("wrote %s/identify.json%s" % (args.out, ", identify.csv" if args.held_out else ""))
     print("model from %d set(s): a0 %.6g, a1 %.6g, a2 %.6g, R %.4g"
           % (m["sets"], m["a0"], m["a1"], m["a2"], m["R"]))
+    if args.order > 2:
+        fit = s["fits"][0]
+        print("order %d: %s; standard errors of the first set: %s"
+              % (args.order, ", ".join("a%d %.6g" % (i, m["a%d" % i])
+                                       for i in range(3, args.order + 1)),
+                 ", ".join("%s %.3g" % kv for kv in sorted(fit["se"].items()))))
     if m["sd_a2"] is not None:
         print("spread over the sets (sd): a0 %.3g, a1 %.3g, a2 %.3g, R %.3g"
               % (m["sd_a0"], m["sd_a1"], m["sd_a2"], m["sd_R"]))

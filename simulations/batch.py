@@ -23,7 +23,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from driftfmu.models import chain, drift, excitation, harmonic, noise, parameters, sensor
+from driftfmu.models import _ops, chain, drift, excitation, harmonic, noise, parameters, sensor
 from driftfmu.simulations.errors import UsageError
 
 #: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
@@ -108,7 +108,8 @@ def sine_phase(seed):
 # -- the engine -----------------------------------------------------------------------------
 def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
              Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
-             filter_Q=None, record=(), block=BLOCK, progress=None, kernel="auto"):
+             filter_Q=None, record=(), block=BLOCK, progress=None, kernel="auto", a3=0.0,
+             a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0):
     """Run ``len(seeds)`` Monte-Carlo runs of the chain for samples ``k = 1..n`` at once.
 
     Run ``r`` is the co-simulation of Excitation -> Accelerometer -> DriftEstimator with both
@@ -128,6 +129,10 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         (``x_k = X sin(2 pi f (k-1) Ts + phi)``).
     filter_A, filter_Q : float or array, optional
         The filter's process model, by default the excitation's ``A`` and ``Q``.
+    a3, a4, B, drive, Qu, Xu, fu : optional
+        The general sensor (``h`` up to 4th order, sensor and filter alike) and the known input
+        ``u`` (:func:`driftfmu.models.excitation.input_sample`) driving the Gaussian state and
+        the filter's prediction through ``B``; the defaults are the letter's case, same bits.
     record : sequence of str
         Names out of :data:`TRAJECTORIES` to return as ``(runs, n)`` arrays.
     block : int
@@ -155,7 +160,11 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = default_P0(fA, fQ)
-    lib = _kernel_library(kernel)
+    general = sensor.higher(a3, a4) or not (_ops.is_scalar(B) and B == 0.0)
+    if general and kernel == "c":
+        raise UsageError("kernel = 'c' has the letter's quadratic sensor only; allowed with a3, "
+                         "a4 or B != 0: kernel = 'auto' or 'numpy'")
+    lib = _kernel_library("numpy" if general and kernel in KERNELS else kernel)
     if lib is not None:
         return _simulate_kernel(lib, n, seeds, dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0,
                                                     P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
@@ -166,8 +175,12 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
                                                          shape).copy())
     zbar = 0.0
     x2bar = 0.0
+    hbar = 0.0  # realised drift (1/k) sum a2 x^2 + a3 x^3 + a4 x^4 of the general sensor
+    quadratic = not sensor.higher(a3, a4)
     traj = {name: np.empty((n, runs)) for name in record}
     gaussian = kind == excitation.GAUSSIAN
+    fB = B if gaussian else 0.0
+    inputs = gaussian and drive != excitation.DRIVE_OFF
     row = seeds[None, :]
     for k0 in range(1, n + 1, block):
         ks = np.arange(k0, min(k0 + block, n + 1), dtype=np.uint64)[:, None]
@@ -176,19 +189,24 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         V = sensor.measurement_noise(row, ks)
         for i in range(ks.shape[0]):
             k = k0 + i
+            u = excitation.input_sample(drive, row[0], k, Qu, Xu, fu, Ts) if inputs else 0.0
             if gaussian:
-                x = excitation.gauss_markov(x, A, Q, W[i])
+                x = excitation.gauss_markov(x, A, Q, W[i], fB, u)
             else:
                 x = excitation.sine(k, X, f, Ts, phi)
-            z = sensor.measure(x, a0, a1, a2, R, V[i])
-            est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R)
+            z = sensor.measure(x, a0, a1, a2, R, V[i], a3, a4)
+            est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
             zbar = drift.running_mean(zbar, z, k)
-            x2bar = drift.running_mean(x2bar, x * x, k)
+            x2 = x * x
+            x2bar = drift.running_mean(x2bar, x2, k)
+            if not quadratic:
+                hbar = drift.running_mean(hbar, a2 * x2 + a3 * x2 * x + a4 * x2 * x2, k)
             if traj:
-                _record(traj, k - 1, x, z, est, zbar, x2bar, a0, a2)
+                _record(traj, k - 1, x, z, est, zbar, a2 * x2bar if quadratic else hbar, a0,
+                        (a2, a3, a4))
         if progress is not None:
             progress(k0 - 1 + ks.shape[0])
-    dc1, dc2, dc3 = drift.estimates(est.drift, a2)
+    dc1, dc2, dc3 = drift.estimates(est.drift, a2, a3, a4)
     out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
            "zbar": zbar - a0, "x2bar": x2bar}
     out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), shape).copy()
@@ -236,12 +254,13 @@ def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
     return out
 
 
-def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
-    """Store sample ``j`` (0-based) of the recorded trajectories."""
+def _record(traj, j, x, z, est, zbar, realised, a0, coefficients):
+    """Store sample ``j`` (0-based) of the recorded trajectories (``coefficients`` are
+    ``(a2, a3, a4)``, ``realised`` the realised drift so far)."""
     values = {"x": lambda: x, "z": lambda: z, "x_hat": lambda: est.x, "P": lambda: est.P,
-              "dc_ekf1": lambda: drift.estimates(est.drift, a2)[0],
+              "dc_ekf1": lambda: drift.estimates(est.drift, *coefficients)[0],
               "dc_ekf2": lambda: est.drift.dc2, "dc_ekf3": lambda: est.drift.dc3,
-              "dc_empirical": lambda: zbar - a0, "dc_realised": lambda: a2 * x2bar}
+              "dc_empirical": lambda: zbar - a0, "dc_realised": lambda: realised}
     for name, arr in traj.items():
         arr[j] = values[name]()
 

@@ -245,6 +245,10 @@ def check_build_args(args):
             raise UsageError("--ssp %s exists; add --force to replace it" % ssp)
 
 
+#: The general model's parameters (issue 16, docs/method.md section 9): off by default.
+GENERAL = ("a3", "a4", "B", "drive", "Qu", "Xu", "fu")
+
+
 def cmd_run_gaussian(args):
     from driftfmu.simulations import budget
     from driftfmu.simulations.gaussian import run_gaussian
@@ -253,7 +257,8 @@ def cmd_run_gaussian(args):
         res = run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
                            Q=args.Q, R=args.R, n=args.n, seed=args.seed, Ts=args.Ts,
                            P0=args.P0, estimator=args.estimator, fmu_dir=args.fmu_dir,
-                           progress=update, backend=args.backend)
+                           progress=update, backend=args.backend,
+                           **{name: getattr(args, name) for name in GENERAL})
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)
@@ -324,6 +329,7 @@ def make_parser():
     runs.required = True
     g = runs.add_parser("gaussian", help="Gaussian excitation, the letter's Sec. III / Fig. 1")
     add_params(g, ("a0", "a1", "a2", "A", "Q", "R", "n", "seed", "Ts"))
+    add_params(g, GENERAL)
     g.add_argument("--P0", type=param_type("P0"), default=None, metavar="P0",
                    help="initial error variance of the filter [g2] (default: Q / (1 - A^2))")
     g.add_argument("--estimator", type=int, choices=(1, 2, 3), default=1,
