@@ -386,7 +386,8 @@ def child(dirs, seeds, n_calls, plant):
 
 #: valgrind options for :func:`run` (memory errors only: CPython's uninitialised-value reports
 #: are not the FMUs').
-VALGRIND = ["valgrind", "-q", "--undef-value-errors=no", "--error-exitcode=99"]
+VALGRIND = ["valgrind", "-q", "--undef-value-errors=no", "--error-exitcode=99",
+            "--suppressions=%s" % (Path(__file__).resolve().parent / "valgrind.supp")]
 
 
 def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False):
