@@ -18,7 +18,8 @@ def _struct(name, fields):
     return type(name, (ctypes.Structure,), {"_fields_": fields})
 
 
-DriftState = _struct("DriftState", [("k", I64)] + [(n, D) for n in ("s1", "dc2", "s3", "dc3")])
+DriftState = _struct("DriftState", [("k", I64)] + [(n, D) for n in (
+    "s1", "dc2", "s3", "dc3", "t1", "q1", "t3", "q3")])
 HarmonicState = _struct("HarmonicState", [(n, D) for n in ("x", "d", "P", "P12", "P22")]
                         + [("drift", DriftState)])
 Axis = _struct("Axis", [(n, D) for n in ("a0", "a1", "a2", "b", "R")])
@@ -34,7 +35,8 @@ DualModel = _struct("DualModel", [("process", I64)] + [(n, D) for n in (
     "A", "Q", "Qy", "Qxy", "C", "S", "Qh")])
 Config = _struct("Config", [("plain", I64)] + [(n, D) for n in (
     "a0", "a1", "a2", "a3", "R", "sigma", "cross")] + [("has_alpha", I64), ("alpha", D),
-                                                        ("lsb", D), ("levels", I64)])
+                                                        ("lsb", D), ("levels", I64),
+                                                        ("a4", D)])
 
 #: ModelHidden of each model (fmu_src/native/models/<Model>_step.h).
 HIDDEN = {

@@ -123,6 +123,10 @@ static int harmonic_state_problems(ModelInstance *comp, const char *which, const
     REAL(drift.dc2, 0);
     REAL(drift.s3, 0);
     REAL(drift.dc3, 0);
+    REAL(drift.t1, 0);
+    REAL(drift.q1, 0);
+    REAL(drift.t3, 0);
+    REAL(drift.q3, 0);
 #undef REAL
     snprintf(name, sizeof name, "%s.drift.k", which);
     return n + slave_hidden_count(comp, name, s->drift.k);
