@@ -279,7 +279,7 @@ def test_partial_period_term_of_the_empirical_drift_is_the_readme_bound():
     assert np.max(worst / bound) >= 0.99
 
 
-@pytest.mark.integration  # no FMU, but 4 million samples: a minute or more, kept out of -x runs
+@pytest.mark.slow  # 4 million samples: a minute or more
 def test_montecarlo_sinusoidal_median_settles_against_the_empirical_drift_at_3808(capsys):
     # README: "With --runs 200 --n 20000 the median run settles against the empirical drift
     # from sample 3808"

@@ -47,9 +47,10 @@ except ImportError:  # Python < 3.11
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LIST = os.path.join(ROOT, "tools", "mutations.toml")
 #: What every run selects unless a fault names its own tests: the suite without the tests that
-#: build or load FMUs (those test the FMI plumbing; the slaves' step logic runs in Python).
+#: build or load FMUs (those test the FMI plumbing; the slaves' step logic runs in Python) and
+#: without the slow reproductions of README figures at full size.
 DEFAULT_TESTS = ("tests",)
-DEFAULT_MARKERS = "not integration"
+DEFAULT_MARKERS = "not integration and not slow"
 #: Left out of every run: compares the C port built for Linux with the same C built for Windows
 #: (under wine, minutes); no fault in the Python tree can change what it compares.
 DESELECT = ("tests/test_native_models.py::test_windows_build_under_wine_prints_the_linux_bits",)
