@@ -115,6 +115,20 @@ def test_montecarlo_references_at_a0_and_A_nonzero_average_to_the_expected_drift
     assert abs(d.mean()) <= Z * d.std(ddof=1) / math.sqrt(runs)
 
 
+def test_sweep_error_against_the_empirical_drift_is_flat_at_the_mean_of_a1_xbar():
+    # README / docs/method.md: against the empirical drift the error is flat at the mean of
+    # |a1 x̄|, a1 sqrt(2 sigma_x^2 / (pi n)) ≈ 2.5e-3 V at n = 1000, whatever a2 and R
+    runs, n, Q = 1000, 1000, 0.01
+    sw = sweep.sweep(a2=[1e-3, 0.3], R=[1e-6, 1e-2], runs=runs, n=n, seed=1, workers=2)
+    refs = sweep.references(sw, Q=Q, A=0.0)
+    for i in range(2):
+        for j, R in enumerate((1e-6, 1e-2)):
+            e = np.abs(sw["grid_dc1"][i, j] - refs["empirical"][i, j])
+            want = math.sqrt(2 * (Q + R) / (math.pi * n))  # mean abs of a1 x̄ + v̄ (Gaussian)
+            assert abs(e.mean() - want) <= Z * e.std(ddof=1) / math.sqrt(runs), (i, j)
+    assert "%.1e" % math.sqrt(2 * Q / (math.pi * n)) == "2.5e-03"
+
+
 # -- the reported statistics ---------------------------------------------------------------------
 
 def test_settled_from_is_the_first_sample_of_the_final_stay_in_the_band():
@@ -286,3 +300,34 @@ def test_montecarlo_sinusoidal_median_settles_against_the_empirical_drift_at_380
     r = montecarlo.montecarlo_sinusoidal(runs=200, n=20_000, workers=2)
     montecarlo.print_summary(r["summary"], ("empirical", "realised"))
     assert "EKF1       |   0.0 % (median k   3808)" in capsys.readouterr().out
+
+
+#: README's ADXL203 table: f -> (a0, a1, a2, R, drift mV, rms(EKF1 - empirical) mV, margin dB)
+ADXL203_TABLE = {100: ("2.50020", "0.99920", "0.00983", "2.09e-05", "10.889", "0.0307", "25.5"),
+                 125: ("2.50027", "0.99685", "0.00975", "2.09e-05", "11.008", "0.0499", "23.4"),
+                 150: ("2.50041", "0.99378", "0.00963", "2.09e-05", "11.036", "0.0206", "27.3"),
+                 175: ("2.50053", "0.99047", "0.00952", "2.08e-05", "10.663", "0.0450", "23.7"),
+                 200: ("2.50068", "0.98676", "0.00939", "2.07e-05", "10.534", "0.0189", "27.5")}
+
+
+@pytest.mark.integration
+@pytest.mark.slow  # the full size, 150 sets of 60,000 samples: a minute on the native FMUs
+def test_adxl203_experiment_prints_the_readme_table(native_fmus, tmp_path, capsys):
+    # README: "driftfmu experiment adxl203" (the native FMUs give the Python FMUs' numbers to
+    # the last bit: test_native.py); the margins 23-28 dB of the table and docs/method.md
+    fmu_dir = native_fmus[2]["Excitation"].parent.parent.parent
+    out = tmp_path / "adxl203"
+    from driftfmu.simulations.cli import main
+    assert main(["experiment", "adxl203", "--backend", "native", "--fmu-dir", str(fmu_dir),
+                 "--workers", "2", "--out", str(out)]) == 0
+    printed = capsys.readouterr().out
+    for f, (a0, a1, a2, R, dc, rms, db) in ADXL203_TABLE.items():
+        line = ("%6g Hz: model a0 %s a1 %s a2 %s R %s | drift %s mV, rms difference %s mV, "
+                "margin %s dB" % (f, a0, a1, a2, R, dc, rms, db))
+        assert line in printed, line
+    assert "claim (difference at least 5 dB below the drift at every frequency): holds" in printed
+    # the margins are margin() of the held-out sets the JSON lists
+    import json
+    s = json.loads((out / "adxl203.json").read_text())
+    for p in s["per_frequency"]:
+        assert p["margin_db"] == experiment.margin(p["dc_empirical"], p["dc_ekf1"])["margin_db"]
