@@ -260,6 +260,30 @@ def _readme_points(engine="fmu"):
     return rows
 
 
+#: README's dual-axis tables (FMU engine, 4 runs per point): parameter, sweep, then per axis
+#: x and y: dc_true [mV], single - true [mV], -b mean(xy) [mV], dual - true [% of scale]
+README_DUAL_TABLE = """
+0.000 dphi 9.0000 -3.9984 -4.0000 +0.0087 0.1600 +2.4001 +2.4000 +0.0030
+0.393 dphi 8.6955 -3.6940 -3.6955 +0.0054 0.3427 +2.2172 +2.2173 +0.0016
+0.785 dphi 7.8284 -2.8273 -2.8284 +0.0021 0.8629 +1.6967 +1.6971 -0.0009
+1.178 dphi 6.5307 -1.5300 -1.5307 -0.0005 1.6416 +0.9179 +0.9184 -0.0044
+1.571 dphi 5.0000 +0.0002 +0.0000 -0.0019 2.5600 -0.0007 -0.0000 -0.0080
+1.963 dphi 3.4693 +1.5304 +1.5307 -0.0020 3.4784 -0.9191 -0.9184 -0.0109
+2.356 dphi 2.1716 +2.8277 +2.8284 -0.0006 4.2571 -1.6976 -1.6971 -0.0130
+2.749 dphi 1.3045 +3.6945 +3.6955 +0.0018 4.7773 -2.2177 -2.2173 -0.0142
+3.142 dphi 1.0000 +3.9988 +4.0000 +0.0049 4.9600 -2.4002 -2.4000 -0.0143
+-0.900 rho 0.0101 +0.0904 +0.0903 +0.0162 0.1342 -0.0541 -0.0542 +0.0809
+-0.675 rho 0.0328 +0.0678 +0.0677 +0.0276 0.1203 -0.0406 -0.0406 +0.0403
+-0.450 rho 0.0554 +0.0452 +0.0450 +0.0347 0.1065 -0.0270 -0.0270 +0.0121
+-0.225 rho 0.0780 +0.0225 +0.0224 +0.0404 0.0929 -0.0135 -0.0135 -0.0101
++0.000 rho 0.1006 -0.0000 -0.0002 +0.0453 0.0793 +0.0000 +0.0001 -0.0281
++0.225 rho 0.1232 -0.0226 -0.0227 +0.0496 0.0659 +0.0136 +0.0136 -0.0428
++0.450 rho 0.1457 -0.0452 -0.0453 +0.0536 0.0525 +0.0271 +0.0272 -0.0544
++0.675 rho 0.1683 -0.0678 -0.0679 +0.0572 0.0392 +0.0406 +0.0407 -0.0621
++0.900 rho 0.1908 -0.0903 -0.0904 +0.0593 0.0260 +0.0542 +0.0543 -0.0606
+"""
+
+
 @pytest.mark.slow  # 18 points x 4 runs x 4000 samples of the dual chain
 def test_readme_dual_axis_table_and_its_worst_error():
     # README: "the dual-axis EKF1 is within 0.081 % of the scale at every point"; scales 9.0
@@ -270,18 +294,21 @@ def test_readme_dual_axis_table_and_its_worst_error():
     assert "%.3f" % (100 * worst) == "0.081"            # the command prints "(worst 0.081 %)"
     assert all(r["dual_within_band"] and r["single_off_by_cross"] for r in rows)
     by = {(r["sweep"], round(r["parameter"], 3), r["axis"]): r for r in rows}
-    # README table rows: (dc_true mV, single - true mV, -b mean(xy) mV, dual - true % of scale)
-    readme = {("dphi", 0.0, "x"): (9.0000, -3.9984, -4.0000, +0.0087),
-              ("dphi", 0.0, "y"): (0.1600, +2.4001, +2.4000, +0.0030),
-              ("dphi", 1.571, "y"): (2.5600, -0.0007, -0.0000, -0.0080),
-              ("rho", -0.9, "y"): (0.1342, -0.0541, -0.0542, +0.0809),
-              ("rho", 0.9, "x"): (0.1908, -0.0903, -0.0904, +0.0593)}
-    for key, (true, single, cross, dual) in readme.items():
-        r = by[key]
-        got = (1e3 * r["dc_true"], 1e3 * r["err_single"], -1e3 * r["cross"],
-               100 * r["err_dual"] / r["scale"])
-        assert ["%+.4f" % v for v in got] == ["%+.4f" % v for v in (true, single, cross, dual)], \
-            key
+    # every row of the README's two tables, each axis: dc_true [mV], single - true [mV],
+    # -b mean(xy) [mV], dual - true [% of scale]; equal to the printed digit (half a unit)
+    for line in README_DUAL_TABLE.strip().splitlines():
+        p, *values = line.split()
+        sweep = values[0]
+        values = [float(v) for v in values[1:]]
+        for axis, (true, single, cross, dual) in (("x", values[:4]), ("y", values[4:])):
+            r = by[(sweep, round(float(p), 3), axis)]
+            got = (1e3 * r["dc_true"], 1e3 * r["err_single"], -1e3 * r["cross"],
+                   100 * r["err_dual"] / r["scale"])
+            for g, w in zip(got, (true, single, cross, dual)):
+                assert abs(g - w) <= 0.5e-4 + 1e-9, (sweep, p, axis, got)
+    # "the single-axis EKF1 is off by exactly the cross-term drift it cannot see, up to 48 %
+    # of the scale"
+    assert round(100 * max(abs(r["err_single"]) / r["scale"] for r in rows)) == 48
     assert ["%.2f" % (1e3 * by[("dphi", 0.0, a)]["scale"]) for a in "xy"] == ["9.00", "4.96"]
     assert ["%.2f" % (1e3 * by[("rho", 0.0, a)]["scale"]) for a in "xy"] == ["0.20", "0.14"]
 
