@@ -13,7 +13,7 @@ cross term or changes its coefficient shows:
 - the experiment's references and statistics (true and expected drift, scale, mean errors and
   their standard errors) against their definitions;
 - EKF1 over many seeds: unbiased against each run's true drift on both axes, two-sided;
-- the figures README.md states for ``driftfmu experiment dual-axis`` (the FMU engine's table,
+- the figures docs/results.md states for ``driftfmu experiment dual-axis`` (the FMU engine's table,
   reproduced bit for bit by the batch engine on the same seeds).
 """
 import math
@@ -235,9 +235,9 @@ def test_dual_ekf1_is_unbiased_against_each_axis_true_drift(A, rho):
         assert abs(cross.mean()) > 10 * err.std(ddof=1) / math.sqrt(runs), name
 
 
-# -- the figures README.md states ----------------------------------------------------------------
+# -- the figures docs/results.md states ----------------------------------------------------------------
 
-def _readme_points(engine="fmu"):
+def _documented_points(engine="fmu"):
     """The rows of `driftfmu experiment dual-axis --engine ENGINE` at its defaults (4 runs per
     point with the FMU engine, 1000 with the batch engine; seed 1): the batch engine gives the
     FMU engine's numbers on the same seeds (test_dual_axis.py::test_batch_engine_gives_the_fmu_
@@ -260,9 +260,9 @@ def _readme_points(engine="fmu"):
     return rows
 
 
-#: README's dual-axis tables (FMU engine, 4 runs per point): parameter, sweep, then per axis
+#: docs/results.md's dual-axis tables (FMU engine, 4 runs per point): parameter, sweep, then per axis
 #: x and y: dc_true [mV], single - true [mV], -b mean(xy) [mV], dual - true [% of scale]
-README_DUAL_TABLE = """
+RESULTS_DUAL_TABLE = """
 0.000 dphi 9.0000 -3.9984 -4.0000 +0.0087 0.1600 +2.4001 +2.4000 +0.0030
 0.393 dphi 8.6955 -3.6940 -3.6955 +0.0054 0.3427 +2.2172 +2.2173 +0.0016
 0.785 dphi 7.8284 -2.8273 -2.8284 +0.0021 0.8629 +1.6967 +1.6971 -0.0009
@@ -285,18 +285,18 @@ README_DUAL_TABLE = """
 
 
 @pytest.mark.slow  # 18 points x 4 runs x 4000 samples of the dual chain
-def test_readme_dual_axis_table_and_its_worst_error():
-    # README: "the dual-axis EKF1 is within 0.081 % of the scale at every point"; scales 9.0
+def test_documented_dual_axis_table_and_its_worst_error():
+    # docs/results.md: "the dual-axis EKF1 is within 0.081 % of the scale at every point"; scales 9.0
     # and 4.96 mV (sinusoids), 0.20 and 0.14 mV (Gaussian); rows of its table
-    rows = _readme_points()
+    rows = _documented_points()
     assert len(rows) == 2 * 2 * dual_axis.POINTS
     worst = max(abs(r["err_dual"]) / r["scale"] for r in rows)
     assert "%.3f" % (100 * worst) == "0.081"            # the command prints "(worst 0.081 %)"
     assert all(r["dual_within_band"] and r["single_off_by_cross"] for r in rows)
     by = {(r["sweep"], round(r["parameter"], 3), r["axis"]): r for r in rows}
-    # every row of the README's two tables, each axis: dc_true [mV], single - true [mV],
+    # every row of the docs/results.md's two tables, each axis: dc_true [mV], single - true [mV],
     # -b mean(xy) [mV], dual - true [% of scale]; equal to the printed digit (half a unit)
-    for line in README_DUAL_TABLE.strip().splitlines():
+    for line in RESULTS_DUAL_TABLE.strip().splitlines():
         p, *values = line.split()
         sweep = values[0]
         values = [float(v) for v in values[1:]]
@@ -314,13 +314,13 @@ def test_readme_dual_axis_table_and_its_worst_error():
 
 
 @pytest.mark.slow  # 18 points x 1000 runs x 4000 samples: minutes
-def test_readme_dual_axis_figures_over_1000_runs_per_point():
-    # README: "Over 1000 runs per point (--engine batch) the dual-axis error is at most 0.008 %
+def test_documented_dual_axis_figures_over_1000_runs_per_point():
+    # docs/results.md: "Over 1000 runs per point (--engine batch) the dual-axis error is at most 0.008 %
     # of the scale; on the Gaussian sweep the single-axis error minus -b mean(xy) is within 0.26
     # of its standard error everywhere; on the sinusoids a deterministic residual of the
     # single-axis filter of at most 1.9e-4 of the scale remains, above the Monte-Carlo standard
     # error (~1e-5 of the scale)"
-    rows = _readme_points("batch")
+    rows = _documented_points("batch")
     worst = max(abs(r["err_dual"]) / r["scale"] for r in rows)
     assert "%.3f" % (100 * worst) == "0.008"
     gauss = [r for r in rows if r["sweep"] == "rho"]

@@ -5,7 +5,7 @@ expected drift ``a2 sigma_x^2``), every reported statistic (settling samples, se
 fractions and their medians, the EKF1-EKF2 gap in dB and its spread, the ADXL203 margin in dB)
 is checked here against a closed form or a seeded statistic with a tolerance derived from the
 sample size, two-sided, at values of its parameters where a wrong dependence shows (``a0 != 0``,
-``A != 0``).  The last section checks the figures README.md and docs/method.md quote against
+``A != 0``).  The last section checks the figures docs/results.md and docs/method.md quote against
 what the commands print (their defaults, seed 1).  Which test backs which claim:
 docs/references.md.
 """
@@ -116,7 +116,7 @@ def test_montecarlo_references_at_a0_and_A_nonzero_average_to_the_expected_drift
 
 
 def test_sweep_error_against_the_empirical_drift_is_flat_at_the_mean_of_a1_xbar():
-    # README / docs/method.md: against the empirical drift the error is flat at the mean of
+    # docs/results.md, docs/method.md: against the empirical drift the error is flat at the mean of
     # |a1 x̄|, a1 sqrt(2 sigma_x^2 / (pi n)) ≈ 2.5e-3 V at n = 1000, whatever a2 and R
     runs, n, Q = 1000, 1000, 0.01
     sw = sweep.sweep(a2=[1e-3, 0.3], R=[1e-6, 1e-2], runs=runs, n=n, seed=1, workers=2)
@@ -185,7 +185,7 @@ def test_gap_statistics_are_the_mean_and_standard_deviation_of_the_per_run_gaps(
             "dc_realised": np.c_[d2, d2]}
     s = montecarlo.summarise(traj, ("realised",), a1=1.0, Q=0.01, R=1e-4, A=0.0)["ekf1_ekf2_gap_db"]
     assert s["mean"] == pytest.approx(g.mean(), rel=1e-12)
-    # the spread of the runs (README's "0.0433 ± 0.0019 dB"), not the standard error of the mean
+    # the spread of the runs (docs/results.md's "0.0433 ± 0.0019 dB"), not the standard error of the mean
     assert s["std"] == pytest.approx(g.std(), rel=1e-9)
     assert s["max_abs"] == pytest.approx(np.abs(g).max(), rel=1e-12)
     assert s["of_means"] == pytest.approx(10 * math.log10(d1.mean() / d2.mean()), rel=1e-12)
@@ -230,9 +230,9 @@ def test_identify_reports_the_same_margin_for_its_held_out_recordings(tmp_path):
     assert s["margin_db"] > 10
 
 
-# -- the numbers README.md and docs/method.md state, against what the commands print ------------
+# -- the numbers docs/results.md and docs/method.md state, against what the commands print ------------
 
-def test_one_gaussian_run_gives_the_readme_numbers():
+def test_one_gaussian_run_gives_the_documented_numbers():
     # `driftfmu run gaussian` (seed 1, 2000 samples): its FMUs equal models.chain.simulate bit
     # for bit (checked by the command on every run), and the summary is gaussian.summarise
     cols = chain.simulate(2000, 1)
@@ -248,8 +248,8 @@ def test_one_gaussian_run_gives_the_readme_numbers():
     assert "%.2e" % fin["dc_empirical"] == "-2.23e-03"
 
 
-def test_montecarlo_gaussian_prints_the_readme_population(capsys):
-    # README / docs/method.md: "EKF1 and EKF2 ... 100 % of runs (median run from sample 5),
+def test_montecarlo_gaussian_prints_the_documented_population(capsys):
+    # docs/results.md, docs/method.md: "EKF1 and EKF2 ... 100 % of runs (median run from sample 5),
     # EKF3 in 51.8 % (median from sample 239); the gap is 0.0433 ± 0.0019 dB; against the
     # empirical drift no estimator settles in any run".  `driftfmu montecarlo gaussian` at its
     # defaults is montecarlo_gaussian() and prints print_summary (without the figure here)
@@ -263,8 +263,8 @@ def test_montecarlo_gaussian_prints_the_readme_population(capsys):
     assert "expected 10 log10(1 + R/(a1^2 Q)) = 0.0432 dB" in out
 
 
-def test_montecarlo_sinusoidal_prints_the_readme_population(capsys):
-    # README: against the realised drift all three within 10 % in 100 % of runs by sample 250
+def test_montecarlo_sinusoidal_prints_the_documented_population(capsys):
+    # docs/results.md: against the realised drift all three within 10 % in 100 % of runs by sample 250
     # (EKF1 from the first sample); against the empirical drift in 0 % of runs by sample 250
     r = montecarlo.montecarlo_sinusoidal(workers=2)
     montecarlo.print_summary(r["summary"], ("empirical", "realised"))
@@ -276,8 +276,8 @@ def test_montecarlo_sinusoidal_prints_the_readme_population(capsys):
     assert "(median k      1)" in lines["EKF1"].split("|")[2]
 
 
-def test_partial_period_term_of_the_empirical_drift_is_the_readme_bound():
-    # README / docs/method.md: over a partial period z̄_k - a0 still carries a1 x̄_k, up to
+def test_partial_period_term_of_the_empirical_drift_is_the_documented_bound():
+    # docs/results.md, docs/method.md: over a partial period z̄_k - a0 still carries a1 x̄_k, up to
     # a1 X / (k sin(pi f Ts)), above 10 % of the 5 mV drift until k ≈ 4400
     a1, a2, X, f, Ts = 1.0, 0.01, 1.0, 150.0, 1e-3
     k_cross = a1 * X / (0.1 * a2 * X * X / 2 * math.sin(math.pi * f * Ts))
@@ -295,14 +295,14 @@ def test_partial_period_term_of_the_empirical_drift_is_the_readme_bound():
 
 @pytest.mark.slow  # 4 million samples: a minute or more
 def test_montecarlo_sinusoidal_median_settles_against_the_empirical_drift_at_3808(capsys):
-    # README: "With --runs 200 --n 20000 the median run settles against the empirical drift
+    # docs/results.md: "With --runs 200 --n 20000 the median run settles against the empirical drift
     # from sample 3808"
     r = montecarlo.montecarlo_sinusoidal(runs=200, n=20_000, workers=2)
     montecarlo.print_summary(r["summary"], ("empirical", "realised"))
     assert "EKF1       |   0.0 % (median k   3808)" in capsys.readouterr().out
 
 
-#: README's ADXL203 table: f -> (a0, a1, a2, R, drift mV, rms(EKF1 - empirical) mV, margin dB)
+#: docs/results.md's ADXL203 table: f -> (a0, a1, a2, R, drift mV, rms(EKF1 - empirical) mV, margin dB)
 ADXL203_TABLE = {100: ("2.50020", "0.99920", "0.00983", "2.09e-05", "10.889", "0.0307", "25.5"),
                  125: ("2.50027", "0.99685", "0.00975", "2.09e-05", "11.008", "0.0499", "23.4"),
                  150: ("2.50041", "0.99378", "0.00963", "2.09e-05", "11.036", "0.0206", "27.3"),
@@ -312,8 +312,8 @@ ADXL203_TABLE = {100: ("2.50020", "0.99920", "0.00983", "2.09e-05", "10.889", "0
 
 @pytest.mark.integration
 @pytest.mark.slow  # the full size, 150 sets of 60,000 samples: a minute on the native FMUs
-def test_adxl203_experiment_prints_the_readme_table(native_fmus, tmp_path, capsys):
-    # README: "driftfmu experiment adxl203" (the native FMUs give the Python FMUs' numbers to
+def test_adxl203_experiment_prints_the_documented_table(native_fmus, tmp_path, capsys):
+    # docs/results.md: "driftfmu experiment adxl203" (the native FMUs give the Python FMUs' numbers to
     # the last bit: test_native.py); the margins 23-28 dB of the table and docs/method.md
     fmu_dir = native_fmus[2]["Excitation"].parent.parent.parent
     out = tmp_path / "adxl203"
