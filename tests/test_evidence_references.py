@@ -16,7 +16,7 @@ import pytest
 
 from driftfmu.models import chain, drift, excitation, sensor
 from driftfmu.simulations import adxl203 as experiment
-from driftfmu.simulations import batch, gaussian, montecarlo, sweep
+from driftfmu.simulations import batch, gaussian, montecarlo, sinusoidal, sweep
 
 Z = 4.5  # standard errors allowed in every statistical band (two-sided p ~ 7e-6)
 A0 = 0.37  # a sensor offset far from 0: a reference that forgets it is off by 37 times a2 Q
@@ -77,6 +77,26 @@ def test_expected_drift_is_a2_times_the_stationary_variance_in_every_report(A, Q
     np.testing.assert_allclose(sw["table"]["dc_expected"], [want, 2 * want], rtol=1e-15, atol=0)
     ms = montecarlo.montecarlo_sinusoidal(runs=2, n=5, a2=a2, X=1.5, workers=1)
     assert ms["summary"]["dc_expected"] == pytest.approx(a2 * 1.5 ** 2 / 2, rel=1e-15, abs=0)
+
+
+def test_sinusoidal_references_with_a0_and_cross_axis_coupling():
+    # `driftfmu run sinusoidal`: expected drift a2 E[u^2] of u = x + cross y, and the empirical
+    # drift z̄ - a0 over whole periods; noise-free, both equal the mean of a2 u^2 over them
+    a0, a1, a2, cross = 2.5, 0.99, 0.01, 0.015
+    X, Xy, phi, phiy, f, Ts = 1.5, 0.4, 0.3, 1.4, 150.0, 1e-4
+    m_want = 6000                                  # 90 whole periods of 150 Hz at 10 kHz
+    k = np.arange(1, m_want + 38)
+    theta = 2 * np.pi * f * (k - 1) * Ts
+    u = X * np.sin(theta + phi) + cross * Xy * np.sin(theta + phiy)
+    z = a0 + a1 * u + a2 * u * u
+    want = a2 * np.mean(u[:m_want] ** 2)
+    assert sinusoidal.expected_drift(a2, cross, X, Xy, phi, phiy) == pytest.approx(want,
+                                                                                   rel=1e-12)
+    m, dc = sinusoidal.empirical_whole_periods(list(z), f, Ts, a0)
+    assert m == m_want and dc == pytest.approx(want, rel=1e-9)
+    assert sinusoidal.empirical_whole_periods(list(z[:60]), f, Ts, a0) == (0, None)
+    assert sinusoidal.expected_drift(a2, 0.0, X, Xy, phi, phiy) == \
+        pytest.approx(a2 * X * X / 2, rel=1e-15)
 
 
 # -- the references: seeded statistics at a0 != 0, A != 0 ----------------------------------------
