@@ -117,6 +117,8 @@ def test_sweep_references_average_to_the_expected_drift_at_a0_and_A_nonzero(A):
         assert want == pytest.approx(refs["expected"][i, 0, 0], rel=0.03, abs=0)
         # the table's mean absolute errors are against these very references
         for e, key in zip(sweep.ESTIMATORS, ("grid_dc1", "grid_dc2", "grid_dc3")):
+            assert sw["table"]["mean_dc_%s" % e][i] == pytest.approx(sw[key][i, 0].mean(),
+                                                                     rel=1e-12)
             for name in sweep.REFERENCES:
                 mae = np.abs(sw[key][i, 0] - refs[name][i, 0]).mean()
                 assert sw["table"]["mae_%s_%s" % (e, name)][i] == pytest.approx(mae, rel=1e-12)
