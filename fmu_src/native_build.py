@@ -382,6 +382,8 @@ def _build_one(name, fmi_version, out_dir, platforms, log):
         with ThreadPoolExecutor(max_workers=max(1, min(len(platforms), os.cpu_count() or 1))) \
                 as pool:
             entries.update(pool.map(one, platforms))
+        from driftfmu.fmu_src import documentation
+        entries.update(documentation.entries(name, "native", fmi_version, entries, slave))
         target = out_dir / ("%s.fmu" % name)
         builder._write_atomically(target, entries)
     log("built %s (native C, FMI %d.0, %s)" % (target, fmi_version, ", ".join(platforms)))
