@@ -339,13 +339,25 @@ def compiler(platform):
     return command if command and shutil.which(command[0]) else None
 
 
+def compiler_problem(platform):
+    """Why ``platform`` has no compiler, naming the command that was looked for (``$CC`` or
+    ``$MINGW_CC`` when set) and how to get one; None when it is installed."""
+    if compiler(platform) is not None:
+        return None
+    env, default = PLATFORMS[platform][:2]
+    given = os.environ.get(env)
+    what = ("%s=%r is not an installed program" % (env, given) if given is not None
+            else "%s is not installed" % default)
+    return ("no %s compiler: %s; allowed: %s naming an installed C compiler, or Debian: "
+            "apt-get install %s" % (platform, what, env,
+                                    "gcc" if platform == "linux64" else "gcc-mingw-w64-x86-64"))
+
+
 def compile_library(platform, sources_dir, c_files, target):
     """Compile ``c_files`` of ``sources_dir`` into the shared library ``target``."""
     command = compiler(platform)
     if command is None:
-        raise NativeBuildError("no %s compiler %s found (Debian: apt-get install %s)"
-                               % (platform, PLATFORMS[platform][1],
-                                  "gcc" if platform == "linux64" else "gcc-mingw-w64-x86-64"))
+        raise NativeBuildError(compiler_problem(platform))
     extra = PLATFORMS[platform][2]
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
             + [str(sources_dir / f) for f in c_files] + ["-lm"])
@@ -397,10 +409,10 @@ def available_platforms(log=print):
         if compiler(platform) is not None:
             out.append(platform)
         elif platform == "linux64":
-            raise NativeBuildError("no C compiler (%s) found" % PLATFORMS[platform][1])
+            raise NativeBuildError(compiler_problem(platform))
         else:
             log("warning: %s not found; the native FMUs carry no %s binary"
-                % (PLATFORMS[platform][1], platform))
+                % (os.environ.get(PLATFORMS[platform][0], PLATFORMS[platform][1]), platform))
     return out
 
 

@@ -126,10 +126,9 @@ def run_tests(copy, tests, timeout, ignore=(), twins=False):
     """Run pytest on the copy, without :data:`TWIN_TESTS` unless ``twins``; return (status,
     first failing test or None, seconds)."""
     ignore = tuple(ignore) + (() if twins else TWIN_TESTS)
-    # the batch engine's NumPy path (the compiled kernel, simulations/kernel.py, does not run
-    # models/, where the faults are; tests/test_kernel.py compares the two)
-    env = dict(os.environ, PYTHONPATH=copy, PYTHONDONTWRITEBYTECODE="1",
-               DRIFTFMU_KERNEL="numpy")
+    # DRIFTFMU_KERNEL=numpy: the batch engine runs models/ (the faults' target) instead of the
+    # compiled kernel, the C port that a fault in models/ leaves as it is
+    env = dict(os.environ, PYTHONPATH=copy, PYTHONDONTWRITEBYTECODE="1", DRIFTFMU_KERNEL="numpy")
     cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-rfE", "-p", "no:cacheprovider",
            "-m", DEFAULT_MARKERS] + ["--deselect=" + d for d in DESELECT] + \
         ["--ignore-glob=" + g for g in ignore] + list(tests)
