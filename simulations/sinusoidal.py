@@ -37,6 +37,24 @@ def check_frequency(f, Ts):
                          "%r Hz (the Nyquist rate)" % (f, Ts, nyquist))
 
 
+def expected_drift(a2, cross, X, Xy, phi, phiy):
+    """``a2 E[u^2]`` of the sensed ``u = x + cross y`` for ``x = X sin(theta + phi)``,
+    ``y = Xy sin(theta + phiy)``: ``a2 (X^2 + cross^2 Xy^2 + 2 cross X Xy cos(phi - phiy)) / 2``
+    (``a2 X^2 / 2`` for one axis)."""
+    return a2 * (X * X + cross ** 2 * Xy * Xy
+                 + 2.0 * cross * X * Xy * math.cos(phi - phiy)) / 2.0
+
+
+def empirical_whole_periods(z, f, Ts, a0):
+    """``(m, z̄ - a0)`` over the first ``m`` samples, the largest whole number of periods of
+    ``f``; ``(0, None)`` when the samples do not span one whole period (no empirical reference
+    to speak of)."""
+    if len(z) * f * Ts < 1.0:
+        return 0, None
+    m = identify.whole_periods(len(z), f, Ts)
+    return m, sum(z[:m]) / m - a0
+
+
 def nominal_model(sensor_values, Ts):
     """The quadratic model ``a0, a1, a2, R`` a filter should use for a sensor: its effective
     zero-g level and coefficients, and the output noise variance (behind the low-pass, plus the
@@ -127,17 +145,11 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
 
     cfg = adxl203.config(**sp)
     u = [xi + cfg.cross * yi for xi, yi in zip(cols["x"], cols["y"])]
-    mean_u2 = (X * X + cfg.cross ** 2 * Xy * Xy
-               + 2.0 * cfg.cross * X * Xy * math.cos(phi - phiy)) / 2.0
-    dc_expected = cfg.a2 * mean_u2
+    dc_expected = expected_drift(cfg.a2, cfg.cross, X, Xy, phi, phiy)
     cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
         u, cols["z"], cfg.a0, cfg.a2, dc_expected)
     periods = n * f * Ts
-    if periods >= 1.0:
-        m = identify.whole_periods(n, f, Ts)
-        dc_whole = sum(cols["z"][:m]) / m - cfg.a0
-    else:  # not one whole period: no empirical reference to speak of
-        m, dc_whole = 0, None
+    m, dc_whole = empirical_whole_periods(cols["z"], f, Ts, cfg.a0)
 
     final = {c: cols[c][-1] for c in ("dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
                                       "dc_realised", "dc_expected")}
