@@ -587,7 +587,8 @@ def _build_one(name, out_dir, src_dir, loader, log):
         }, indent=2, sort_keys=True).encode() + b"\n"
         target = out_dir / ("%s.fmu" % name)
         _write_atomically(target, entries)
-    log("built %s (code %s, loader %s)" % (target, package, loader[0]))
+    log("built %s (code %s, loader %s, %d kB)" % (target, package, loader[0],
+                                                   (target.stat().st_size + 512) // 1024))
     return target
 
 

@@ -70,8 +70,9 @@ PLATFORMS = {
     "x86_64-darwin": (".dylib", ("zig",)),
     "aarch64-darwin": (".dylib", ("zig",)),
 }
-#: zig's target triples: glibc 2.17 (the oldest zig links against: every aarch64 Linux since
-#: 2014 has it), macOS 10.15 / 11.0 (the first Apple-silicon macOS), mingw-w64 with the UCRT.
+#: zig's target triples: glibc 2.17 (the first glibc for aarch64, so any glibc-based aarch64
+#: Linux has it), macOS 10.15 / 11.0 (11: the first Apple-silicon macOS), mingw-w64 (zig's
+#: aarch64 Windows C library is the UCRT, part of Windows 10 and 11).
 ZIG_TARGETS = {
     "x86_64-linux": "x86_64-linux-gnu.2.17", "aarch64-linux": "aarch64-linux-gnu.2.17",
     "x86_64-windows": "x86_64-windows-gnu", "aarch64-windows": "aarch64-windows-gnu",
