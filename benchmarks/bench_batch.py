@@ -4,9 +4,11 @@ All three run the letter's Gaussian chain (a1 = 1, a2 = 0.01, Q = 0.01, R = 1e-4
 scalar EKF and the three drift estimators.
 
 - batch engine, one process: :func:`driftfmu.simulations.batch.simulate` on ``--runs`` runs of ``--n``
-  samples at once (noise, excitation, sensor, EKF, estimators, references);
-- batch engine, the default ``driftfmu sweep`` (6 x 5 grid, 1000 runs of 1000 samples) on all
-  local cores, wall time;
+  samples at once (noise, excitation, sensor, EKF, estimators, references), with NumPy (the
+  baseline) and with the compiled kernel (:mod:`driftfmu.simulations.kernel`), same bits;
+- the default ``driftfmu sweep`` (6 x 5 grid, 1000 runs of 1000 samples) on all local cores,
+  the runs alone and with its files and figures, NumPy against the kernel; and the command
+  itself (``driftfmu sweep``, a new process: start-up, runs, files, figures), wall time;
 - FMU path: one run co-simulated with the three FMUs (:func:`driftfmu.simulations.batch.fmu_simulate`),
   ``--fmu-n`` samples with the instantiation included, and per additional sample;
 - filterpy: ``filterpy.kalman.ExtendedKalmanFilter`` (1 state, 1 measurement) in a Python loop,
@@ -16,6 +18,8 @@ scalar EKF and the three drift estimators.
 Each figure is the best of ``--repeats``.  Not a pytest test:
 
     python benchmarks/bench_batch.py [--runs 4096] [--n 1000] [--fmu-n 500] [--filterpy-n 20000]
+
+Without a C compiler the kernel's lines are left out.
 """
 import argparse
 import os
@@ -41,16 +45,43 @@ def best(fn, repeats):
     return min(times)
 
 
-def bench_batch(runs, n, repeats):
+def bench_batch(runs, n, repeats, kernel):
     seeds = batch.run_seeds(1, runs)
-    return best(lambda: batch.simulate(n, seeds, **P), repeats) / (runs * n)
+    return best(lambda: batch.simulate(n, seeds, kernel=kernel, **P), repeats) / (runs * n)
 
 
-def bench_sweep(repeats):
-    res = []
-    best(lambda: res.append(sweep.sweep()), repeats)
+def bench_sweep(repeats, kernel_on):
+    """Default sweep in this process: (seconds of the runs, ns per sample-run, seconds with
+    the files and figures written); ``kernel_on`` False runs the NumPy engine."""
+    import tempfile
+    old = os.environ.get("DRIFTFMU_KERNEL")
+    if not kernel_on:
+        os.environ["DRIFTFMU_KERNEL"] = "numpy"
+    try:
+        res = []
+        with tempfile.TemporaryDirectory() as out:
+            wall = best(lambda: res.append(sweep.sweep(out=os.path.join(out, "s"))), repeats)
+    finally:
+        os.environ.pop("DRIFTFMU_KERNEL", None)
+        if old is not None:
+            os.environ["DRIFTFMU_KERNEL"] = old
     t = min(r["seconds"] for r in res)
-    return t, t / (6 * 5 * 1000 * 1000)
+    return t, t / (6 * 5 * 1000 * 1000), wall
+
+
+def bench_sweep_command(repeats, kernel_on):
+    """Wall time of ``driftfmu sweep`` (default grid, files and figures) as a new process."""
+    import subprocess
+    import sys
+    import tempfile
+    env = dict(os.environ)
+    env.pop("DRIFTFMU_KERNEL", None)
+    if not kernel_on:
+        env["DRIFTFMU_KERNEL"] = "numpy"
+    with tempfile.TemporaryDirectory() as out:
+        command = [sys.executable, "-m", "driftfmu", "sweep", "--out", os.path.join(out, "s")]
+        return best(lambda: subprocess.run(command, env=env, check=True,
+                                           stdout=subprocess.DEVNULL), repeats)
 
 
 def bench_fmu(n, fmu_dir, repeats):
@@ -106,28 +137,46 @@ def main(argv=None):
     args = ap.parse_args(argv)
     from driftfmu.simulations.gaussian import fmu_paths
     fmu_paths(args.fmu_dir)
+    load = os.getloadavg()
 
-    t_batch = bench_batch(args.runs, args.n, args.repeats)
-    t_sweep_wall, t_sweep = bench_sweep(args.repeats)
+    from driftfmu.simulations import kernel
+    have_kernel = kernel.library() is not None
+    t_batch = bench_batch(args.runs, args.n, args.repeats, "numpy")
+    t_kernel = bench_batch(args.runs, args.n, args.repeats, "c") if have_kernel else None
+    sweeps = {on: bench_sweep(args.repeats, on) for on in ((False, True) if have_kernel
+                                                           else (False,))}
+    commands = {on: bench_sweep_command(args.repeats, on) for on in sweeps}
     t_fmu, t_fmu_step = bench_fmu(args.fmu_n, args.fmu_dir, args.repeats)
     t_fp, diff = bench_filterpy(args.filterpy_n, args.repeats)
 
     print("machine: %s, %s, %d cores, Python %s, NumPy %s"
           % (platform.machine(), cpu(), os.cpu_count() or 0, platform.python_version(),
              np.__version__))
+    print("load average before: %s" % " ".join("%.2f" % v for v in load))
     print("%-58s %12s" % ("", "ns/sample-run"))
-    print("%-58s %12.1f" % ("batch engine, 1 process (%d runs x %d samples)"
+    print("%-58s %12.1f" % ("batch engine, NumPy, 1 process (%d runs x %d samples)"
                             % (args.runs, args.n), t_batch * 1e9))
-    print("%-58s %12.1f" % ("batch engine, default sweep on %d cores (wall, %.2f s)"
-                            % (batch.workers_default(), t_sweep_wall), t_sweep * 1e9))
+    if t_kernel is not None:
+        print("%-58s %12.1f" % ("batch engine, compiled kernel, 1 process", t_kernel * 1e9))
+    for on, (t, per, wall) in sweeps.items():
+        print("%-58s %12.1f" % ("default sweep, %s, %d cores (runs %.2f s wall)"
+                                % ("kernel" if on else "NumPy", batch.workers_default(), t),
+                                per * 1e9))
     print("%-58s %12.0f" % ("FMU path, 1 run of %d samples (instantiation included)"
                             % args.fmu_n, t_fmu * 1e9))
     print("%-58s %12.0f" % ("FMU path, per additional sample (runs of %d and %d)"
                             % (args.fmu_n, 5 * args.fmu_n), t_fmu_step * 1e9))
     print("%-58s %12.0f" % ("filterpy ExtendedKalmanFilter loop (%d samples)"
                             % args.filterpy_n, t_fp * 1e9))
-    print("filterpy / batch (1 process): %.0f x   filterpy / batch (sweep wall): %.0f x   "
-          "(goal >= 300)" % (t_fp / t_batch, t_fp / t_sweep))
+    print("filterpy / batch (1 process): NumPy %.0f x%s   (goal >= 1000 per core)"
+          % (t_fp / t_batch, "" if t_kernel is None else ", kernel %.0f x" % (t_fp / t_kernel)))
+    if t_kernel is not None:
+        print("kernel / NumPy engine, 1 process: %.2f x faster, same bits" % (t_batch / t_kernel))
+    for on, (t, per, wall) in sweeps.items():
+        print("default sweep with files and figures, %s: %.2f s in this process, %.2f s as "
+              "the command `driftfmu sweep` (new process; goal <= 1 s)"
+              % ("kernel" if on else "NumPy (baseline)", wall, commands[on]))
+    print("load average after: %s" % " ".join("%.2f" % v for v in os.getloadavg()))
     print("FMU (per additional sample) / batch (1 process): %.0f x;  filterpy and the batch "
           "engine agree on the final drift estimates to %.1e V" % (t_fmu_step / t_batch, diff))
 

@@ -22,3 +22,12 @@ if not _os.path.isdir(_os.path.join(_os.path.dirname(_os.path.abspath(__file__))
         and _os.path.isfile(_os.path.join(_checkout, "pyproject.toml")):
     __path__.append(_checkout)  # noqa: F821 (a package's __path__)
 del _os, _checkout
+
+# The public API (FMPy-style): build the FMUs, co-simulate them, run the letter's experiments.
+# Everything else in the package is internal.
+from driftfmu._api import (  # noqa: E402
+    build_fmus, experiment_adxl203, experiment_dual_axis, identify, montecarlo, run_gaussian,
+    run_sinusoidal, simulate, sweep)
+
+__all__ = ["build_fmus", "simulate", "run_gaussian", "run_sinusoidal", "montecarlo", "sweep",
+           "experiment_adxl203", "experiment_dual_axis", "identify", "__version__"]

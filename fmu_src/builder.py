@@ -585,6 +585,8 @@ def _build_one(name, out_dir, src_dir, loader, log):
             "loader": loader[0],
             "pythonfmu_version": pythonfmu_version,
         }, indent=2, sort_keys=True).encode() + b"\n"
+        from driftfmu.fmu_src import documentation
+        entries.update(documentation.entries(name, "python", 2, entries, slave))
         target = out_dir / ("%s.fmu" % name)
         _write_atomically(target, entries)
     log("built %s (code %s, loader %s, %d kB)" % (target, package, loader[0],

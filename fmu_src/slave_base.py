@@ -447,9 +447,17 @@ class SlaveBase(Fmi2Slave):
         position = (elapsed + comp) / Ts  # t + h in sample periods from the start
         limit = self.MAX_SAMPLES_PER_STEP
         if not position - tol <= limit + k - 1:
+            # the room left before the limit, in seconds (C twin: cs_do_step)
+            room = (limit + k - 1) * Ts - (self._elapsed + self._elapsed_c)
+            if not (math.isfinite(position) and math.isfinite(room)):
+                self._fail("communication step h = %r s from t = %r s with Ts = %r s: the time "
+                           "in sample periods, (t + h - startTime)/Ts, is not a finite number; "
+                           "allowed: steps whose end is a finite number of sample periods "
+                           "after the start" % (h, self.start_time + (self._elapsed +
+                                                                       self._elapsed_c), Ts))
             self._fail("communication step h = %r s spans more than %d sample instants of "
                        "Ts = %r s; allowed: at most MAX_SAMPLES_PER_STEP = %d sample instants "
-                       "per step, h <= about %r s" % (h, limit, Ts, limit, limit * Ts))
+                       "per step, h <= about %r s" % (h, limit, Ts, limit, room))
         last = math.ceil(position - tol)      # index (k - 1) of the first instant at or after t+h
         m = max(0, last + 1 - k)              # instants in [t, t + h)
         at_sample = last <= position + tol    # t + h is that instant
@@ -655,10 +663,12 @@ class SlaveBase(Fmi2Slave):
                 bad = self.check_parameters()
                 if not bad:
                     self.prepare()
-                    if any(hidden[name] is None for name in self.HIDDEN
-                           if name in self.initial_hidden() and
-                           self.initial_hidden()[name] is not None):
-                        bad = ["the hidden state of an initialised instance is missing"]
+                    missing = [name for name in self.HIDDEN if hidden[name] is None
+                               and self.initial_hidden().get(name) is not None]
+                    if missing:
+                        bad = ["the hidden state %s of an initialised instance is missing "
+                               "(null); allowed: the hidden state of an initialised instance"
+                               % ", ".join(missing)]
                     else:
                         bad = self.hidden_problems(hidden) + self._timing_problems(
                             k, time, flags["at_sample"])

@@ -31,8 +31,11 @@ def sqrt(x):
 
 
 def floor(x):
-    """Floor of a float (as float) or an array."""
+    """Floor of a float (as float) or an array; inf and nan are their own floor (as C's
+    ``floor`` and NumPy's: math.floor would raise, the C twin ``ops_floor`` does not)."""
     if is_scalar(x):
+        if x - x != 0.0:
+            return x
         return float(math.floor(x))
     return _np().floor(x)
 

@@ -140,14 +140,16 @@ def lowpass(prev, s, alpha):
 
 
 def quantise(V, cfg):
-    """ADC: nearest code of ``V`` on the grid ``lsb``, clipped to ``[0, levels - 1]``."""
+    """ADC: nearest code of ``V`` on the grid ``lsb``, clipped to ``[0, levels - 1]``; a
+    non-finite ``V`` (an overflow upstream) stays as it is, so that the FMU names it instead of
+    showing full scale."""
     if not cfg.levels:
         return V
     code = _ops.floor(V / cfg.lsb + 0.5)
     code = _ops.where(code < 0.0, 0.0, code)
     top = cfg.levels - 1.0
     code = _ops.where(code > top, top, code)
-    return code * cfg.lsb
+    return _ops.where(V - V == 0.0, code * cfg.lsb, V)
 
 
 def measure(prev, own, other, v, cfg):

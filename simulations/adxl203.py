@@ -18,9 +18,13 @@ Choices: ``fs = 10 kHz`` (``Ts = 1e-4``): 50-100 samples per period, 60,000 samp
 ``a2 X^2 / 2 = 11 mV`` is about 2.5 times the output noise (4.5 mg rms) per sample and far above
 the error of a 6 s mean, while the part stays in range; transverse motion 5 % of ``X``.
 
-Sets run in parallel (one process per core); each worker loads the FMUs once per set through
-the master of the backend (:func:`driftfmu.simulations.gaussian.master`: fmpy's wrappers for the Python
-FMUs, direct FMI calls for the native ones).
+Sets run in parallel (one process per core); each worker co-simulates its sets with the fast
+master (:func:`driftfmu.simulations.fastcosim.cosimulate_fast`: direct FMI calls, the stepping loop
+in C) for both backends, loading each FMU's library once and instantiating it anew per set.
+Every held-out set's FMU outputs are checked against :func:`driftfmu.models.adxl203.simulate`
+with the same seeds, computed by its C port in the compiled batch kernel
+(:mod:`driftfmu.simulations.kernel`), or by models/ itself without a C compiler.  Where the time
+goes is in the summary's ``timing`` and on the command line (docs/performance-jobs.md).
 """
 import math
 import os
@@ -31,8 +35,7 @@ from concurrent.futures import as_completed
 from driftfmu.models import adxl203, excitation, harmonic, identify, parameters
 from driftfmu.models.noise import STREAM_PHASE, normal, uniform
 from driftfmu.simulations import batch, output
-from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, check_backend, fmu_paths, \
-    master
+from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, check_backend, fmu_paths
 from driftfmu.simulations.sinusoidal import CONNECTIONS, check_frequency
 from driftfmu.simulations.errors import DataError, UsageError
 
@@ -50,6 +53,11 @@ QH = parameters.PARAMETERS["Qh"].default
 P0 = adxl203.RANGE_G ** 2
 #: The letter's claim: the difference is at least this far below the drift.
 CLAIM_DB = 5.0
+#: What every held-out set is checked against, by the engine that computes it.
+REFERENCES = {"c": "models.adxl203.simulate as its C port (fmu_src/native/models, bit-equal to "
+                   "models/) in the compiled batch kernel, same seed, every held-out set",
+              "numpy": "models.adxl203.simulate (no C compiler for the kernel), same seed, "
+                       "every held-out set"}
 
 
 def set_seed(seed, f_index, s):
@@ -80,37 +88,81 @@ def true_drift(drive, sensor):
                                          * math.cos(drive["phi"] - drive["phiy"])) / 2.0
 
 
+#: What the held-out sets record, and what validation compares with the reference.
+RECORD = {"Excitation": ["x", "y"], "Accelerometer": ["z", "z_y"],
+          "DriftEstimator": ["x_hat", "P", "dc_ekf1"]}
+
+
 def _run_set(task):
-    """Worker: co-simulate one set.  Training: fit the model.  Held out: EKF1 and references."""
+    """Worker: co-simulate one set.  Training: fit the model.  Held out: EKF1 and references.
+
+    The FMUs run in the fast master (:func:`driftfmu.simulations.fastcosim.cosimulate_fast`: the
+    stepping loop in C, the FMUs' libraries kept loaded from set to set in this worker) for both
+    backends; ``"seconds"`` says where the worker's time went."""
+    from driftfmu.simulations.fastcosim import cosimulate_fast
     paths, f, seed, n, Ts, model, validate, backend = task
-    cosimulate = master(backend)
+    t0 = time.perf_counter()
     ex = dict(set_drive(seed, f), Ts=Ts)
     sp = dict(adxl203.ADXL203, seed=seed, Ts=Ts, noise=1)
     if model is None:
         fmus = {k: paths[k] for k in ("Excitation", "Accelerometer")}
-        raw = cosimulate(fmus, CONNECTIONS[:2], n, Ts, start_values={"Excitation": ex,
-                         "Accelerometer": sp}, record={"Excitation": ["x"],
-                                                       "Accelerometer": ["z"]})
+        raw = cosimulate_fast(fmus, CONNECTIONS[:2], n, Ts, start_values={
+            "Excitation": ex, "Accelerometer": sp}, record={"Excitation": ["x"],
+                                                          "Accelerometer": ["z"]},
+            reuse=True, arrays=True)
+        t1 = time.perf_counter()
         fit = identify.fit_set(raw["time"], raw["Excitation.x"], raw["Accelerometer.z"], f,
                                skip=adxl203.settling_samples(sp["fc"], Ts))
-        return {"fit": fit._asdict()}
-    es = dict(a0=model["a0"], a1=model["a1"], a2=model["a2"], R=model["R"],
-              process=harmonic.HARMONIC, f=f, Qh=QH, x0=0.0, P0=P0, Ts=Ts, estimator=1)
-    record = {"Excitation": ["x", "y"], "Accelerometer": ["z", "z_y"],
-              "DriftEstimator": ["x_hat", "P", "dc_ekf1"]}
-    raw = cosimulate(paths, CONNECTIONS, n, Ts, start_values={"Excitation": ex,
-                     "Accelerometer": sp, "DriftEstimator": es}, record=record)
+        return {"fit": fit._asdict(), "seconds": {"simulation": t1 - t0,
+                                                  "identification": time.perf_counter() - t1}}
+    es = estimator_values(model, f, Ts)
+    raw = cosimulate_fast(paths, CONNECTIONS, n, Ts, start_values={
+        "Excitation": ex, "Accelerometer": sp, "DriftEstimator": es}, record=RECORD,
+        reuse=True, arrays=True)
+    t1 = time.perf_counter()
     z = raw["Accelerometer.z"]
+    dc = raw["DriftEstimator.dc_ekf1"]
     m = identify.whole_periods(n, f, Ts)
-    res = {"dc_empirical": sum(z[:m]) / m - model["a0"],
-           "dc_ekf1": raw["DriftEstimator.dc_ekf1"][-1],
+    res = {"dc_empirical": sum(z[:m].tolist()) / m - model["a0"],  # Python's sum, as ever
+           "dc_ekf1": float(dc[-1]),
            "dc_true": true_drift(ex, sp),
-           "trace": [(k, raw["DriftEstimator.dc_ekf1"][k - 1]) for k in _log_samples(n)]}
+           "trace": [(k, float(dc[k - 1])) for k in _log_samples(n)]}
+    t2 = time.perf_counter()
     if validate:
-        ref = adxl203.simulate(n, ex, sp, es, Ts)
-        res["max_abs_diff"] = max(max(abs(a - b) for a, b in zip(raw["%s.%s" % (fmu, v)], ref[v]))
-                                  for fmu, names in record.items() for v in names)
+        from driftfmu.simulations import kernel
+        lib = kernel.library()
+        columns = [v for names in RECORD.values() for v in names]
+        ref = kernel.adxl203_simulate(lib, n, ex, sp, es, Ts, columns=columns) if lib \
+            else adxl203.simulate(n, ex, sp, es, Ts)  # no C compiler: models/ itself
+        res["max_abs_diff"] = _max_abs_diff(raw, ref)
+    res["seconds"] = {"simulation": t1 - t0, "identification": t2 - t1,
+                      "validation": time.perf_counter() - t2}
     return res
+
+
+def estimator_values(model, f, Ts):
+    """DriftEstimator start values of a held-out set: EKF1 with the fitted ``model`` and the
+    harmonic process model at the drive frequency ``f``."""
+    return dict(a0=model["a0"], a1=model["a1"], a2=model["a2"], R=model["R"],
+                process=harmonic.HARMONIC, f=f, Qh=QH, x0=0.0, P0=P0, Ts=Ts, estimator=1)
+
+
+def _max_abs_diff(raw, ref):
+    """Largest ``|FMU - reference|`` over the recorded columns (NaN when any is NaN)."""
+    import numpy as np
+    diffs = [np.abs(np.asarray(raw["%s.%s" % (fmu, v)]) - np.asarray(ref[v]))
+             for fmu, names in RECORD.items() for v in names]
+    if any(np.isnan(d).any() for d in diffs):
+        return math.nan
+    return max(float(np.max(d)) for d in diffs)
+
+
+def _preload_matplotlib():
+    """Import matplotlib (Agg) and pyplot now, in this process, which otherwise only waits for
+    its workers: the figures at the end then start at once."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
 
 
 def _log_samples(n, points=400):
@@ -172,26 +224,43 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
     fits = {f: [None] * train for f in freqs}
     tests = {f: [None] * held_out for f in freqs}
     models = {}
+    seconds = dict(simulation=0.0, identification=0.0, validation=0.0)
+
+    def spent(res):
+        for key, value in res.pop("seconds").items():
+            seconds[key] += value
+        return res
+
+    reference = None
+    if validate:
+        from driftfmu.simulations import kernel
+        # compiled (or found) once, before the workers fork
+        reference = REFERENCES["c" if kernel.library() is not None else "numpy"]
     with batch.process_pool(workers, "driftfmu.simulations.adxl203") as pool:
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False,
                                        backend)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
+        if out is not None and plot:
+            _preload_matplotlib()  # while the workers (forked by now) run the sets
         for fut in as_completed(futs):
             f, s = futs[fut]
-            fits[f][s] = identify.Fit(**fut.result()["fit"])
+            fits[f][s] = identify.Fit(**spent(fut.result())["fit"])
             tick()
         for f in freqs:
             models[f] = identify.average(fits[f])
+        t_fit = time.perf_counter()
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, train + s), n, Ts, models[f],
                                        validate, backend)): (f, s)
                 for i, f in enumerate(freqs) for s in range(held_out)}
         for fut in as_completed(futs):
             f, s = futs[fut]
-            tests[f][s] = fut.result()
+            tests[f][s] = spent(fut.result())
             tick()
-    wall = time.perf_counter() - t0
+    t_held = time.perf_counter()
+    wall = t_held - t0
 
-    worst = max((r.get("max_abs_diff", 0.0) for f in freqs for r in tests[f]), default=0.0)
+    diffs = [r.get("max_abs_diff", 0.0) for f in freqs for r in tests[f]]
+    worst = math.nan if any(math.isnan(d) for d in diffs) else max(diffs, default=0.0)
     if validate and not worst <= TOLERANCE:
         raise ValidationError("FMU outputs differ from models/ run directly by %.3g (tolerance "
                               "%g)" % (worst, TOLERANCE))
@@ -222,13 +291,21 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         "per_frequency": [{k: v for k, v in p.items()} for p in per],
         "min_margin_db": min(p["margin_db"] for p in per),
         "claim_holds": all(p["margin_db"] >= CLAIM_DB for p in per),
-        "validation": {"reference": "models.adxl203.simulate, same seed (held-out sets)",
-                       "tolerance": TOLERANCE, "max_abs_diff": worst if validate else None},
+        "validation": {"reference": reference, "tolerance": TOLERANCE,
+                       "max_abs_diff": worst if validate else None},
         "wall_time_s": wall, "workers": workers, "backend": backend,
+        "timing": {"wall_s": wall, "training_sets_wall_s": t_fit - t0,
+                   "held_out_sets_wall_s": t_held - t_fit,
+                   "workers_s": seconds, "writing_s": None},
     }
     if out is not None:
         import numpy as np
+        t_out = time.perf_counter()
         with output.staged(out) as stage:
+            if plot:  # first, so that the JSON can say how long they took
+                plot_fig4(stage / "fig4.png", per, [[r["trace"] for r in tests[f]]
+                                                    for f in freqs], train, n, Ts)
+                plot_fig5(stage / "fig5.png", per)
             rows = {"frequency": [], "set": [], "dc_empirical": [], "dc_ekf1": [],
                     "difference": []}
             for p in per:
@@ -239,14 +316,11 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
                     rows["dc_ekf1"].append(p["dc_ekf1"][s])
                     rows["difference"].append(p["difference"][s])
             output.write_csv(stage / "adxl203.csv", rows, tuple(rows))
-            output.write_json(stage / "adxl203.json", summary)
             np.savez(stage / "adxl203.npz", adxl_freqs=np.array(freqs),
                      adxl_emp=np.array([p["dc_empirical"] for p in per]),
                      adxl_ekf1=np.array([p["dc_ekf1"] for p in per]))
-            if plot:
-                plot_fig4(stage / "fig4.png", per, [[r["trace"] for r in tests[f]]
-                                                    for f in freqs], train, n, Ts)
-                plot_fig5(stage / "fig5.png", per)
+            summary["timing"]["writing_s"] = time.perf_counter() - t_out
+            output.write_json(stage / "adxl203.json", summary)
     return summary
 
 
@@ -538,6 +612,18 @@ def _cmd_experiment(args):
           % (CLAIM_DB, "holds" if s["claim_holds"] else "FAILS"))
     print("wall time %.1f s on %d worker(s) (%d sets x %d samples x %d frequencies, %s FMUs)"
           % (s["wall_time_s"], s["workers"], args.sets, args.n, len(args.freqs), s["backend"]))
+    print(timing_line(s["timing"]))
+
+
+def timing_line(t):
+    """Where the time went, in one line: wall time of the phases, the workers' seconds."""
+    w = t["workers_s"]
+    return ("time: training sets %.2f s, held-out sets %.2f s, figures and files %.2f s "
+            "(wall); in the workers: co-simulation %.2f s, identification and drift %.2f s, "
+            "validation %.2f s"
+            % (t["training_sets_wall_s"], t["held_out_sets_wall_s"],
+               t["writing_s"] or 0.0, w["simulation"],
+               w["identification"], w["validation"]))
 
 
 def _cmd_identify(args):

@@ -40,6 +40,8 @@ BLOCK = 32
 #: Runs per task handed to a worker (large enough for NumPy to be efficient, small enough to
 #: stay in cache and to give the progress bar some steps).
 CHUNK = 4096
+#: Engines of :func:`simulate`: the compiled kernel when available, NumPy, the kernel.
+KERNELS = ("auto", "numpy", "c")
 #: Seconds to wait for a Dask scheduler before giving up.
 CONNECT_TIMEOUT = 3
 
@@ -106,7 +108,7 @@ def sine_phase(seed):
 # -- the engine -----------------------------------------------------------------------------
 def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
              Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
-             filter_Q=None, record=(), block=BLOCK, progress=None):
+             filter_Q=None, record=(), block=BLOCK, progress=None, kernel="auto"):
     """Run ``len(seeds)`` Monte-Carlo runs of the chain for samples ``k = 1..n`` at once.
 
     Run ``r`` is the co-simulation of Excitation -> Accelerometer -> DriftEstimator with both
@@ -132,6 +134,10 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         Samples of noise generated at once.
     progress : callable, optional
         Called with the number of samples done after each block.
+    kernel : {"auto", "numpy", "c"}
+        ``"auto"``: the compiled kernel (:mod:`driftfmu.simulations.kernel`) when a C compiler
+        is present, NumPy otherwise; ``"numpy"``: NumPy; ``"c"``: the kernel (RuntimeError
+        without a compiler).  All give the same bits.
 
     Returns
     -------
@@ -149,6 +155,11 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = default_P0(fA, fQ)
+    lib = _kernel_library(kernel)
+    if lib is not None:
+        return _simulate_kernel(lib, n, seeds, dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0,
+                                                    P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
+                                                    fQ=fQ), kind, record, progress)
     shape = (runs,)
     x = np.broadcast_to(np.asarray(x0, dtype=float), shape).copy()
     est = chain.estimator_init(x.copy(), np.broadcast_to(np.asarray(P0, dtype=float),
@@ -187,6 +198,44 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     return out
 
 
+def _kernel_library(kernel):
+    """The compiled kernel for ``kernel`` (``"auto"``, ``"numpy"`` or ``"c"``), or None."""
+    from driftfmu.simulations import kernel as compiled
+    if kernel not in KERNELS:
+        raise UsageError("kernel = %r is not allowed; allowed: %s" % (kernel, ", ".join(KERNELS)))
+    if kernel == "numpy":
+        return None
+    lib = compiled.library()
+    if lib is None and kernel == "c":
+        raise RuntimeError("the compiled batch kernel is not available (no working C compiler "
+                           "'%s', or DRIFTFMU_KERNEL=numpy); allowed here: kernel='auto' or "
+                           "'numpy'" % os.environ.get("CC", "cc"))
+    return lib
+
+
+def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
+    """:func:`simulate` in the compiled kernel: the same loop over samples, in blocks of about
+    1/32 of ``n`` (for ``progress``), the same finals computed by the same models/ code."""
+    from driftfmu.simulations import kernel as compiled
+    runs = seeds.shape[0]
+    state = compiled.Batch(lib, seeds, params, kind, n, record)
+    step = max(BLOCK, -(-n // 32))
+    for k0 in range(1, n + 1, step):
+        k1 = min(k0 + step, n + 1)
+        state.run(k0, k1)
+        if progress is not None:
+            progress(k1 - 1)
+    x, zbar, x2bar, est = state.state()
+    a2, a0 = params["a2"], params["a0"]
+    dc1, dc2, dc3 = drift.estimates(est.drift, a2)
+    out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
+           "zbar": zbar - a0, "x2bar": x2bar}
+    out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), (runs,)).copy()
+           for key, v in out.items()}
+    out.update(state.traj)
+    return out
+
+
 def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
     """Store sample ``j`` (0-based) of the recorded trajectories."""
     values = {"x": lambda: x, "z": lambda: z, "x_hat": lambda: est.x, "P": lambda: est.P,
@@ -197,17 +246,27 @@ def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
         arr[j] = values[name]()
 
 
-def dual_simulate(n, seeds, excitation_values, sensor_values, estimator_values, Ts, record=()):
+def dual_simulate(n, seeds, excitation_values, sensor_values, estimator_values, Ts, record=(),
+                  kernel="auto"):
     """The dual-axis chain of :mod:`driftfmu.models.dualaxis` for ``len(seeds)`` runs at once (the batch
     engine of ``driftfmu experiment dual-axis``): run ``r`` is the co-simulation of Excitation ->
     Accelerometer (``dual = 1``) -> DualDriftEstimator and the two single-axis DriftEstimators
     with both FMU seeds ``seeds[r]``, bit for bit.
 
     Returns :func:`driftfmu.models.dualaxis.simulate`'s ``final_<column>`` and ``mean_xx``, ``mean_xy``,
-    ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each ``(runs, n)``.
+    ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each ``(runs, n)``.  ``kernel``
+    as in :func:`simulate` (the compiled kernel takes start values shared by all runs but the
+    seeds; per-run arrays of others run in NumPy).
     """
     from driftfmu.models import dualaxis
     seeds = np.asarray(seeds, dtype=np.uint64)
+    lib = _kernel_library(kernel)
+    if lib is not None:
+        from driftfmu.simulations import kernel as compiled
+        out = compiled.dual_simulate(lib, n, seeds, excitation_values, sensor_values,
+                                     estimator_values, Ts, record=record)
+        if out is not None:
+            return out
     return dualaxis.simulate(n, dict(excitation_values, seed=seeds),
                              dict(sensor_values, seed=seeds), estimator_values, Ts,
                              record=record)
@@ -357,7 +416,7 @@ def _probe(address, timeout):
         pass
 
 
-def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
+def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, meanwhile=None):
     """Run ``tasks`` with :func:`run_task`; return their outputs in task order.
 
     Parameters
@@ -370,9 +429,15 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
         Local worker processes (default: one per core); 1 runs in this process.
     progress : callable, optional
         Called with the number of runs done whenever a task finishes.
+    meanwhile : callable, optional
+        Called once in this process while local workers run the tasks (after they started),
+        e.g. to import what comes after; before the tasks when they run in this process.
     """
     results = [None] * len(tasks)
     done = 0
+    if any(task["engine"] in ("batch", "dual") for task in tasks):
+        from driftfmu.simulations import kernel
+        kernel.library()  # compiled (or found) once here, loaded before local workers fork
 
     def finished(i, res):
         nonlocal done
@@ -403,12 +468,16 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None):
     if workers < 1:
         raise UsageError("workers = %r is not allowed; allowed: workers >= 1" % (workers,))
     if workers == 1 or len(tasks) == 1:
+        if meanwhile is not None:
+            meanwhile()
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
     from concurrent.futures import as_completed as cf_completed
     with process_pool(min(workers, len(tasks))) as pool:
         futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
+        if meanwhile is not None:
+            meanwhile()
         for fut in cf_completed(futures):
             finished(futures[fut], fut.result())
     return results

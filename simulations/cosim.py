@@ -22,6 +22,7 @@ import tempfile
 import threading
 
 from fmpy import extract, read_model_description
+from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
     fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
@@ -179,6 +180,8 @@ class Instance:
     def free(self):
         try:
             self.fmu.terminate()
+        except FMICallException:
+            pass  # terminate is refused before initialisation and a second time: free anyway
         finally:
             self.fmu.freeInstance()
             _remove(self.unzipdir)
@@ -274,7 +277,8 @@ COUPLINGS = ("gauss-seidel", "jacobi")
 
 
 def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=None,
-               start_time=0.0, progress=None, logging_on=False, coupling="gauss-seidel"):
+               start_time=0.0, progress=None, logging_on=False, coupling="gauss-seidel",
+               inputs=None):
     """Run FMUs wired by ``connections`` for ``n_steps`` communication points.
 
     Parameters
@@ -297,6 +301,9 @@ def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=
         Gauss-Seidel (default): outputs copied along the connections in order, then recorded;
         no lag.  Jacobi: outputs recorded right after the steps, then copied; inputs start at
         their start values; one step of delay per connection.
+    inputs : dict, optional
+        Instance name -> {input variable: sequence of ``n_steps`` floats}: value ``i`` is set at
+        communication point ``i``, before the connections are copied (external signals).
 
     Returns
     -------
@@ -312,11 +319,12 @@ def cosimulate(fmus, connections, n_steps, step_size, start_values=None, record=
         raise UsageError("coupling = %r is not allowed; allowed: %s" % (coupling, COUPLINGS))
     with interrupts_deferred() as check:
         return _cosimulate(fmus, connections, n_steps, step_size, start_values, record,
-                           start_time, progress, logging_on, coupling == "jacobi", check)
+                           start_time, progress, logging_on, coupling == "jacobi", check,
+                           inputs or {})
 
 
 def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, start_time,
-                progress, logging_on, jacobi, check):
+                progress, logging_on, jacobi, check, inputs=None):
     start_values = start_values or {}
     insts = {}
     try:
@@ -328,6 +336,8 @@ def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, sta
                       for name, inst in insts.items()}
         links = [(insts[s].fmu, insts[s].vrs[o], insts[d].fmu, insts[d].vrs[i])
                  for s, o, d, i in connections]
+        feeds = [(insts[name].fmu, insts[name].vrs[v], values)
+                 for name, signals in (inputs or {}).items() for v, values in signals.items()]
         reads = [(insts[name].fmu, [insts[name].vrs[v] for v in names])
                  for name, names in record.items()]
         keys = ["%s.%s" % (name, v) for name, names in record.items() for v in names]
@@ -347,6 +357,8 @@ def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, sta
                 for inst in insts.values():
                     inst.fmu.doStep(currentCommunicationPoint=t, communicationStepSize=step_size)
                 t = start_time + i * step_size
+            for fmu, vr, values in feeds:
+                fmu.setReal([vr], [float(values[i])])
             if not jacobi:
                 for src, ovr, dst, ivr in links:
                     dst.setReal([ivr], src.getReal([ovr]))

@@ -90,7 +90,9 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
                              fmu_dir=fmu_dir)
     t0 = time.perf_counter()
     res = batch.gather(batch.run_tasks(tasks, scheduler=scheduler, client=client,
-                                       workers=workers, progress=progress))
+                                       workers=workers, progress=progress,
+                                       meanwhile=_import_matplotlib if out is not None and plot
+                                       else None))
     seconds = time.perf_counter() - t0
     shape = (len(a2), len(R), runs)
     result = {"grid_a2": a2, "grid_R": R,
@@ -106,6 +108,13 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
     if out is not None:
         write(out, result, plot=plot)
     return result
+
+
+def _import_matplotlib():
+    """matplotlib (Agg) and pyplot imported while the workers run: the figures start at once."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
 
 
 def default_chunk(total, engine, workers=None):
@@ -148,10 +157,29 @@ def write(out, result, plot=True):
         output.write_csv(stage / "sweep.csv", result["table"], CSV_COLUMNS)
         if plot:
             p = result["parameters"]
-            for name, est in (("fig2.png", "ekf1"), ("fig3.png", "ekf3")):
-                plot_grid(stage / name, result, est, "a1 = %g, Q = %g, A = %g; %d runs of "
-                          "n = %d samples per point" % (p["a1"], p["Q"], p["A"], p["runs"],
-                                                        p["n"]))
+            subtitle = "a1 = %g, Q = %g, A = %g; %d runs of n = %d samples per point" % (
+                p["a1"], p["Q"], p["A"], p["runs"], p["n"])
+            figures = [(stage / "fig2.png", "ekf1"), (stage / "fig3.png", "ekf3")]
+            if not _fork_is_cheap():
+                for path, est in figures:
+                    plot_grid(path, result, est, subtitle)
+                return
+            # two cores: Fig. 3 in a forked process while this one draws Fig. 2
+            drawn = {k: result[k] for k in ("table", "grid_a2", "grid_R")}
+            with batch.process_pool(1, "driftfmu.simulations.sweep") as pool:
+                later = pool.submit(plot_grid, figures[1][0], drawn, figures[1][1], subtitle)
+                plot_grid(figures[0][0], drawn, figures[0][1], subtitle)
+                later.result()
+
+
+def _fork_is_cheap():
+    """More than one core, and a worker would be forked (this process is single-threaded)
+    with matplotlib already imported, so that drawing a figure beside costs no start-up."""
+    import os
+    import sys
+    import threading
+    return ((os.cpu_count() or 1) > 1 and threading.active_count() == 1
+            and "matplotlib.pyplot" in sys.modules and hasattr(os, "fork"))
 
 
 def plot_grid(path, result, estimator, subtitle):

@@ -146,3 +146,59 @@ def test_cli_reports_a_frequency_above_nyquist_in_one_line(tmp_path, capsys):
     err = capsys.readouterr().err
     assert rc == 2 and "f = 6000.0 Hz" in err and "Nyquist" in err
     assert not (tmp_path / "o").exists()
+
+
+# -- the speed-up changes no bit: a reduced run against its stored summary ----------------------
+#: tests/data/adxl203_reduced.*: written by the experiment before it was made fast (FMUs through
+#: fmpy's wrappers, every held-out set checked by models/ in pure Python), both backends equal.
+STORED = dict(freqs=(100.0, 175.0), sets=5, held_out=2, n=4000, workers=2)
+#: What may change from run to run or by the engine that checks: times, the worker count, the
+#: backend's name, the reference's description.
+VOLATILE = ("wall_time_s", "workers", "backend", "timing")
+
+
+def _stored_run(fmu_dir, backend, tmp_path, monkeypatch, kernel_on):
+    from pathlib import Path
+    if not kernel_on:
+        monkeypatch.setenv("DRIFTFMU_KERNEL", "numpy")
+    data = Path(__file__).parent / "data"
+    s = experiment.run_adxl203(out=tmp_path, fmu_dir=fmu_dir, backend=backend, **STORED)
+    got = json.loads((tmp_path / "adxl203.json").read_text())
+    want = json.loads((data / "adxl203_reduced.json").read_text())
+    assert set(got) - set(VOLATILE) == set(want)
+    assert got["validation"].pop("reference") == experiment.REFERENCES[
+        "c" if kernel_on else "numpy"]
+    want["validation"].pop("reference")
+    for key in want:
+        assert got[key] == want[key], key   # floats from JSON: equal bits
+    assert got["validation"]["max_abs_diff"] == 0.0
+    assert (tmp_path / "adxl203.csv").read_text() == (data / "adxl203_reduced.csv").read_text()
+    t = s["timing"]
+    assert set(t["workers_s"]) == {"simulation", "identification", "validation"}
+    assert all(v >= 0.0 for v in t["workers_s"].values()) and t["writing_s"] > 0.0
+    assert {p.name for p in tmp_path.iterdir()} == {"adxl203.csv", "adxl203.json",
+                                                     "adxl203.npz", "fig4.png", "fig5.png"}
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("kernel_on", [True, False], ids=["kernel", "no-compiler"])
+def test_native_run_equals_the_stored_summary_bit_for_bit(native_fmus, tmp_path, monkeypatch,
+                                                           kernel_on):
+    fmu_dir = native_fmus[2]["Excitation"].parent.parent.parent
+    _stored_run(fmu_dir, "native", tmp_path, monkeypatch, kernel_on)
+
+
+@pytest.mark.integration
+def test_python_run_equals_the_stored_summary_bit_for_bit(built_fmus, tmp_path, monkeypatch):
+    _stored_run(built_fmus["Excitation"].parent, "python", tmp_path, monkeypatch, True)
+
+
+def test_a_set_that_differs_from_the_reference_is_caught():
+    raw = {"%s.%s" % (fmu, v): np.zeros(3) for fmu, names in experiment.RECORD.items()
+           for v in names}
+    ref = {v: np.zeros(3) for names in experiment.RECORD.values() for v in names}
+    assert experiment._max_abs_diff(raw, ref) == 0.0
+    ref["P"] = np.array([0.0, 2e-12, 0.0])
+    assert experiment._max_abs_diff(raw, ref) == 2e-12
+    raw["DriftEstimator.dc_ekf1"] = np.array([0.0, math.nan, 0.0])
+    assert math.isnan(experiment._max_abs_diff(raw, ref))

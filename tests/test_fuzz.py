@@ -1,8 +1,11 @@
 """Fuzzing the FMUs from a C host (tests/fuzz): no crash, no hang, no fmi2OK with a non-finite
-value, and a rejected call changes nothing.
+value, and a rejected call changes nothing; and the differential fuzz (tests/fuzz/differential.py):
+the Python FMU, the native FMI 2.0 FMU and the native FMI 3.0 FMU of each model agree call by
+call.
 
 Every script runs in its own process with a time limit.  This is the fixed-seed portion CI
-runs; ``python3 -m tests.fuzz.run --seconds 600`` runs random scripts for ten minutes.
+runs; ``python3 -m tests.fuzz.run --seconds 600`` runs random scripts for ten minutes and
+``python3 -m tests.fuzz.differential --seconds 1200`` the differential fuzz for twenty.
 """
 import shutil
 import zlib
@@ -11,6 +14,7 @@ import pytest
 
 import fuzz
 from fuzz import cases
+from fuzz import differential
 from driftfmu.models import chain
 from driftfmu.simulations.gaussian import CONNECTIONS, FMU_NAMES
 
@@ -157,3 +161,99 @@ def test_under_valgrind_no_invalid_memory_access(host, models, name, report):
         name, len(chosen), len(lines), result.returncode))
     assert result.returncode != 99, result.output[-5000:]
     assert problems == [], (problems, result.output[-3000:])
+
+
+# -- the differential fuzz: Python FMU, native FMI 2.0, native FMI 3.0, call by call -----------
+
+#: Scripts per model in the fixed-seed portion (about a minute for the four models).
+DIFFERENTIAL_SCRIPTS = 80
+
+
+@pytest.fixture(scope="module")
+def twins(python_fmus, native_fmus, tmp_path_factory):
+    """{model: {backend: unzipped folder}} of the three implementations of each model."""
+    return differential.unzip_all(python_fmus, native_fmus,
+                                  tmp_path_factory.mktemp("differential"))
+
+
+@pytest.mark.parametrize("name", differential.MODELS)
+def test_python_and_native_twins_agree_call_by_call(twins, name, report):
+    seeds = [_seed("differential", name, str(i)) for i in range(DIFFERENTIAL_SCRIPTS)]
+    problems = differential.run(twins[name], seeds)
+    report("FUZZ differential %s: %d scripts of about 100 calls on the Python FMU, the native "
+           "FMI 2.0 and FMI 3.0 FMUs: %d disagreements" % (name, len(seeds), len(problems)))
+    assert problems == [], "\n".join(problems[:10])
+
+
+def test_the_differential_fuzz_reports_a_planted_difference(twins, tmp_path):
+    """The judge can fail: the defect of issue 20 (a refused exit of initialisation that moves
+    the instance to step mode anyway) planted into a rebuilt copy of the native FMI 2.0 twin is
+    reported, as is a value changed in the FMI 3.0 twin's answers."""
+    seeds = [_seed("planted", str(i)) for i in range(12)]
+    planted = dict(twins["DriftEstimator"])
+    planted["native-fmi2"] = differential.plant_defect(planted["native-fmi2"],
+                                                       tmp_path / "planted")
+    problems = differential.run(planted, seeds)
+    assert problems and all("python vs native-fmi2" in p for p in problems), problems
+    assert any('["getr"' in p and "status 3 vs 0" in p for p in problems), problems
+    assert differential.run(twins["DriftEstimator"], seeds) == []  # the unplanted twin agrees
+    problems = differential.run(twins["Excitation"], seeds[:2], plant="native-fmi3")
+    assert len(problems) == 2 and all("python vs native-fmi3: values" in p for p in problems)
+
+
+# -- the case fuzz on the native FMI 2.0 twins, and under valgrind -----------------------------
+
+#: Cases whose expectation holds for the Python FMUs only, and why.
+NATIVE_DIFFERS = {name: "the native FMUs need no resources: fmi2Instantiate takes any "
+                  "fmuResourceLocation, NULL included (the standard lets an FMU without "
+                  "resources ignore it)" for name in cases.CASES if name.startswith("uri_")}
+
+
+@pytest.fixture(scope="module")
+def native_models(native_fmus, tmp_path_factory):
+    root = tmp_path_factory.mktemp("fuzz_native_models")
+    return {name: fuzz.unzip(fmu, root / name) for name, fmu in native_fmus[2].items()}
+
+
+def _native_params():
+    return [pytest.param(name, model, id="%s-%s" % (name, model))
+            for name in cases.CASES if name not in NATIVE_DIFFERS
+            for model in (differential.MODELS if name in cases.ALL_MODELS
+                          else ("Accelerometer",))]
+
+
+@pytest.mark.parametrize("case, name", _native_params())
+def test_native_twins_refuse_invalid_calls_and_change_nothing(host, native_models, case, name):
+    result, problems, lines = cases.run_case(host, case, native_models[name],
+                                             _other(native_models, name), _seed(case, name))
+    assert problems == [], "\n".join(problems) + "\n" + result.output[-3000:]
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+@pytest.mark.parametrize("name", differential.MODELS)
+def test_native_twins_under_valgrind_no_invalid_memory_access(host, native_models, name,
+                                                              report):
+    """Every invalid case that applies, in one script per model, the native FMI 2.0 twin under
+    valgrind: no invalid read, write or free."""
+    chosen = [c for c in cases.CASES if c not in NATIVE_DIFFERS
+              and (c in cases.ALL_MODELS or name == "Accelerometer")]
+    result, problems, lines = cases.run_case(host, chosen, native_models[name],
+                                             _other(native_models, name),
+                                             _seed("valgrind-native", name), valgrind=VALGRIND,
+                                             time_limit=600)
+    report("FUZZ valgrind native %s: %d cases, %d calls, exit code %d" % (
+        name, len(chosen), len(lines), result.returncode))
+    assert result.returncode != 99, result.output[-5000:]
+    assert problems == [], (problems, result.output[-3000:])
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+def test_differential_fuzz_under_valgrind(twins, report):
+    """A few differential scripts with the whole child process under valgrind: the shim, the
+    Python FMU and both native twins, no invalid memory access."""
+    seeds = [_seed("differential-valgrind", "0")]  # CPython under valgrind: minutes a script
+    problems = differential.run(twins["DriftEstimator"], seeds, n_calls=40, valgrind=True,
+                                time_limit=1500)
+    report("FUZZ differential under valgrind: %d scripts, %d problems" % (len(seeds),
+                                                                           len(problems)))
+    assert problems == [], "\n".join(problems)[-5000:]

@@ -26,6 +26,13 @@ def models(built_fmus, tmp_path_factory):
     return {name: fuzz.unzip(fmu, root / name) for name, fmu in built_fmus.items()}
 
 
+@pytest.fixture(scope="module")
+def native_models(native_fmus, tmp_path_factory):
+    """The native FMI 2.0 twins (the host is an FMI 2.0 host)."""
+    root = tmp_path_factory.mktemp("memory_native_models")
+    return {name: fuzz.unzip(fmu, root / name) for name, fmu in native_fmus[2].items()}
+
+
 def growth_per_call(result, what):
     """Bytes per call: least-squares slope of "RSS what i bytes" over the second half."""
     points = [(int(p[2]), int(p[3])) for p in (line.split() for line in result.lines)
@@ -92,3 +99,30 @@ def test_logged_errors(host, models, report):
     report("MEMORY Accelerometer: %d rejected fmi2SetReal with the same error: resident memory "
            "grows %.1f B per logged error (bound %g B)" % (ERRORS, slope, bound))
     assert slope < bound
+
+
+@pytest.mark.parametrize("name", FMU_NAMES)
+def test_native_instantiate_free_cycles_do_not_grow(host, native_models, name, report):
+    m = native_models[name]
+    lines = ["load 0 %s %s" % (m.dir, m.identifier),
+             "cycles 0 %d %d %s" % (CYCLES, CYCLES // 40, m.guid)]
+    result = fuzz.run_script(host, lines, time_limit=600)
+    assert result.problems() == [], result.output[-2000:]
+    slope = growth_per_call(result, "cycles")
+    report("MEMORY native %s: %d instantiate/free cycles: resident memory grows %.2f B per "
+           "cycle" % (name, CYCLES, slope))
+    assert slope < 1.0  # 0 B: nothing the native FMU allocates outlives its instance
+
+
+@pytest.mark.parametrize("name", ["Accelerometer", "DriftEstimator"])
+def test_native_state_gets_into_one_pointer_do_not_grow(host, native_models, name, report):
+    m = native_models[name]
+    lines = fuzz.header(m) + fuzz.initialise(m, 0) + [
+        "step 0 0 %r" % m.Ts, "stateloop 0 1 %d %d" % (STATE_GETS, STATE_GETS // 40),
+        "fst 0 1", "free 0"]
+    result = fuzz.run_script(host, lines, time_limit=600)
+    assert result.problems() == [], result.output[-2000:]
+    slope = growth_per_call(result, "states")
+    report("MEMORY native %s: %d fmi2GetFMUstate into one pointer: resident memory grows "
+           "%.2f B per call" % (name, STATE_GETS, slope))
+    assert slope < 0.5  # a state that is not reused is 560 B or more

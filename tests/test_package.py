@@ -85,6 +85,7 @@ def test_wheel_carries_what_the_builder_bundles(dists):
         relative = path.relative_to(builder.SRC_DIR.parent).as_posix()
         assert "driftfmu/" + relative in names, relative
     assert "driftfmu/fmu_src/loader/fmi2_shim.c" in names
+    assert "driftfmu/simulations/batch_kernel.c" in names  # compiled by simulations/kernel.py
     assert "driftfmu/__main__.py" in names
     assert not [n for n in names if "__pycache__" in n or n.endswith((".fmu", ".ssp", ".so"))]
 

@@ -107,7 +107,9 @@ def test_fmu_holds_exactly_the_binaries_it_lists(fmu_sets, kind, name):
         build = archive.read("sources/buildDescription.xml") if kind == "fmi3" else None
         data = {p: archive.read(p) for p in expected}
     assert {f for f in files if f.startswith("binaries/")} == set(expected)
-    assert {f for f in files if f.startswith("documentation/")} == {"documentation/binaries.txt"}
+    assert "documentation/binaries.txt" in files
+    index = archive_text(path, "documentation/index.html")
+    assert "binaries: %s." % ", ".join(sorted({p.split("/")[1] for p in expected})) in index
     assert set(re.findall(r"^(binaries/\S+)", listed, re.M)) == set(expected)
     for p, blob in data.items():  # each line names its size
         assert "%s  (%d bytes" % (p, len(blob)) in listed
@@ -203,6 +205,11 @@ def test_binaries_are_reproducible_and_darwin64_is_universal_of_the_thin_builds(
             assert align == 14 and offset % (1 << 14) == 0
             assert fat[offset:offset + size] == again[p]
     need(all(p in built_platforms() for p in native_build.FMI2_DARWIN), "zig is not installed")
+
+
+def archive_text(path, member):
+    with zipfile.ZipFile(path) as archive:
+        return archive.read(member).decode()
 
 
 class tempfile_dir:

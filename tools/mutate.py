@@ -16,7 +16,7 @@ Usage::
     python3 tools/mutate.py --short    # the faults marked short = true (CI, about a minute)
     python3 tools/mutate.py --check    # only check that every pattern matches exactly once
     python3 tools/mutate.py --only ekf-linear-innovation sensor-H-without-2a2x
-    python3 tools/mutate.py --markdown # the report as a Markdown table (for the README)
+    python3 tools/mutate.py --markdown # the report as a Markdown table (for docs/evidence.md)
     python3 tools/mutate.py --ignore-glob 'tests/test_evidence_*'   # without those tests
 """
 import argparse

@@ -119,6 +119,8 @@ typedef struct Instance {
     int state;        /* one of the states above */
     char guid[128];   /* the FMU's GUID, checked at instantiation */
     double start_time, time; /* from fmi2SetupExperiment; the end of the last accepted step */
+    double elapsed, elapsed_c; /* time - start_time as the model keeps it: Neumaier's sum of the
+                                  accepted step sizes (time = start_time + (elapsed + c)) */
     char *location;   /* the resource location pythonfmu got */
     fmi2Boolean visible;
     struct Instance *next_free; /* in the pool of freed instances */
@@ -848,7 +850,7 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
         reused->host = inst->host;
         reused->logging_on = loggingOn;
         reused->state = INSTANTIATED;
-        reused->start_time = reused->time = 0.0;
+        reused->start_time = reused->time = reused->elapsed = reused->elapsed_c = 0.0;
         reused->worst = fmi2OK;
         free(location);
         free_instance(inst);
@@ -886,19 +888,27 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
     if (null_count_array(inst, "fmi2SetDebugLogging", "categories", "nCategories", nCategories,
                          categories))
         return fmi2Error;
-    free_categories(inst);
-    inst->logging_on = loggingOn;
-    if (nCategories > 0) {
-        inst->categories = calloc(nCategories, sizeof *inst->categories);
-        if (!inst->categories)
-            return fmi2Error;
-        for (size_t i = 0; i < nCategories; i++) {
-            inst->categories[i] = strdup(categories[i] ? categories[i] : "");
-            if (!inst->categories[i])
-                return fmi2Error;
-            inst->n_categories = i + 1;
+    /* the new list is made first: out of memory leaves the old one in place (calloc checks
+       nCategories * size for overflow) */
+    char **list = nCategories > 0 ? calloc(nCategories, sizeof *list) : NULL;
+    for (size_t i = 0; list && i < nCategories; i++) {
+        list[i] = strdup(categories[i] ? categories[i] : "");
+        if (!list[i]) {
+            while (i > 0)
+                free(list[--i]);
+            free(list);
+            list = NULL;
         }
     }
+    if (nCategories > 0 && !list) {
+        shim_log(inst, fmi2Error, "fmi2SetDebugLogging: out of memory for %zu categories; "
+                 "nothing was changed", nCategories);
+        return fmi2Error;
+    }
+    free_categories(inst);
+    inst->logging_on = loggingOn;
+    inst->categories = list;
+    inst->n_categories = nCategories;
     return fmi2OK;
 }
 
@@ -914,8 +924,10 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
     }
     fmi2Status status = CALL(inner.SetupExperiment(inst->inner, toleranceDefined, tolerance,
                                                    startTime, stopTimeDefined, stopTime));
-    if (status <= fmi2Warning)
+    if (status <= fmi2Warning) {
         inst->start_time = inst->time = startTime;
+        inst->elapsed = inst->elapsed_c = 0.0;
+    }
     return status;
 }
 
@@ -935,15 +947,17 @@ fmi2Status fmi2ExitInitializationMode(fmi2Component c)
     if (status <= fmi2Warning) {
         inst->state = STEP_COMPLETE;
         inst->time = inst->start_time;
+        inst->elapsed = inst->elapsed_c = 0.0;
     }
     return status;
 }
 
-/* Accepted in every state but FATAL (the standard asks for Step Complete): masters terminate
-   in their clean-up whatever happened before, and ending an instance early does no harm. */
+/* Accepted in Step Complete (the standard) and in Initialization Mode (a master that gives up
+   after a refused fmi2ExitInitializationMode ends the instance cleanly); refused, as by the
+   native FMUs, before initialisation and a second time. */
 fmi2Status fmi2Terminate(fmi2Component c)
 {
-    INSTANCE(c, "fmi2Terminate", ANY_STATE);
+    INSTANCE(c, "fmi2Terminate", INITIALIZATION_MODE | STEP_COMPLETE);
     fmi2Status status = CALL(inner.Terminate(inst->inner));
     if (status <= fmi2Warning)
         inst->state = TERMINATED;
@@ -956,7 +970,7 @@ fmi2Status fmi2Reset(fmi2Component c)
     fmi2Status status = CALL(inner.Reset(inst->inner));
     if (status <= fmi2Warning) {
         inst->state = INSTANTIATED;
-        inst->start_time = inst->time = 0.0;
+        inst->start_time = inst->time = inst->elapsed = inst->elapsed_c = 0.0;
     }
     return status;
 }
@@ -1043,7 +1057,7 @@ typedef struct State {
     fmi2FMUstate inner;
     char guid[128];
     int state;
-    double start_time, time;
+    double start_time, time, elapsed, elapsed_c;
 } State;
 
 static pthread_mutex_t states_lock = PTHREAD_MUTEX_INITIALIZER;
@@ -1086,10 +1100,18 @@ static State *known_state(Instance *inst, const char *function, fmi2FMUstate sta
                  "fmi2GetFMUstate or fmi2DeSerializeFMUstate of this FMU", function);
         return NULL;
     }
-    if (!is_live(state) || strcmp(((State *)state)->guid, inst->guid)) {
-        shim_log(inst, fmi2Error, "%s: FMUstate %p is not a state of this FMU (GUID %s): not "
-                 "made by its fmi2GetFMUstate or fmi2DeSerializeFMUstate, or freed already; "
-                 "allowed: a live state of this FMU", function, state, inst->guid);
+    if (!is_live(state)) {
+        shim_log(inst, fmi2Error, "%s: FMUstate %p is not a live state of this loaded copy of "
+                 "the FMU (GUID %s): not made by its fmi2GetFMUstate or "
+                 "fmi2DeSerializeFMUstate, or freed already (a state pointer is valid only in "
+                 "the library that made it; to move a state between copies of an FMU, "
+                 "serialise it); allowed: a live state", function, state, inst->guid);
+        return NULL;
+    }
+    if (strcmp(((State *)state)->guid, inst->guid)) {
+        shim_log(inst, fmi2Error, "%s: FMUstate %p is a state of the FMU with GUID %s, not of "
+                 "this one (GUID %s); allowed: a live state of this FMU", function, state,
+                 ((State *)state)->guid, inst->guid);
         return NULL;
     }
     return (State *)state;
@@ -1100,7 +1122,7 @@ static State *known_state(Instance *inst, const char *function, fmi2FMUstate sta
  * state is freed) or into a new one.
  */
 static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *FMUstate,
-                              int state, double start_time, double time)
+                              const State *fields)
 {
     State *s = (State *)*FMUstate;
     if (s && is_live(s)) {
@@ -1117,9 +1139,11 @@ static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *
     }
     s->inner = fresh;
     snprintf(s->guid, sizeof s->guid, "%s", inst->guid);
-    s->state = state;
-    s->start_time = start_time;
-    s->time = time;
+    s->state = fields->state;
+    s->start_time = fields->start_time;
+    s->time = fields->time;
+    s->elapsed = fields->elapsed;
+    s->elapsed_c = fields->elapsed_c;
     *FMUstate = s;
     return fmi2OK;
 }
@@ -1152,8 +1176,9 @@ fmi2Status fmi2GetFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
         shim_log(inst, fmi2Error, "fmi2GetFMUstate: the model returned no state");
         return fmi2Error;
     }
-    fmi2Status stored = store_state(inst, fresh, &target, inst->state, inst->start_time,
-                                    inst->time);
+    State fields = {.state = inst->state, .start_time = inst->start_time, .time = inst->time,
+                    .elapsed = inst->elapsed, .elapsed_c = inst->elapsed_c};
+    fmi2Status stored = store_state(inst, fresh, &target, &fields);
     if (stored == fmi2OK)
         *FMUstate = target;
     return stored > status ? stored : status > warning ? status : warning;
@@ -1170,6 +1195,8 @@ fmi2Status fmi2SetFMUstate(fmi2Component c, fmi2FMUstate FMUstate)
         inst->state = s->state;
         inst->start_time = s->start_time;
         inst->time = s->time;
+        inst->elapsed = s->elapsed;
+        inst->elapsed_c = s->elapsed_c;
     }
     return status;
 }
@@ -1235,6 +1262,10 @@ fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byt
     return inner_status > status ? inner_status : status;
 }
 
+/* The largest serialised state the shim takes from a host (a state of these models is a few
+   kilobytes of JSON): a larger size is refused before any arithmetic or allocation with it. */
+#define SERIALIZED_LIMIT ((size_t)1 << 26)
+
 /* 1 if `what` occurs in text before end. */
 static int occurs(const char *text, const char *end, const char *what)
 {
@@ -1252,6 +1283,12 @@ static void state_of_bytes(Instance *inst, const fmi2Byte *bytes, size_t size, S
     fields->state = inst->state;
     fields->start_time = inst->start_time;
     fields->time = inst->time;
+    fields->elapsed = inst->elapsed;
+    fields->elapsed_c = inst->elapsed_c;
+    /* size comes from the host: size + 1 must not wrap (the bytes themselves were checked to
+       be there by the caller only as far as a pointer goes; a size this large is refused) */
+    if (size >= SERIALIZED_LIMIT)
+        return;
     char *text = malloc(size + 1);
     if (!text)
         return;
@@ -1265,11 +1302,13 @@ static void state_of_bytes(Instance *inst, const fmi2Byte *bytes, size_t size, S
                                                                     : INSTANTIATED;
     }
     const char *time = strstr(text, "\"time\": [");
-    double start, elapsed;
-    if (time && sscanf(time + 9, "%lf, %lf", &start, &elapsed) == 2 && isfinite(start) &&
-        isfinite(elapsed)) {
+    double start, elapsed, c;
+    if (time && sscanf(time + 9, "%lf, %lf, %lf", &start, &elapsed, &c) == 3 &&
+        isfinite(start) && isfinite(elapsed) && isfinite(c)) {
         fields->start_time = start;
-        fields->time = start + elapsed;
+        fields->elapsed = elapsed;
+        fields->elapsed_c = c;
+        fields->time = start + (elapsed + c);
     }
     free(text);
 }
@@ -1282,6 +1321,12 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
                          serializedState) ||
         null_argument(inst, "fmi2DeSerializeFMUstate", "FMUstate", FMUstate))
         return fmi2Error;
+    if (size >= SERIALIZED_LIMIT) {
+        shim_log(inst, fmi2Error, "fmi2DeSerializeFMUstate: size = %zu bytes; allowed: a "
+                 "serialised state of this FMU, fewer than %zu bytes (the size "
+                 "fmi2SerializedFMUstateSize returned)", size, (size_t)SERIALIZED_LIMIT);
+        return fmi2Error;
+    }
     State fields;
     state_of_bytes(inst, size ? serializedState : "", size, &fields);
     fmi2FMUstate target = *FMUstate;
@@ -1295,8 +1340,7 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         shim_log(inst, fmi2Error, "fmi2DeSerializeFMUstate: the model returned no state");
         return fmi2Error;
     }
-    fmi2Status stored = store_state(inst, fresh, &target, fields.state, fields.start_time,
-                                    fields.time);
+    fmi2Status stored = store_state(inst, fresh, &target, &fields);
     if (stored == fmi2OK)
         *FMUstate = target;
     return stored > status ? stored : status > warning ? status : warning;
@@ -1346,15 +1390,19 @@ fmi2Status fmi2DoStep(fmi2Component c, fmi2Real currentCommunicationPoint,
     INSTANCE(c, "fmi2DoStep", STEP_COMPLETE);
     if (!isfinite(currentCommunicationPoint)) {
         shim_log(inst, fmi2Error, "fmi2DoStep: currentCommunicationPoint = %g s; allowed: a "
-                 "finite time, the end of the previous step (%.17g s)",
-                 currentCommunicationPoint, inst->time);
+                 "finite time (the FMU keeps its own time and steps from %.17g s, the end of "
+                 "the previous step)", currentCommunicationPoint, inst->time);
         return fmi2Error;
     }
     fmi2Status status = CALL(inner.DoStep(inst->inner, currentCommunicationPoint,
                                           communicationStepSize,
                                           noSetFMUStatePriorToCurrentPoint));
-    if (status <= fmi2Warning)
-        inst->time = currentCommunicationPoint + communicationStepSize;
+    if (status <= fmi2Warning) { /* the model's own time (slave_base._step), bit for bit */
+        double e = inst->elapsed, h = communicationStepSize, t = e + h;
+        inst->elapsed_c += fabs(e) >= fabs(h) ? (e - t) + h : (h - t) + e;
+        inst->elapsed = t;
+        inst->time = inst->start_time + (inst->elapsed + inst->elapsed_c);
+    }
     return status;
 }
 

@@ -271,13 +271,13 @@ Status cs_exit_initialization(ModelInstance *comp, const char *function)
 {
     if (!cs_allowed(comp, function, STATE_INITIALIZATION))
         return STATUS_ERROR;
-    comp->state = STATE_STEP;   /* as the Python FMUs: a failed check leaves it unable to step */
+    /* every check first: a refused exit leaves the instance in Initialization Mode, unchanged,
+     * so that the host can correct a parameter and call again (as the Python FMUs) */
+    if (model_check(comp) > 0)
+        return STATUS_ERROR;
+    comp->state = STATE_STEP;
     comp->time = comp->startTime;
     comp->elapsed = comp->elapsed_c = 0.0;
-    if (model_check(comp) > 0) {
-        comp->initialised = 0;
-        return STATUS_ERROR;
-    }
     comp->k = 1;
     comp->pending = 1;
     model_start(comp);
@@ -359,7 +359,10 @@ static Status initialisation_outputs(ModelInstance *comp, const char *function)
  * restored and an error returned when a value comes out non-finite. */
 static Status refresh(ModelInstance *comp, const char *function)
 {
-    if (comp->dirty && comp->state == STATE_INITIALIZATION)
+    /* not initialised (Initialization Mode, or terminated from there): the outputs of sample 1
+     * from the start values and inputs, as the Python FMUs compute them */
+    if (comp->dirty && !comp->initialised &&
+        (comp->state == STATE_INITIALIZATION || comp->state == STATE_TERMINATED))
         return initialisation_outputs(comp, function);
     if (!(MODEL_HAS_FEEDTHROUGH && comp->dirty && comp->initialised && comp->pending))
         return STATUS_OK;
@@ -442,8 +445,8 @@ static void bad_references(char *out, size_t size, const unsigned int vr[], size
 Status cs_get(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, double reals[], int ints[])
 {
-    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
-                    STATE_TERMINATED))
+    /* FMI 2.0 and 3.0 alike: no getter before Initialization Mode (as the Python FMUs) */
+    if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP | STATE_TERMINATED))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
@@ -563,7 +566,6 @@ static void add_step(double *s, double *c, double x)
 
 Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h)
 {
-    (void)currentTime;   /* the FMU keeps its own time */
     char bh[32], bt[32], bl[32];
     if (comp->state == STATE_TERMINATED) {
         cs_log(comp, STATUS_ERROR, "cannot step: the instance is terminated (%s); allowed: %s, "
@@ -578,6 +580,12 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
                "errors above)");
         return STATUS_ERROR;
     }
+    if (!isfinite(currentTime)) {   /* any finite value: the FMU keeps its own time */
+        cs_log(comp, STATUS_ERROR, "%s: currentCommunicationPoint = %s s; allowed: a finite "
+               "time (the FMU keeps its own time and steps from %s s, the end of the previous "
+               "step)", function, repr_double(currentTime, bt), repr_double(comp->time, bl));
+        return STATUS_ERROR;
+    }
     if (!(isfinite(h) && h > 0.0)) {
         cs_log(comp, STATUS_ERROR, "communication step h = %s s; allowed: a finite h > 0",
                repr_double(h, bh));
@@ -590,11 +598,21 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
     const double position = (elapsed + elapsed_c) / Ts;   /* t + h in sample periods */
     const double limit = (double)MAX_SAMPLES_PER_STEP;
     if (!(position - tol <= limit + (double)k - 1.0)) {
-        cs_log(comp, STATUS_ERROR, "communication step h = %s s spans more than %lld sample "
-               "instants of Ts = %s s; allowed: at most MAX_SAMPLES_PER_STEP = %lld sample "
-               "instants per step, h <= about %s s", repr_double(h, bh),
-               (long long)MAX_SAMPLES_PER_STEP, repr_double(Ts, bt),
-               (long long)MAX_SAMPLES_PER_STEP, repr_double(limit * Ts, bl));
+        /* the room left before the limit, in seconds: finite whenever Ts is (an overflow of
+         * limit * Ts or of the time itself is said as such) */
+        const double room = (limit + (double)k - 1.0) * Ts - (comp->elapsed + comp->elapsed_c);
+        if (!isfinite(position) || !isfinite(room))
+            cs_log(comp, STATUS_ERROR, "communication step h = %s s from t = %s s with Ts = %s "
+                   "s: the time in sample periods, (t + h - startTime)/Ts, is not a finite "
+                   "number; allowed: steps whose end is a finite number of sample periods "
+                   "after the start", repr_double(h, bh), repr_double(comp->time, bt),
+                   repr_double(Ts, bl));
+        else
+            cs_log(comp, STATUS_ERROR, "communication step h = %s s spans more than %lld "
+                   "sample instants of Ts = %s s; allowed: at most MAX_SAMPLES_PER_STEP = %lld "
+                   "sample instants per step, h <= about %s s", repr_double(h, bh),
+                   (long long)MAX_SAMPLES_PER_STEP, repr_double(Ts, bt),
+                   (long long)MAX_SAMPLES_PER_STEP, repr_double(room, bl));
         return STATUS_ERROR;
     }
     const int64_t last = (int64_t)ceil(position - tol);   /* first instant at or after t + h */
@@ -638,7 +656,15 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
 
 /* ---- FMU states ------------------------------------------------------------------------- */
 
-#define STATE_MAGIC "driftfmu-state-1"
+/*
+ * A state is a Snapshot: a header naming the model, build and layout, a checksum of the whole
+ * (catches bytes corrupted in storage or transit), then the instance's fields.  A state from
+ * outside (fmi2DeSerializeFMUstate / fmi3DeserializeFMUState) and a state pointer a host hands
+ * back (fmi2SetFMUstate / fmi3SetFMUState) pass the same checks as the values a host sets
+ * through the API (crafted values have a valid checksum: the checks catch them), and the
+ * state is refused as a whole, naming the field, otherwise.  See docs/native-hardening.md.
+ */
+#define STATE_MAGIC "driftfmu-state-2"
 
 typedef struct {
     char magic[24];             /* STATE_MAGIC */
@@ -650,12 +676,25 @@ typedef struct {
 
 typedef struct {
     StateHeader header;
+    uint64_t checksum;          /* FNV-1a 64 of the snapshot with this field 0 */
     ModelVariables v;
     ModelHidden h;
     double startTime, time, elapsed, elapsed_c;
     int64_t k;
     int32_t pending, dirty, initialised, state;
 } Snapshot;
+
+static uint64_t checksum_of(const Snapshot *s)
+{
+    const unsigned char *bytes = (const unsigned char *)s;
+    const size_t at = offsetof(Snapshot, checksum), end = at + sizeof s->checksum;
+    uint64_t hash = 14695981039346656037ULL;
+    for (size_t i = 0; i < sizeof *s; i++) {
+        hash ^= (i >= at && i < end) ? 0u : bytes[i];
+        hash *= 1099511628211ULL;
+    }
+    return hash;
+}
 
 static void fill_header(StateHeader *header)
 {
@@ -667,6 +706,15 @@ static void fill_header(StateHeader *header)
     header->size = sizeof(Snapshot);
 }
 
+/* A header's text field as a printable string (at most n bytes, non-printable bytes as '?'). */
+static void printable(char *out, const char *field, size_t n)
+{
+    size_t i;
+    for (i = 0; i < n && field[i]; i++)
+        out[i] = (field[i] >= 32 && field[i] < 127) ? field[i] : '?';
+    out[i] = 0;
+}
+
 static int header_ok(ModelInstance *comp, const char *function, const StateHeader *header)
 {
     StateHeader mine;
@@ -674,16 +722,25 @@ static int header_ok(ModelInstance *comp, const char *function, const StateHeade
     if (memcmp(header, &mine, sizeof mine) == 0)
         return 1;
     if (strncmp(header->magic, STATE_MAGIC, sizeof header->magic) != 0) {
-        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: no driftfmu state header",
-               function, MODEL_NAME);
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: no %s header; allowed: a state "
+               "that this FMU (%s %s) produced", function, MODEL_NAME, STATE_MAGIC, MODEL_NAME,
+               MODEL_VERSION);
     } else {
-        char model[33] = "", token[65] = "", version[25] = "";
-        memcpy(model, header->model, sizeof header->model);
-        memcpy(token, header->token, sizeof header->token);
-        memcpy(version, header->version, sizeof header->version);
-        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s %s (%s): it is a state of %s %s "
-               "(%s)", function, MODEL_NAME, MODEL_VERSION, INSTANTIATION_TOKEN, model, version,
-               token);
+        char model[33], token[65], version[25];
+        printable(model, header->model, sizeof header->model);
+        printable(token, header->token, sizeof header->token);
+        printable(version, header->version, sizeof header->version);
+        if (strcmp(model, MODEL_NAME) || strcmp(token, INSTANTIATION_TOKEN) ||
+            strcmp(version, MODEL_VERSION))
+            cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s %s (%s): it is a state of "
+                   "%s %s (%s); allowed: a state of this very FMU (same build and version)",
+                   function, MODEL_NAME, MODEL_VERSION, INSTANTIATION_TOKEN, model, version,
+                   token);
+        else
+            cs_log(comp, STATUS_ERROR, "%s: the FMU state header of %s is damaged (size field "
+                   "%llu, a state has %lu bytes, or bytes after the names); the state is "
+                   "refused", function, MODEL_NAME, (unsigned long long)header->size,
+                   (unsigned long)sizeof(Snapshot));
     }
     return 0;
 }
@@ -694,24 +751,220 @@ static int state_allowed(ModelInstance *comp, const char *function)
                       STATE_TERMINATED);
 }
 
-Status cs_get_state(ModelInstance *comp, const char *function, void **state)
+/* Logs one problem of a state (all but the last are logged as they are found; the caller
+ * adds the verdict to the last).  Returns the new count. */
+#define STATE_PROBLEM(...)                                                                 \
+    do {                                                                                   \
+        if (n_problems)                                                                    \
+            cs_log(comp, STATUS_ERROR, "%s: %s", function, last);                          \
+        snprintf(last, sizeof last, __VA_ARGS__);                                          \
+        n_problems++;                                                                      \
+    } while (0)
+
+/* The number of problems of snapshot s (0: it may be restored), each logged with status error
+ * and naming the field.  A state is refused as a whole: nothing is changed here. */
+static int snapshot_problems(ModelInstance *comp, const char *function, const Snapshot *s)
 {
-    if (!state_allowed(comp, function))
-        return STATUS_ERROR;
-    if (!state) {
-        cs_log(comp, STATUS_ERROR, "%s: the FMU state pointer is NULL", function);
-        return STATUS_ERROR;
+    if (!header_ok(comp, function, &s->header))
+        return 1;
+    char last[MESSAGE_SIZE] = "", b1[32], b2[32], b3[32];
+    int n_problems = 0;
+    const uint64_t sum = checksum_of(s);
+    if (sum != s->checksum) {
+        cs_log(comp, STATUS_ERROR, "%s: the FMU state of %s is corrupted: its checksum is "
+               "%016llx, its bytes give %016llx; the state is refused and nothing was changed",
+               function, MODEL_NAME, (unsigned long long)s->checksum, (unsigned long long)sum);
+        return 1;
     }
-    Snapshot *s = *state;
-    if (s && !header_ok(comp, function, &s->header))
-        return STATUS_ERROR;
-    if (!s) {
-        s = malloc(sizeof *s);
-        if (!s) {
-            cs_log(comp, STATUS_ERROR, "%s: out of memory", function);
-            return STATUS_ERROR;
+    const int32_t mode = s->state;
+    if (mode != STATE_INSTANTIATED && mode != STATE_INITIALIZATION && mode != STATE_STEP &&
+        mode != STATE_TERMINATED)
+        STATE_PROBLEM("mode = %d is not a mode; allowed: %d (instantiated), %d "
+                      "(initialisation), %d (step), %d (terminated)", (int)mode,
+                      STATE_INSTANTIATED, STATE_INITIALIZATION, STATE_STEP, STATE_TERMINATED);
+    const struct { const char *name; int32_t value; } flags[] = {
+        {"pending", s->pending}, {"dirty", s->dirty}, {"initialised", s->initialised}};
+    for (size_t i = 0; i < sizeof flags / sizeof flags[0]; i++)
+        if (flags[i].value != 0 && flags[i].value != 1)
+            STATE_PROBLEM("%s = %d is not a flag; allowed: 0 or 1", flags[i].name,
+                          (int)flags[i].value);
+    if (s->initialised == 1 && (mode == STATE_INSTANTIATED || mode == STATE_INITIALIZATION))
+        STATE_PROBLEM("initialised = 1 in mode %d; allowed: initialised = 0 before the exit "
+                      "of initialisation", (int)mode);
+    if (s->initialised == 0 && mode == STATE_STEP)
+        STATE_PROBLEM("initialised = 0 in step mode; allowed: initialised = 1 in step mode");
+    const struct { const char *name; double value; } times[] = {
+        {"startTime", s->startTime}, {"time", s->time}, {"elapsed", s->elapsed},
+        {"elapsed_c", s->elapsed_c}};
+    int times_ok = 1;
+    for (size_t i = 0; i < sizeof times / sizeof times[0]; i++)
+        if (!isfinite(times[i].value)) {
+            STATE_PROBLEM("%s = %s is not finite; allowed: finite times", times[i].name,
+                          repr_double(times[i].value, b1));
+            times_ok = 0;
+        }
+    if (times_ok && !(s->elapsed >= 0.0))
+        STATE_PROBLEM("elapsed = %s s; allowed: elapsed >= 0", repr_double(s->elapsed, b1));
+    else if (times_ok && s->time != s->startTime + (s->elapsed + s->elapsed_c))
+        STATE_PROBLEM("time = %s s is not startTime + elapsed = %s s; allowed: the time the "
+                      "steps of the state add up to", repr_double(s->time, b1),
+                      repr_double(s->startTime + (s->elapsed + s->elapsed_c), b2));
+    if (s->k < 1)
+        STATE_PROBLEM("k = %lld is not a sample index; allowed: k >= 1", (long long)s->k);
+    for (int i = 0; i < N_VARIABLES; i++) {
+        const VariableInfo *info = &MODEL_VARIABLES[i];
+        if (info->type == TYPE_REAL) {
+            const double value = *(const double *)((const char *)&s->v + info->offset);
+            if (!isfinite(value))
+                STATE_PROBLEM("%s = %s is not finite; allowed: finite values only", info->name,
+                              repr_double(value, b1));
         }
     }
+    if (n_problems)
+        goto verdict;
+    if (!s->initialised) {
+        /* before initialisation the hidden state is empty and the FMU at sample 1 */
+        static const ModelHidden empty;
+        if (memcmp(&s->h, &empty, sizeof empty) != 0)
+            STATE_PROBLEM("the hidden state is set although initialised = 0; allowed: an "
+                          "empty hidden state before initialisation");
+        if (s->k != 1 || s->pending != 1)
+            STATE_PROBLEM("k = %lld, pending = %d before initialisation; allowed: k = 1, "
+                          "pending = 1", (long long)s->k, (int)s->pending);
+        if (s->elapsed != 0.0 || s->elapsed_c != 0.0)
+            STATE_PROBLEM("elapsed = %s s before initialisation; allowed: 0.0",
+                          repr_double(s->elapsed + s->elapsed_c, b1));
+        goto verdict;
+    }
+    {
+        /* the parameters pass the checks of fmi2ExitInitializationMode, and the hidden state
+         * is one they allow: on a scratch copy, logging through this instance */
+        ModelInstance scratch = *comp;
+        scratch.v = s->v;
+        char context[160];
+        snprintf(context, sizeof context, "%s: the FMU state is not valid: ", function);
+        scratch.logContext = context;
+        int bad = model_check(&scratch);
+        if (bad) {
+            n_problems += bad;
+            cs_log(comp, STATUS_ERROR, "%s: the FMU state of %s is refused (its parameters "
+                   "are not valid, see above) and nothing was changed", function, MODEL_NAME);
+            return n_problems + 1;
+        }
+        /* the sample index and the pending flag follow from the time (slave_base) */
+        const double Ts = s->v.Ts, tol = SAMPLE_TOLERANCE;
+        const double position = (s->elapsed + s->elapsed_c) / Ts;
+        if (!isfinite(position) || position > 9.0e15) {
+            STATE_PROBLEM("the time %s s after the start is not a finite number of sample "
+                          "periods Ts = %s s", repr_double(s->elapsed + s->elapsed_c, b1),
+                          repr_double(Ts, b2));
+        } else {
+            const double first = ceil(position - tol);
+            const int at = first <= position + tol;
+            if ((double)(s->k - 1) != first || s->pending != at)
+                STATE_PROBLEM("k = %lld and pending = %d do not match the time %s s after "
+                              "the start (the next sample there is k = %s, pending = %d)",
+                              (long long)s->k, (int)s->pending,
+                              repr_double(s->elapsed + s->elapsed_c, b1),
+                              repr_double(first + 1.0, b3), at);
+        }
+        ModelInstance fresh = scratch;
+        fresh.logContext = NULL;
+        model_start(&fresh);
+        scratch.h = s->h;
+        scratch.k = s->k;
+        scratch.pending = s->pending;
+        bad = model_hidden_problems(&scratch, &fresh.h);
+        if (bad) {
+            if (n_problems)
+                cs_log(comp, STATUS_ERROR, "%s: %s", function, last);
+            cs_log(comp, STATUS_ERROR, "%s: the FMU state of %s is refused (its hidden state "
+                   "is not valid, see above) and nothing was changed", function, MODEL_NAME);
+            return n_problems + bad + 1;
+        }
+    }
+verdict:
+    if (n_problems)
+        cs_log(comp, STATUS_ERROR, "%s: the FMU state of %s is not valid: %s; the state is "
+               "refused and nothing was changed", function, MODEL_NAME, last);
+    return n_problems;
+}
+#undef STATE_PROBLEM
+
+/* ---- the live states: a state pointer a host passes is looked up before it is read --------- */
+
+/* A state handed to the host: the Snapshot, in a list of every live state of this library, so
+ * that a pointer the plumbing did not hand out (garbage, freed, another library's) is refused
+ * without being read.  The list is guarded by a spin lock (GCC/Clang atomics: no thread
+ * library, so the Windows binaries keep needing only system DLLs). */
+typedef struct StateNode {
+    struct StateNode *next;
+    Snapshot s;
+} StateNode;
+
+static StateNode *live_states;
+static char live_lock;
+
+static void lock_states(void)
+{
+    while (__atomic_test_and_set(&live_lock, __ATOMIC_ACQUIRE))
+        ;
+}
+
+static void unlock_states(void)
+{
+    __atomic_clear(&live_lock, __ATOMIC_RELEASE);
+}
+
+static int is_live(const void *p)
+{
+    int found = 0;
+    lock_states();
+    for (const StateNode *n = live_states; n && !found; n = n->next)
+        found = (const void *)n == p;
+    unlock_states();
+    return found;
+}
+
+static void add_live(StateNode *node)
+{
+    lock_states();
+    node->next = live_states;
+    live_states = node;
+    unlock_states();
+}
+
+static void remove_live(StateNode *node)
+{
+    lock_states();
+    for (StateNode **p = &live_states; *p; p = &(*p)->next)
+        if (*p == node) {
+            *p = node->next;
+            break;
+        }
+    unlock_states();
+}
+
+/* The node behind a state pointer a host passed, or NULL (logged). */
+static StateNode *known_state(ModelInstance *comp, const char *function, const void *state)
+{
+    if (!state) {
+        cs_log(comp, STATUS_ERROR, "%s: the FMU state is NULL; allowed: a state from this "
+               "FMU's get or deserialise call", function);
+        return NULL;
+    }
+    if (!is_live(state)) {
+        cs_log(comp, STATUS_ERROR, "%s: FMU state %p is not a live state of this loaded copy "
+               "of %s: not made by its get or deserialise call, or freed already (a state "
+               "pointer is valid only in the library that made it; to move a state between "
+               "copies, serialise it); allowed: a live state", function, state, MODEL_NAME);
+        return NULL;
+    }
+    return (StateNode *)state;
+}
+
+static void snapshot_of(const ModelInstance *comp, Snapshot *s)
+{
     memset(s, 0, sizeof *s);   /* padding too: equal states serialise to equal bytes */
     fill_header(&s->header);
     s->v = comp->v;
@@ -725,20 +978,52 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
     s->dirty = comp->dirty;
     s->initialised = comp->initialised;
     s->state = (int32_t)comp->state;
-    *state = s;
-    return STATUS_OK;
+    s->checksum = checksum_of(s);
+}
+
+Status cs_get_state(ModelInstance *comp, const char *function, void **state)
+{
+    if (!state_allowed(comp, function))
+        return STATUS_ERROR;
+    if (!state) {
+        cs_log(comp, STATUS_ERROR, "%s: the FMU state pointer is NULL; allowed: a pointer to "
+               "NULL or to a live state of this FMU", function);
+        return STATUS_ERROR;
+    }
+    Status status = STATUS_OK;
+    StateNode *node = *state;
+    if (node && !is_live(node)) {
+        cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
+               "a new state is returned and the old pointer is left alone", function,
+               (void *)node);
+        node = NULL;
+        status = STATUS_WARNING;
+    }
+    if (!node) {
+        node = malloc(sizeof *node);
+        if (!node) {
+            cs_log(comp, STATUS_ERROR, "%s: out of memory (%lu bytes for an FMU state)",
+                   function, (unsigned long)sizeof *node);
+            return STATUS_ERROR;
+        }
+        snapshot_of(comp, &node->s);
+        add_live(node);
+    } else {
+        snapshot_of(comp, &node->s);
+    }
+    *state = node;
+    return status;
 }
 
 Status cs_set_state(ModelInstance *comp, const char *function, const void *state)
 {
     if (!state_allowed(comp, function))
         return STATUS_ERROR;
-    const Snapshot *s = state;
-    if (!s) {
-        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: NULL", function, MODEL_NAME);
+    const StateNode *node = known_state(comp, function, state);
+    if (!node)
         return STATUS_ERROR;
-    }
-    if (!header_ok(comp, function, &s->header))
+    const Snapshot *s = &node->s;
+    if (snapshot_problems(comp, function, s))
         return STATUS_ERROR;
     comp->v = s->v;
     comp->h = s->h;
@@ -748,7 +1033,7 @@ Status cs_set_state(ModelInstance *comp, const char *function, const void *state
     comp->elapsed_c = s->elapsed_c;
     comp->k = s->k;
     comp->pending = s->pending;
-    comp->dirty = s->dirty;
+    comp->dirty = 1;   /* the pending outputs are computed anew (as the Python FMUs do) */
     comp->initialised = s->initialised;
     comp->state = (ModelState)s->state;
     return STATUS_OK;
@@ -756,69 +1041,82 @@ Status cs_set_state(ModelInstance *comp, const char *function, const void *state
 
 Status cs_free_state(ModelInstance *comp, const char *function, void **state)
 {
-    (void)comp;
-    (void)function;
-    if (state) {
-        free(*state);
-        *state = NULL;
-    }
+    if (!state || !*state)
+        return STATUS_OK;   /* nothing to free */
+    StateNode *node = known_state(comp, function, *state);
+    if (!node)
+        return STATUS_ERROR;
+    remove_live(node);
+    free(node);
+    *state = NULL;
     return STATUS_OK;
 }
 
-size_t cs_serialized_size(void)
+Status cs_serialized_size(ModelInstance *comp, const char *function, const void *state,
+                          size_t *size)
 {
-    return sizeof(Snapshot);
+    if (!size) {
+        cs_log(comp, STATUS_ERROR, "%s: size is NULL; allowed: a valid pointer", function);
+        return STATUS_ERROR;
+    }
+    if (!known_state(comp, function, state))
+        return STATUS_ERROR;
+    *size = sizeof(Snapshot);
+    return STATUS_OK;
 }
 
 Status cs_serialize(ModelInstance *comp, const char *function, const void *state,
                     unsigned char *bytes, size_t size)
 {
-    const Snapshot *s = state;
-    if (!s || !header_ok(comp, function, &s->header))
+    const StateNode *node = known_state(comp, function, state);
+    if (!node)
         return STATUS_ERROR;
-    if (!bytes || size < sizeof *s) {
-        cs_log(comp, STATUS_ERROR, "%s: a buffer of %lu bytes; a state of %s needs %lu",
-               function, (unsigned long)size, MODEL_NAME, (unsigned long)sizeof *s);
+    if (!bytes || size < sizeof node->s) {
+        cs_log(comp, STATUS_ERROR, "%s: a buffer of %lu bytes%s; allowed: a buffer of at least "
+               "%lu bytes (the serialised size of a state of %s)", function,
+               (unsigned long)size, bytes ? "" : " at NULL", (unsigned long)sizeof node->s,
+               MODEL_NAME);
         return STATUS_ERROR;
     }
-    memcpy(bytes, s, sizeof *s);
+    memcpy(bytes, &node->s, sizeof node->s);
     return STATUS_OK;
 }
 
 Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned char *bytes,
                       size_t size, void **state)
 {
-    if (!state || !bytes) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL argument", function);
+    if (!state || (!bytes && size)) {
+        cs_log(comp, STATUS_ERROR, "%s: %s is NULL; allowed: a valid pointer", function,
+               !state ? "the FMU state pointer" : "the serialised state");
         return STATUS_ERROR;
     }
-    Snapshot s;
-    memset(&s, 0, sizeof s);
-    if (size != sizeof s) {
-        if (size >= sizeof s.header) {
-            memcpy(&s.header, bytes, sizeof s.header);
-            if (!header_ok(comp, function, &s.header))
+    /* the size a host passes is compared, never used in arithmetic or to allocate */
+    if (size != sizeof(Snapshot)) {
+        /* the header is read only from a size a state could have (a host that says SIZE_MAX
+         * for a short buffer is not taken at its word) */
+        if (size >= sizeof(StateHeader) && size <= 16 * sizeof(Snapshot)) {
+            StateHeader header;
+            memcpy(&header, bytes, sizeof header);
+            if (!header_ok(comp, function, &header))
                 return STATUS_ERROR;
         }
-        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: %lu bytes, a state has %lu",
-               function, MODEL_NAME, (unsigned long)size, (unsigned long)sizeof s);
+        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: %lu bytes; allowed: the %lu "
+               "bytes of a serialised state", function, MODEL_NAME, (unsigned long)size,
+               (unsigned long)sizeof(Snapshot));
         return STATUS_ERROR;
     }
-    memcpy(&s, bytes, sizeof s);
-    if (!header_ok(comp, function, &s.header))
-        return STATUS_ERROR;
-    if (s.state != STATE_INSTANTIATED && s.state != STATE_INITIALIZATION &&
-        s.state != STATE_STEP && s.state != STATE_TERMINATED) {
-        cs_log(comp, STATUS_ERROR, "%s: not an FMU state of %s: mode %d", function,
-               MODEL_NAME, (int)s.state);
+    StateNode *node = malloc(sizeof *node);
+    if (!node) {
+        cs_log(comp, STATUS_ERROR, "%s: out of memory (%lu bytes for an FMU state)", function,
+               (unsigned long)sizeof *node);
         return STATUS_ERROR;
     }
-    Snapshot *copy = malloc(sizeof *copy);
-    if (!copy) {
-        cs_log(comp, STATUS_ERROR, "%s: out of memory", function);
+    memcpy(&node->s, bytes, sizeof node->s);
+    if (snapshot_problems(comp, function, &node->s)) {
+        free(node);
         return STATUS_ERROR;
     }
-    *copy = s;
-    *state = copy;
+    add_live(node);
+    *state = node;
     return STATUS_OK;
 }

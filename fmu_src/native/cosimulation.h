@@ -32,11 +32,14 @@ Status cs_no_such_type(ModelInstance *comp, const char *function, const char *ty
 
 Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h);
 
-/* FMU states: opaque copies of the variables, hidden state, time, sample index and mode. */
+/* FMU states: opaque copies of the variables, hidden state, time, sample index and mode, listed
+ * while live: a pointer that is not a live state is refused without being read; a restored
+ * state is checked field by field (cosimulation.c, docs/native-hardening.md). */
 Status cs_get_state(ModelInstance *comp, const char *function, void **state);
 Status cs_set_state(ModelInstance *comp, const char *function, const void *state);
 Status cs_free_state(ModelInstance *comp, const char *function, void **state);
-size_t cs_serialized_size(void);
+Status cs_serialized_size(ModelInstance *comp, const char *function, const void *state,
+                          size_t *size);
 Status cs_serialize(ModelInstance *comp, const char *function, const void *state,
                     unsigned char *bytes, size_t size);
 Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned char *bytes,

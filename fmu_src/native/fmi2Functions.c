@@ -58,8 +58,10 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
 {
     (void)fmuResourceLocation;   /* any form, or NULL: the model needs no resources */
     (void)visible;
-    if (!functions || !functions->logger)
-        return NULL;   /* no way to say why: FMI 2.0 requires a logger */
+    if (!functions)
+        return NULL;   /* no way to say why */
+    /* without a logger (FMI 2.0 asks for one) the instance works and logs nowhere, as the
+     * Python FMUs' loader shim does */
     fmi2CallbackFunctions *copy = functions->allocateMemory
         ? functions->allocateMemory(1, sizeof *copy) : calloc(1, sizeof *copy);
     if (!copy)
@@ -222,11 +224,7 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
 fmi2Status fmi2SerializedFMUstateSize(fmi2Component c, fmi2FMUstate FMUstate, size_t *size)
 {
     GUARD("");
-    (void)FMUstate;
-    if (!size)
-        return fmi2Error;
-    *size = cs_serialized_size();
-    return fmi2OK;
+    return (fmi2Status)cs_serialized_size(COMP, "fmi2SerializedFMUstateSize", FMUstate, size);
 }
 
 fmi2Status fmi2SerializeFMUstate(fmi2Component c, fmi2FMUstate FMUstate, fmi2Byte serializedState[],
@@ -290,52 +288,81 @@ fmi2Status fmi2CancelStep(fmi2Component c)
     return (fmi2Status)cs_unsupported(COMP, "fmi2CancelStep (every step completes)");
 }
 
-static fmi2Status no_status(fmi2Component c, const char *function)
+/* The status inquiries (as the loader shim answers them for the Python FMUs): fmi2DoStep never
+ * returns fmi2Pending and never asks to terminate, so fmi2Terminated is false,
+ * fmi2LastSuccessfulTime is the end of the last accepted step, and every other inquiry is
+ * fmi2Discard, logged at that level, as the standard says. */
+static const char *KINDS[] = {"fmi2DoStepStatus", "fmi2PendingStatus", "fmi2LastSuccessfulTime",
+                              "fmi2Terminated"};
+
+static int bad_kind(fmi2Component c, const char *function, fmi2StatusKind s, const void *value)
 {
-    cs_log(COMP, STATUS_ERROR, "%s: no asynchronous step is running; fmi2DoStep always "
-           "returns its final status", function);
+    if (!cs_allowed(COMP, function, STATE_STEP | STATE_TERMINATED))
+        return 1;
+    if (!value) {
+        cs_log(COMP, STATUS_ERROR, "%s: value is NULL; allowed: a valid pointer", function);
+        return 1;
+    }
+    if ((int)s < (int)fmi2DoStepStatus || (int)s > (int)fmi2Terminated) {
+        cs_log(COMP, STATUS_ERROR, "%s: status kind %d does not exist; allowed: "
+               "fmi2DoStepStatus, fmi2PendingStatus, fmi2LastSuccessfulTime, fmi2Terminated",
+               function, (int)s);
+        return 1;
+    }
+    return 0;
+}
+
+static fmi2Status no_status(fmi2Component c, const char *function, fmi2StatusKind s)
+{
+    cs_log(COMP, STATUS_DISCARD, "%s(%s): no such status: fmi2DoStep never returns fmi2Pending "
+           "(fmi2Discard)", function, KINDS[s]);
     return fmi2Discard;
 }
 
 fmi2Status fmi2GetStatus(fmi2Component c, const fmi2StatusKind s, fmi2Status *value)
 {
     GUARD("");
-    (void)s, (void)value;
-    return no_status(c, "fmi2GetStatus");
+    if (bad_kind(c, "fmi2GetStatus", s, value))
+        return fmi2Error;
+    return no_status(c, "fmi2GetStatus", s);
 }
 
 fmi2Status fmi2GetRealStatus(fmi2Component c, const fmi2StatusKind s, fmi2Real *value)
 {
     GUARD("");
-    if (s == fmi2LastSuccessfulTime && value) {
-        *value = COMP->time;
-        return fmi2OK;
-    }
-    return no_status(c, "fmi2GetRealStatus");
+    if (bad_kind(c, "fmi2GetRealStatus", s, value))
+        return fmi2Error;
+    if (s != fmi2LastSuccessfulTime)
+        return no_status(c, "fmi2GetRealStatus", s);
+    *value = COMP->time;
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetIntegerStatus(fmi2Component c, const fmi2StatusKind s, fmi2Integer *value)
 {
     GUARD("");
-    (void)s, (void)value;
-    return no_status(c, "fmi2GetIntegerStatus");
+    if (bad_kind(c, "fmi2GetIntegerStatus", s, value))
+        return fmi2Error;
+    return no_status(c, "fmi2GetIntegerStatus", s);
 }
 
 fmi2Status fmi2GetBooleanStatus(fmi2Component c, const fmi2StatusKind s, fmi2Boolean *value)
 {
     GUARD("");
-    if (s == fmi2Terminated && value) {
-        *value = fmi2False;
-        return fmi2OK;
-    }
-    return no_status(c, "fmi2GetBooleanStatus");
+    if (bad_kind(c, "fmi2GetBooleanStatus", s, value))
+        return fmi2Error;
+    if (s != fmi2Terminated)
+        return no_status(c, "fmi2GetBooleanStatus", s);
+    *value = fmi2False;
+    return fmi2OK;
 }
 
 fmi2Status fmi2GetStringStatus(fmi2Component c, const fmi2StatusKind s, fmi2String *value)
 {
     GUARD("");
-    (void)s, (void)value;
-    return no_status(c, "fmi2GetStringStatus");
+    if (bad_kind(c, "fmi2GetStringStatus", s, value))
+        return fmi2Error;
+    return no_status(c, "fmi2GetStringStatus", s);
 }
 
 /* ---- model exchange: not provided ----------------------------------------------------------- */

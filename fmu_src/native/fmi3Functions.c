@@ -299,11 +299,7 @@ fmi3Status fmi3FreeFMUState(fmi3Instance instance, fmi3FMUState *FMUState)
 fmi3Status fmi3SerializedFMUStateSize(fmi3Instance instance, fmi3FMUState FMUState, size_t *size)
 {
     GUARD;
-    (void)FMUState;
-    if (!size)
-        return fmi3Error;
-    *size = cs_serialized_size();
-    return fmi3OK;
+    return (fmi3Status)cs_serialized_size(COMP, "fmi3SerializedFMUStateSize", FMUState, size);
 }
 
 fmi3Status fmi3SerializeFMUState(fmi3Instance instance, fmi3FMUState FMUState,

@@ -117,6 +117,14 @@ const char *model_compute(ModelInstance *comp);
  * that came out non-finite (the plumbing restores the state from before the call). */
 const char *model_advance(ModelInstance *comp, const StepPlan *plan);
 
+/* Check the hidden state of an FMU state being restored (comp holds the state's variables,
+ * sample index, pending flag and hidden state; its parameters passed model_check): every value
+ * finite, in range (covariances P >= 0, flags 0 or 1, counts >= 0) and consistent (the
+ * constants derived from the parameters equal `fresh`'s, which model_start computed from
+ * them; a pending result matches the outputs).  Log each problem with model_log_error, naming
+ * the field, and return their number (0: the state may be restored). */
+int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh);
+
 /* ---- services of the plumbing (cosimulation.c) -------------------------------------------- */
 
 /* Log a message with status error (always forwarded to the host), prefixed with the instance

@@ -16,6 +16,11 @@ left a Real variable non-finite.  This module writes the scripts and judges the 
 
 Every script runs in its own process with a time limit: a signal is a crash, the limit a hang.
 ``python -m tests.fuzz.run --seconds 600`` runs random scripts for ten minutes.
+
+``differential.py`` (this folder) is the differential fuzz: one script on the Python FMU, the
+native FMI 2.0 FMU and the native FMI 3.0 FMU of a model, compared call by call
+(``python -m tests.fuzz.differential --seconds 1200``); ``native_state.py`` mirrors the native
+FMUs' serialised state for the field-by-field tampering test (tests/test_native_hardening.py).
 """
 import os
 import random

@@ -152,3 +152,18 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     h->lpy = lpy;
     return NULL; /* a pending sample at t + h: model_compute, from the inputs set there */
 }
+
+int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
+{
+    const ModelHidden *h = &comp->h;
+    return slave_hidden_derived(comp, "cfg", &h->cfg, &fresh->cfg, sizeof h->cfg) +
+           slave_hidden_derived(comp, "ax", &h->ax, &fresh->ax, sizeof h->ax) +
+           slave_hidden_derived(comp, "ay", &h->ay, &fresh->ay, sizeof h->ay) +
+           slave_hidden_flag(comp, "lp_set", h->lp_set) +
+           slave_hidden_flag(comp, "lpy_set", h->lpy_set) +
+           slave_hidden_flag(comp, "lp_pending_set", h->lp_pending_set) +
+           slave_hidden_flag(comp, "lpy_pending_set", h->lpy_pending_set) +
+           slave_hidden_real(comp, "lp", h->lp, 0) + slave_hidden_real(comp, "lpy", h->lpy, 0) +
+           slave_hidden_real(comp, "lp_pending", h->lp_pending, 0) +
+           slave_hidden_real(comp, "lpy_pending", h->lpy_pending, 0);
+}

@@ -1,6 +1,7 @@
 /* DriftEstimator_step: the per-sample logic of fmu_src/DriftEstimator.py (prepare, sample, hold
  * and check_parameters) as the MODEL HOOKS of model.h; see DriftEstimator_step.h. */
 #include <math.h>
+#include <stdio.h>
 
 #include "chain.h"
 #include "drift.h"
@@ -100,4 +101,36 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     }
     comp->h.state = s;
     return NULL; /* a pending sample at t + h: model_compute, from the z set there */
+}
+
+static int harmonic_state_problems(ModelInstance *comp, const char *which, const HarmonicState *s)
+{
+    char name[64];
+    int n = 0;
+#define REAL(field, nonneg)                                                                  \
+    do {                                                                                     \
+        snprintf(name, sizeof name, "%s.%s", which, #field);                                 \
+        n += slave_hidden_real(comp, name, s->field, nonneg);                                \
+    } while (0)
+    REAL(x, 0);
+    REAL(d, 0);
+    REAL(P, 1);
+    REAL(P12, 0);
+    REAL(P22, 1);
+    REAL(drift.s1, 0);
+    REAL(drift.dc2, 0);
+    REAL(drift.s3, 0);
+    REAL(drift.dc3, 0);
+#undef REAL
+    snprintf(name, sizeof name, "%s.drift.k", which);
+    return n + slave_hidden_count(comp, name, s->drift.k);
+}
+
+int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
+{
+    const ModelHidden *h = &comp->h;
+    return slave_hidden_derived(comp, "C", &h->C, &fresh->C, sizeof h->C) +
+           slave_hidden_derived(comp, "S", &h->S, &fresh->S, sizeof h->S) +
+           harmonic_state_problems(comp, "state", &h->state) +
+           harmonic_state_problems(comp, "pending", &h->pending);
 }

@@ -2,6 +2,7 @@
  * sample, hold and check_parameters) as the MODEL HOOKS of model.h; see
  * DualDriftEstimator_step.h. */
 #include <math.h>
+#include <stdio.h>
 
 #include "chain.h"
 #include "drift.h"
@@ -153,4 +154,45 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     }
     comp->h.state = s;
     return NULL; /* a pending sample at t + h: model_compute, from the inputs set there */
+}
+
+static int dual_state_problems(ModelInstance *comp, const char *which, const DualEstimator *s)
+{
+    char name[64];
+    int n = 0;
+#define REAL(field, nonneg)                                                                  \
+    do {                                                                                     \
+        snprintf(name, sizeof name, "%s.%s", which, #field);                                 \
+        n += slave_hidden_real(comp, name, s->field, nonneg);                                \
+    } while (0)
+    REAL(g.x, 0); REAL(g.y, 0); REAL(g.Pxx, 1); REAL(g.Pxy, 0); REAL(g.Pyy, 1);
+    REAL(h.x, 0); REAL(h.dx, 0); REAL(h.y, 0); REAL(h.dy, 0); REAL(h.P11, 1); REAL(h.P12, 0);
+    REAL(h.P22, 1); REAL(h.P33, 1); REAL(h.P34, 0); REAL(h.P44, 1); REAL(h.P13, 0);
+    REAL(h.P14, 0); REAL(h.P23, 0); REAL(h.P24, 0);
+    const DualDrift *drifts[2] = {&s->g.drift, &s->h.drift};
+    for (int i = 0; i < 2; i++) {
+        const DualDrift *d = drifts[i];
+        const double values[] = {d->s1xx, d->s1xy, d->s1yy, d->dc2x, d->dc2y, d->s3xx, d->s3xy,
+                                 d->s3yy, d->dc3x, d->dc3y};
+        static const char *names[] = {"s1xx", "s1xy", "s1yy", "dc2x", "dc2y", "s3xx", "s3xy",
+                                      "s3yy", "dc3x", "dc3y"};
+        for (size_t j = 0; j < sizeof values / sizeof values[0]; j++) {
+            snprintf(name, sizeof name, "%s.%s.drift.%s", which, i ? "h" : "g", names[j]);
+            n += slave_hidden_real(comp, name, values[j], 0);
+        }
+        snprintf(name, sizeof name, "%s.%s.drift.k", which, i ? "h" : "g");
+        n += slave_hidden_count(comp, name, d->k);
+    }
+#undef REAL
+    return n;
+}
+
+int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
+{
+    const ModelHidden *h = &comp->h;
+    return slave_hidden_derived(comp, "ax", &h->ax, &fresh->ax, sizeof h->ax) +
+           slave_hidden_derived(comp, "ay", &h->ay, &fresh->ay, sizeof h->ay) +
+           slave_hidden_derived(comp, "m", &h->m, &fresh->m, sizeof h->m) +
+           dual_state_problems(comp, "state", &h->state) +
+           dual_state_problems(comp, "pending", &h->pending);
 }

@@ -1,6 +1,7 @@
 /* Excitation_step: the per-sample logic of fmu_src/Excitation.py (start, sample, hold and
  * check_parameters) as the MODEL HOOKS of model.h; see Excitation_step.h. */
 #include <math.h>
+#include <stdio.h>
 
 #include "excitation.h"
 #include "model.h"
@@ -98,4 +99,25 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     comp->h.has_pending = 0;
     if (plan->end_pending) return make_pending(comp, plan->k_end);
     return NULL;
+}
+
+int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
+{
+    (void)fresh;
+    const ModelHidden *h = &comp->h;
+    int n = slave_hidden_real(comp, "x", h->x, 0) + slave_hidden_real(comp, "y", h->y, 0) +
+            slave_hidden_flag(comp, "has_pending", h->has_pending) +
+            slave_hidden_real(comp, "x_pending", h->x_pending, 0) +
+            slave_hidden_real(comp, "y_pending", h->y_pending, 0);
+    if (n == 0 && h->has_pending != comp->pending) {
+        model_log_error(comp, "hidden has_pending = %d with pending = %d; allowed: equal",
+                        (int)h->has_pending, comp->pending);
+        n++;
+    }
+    if (n == 0 && h->has_pending && (h->x_pending != comp->v.x || h->y_pending != comp->v.y)) {
+        model_log_error(comp, "hidden x_pending, y_pending are not the outputs x, y of the "
+                        "pending sample; allowed: equal");
+        n++;
+    }
+    return n;
 }

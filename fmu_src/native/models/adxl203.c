@@ -64,6 +64,7 @@ double adxl203_quantise(double V, const Config *cfg)
 {
     double code, top;
     if (!cfg->levels) return V;
+    if (!(V - V == 0.0)) return V; /* non-finite: named by the FMU, not clipped */
     code = ops_floor(V / cfg->lsb + 0.5);
     code = code < 0.0 ? 0.0 : code;
     top = (double)cfg->levels - 1.0;

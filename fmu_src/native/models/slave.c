@@ -1,4 +1,5 @@
 /* slave: see slave.h. */
+#include <math.h>
 #include <stdio.h>
 #include <string.h>
 
@@ -57,4 +58,50 @@ int slave_check_nyquist(ModelInstance *comp, double f, double Ts)
     snprintf(msg, sizeof msg, "f = %s Hz is at or above the Nyquist rate 1/(2 Ts) = %s Hz; "
              "allowed: f < %s Hz", rf, rn, rn);
     return slave_problem(comp, msg);
+}
+
+/* ---- checks of a restored hidden state ---------------------------------------------------- */
+
+int slave_hidden_real(ModelInstance *comp, const char *name, double value, int nonnegative)
+{
+    char b[32];
+    if (!isfinite(value)) {
+        model_log_error(comp, "hidden %s = %s is not finite; allowed: a finite number", name,
+                        (parameters_repr_float(value, b, sizeof b), b));
+        return 1;
+    }
+    if (nonnegative && !(value >= 0.0)) {
+        model_log_error(comp, "hidden %s = %s is a negative variance; allowed: %s >= 0", name,
+                        (parameters_repr_float(value, b, sizeof b), b), name);
+        return 1;
+    }
+    return 0;
+}
+
+int slave_hidden_flag(ModelInstance *comp, const char *name, int64_t value)
+{
+    if (value == 0 || value == 1)
+        return 0;
+    model_log_error(comp, "hidden %s = %lld is not a flag; allowed: 0 or 1", name,
+                    (long long)value);
+    return 1;
+}
+
+int slave_hidden_count(ModelInstance *comp, const char *name, int64_t value)
+{
+    if (value >= 0)
+        return 0;
+    model_log_error(comp, "hidden %s = %lld is not a count; allowed: %s >= 0", name,
+                    (long long)value, name);
+    return 1;
+}
+
+int slave_hidden_derived(ModelInstance *comp, const char *name, const void *a, const void *b,
+                         size_t n)
+{
+    if (memcmp(a, b, n) == 0)
+        return 0;
+    model_log_error(comp, "hidden %s does not follow from the parameters; allowed: the values "
+                    "the parameters of the state give", name);
+    return 1;
 }

@@ -25,4 +25,14 @@ int slave_problem(ModelInstance *comp, const char *message);
  * is not positive: its own range check refuses it). */
 int slave_check_nyquist(ModelInstance *comp, double f, double Ts);
 
+/* Checks of a restored hidden state (model_hidden_problems), each logging one problem named
+ * "hidden <name> = <value> ..." and returning 1 (0 when the value is good): a finite number
+ * (>= 0 with nonnegative: a variance), a flag 0 or 1, a count >= 0, and a constant derived
+ * from the parameters equal to the one model_start computes (n bytes at a and b). */
+int slave_hidden_real(ModelInstance *comp, const char *name, double value, int nonnegative);
+int slave_hidden_flag(ModelInstance *comp, const char *name, int64_t value);
+int slave_hidden_count(ModelInstance *comp, const char *name, int64_t value);
+int slave_hidden_derived(ModelInstance *comp, const char *name, const void *a, const void *b,
+                         size_t n);
+
 #endif

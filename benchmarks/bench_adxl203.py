@@ -1,0 +1,137 @@
+"""Wall time of ``driftfmu experiment adxl203`` (the letter's Sec. IV at paper size: 5
+frequencies x 30 sets x 60,000 samples) against the way it ran before, in the same run.
+
+- now: :func:`driftfmu.simulations.adxl203.run_adxl203` as it is (the fast master with the FMUs'
+  libraries kept loaded in each worker; every held-out set checked against the C port of
+  ``models.adxl203.simulate`` in the compiled kernel), files and figures written;
+- baseline: the same function with the worker of before (:func:`baseline_run_set`: fmpy's
+  wrappers for the Python FMUs, the fast master without reuse for the native ones, lists, and
+  every held-out set checked against ``models.adxl203.simulate`` run sample by sample in pure
+  Python), files and figures written.
+
+Both must give the same summary, bit for bit (checked here, times aside).  Prints where the time
+goes (from the summary's ``timing``) and the goals: at most 5 s (native FMUs), 60 s (Python
+FMUs).  Not a pytest test:
+
+    python benchmarks/bench_adxl203.py [--backend native|python] [--sets 30] [--n 60000]
+                                       [--freqs 100,125,150,175,200] [--no-baseline]
+"""
+import argparse
+import json
+import os
+import platform
+import sys
+import tempfile
+import time
+
+from driftfmu.models import adxl203, identify
+from driftfmu.simulations import adxl203 as experiment
+from driftfmu.simulations.gaussian import fmu_paths, master
+from driftfmu.simulations.sinusoidal import CONNECTIONS
+
+from machine import cpu
+
+GOALS = {"native": 5.0, "python": 60.0}
+
+
+def baseline_run_set(task):
+    """The experiment's worker as it was before the speed-up (same results, slower)."""
+    paths, f, seed, n, Ts, model, validate, backend = task
+    t0 = time.perf_counter()
+    cosimulate = master(backend)
+    ex = dict(experiment.set_drive(seed, f), Ts=Ts)
+    sp = dict(adxl203.ADXL203, seed=seed, Ts=Ts, noise=1)
+    if model is None:
+        fmus = {k: paths[k] for k in ("Excitation", "Accelerometer")}
+        raw = cosimulate(fmus, CONNECTIONS[:2], n, Ts, start_values={
+            "Excitation": ex, "Accelerometer": sp}, record={"Excitation": ["x"],
+                                                          "Accelerometer": ["z"]})
+        t1 = time.perf_counter()
+        fit = identify.fit_set(raw["time"], raw["Excitation.x"], raw["Accelerometer.z"], f,
+                               skip=adxl203.settling_samples(sp["fc"], Ts))
+        return {"fit": fit._asdict(), "seconds": {"simulation": t1 - t0,
+                                                  "identification": time.perf_counter() - t1}}
+    es = experiment.estimator_values(model, f, Ts)
+    record = experiment.RECORD
+    raw = cosimulate(paths, CONNECTIONS, n, Ts, start_values={
+        "Excitation": ex, "Accelerometer": sp, "DriftEstimator": es}, record=record)
+    t1 = time.perf_counter()
+    z = raw["Accelerometer.z"]
+    m = identify.whole_periods(n, f, Ts)
+    res = {"dc_empirical": sum(z[:m]) / m - model["a0"],
+           "dc_ekf1": raw["DriftEstimator.dc_ekf1"][-1],
+           "dc_true": experiment.true_drift(ex, sp),
+           "trace": [(k, raw["DriftEstimator.dc_ekf1"][k - 1])
+                     for k in experiment._log_samples(n)]}
+    t2 = time.perf_counter()
+    if validate:
+        ref = adxl203.simulate(n, ex, sp, es, Ts)
+        res["max_abs_diff"] = max(max(abs(a - b) for a, b in zip(raw["%s.%s" % (fmu, v)],
+                                                                 ref[v]))
+                                  for fmu, names in record.items() for v in names)
+    res["seconds"] = {"simulation": t1 - t0, "identification": t2 - t1,
+                      "validation": time.perf_counter() - t2}
+    return res
+
+
+def run(args, worker):
+    """One experiment with ``worker`` as the set worker: (wall seconds, summary, JSON)."""
+    original = experiment._run_set
+    experiment._run_set = worker  # workers are forked: they see this module as it is now
+    try:
+        with tempfile.TemporaryDirectory() as out:
+            t0 = time.perf_counter()
+            s = experiment.run_adxl203(out=out, freqs=args.freqs, sets=args.sets,
+                                       held_out=experiment.default_held_out(args.sets),
+                                       n=args.n, fmu_dir=args.fmu_dir, backend=args.backend)
+            wall = time.perf_counter() - t0
+            with open(os.path.join(out, "adxl203.json")) as fh:
+                js = json.load(fh)
+    finally:
+        experiment._run_set = original
+    for key in ("wall_time_s", "workers", "backend", "timing"):
+        js.pop(key)
+    js["validation"].pop("reference")
+    return wall, s, js
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--backend", choices=("native", "python"), default="native")
+    ap.add_argument("--sets", type=int, default=experiment.SETS)
+    ap.add_argument("--n", type=int, default=experiment.N)
+    ap.add_argument("--freqs", type=lambda t: [float(v) for v in t.split(",")],
+                    default=list(experiment.FREQS))
+    ap.add_argument("--no-baseline", action="store_true", help="skip the run of before")
+    ap.add_argument("--fmu-dir", default="build/fmus")
+    args = ap.parse_args(argv)
+    fmu_paths(args.fmu_dir, args.backend)
+    from driftfmu.simulations import kernel
+    kernel.library()
+    load = os.getloadavg()
+    wall, s, now = run(args, experiment._run_set)
+    print("machine: %s, %s, %d cores, Python %s; load average before %s"
+          % (platform.machine(), cpu(), os.cpu_count() or 0, platform.python_version(),
+             " ".join("%.2f" % v for v in load)))
+    print("experiment adxl203, %s FMUs, %d frequencies x %d sets x %d samples, %d workers"
+          % (args.backend, len(args.freqs), args.sets, args.n, s["workers"]))
+    print("now:      %.2f s wall (goal <= %g s at paper size); margins %s dB; max |FMU - "
+          "reference| %g" % (wall, GOALS[args.backend], ", ".join(
+              "%.2f" % p["margin_db"] for p in s["per_frequency"]),
+              s["validation"]["max_abs_diff"]))
+    print("          " + experiment.timing_line(s["timing"]))
+    if not args.no_baseline:
+        old_wall, old, before = run(args, baseline_run_set)
+        print("baseline: %.2f s wall (the worker of before: %s, pure-Python check)"
+              % (old_wall, "fmpy's wrappers" if args.backend == "python"
+                 else "fast master, FMUs loaded per set"))
+        print("          " + experiment.timing_line(old["timing"]))
+        print("baseline / now: %.1f x; summaries equal bit for bit (times aside): %s"
+              % (old_wall / wall, now == before))
+        if now != before:
+            sys.exit(1)
+    print("load average after: %s" % " ".join("%.2f" % v for v in os.getloadavg()))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,593 @@
+"""The public Python API of driftfmu (re-exported by :mod:`driftfmu`).
+
+Small and in the style of FMPy's ``simulate_fmu``: :func:`build_fmus` builds the FMUs,
+:func:`simulate` co-simulates any subset of them and returns a structured NumPy array whose
+first field is ``time``, and one function per experiment of the letter returns its results.
+Everything else in the package (``driftfmu.models``, ``driftfmu.simulations``,
+``driftfmu.fmu_src``) is internal: it may change between versions.
+
+Heavy imports (NumPy, fmpy, the masters) happen inside the functions, so ``import driftfmu``
+stays cheap.
+"""
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Callable, Dict, Mapping, Optional, Sequence, Union
+
+if TYPE_CHECKING:  # pragma: no cover
+    import numpy as np
+
+PathLike = Union[str, Path]
+
+#: The four FMUs, in the order a Gauss-Seidel master steps them.
+FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
+
+#: The default wiring of the chain: (source FMU, output, destination FMU, input).  Of these,
+#: :func:`simulate` uses the connections whose two FMUs are both simulated.
+CONNECTIONS = (
+    ("Excitation", "x", "Accelerometer", "x"),
+    ("Excitation", "y", "Accelerometer", "y"),
+    ("Accelerometer", "z", "DriftEstimator", "z"),
+    ("Accelerometer", "z", "DualDriftEstimator", "z_x"),
+    ("Accelerometer", "z_y", "DualDriftEstimator", "z_y"),
+)
+
+#: The FMU kinds: ``"python"`` (pythonfmu, FMI 2.0) and ``"native"`` (C, FMI 2.0 or 3.0).
+BACKENDS = ("python", "native")
+
+
+def _check_choice(name: str, value: Any, allowed: Sequence[Any]) -> None:
+    if value not in allowed:
+        from driftfmu.simulations.errors import UsageError
+        raise UsageError("%s = %r is not allowed; allowed: %s"
+                         % (name, value, ", ".join(repr(a) for a in allowed)))
+
+
+def _quiet_log(line: str) -> None:
+    """Build progress is dropped; a build warning becomes a Python warning."""
+    if line.startswith("warning"):
+        warnings.warn(line, stacklevel=3)
+
+
+def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python", fmi_version: int = 2,
+               names: Optional[Sequence[str]] = None,
+               log: Optional[Callable[[str], None]] = None) -> Dict[str, Path]:
+    """Build and validate the FMUs.
+
+    Parameters
+    ----------
+    out_dir : str or pathlib.Path
+        Folder of the Python FMUs (``<out_dir>/<Name>.fmu``); the native FMUs go to
+        ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where :func:`simulate` looks for them.
+        Created if missing; an FMU is moved into place only once it validates.
+    backend : {"python", "native"}
+        ``"python"``: pythonfmu FMUs (FMI 2.0, Linux x86-64; the model runs in the host's
+        CPython).  ``"native"``: the C twins, source FMUs with Linux and Windows binaries.
+    fmi_version : {2, 3}
+        FMI version of the native FMUs; the Python FMUs are FMI 2.0 only.
+    names : sequence of str, optional
+        Which FMUs (default: all four, :data:`FMU_NAMES`).
+    log : callable, optional
+        Receives one progress line per FMU; by default progress is silent and build warnings
+        (e.g. no C compiler for the loader shim) become Python warnings.
+
+    Returns
+    -------
+    dict of str to pathlib.Path
+        FMU name -> path of the built ``.fmu``.
+
+    Raises
+    ------
+    ValueError
+        ``backend``, ``fmi_version`` or a name is not allowed (the message says what is).
+    RuntimeError
+        An FMU could not be built or does not validate.
+
+    Examples
+    --------
+    >>> import driftfmu
+    >>> paths = driftfmu.build_fmus("build/fmus")                      # doctest: +SKIP
+    >>> sorted(paths)                                                  # doctest: +SKIP
+    ['Accelerometer', 'DriftEstimator', 'DualDriftEstimator', 'Excitation']
+    """
+    _check_choice("backend", backend, BACKENDS)
+    _check_choice("fmi_version", fmi_version, (2,) if backend == "python" else (2, 3))
+    names = tuple(FMU_NAMES if names is None else names)
+    for name in names:
+        _check_choice("FMU name", name, FMU_NAMES)
+    log = _quiet_log if log is None else log
+    if backend == "python":
+        from driftfmu.fmu_src.builder import build_fmus as _build
+        return {Path(p).stem: Path(p) for p in _build(out_dir, names=names, log=log)}
+    from driftfmu.fmu_src.native_build import build_native_fmus
+    built = build_native_fmus(Path(out_dir) / "native", names=names, fmi_versions=(fmi_version,),
+                              log=log)
+    return {name: Path(p) for name, p in built[fmi_version].items()}
+
+
+def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
+               fmu_dir: PathLike) -> Dict[str, Path]:
+    """Paths of ``names``; the missing ones are built first."""
+    fmu_dir = Path(fmu_dir)
+    if backend == "python":
+        paths = {n: fmu_dir / ("%s.fmu" % n) for n in names}
+    else:
+        paths = {n: fmu_dir / "native" / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in names}
+    missing = [n for n, p in paths.items() if not p.is_file()]
+    if missing:
+        build_fmus(fmu_dir, backend=backend, fmi_version=fmi_version, names=missing)
+    return paths
+
+
+def _variables(path: Path) -> Dict[str, Any]:
+    from fmpy import read_model_description
+    return {v.name: v for v in read_model_description(str(path)).modelVariables}
+
+
+def _split_name(name: str, names: Sequence[str]) -> tuple:
+    """``"FMU.var"`` -> (FMU, var) when FMU is simulated, else (None, name)."""
+    fmu, dot, var = name.partition(".")
+    if dot and fmu in names:
+        return fmu, var
+    return None, name
+
+
+def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimator"),
+             stop_time: Optional[float] = None, step_size: Optional[float] = None,
+             start_values: Optional[Mapping[str, float]] = None,
+             input: Optional["np.ndarray"] = None, output: Optional[Sequence[str]] = None,
+             backend: str = "python", fmi_version: int = 2, fmu_dir: PathLike = "build/fmus",
+             start_time: float = 0.0) -> "np.ndarray":
+    """Co-simulate the chain, or any subset of its FMUs, and return the results.
+
+    The FMUs are stepped Gauss-Seidel in the order Excitation -> Accelerometer ->
+    DriftEstimator -> DualDriftEstimator along :data:`CONNECTIONS` (no lag: row ``k`` holds
+    ``x_k``, its measurement ``z_k`` and the estimator's ``k``-th update).  Sample ``k`` of an
+    FMU sits at ``start_time + (k - 1) Ts``; any ``step_size > 0`` is allowed (several samples
+    per step, or several steps per sample, with the inputs held between sample instants).
+
+    Parameters
+    ----------
+    fmus : sequence of str
+        The FMUs to simulate, a subset of :data:`FMU_NAMES` (default: the letter's chain).
+    stop_time : float, optional
+        End of the simulation [s]; default 2.0 s, the FMUs' default experiment.
+    step_size : float, optional
+        Communication step [s]; default the sample period ``Ts`` from ``start_values``, else
+        1 ms.
+    start_values : dict of str to float, optional
+        Parameter values by name.  A plain name (``"a2"``, ``"seed"``, ``"Ts"``) is set in
+        every simulated FMU that has the variable; ``"Accelerometer.a2"`` sets it in one FMU.
+        Unset parameters keep the FMUs' defaults (the letter's settings).
+    input : numpy.ndarray, optional
+        A structured array with a first field ``time`` and one field per input variable it
+        drives (``"x"`` or ``"Accelerometer.x"``), like FMPy's ``input``.  At each
+        communication point ``t`` the input takes the value of the last row with
+        ``time <= t`` (zero-order hold; the first row before its time).  An input that an
+        FMU of ``fmus`` already drives through a connection cannot also be given here.
+    output : sequence of str, optional
+        Variables to record (``"z"`` or ``"Accelerometer.z"``); a plain name is recorded from
+        the FMUs that output it (else from any that has it).  Default: every output of the
+        simulated FMUs.
+    backend : {"python", "native"}
+        Which FMUs: the pythonfmu FMUs or their native C twins (the same results bit for bit).
+    fmi_version : {2, 3}
+        FMI version of the native FMUs (the Python FMUs are FMI 2.0).
+    fmu_dir : str or pathlib.Path
+        Where the FMUs are (as :func:`build_fmus` writes them); missing ones are built.
+    start_time : float
+        Start of the simulation [s].
+
+    Returns
+    -------
+    numpy.ndarray
+        A structured array with one row per communication point
+        ``start_time, start_time + step_size, ..., stop_time`` and the fields ``time`` first,
+        then the recorded variables in the order of ``fmus``.  A field is named by the
+        variable (``"z"``); when two simulated FMUs record a variable of the same name, both
+        fields are named ``"<FMU>.<variable>"``.
+
+    Raises
+    ------
+    ValueError
+        An FMU, variable, backend, step or time is not allowed (the message names it and
+        what is allowed), or a parameter value is refused by an FMU.
+    RuntimeError
+        An FMU call failed (the message holds the FMUs' log).
+
+    See Also
+    --------
+    run_gaussian : the letter's Gaussian run with its summary and reference checks.
+
+    Examples
+    --------
+    >>> import driftfmu
+    >>> result = driftfmu.simulate(stop_time=0.5, start_values={"a2": 0.02, "seed": 3})
+    ...                                                                # doctest: +SKIP
+    >>> result.dtype.names[:3]                                         # doctest: +SKIP
+    ('time', 'x', 'z')
+    """
+    import math
+
+    import numpy as np
+
+    from driftfmu.simulations.errors import UsageError
+
+    names = list(fmus)
+    if not names:
+        raise UsageError("fmus = [] is not allowed; allowed: one or more of %s"
+                         % ", ".join(FMU_NAMES))
+    for name in names:
+        _check_choice("FMU name", name, FMU_NAMES)
+    if len(set(names)) != len(names):
+        raise UsageError("fmus = %r names an FMU twice; allowed: each at most once" % (names,))
+    names = [n for n in FMU_NAMES if n in names]  # the Gauss-Seidel order
+    _check_choice("backend", backend, BACKENDS)
+    _check_choice("fmi_version", fmi_version, (2,) if backend == "python" else (2, 3))
+    start_values = dict(start_values or {})
+    if step_size is None:
+        ts = start_values.get("Ts")
+        step_size = float(ts) if isinstance(ts, (int, float)) else 1e-3
+    stop_time = 2.0 if stop_time is None else float(stop_time)
+    start_time = float(start_time)
+    if not (math.isfinite(step_size) and step_size > 0):
+        raise UsageError("step_size = %r is not allowed; allowed: a finite number > 0"
+                         % (step_size,))
+    if not (math.isfinite(start_time) and math.isfinite(stop_time) and stop_time >= start_time):
+        raise UsageError("start_time = %r, stop_time = %r are not allowed; allowed: finite, "
+                         "stop_time >= start_time" % (start_time, stop_time))
+    n_steps = int(round((stop_time - start_time) / step_size)) + 1
+
+    paths = _fmu_paths(names, backend, fmi_version, fmu_dir)
+    variables = {n: _variables(paths[n]) for n in names}
+    connections = [c for c in CONNECTIONS if c[0] in names and c[2] in names]
+    connected = {(d, i) for _, _, d, i in connections}
+
+    # start values: plain names go to every FMU that has the parameter
+    per_fmu = {n: {} for n in names}
+    for key, value in start_values.items():
+        fmu, var = _split_name(key, names)
+        targets = [fmu] if fmu else [n for n in names if var in variables[n]]
+        targets = [t for t in targets if var in variables[t]
+                   and variables[t][var].causality == "parameter"]
+        if not targets:
+            raise UsageError("start value %r is not a parameter of %s; allowed: %s" % (
+                key, " or ".join(names),
+                ", ".join(sorted({v for n in names for v, mv in variables[n].items()
+                                  if mv.causality == "parameter"}))))
+        for t in targets:
+            per_fmu[t][var] = value
+
+    # external inputs, sampled with a zero-order hold at the communication points
+    feeds = {}
+    if input is not None:
+        fields = input.dtype.names or ()
+        if not fields or fields[0] != "time":
+            raise UsageError("input has fields %r; allowed: a structured array whose first "
+                             "field is 'time'" % (fields,))
+        times = np.asarray(input["time"], dtype=float)
+        if times.ndim != 1 or times.size == 0 or np.any(np.diff(times) < 0):
+            raise UsageError("input['time'] must be a non-empty, non-decreasing 1-D array")
+        grid = start_time + step_size * np.arange(n_steps)
+        rows = np.clip(np.searchsorted(times, grid + 1e-9 * step_size, side="right") - 1,
+                       0, times.size - 1)
+        for key in fields[1:]:
+            fmu, var = _split_name(key, names)
+            targets = [fmu] if fmu else [n for n in names if var in variables[n]
+                                         and variables[n][var].causality == "input"]
+            targets = [t for t in targets if var in variables[t]
+                       and variables[t][var].causality == "input"]
+            if not targets:
+                raise UsageError("input field %r is not an input of %s; allowed: %s" % (
+                    key, " or ".join(names),
+                    ", ".join(sorted({v for n in names for v, mv in variables[n].items()
+                                      if mv.causality == "input"})) or "none"))
+            values = np.asarray(input[key], dtype=float)[rows]
+            for t in targets:
+                if (t, var) in connected:
+                    raise UsageError("input field %r drives %s.%s, which the connection from "
+                                     "%s already drives; allowed: inputs of FMUs whose source "
+                                     "is not simulated" % (key, t, var, " ".join(
+                                         c[0] for c in connections if c[2:] == (t, var))))
+                feeds.setdefault(t, {})[var] = values.tolist()
+
+    # what to record
+    if output is None:
+        record = {n: [v for v, mv in variables[n].items() if mv.causality == "output"]
+                  for n in names}
+    else:
+        record = {n: [] for n in names}
+        for key in output:
+            fmu, var = _split_name(key, names)
+            if fmu:
+                owners = [fmu] if var in variables[fmu] else []
+            else:  # a plain name: the FMUs that output it, else any that has it
+                owners = ([n for n in names if var in variables[n]
+                           and variables[n][var].causality == "output"]
+                          or [n for n in names if var in variables[n]])
+            if not owners:
+                raise UsageError("output %r is not a variable of %s" % (key, " or ".join(names)))
+            for o in owners:
+                if var not in record[o]:
+                    record[o].append(var)
+    record = {n: vs for n, vs in record.items() if vs}
+
+    from driftfmu.simulations.cosim import cosimulate
+    if backend == "native" and not feeds:
+        from driftfmu.simulations.fastcosim import cosimulate_fast
+        raw = cosimulate_fast(paths, connections, n_steps, step_size, start_values=per_fmu,
+                              record=record, start_time=start_time)
+    else:
+        raw = cosimulate(paths, connections, n_steps, step_size, start_values=per_fmu,
+                         record=record, start_time=start_time, inputs=feeds)
+
+    keys = [(n, v) for n, vs in record.items() for v in vs]
+    counts: Dict[str, int] = {}
+    for _, v in keys:
+        counts[v] = counts.get(v, 0) + 1
+    fields = ["time"] + [v if counts[v] == 1 else "%s.%s" % (n, v) for n, v in keys]
+    result = np.empty(n_steps, dtype=[(f, np.float64) for f in fields])
+    result["time"] = raw["time"]
+    for field, (n, v) in zip(fields[1:], keys):
+        result[field] = raw["%s.%s" % (n, v)]
+    return result
+
+
+def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str = "python",
+                 fmu_dir: PathLike = "build/fmus", **parameters: float) -> Dict[str, Any]:
+    """The letter's Sec. III simulation (Fig. 1): one Gaussian co-simulation, checked.
+
+    Excitation (Gauss-Markov ``x_k = A x_{k-1} + w_k``) -> Accelerometer
+    (``z = a0 + a1 x + a2 x^2 + v``) -> DriftEstimator, one row per sample; every FMU output
+    is checked against ``driftfmu.models`` run directly on the same seed.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path, optional
+        If given, ``results.csv``, ``summary.json`` and ``drift.png`` are written there (all
+        or none), as ``driftfmu run gaussian --out`` does.
+    n : int
+        Number of samples.
+    backend : {"python", "native"}
+        Which FMUs run (the same results bit for bit).
+    fmu_dir : str or pathlib.Path
+        Where the FMUs are; missing ones are built.
+    **parameters : float
+        The letter's names: ``a0, a1, a2, A, Q, R, seed, Ts, x0, P0, estimator``
+        (defaults: the letter's settings, ``a1 = 1, a2 = 0.01, Q = 0.01, R = 1e-4, A = 0``,
+        seed 1).
+
+    Returns
+    -------
+    dict
+        ``"columns"``: the results table, column name -> list (``time``, ``x``, ``z``,
+        ``x_hat``, ``P``, ``dc_ekf1..3``, ``z_comp`` and the three drift references);
+        ``"summary"``: final drifts, the EKF1-EKF2 gap and from which sample each estimator
+        stays within 10 % of the realised drift.
+
+    Raises
+    ------
+    ValueError
+        A parameter is out of range (the message names it and what is allowed).
+    RuntimeError
+        An FMU output differs from the models/ reference, or an FMU call failed.
+    """
+    from driftfmu.simulations.gaussian import run_gaussian as _run
+    return _run(out=out, n=n, backend=backend, fmu_dir=fmu_dir, plot=out is not None,
+                **parameters)
+
+
+def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: str = "python",
+                   fmu_dir: PathLike = "build/fmus", **parameters: Any) -> Dict[str, Any]:
+    """One co-simulation under a sinusoidal drive ``x_k = X sin(2 pi f t_k + phi)``.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path, optional
+        If given, ``results.csv``, ``summary.json`` and ``drift.png`` are written there.
+    n : int
+        Number of samples.
+    backend : {"python", "native"}
+        Which FMUs run.
+    fmu_dir : str or pathlib.Path
+        Where the FMUs are; missing ones are built.
+    **parameters
+        ``X, f, phi, Ts, seed, a0, a1, a2, R``, the filter's ``process`` (1 Gauss-Markov,
+        2 harmonic at ``f``), ``Qh, A, Q, P0, x0, estimator``, ``preset="adxl203"`` for the
+        ADXL203 stand-in, ``Xy, phiy`` for a second axis (defaults: ``X = 1 g``,
+        ``f = 150 Hz``, the letter's sensor).
+
+    Returns
+    -------
+    dict
+        ``"columns"`` (the results table) and ``"summary"``, as :func:`run_gaussian`.
+
+    Raises
+    ------
+    ValueError
+        A parameter is out of range, e.g. ``f`` at or above the Nyquist rate ``1/(2 Ts)``.
+    RuntimeError
+        An FMU output differs from the models/ reference, or an FMU call failed.
+    """
+    from driftfmu.simulations.sinusoidal import run_sinusoidal as _run
+    return _run(out=out, n=n, backend=backend, fmu_dir=fmu_dir, plot=out is not None,
+                **parameters)
+
+
+def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
+               out: Optional[PathLike] = None, *, engine: str = "batch",
+               **parameters: Any) -> Dict[str, Any]:
+    """Fig. 1 over a population: ``runs`` whole trajectories of ``n`` samples.
+
+    Run ``r`` uses FMU seed ``seed + r``; the batch engine gives the FMUs' results bit for bit.
+
+    Parameters
+    ----------
+    kind : {"gaussian", "sinusoidal"}
+        Gauss-Markov state, or a sinusoid with a random phase per run.
+    runs, n : int
+        Number of runs and of samples per run.
+    out : str or pathlib.Path, optional
+        If given, ``montecarlo.npz``, ``summary.json`` and the figure are written there.
+    engine : {"batch", "fmu"}
+        The batch engine (NumPy, runs on the leading axis) or the FMUs.
+    **parameters
+        The letter's names (``a0, a1, a2, A, Q, R, seed, Ts``; for ``"sinusoidal"`` also
+        ``X, f``) and the engine's options (``workers``, ``scheduler`` (a Dask address),
+        ``client``, ``backend``, ``fmu_dir``).
+
+    Returns
+    -------
+    dict
+        The arrays of ``montecarlo.npz`` (each ``(runs, n)``) and ``"summary"``: the
+        fractions of runs settled by sample 250 against the realised and the empirical
+        drift, and the EKF1-EKF2 gap.
+
+    Raises
+    ------
+    ValueError
+        ``kind`` or a parameter is not allowed.
+    """
+    _check_choice("kind", kind, ("gaussian", "sinusoidal"))
+    from driftfmu.simulations import montecarlo as _mc
+    fn = _mc.montecarlo_gaussian if kind == "gaussian" else _mc.montecarlo_sinusoidal
+    return fn(runs=runs, n=n, out=out, engine=engine, plot=out is not None, **parameters)
+
+
+def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = None,
+          runs: int = 1000, n: int = 1000, out: Optional[PathLike] = None,
+          **parameters: Any) -> Dict[str, Any]:
+    """Figs. 2-3: EKF1's and EKF3's mean error over a grid of ``a2`` and ``R``.
+
+    Parameters
+    ----------
+    a2, R : sequence of float, optional
+        The grid; defaults ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)``.
+    runs, n : int
+        Monte-Carlo runs per grid point and samples per run.
+    out : str or pathlib.Path, optional
+        If given, ``sweep.npz``, ``sweep.csv``, ``fig2.png`` and ``fig3.png`` are written.
+    **parameters
+        ``a0, a1, Q, A, seed, Ts`` and the engine's options (``engine``, ``workers``,
+        ``scheduler`` (a Dask address), ``client``, ``chunk``, ``fmu_dir``).
+
+    Returns
+    -------
+    dict
+        ``grid_a2``, ``grid_R`` and the final values of each run, ``grid_dc1``, ``grid_dc2``,
+        ``grid_dc3`` (EKF1-3), ``grid_zbar`` and ``grid_x2bar`` (the running means of ``z`` and
+        ``x^2``), each of shape ``(len(a2), len(R), runs)``; ``table``, the columns of
+        ``sweep.csv`` (mean errors per grid point against the realised, empirical and expected
+        drift); ``seconds``, the wall time of the runs.
+
+    Raises
+    ------
+    ValueError
+        A grid value or parameter is not allowed.
+    """
+    from driftfmu.simulations import sweep as _sweep
+    if a2 is not None:
+        parameters["a2"] = a2
+    if R is not None:
+        parameters["R"] = R
+    return _sweep.sweep(runs=runs, n=n, out=out, plot=out is not None, **parameters)
+
+
+def experiment_adxl203(out: Optional[PathLike] = None, **settings: Any) -> Dict[str, Any]:
+    """The letter's Sec. IV (Figs. 4-5) on the ADXL203 stand-in, through the FMUs.
+
+    Per drive frequency, ``sets`` recordings are co-simulated; one 2nd-order model is fitted
+    on all but the last ``held_out`` sets, and EKF1 runs on those.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path, optional
+        If given, ``adxl203.csv``, ``.json``, ``.npz``, ``fig4.png`` and ``fig5.png``.
+    **settings
+        ``freqs`` (Hz, default 100..200 by 25), ``sets`` (30), ``held_out`` (``sets // 6``),
+        ``n`` (60,000 samples per set), ``Ts``, ``seed``, ``workers``, ``backend``,
+        ``fmu_dir``.  The full size takes minutes; ``sets=6, n=6000`` about ten seconds.
+
+    Returns
+    -------
+    dict
+        The summary: ``"per_frequency"`` holds each frequency's fitted model, drift, rms
+        difference of EKF1 and the margin in dB.
+
+    Raises
+    ------
+    ValueError
+        A setting is not allowed (e.g. more held-out sets than the fit can spare).
+    """
+    from driftfmu.simulations.adxl203 import run_adxl203
+    return run_adxl203(out=out, plot=out is not None, **settings)
+
+
+def experiment_dual_axis(out: Optional[PathLike] = None, **settings: Any) -> Dict[str, Any]:
+    """Drift from axis cross-correlation (the letter's conclusion): dual- vs single-axis EKF1.
+
+    Parameters
+    ----------
+    out : str or pathlib.Path, optional
+        If given, ``dual_axis.csv``, ``dual_axis.json`` and ``dual_axis.png``.
+    **settings
+        ``points`` per sweep, ``runs``, ``engine`` (``"fmu"`` or ``"batch"``), ``seed``,
+        ``backend``, ``workers``, ``scheduler``, ``fmu_dir`` and the model's settings.
+
+    Returns
+    -------
+    dict
+        The summary (the content of ``dual_axis.json``): per sweep point and axis the
+        single- and dual-axis errors, the cross-term drift and the checks.
+
+    Raises
+    ------
+    ValueError
+        A setting is not allowed.
+    """
+    from driftfmu.simulations.dual_axis import run_dual_axis
+    return run_dual_axis(out=out, plot=out is not None, **settings)
+
+
+def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
+             out: Optional[PathLike] = None) -> Dict[str, Any]:
+    """Fit ``a0, a1, a2, R`` of the sensor from recordings driven by a sinusoid at ``f``.
+
+    Harmonic analysis over whole periods of the known drive, not a sample-by-sample
+    regression (an output filter's delay would count as noise); EKF1 then runs on the last
+    ``held_out`` recordings (their ``z`` only).
+
+    Parameters
+    ----------
+    files : sequence of str or pathlib.Path
+        CSV recordings with a header row and the columns ``time, x, z`` (``x`` the known
+        drive [g], ``z`` the sensor output [V]), uniformly sampled.
+    f : float
+        Drive frequency [Hz].
+    held_out : int
+        How many of the last files are not fitted but run EKF1.
+    out : str or pathlib.Path, optional
+        If given, ``identify.json`` (and with ``held_out``, ``identify.csv``).
+
+    Returns
+    -------
+    dict
+        ``"model"``: the fitted ``a0, a1, a2, R`` averaged over the fitted files, with their
+        spread ``sd_a0 .. sd_R`` (None for one file) and ``sets``; ``"fits"``: one fit per
+        file (``a0, a1, a2, R``, the drive's ``X``, ``phi``, ``lag``, ``samples``, ``periods``); ``"warnings"``: doubts about the fit; with
+        ``held_out``, ``"held_out"`` (EKF1's drift against the empirical drift per file) and
+        ``"margin_db"``.
+
+    Raises
+    ------
+    ValueError
+        The data cannot support the fit (fewer than 2 whole periods, a drive that is not a
+        sinusoid at ``f``), or a setting is not allowed.
+    """
+    from driftfmu.simulations.adxl203 import run_identify
+    return run_identify([str(p) for p in files], f, held_out=held_out, out=out)
+
+
+__all__ = ["build_fmus", "simulate", "run_gaussian", "run_sinusoidal", "montecarlo", "sweep",
+           "experiment_adxl203", "experiment_dual_axis", "identify"]

@@ -1,0 +1,279 @@
+/* The compiled batch kernel: the chains of simulations/batch.py (simulate), models/adxl203.py
+ * (simulate) and models/dualaxis.py (simulate) written out over the C port of models/
+ * (fmu_src/native/models), one run after another.  Built by simulations/kernel.py with the
+ * flags of the native FMUs (-std=c99 -O2 -ffp-contract=off -fno-fast-math, and inlining), so
+ * every sample gives the bits of the NumPy batch engine and of the FMUs.  No state of its own:
+ * the caller owns every array. */
+#include <stddef.h>
+#include <stdint.h>
+
+#include "adxl203.h"
+#include "chain.h"
+#include "drift.h"
+#include "dualaxis.h"
+#include "excitation.h"
+#include "harmonic.h"
+#include "noise.h"
+#include "sensor.h"
+
+/* One run of simulations.batch.simulate between blocks: the excitation, the filter and the two
+ * running means (ten 8-byte fields, the layout of a (runs, 10) float64 array). */
+typedef struct {
+    double x, zbar, x2bar;
+    EstimatorState est;
+} RunState;
+
+/* The per-run parameters of batch.simulate, in this order, each an array of `runs` values. */
+enum { P_A0, P_A1, P_A2, P_A, P_Q, P_R, P_X0, P_P0, P_TS, P_X, P_F, P_PHI, P_FA, P_FQ,
+       N_PARAMS };
+
+/* batch.TRAJECTORIES, in this order; a NULL pointer is a trajectory not recorded. */
+enum { T_X, T_Z, T_XHAT, T_P, T_DC1, T_DC2, T_DC3, T_EMPIRICAL, T_REALISED, N_TRAJ };
+
+/* The state of every run before sample 1: x = x0, the filter at (x0, P0), means 0. */
+void driftfmu_batch_init(int64_t runs, const double *const *p, RunState *state)
+{
+    for (int64_t r = 0; r < runs; r++) {
+        state[r].x = p[P_X0][r];
+        state[r].zbar = 0.0;
+        state[r].x2bar = 0.0;
+        state[r].est = chain_estimator_init(p[P_X0][r], p[P_P0][r]);
+    }
+}
+
+/* Runs advanced side by side, sample by sample: their chains are independent, so the
+ * processor overlaps the divisions and square roots of one with those of the others. */
+#define LANES 8
+
+/* Standard normal draw k under the key of (seed, stream): noise_normal with noise_key(seed,
+ * stream) computed once per run instead of at every sample (noise_bits is mix(key + k golden),
+ * noise_uniform and noise_inverse_normal_cdf as in noise.c), the same bits. */
+static double keyed_normal(uint64_t key, int64_t k)
+{
+    uint64_t bits = noise_mix(key + (uint64_t)k * NOISE_GOLDEN);
+    return noise_inverse_normal_cdf(((double)(bits >> 12) + 0.5) * 2.220446049250313e-16);
+}
+
+/* Samples k = k0 .. k1 - 1 of every run (the loop body of batch.simulate); the recorded
+ * trajectories are (runs, n) arrays, sample k in column k - 1. */
+void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const uint64_t *seeds,
+                        int64_t kind, const double *const *p, RunState *state,
+                        double *const *traj)
+{
+    const int gaussian = kind == EXCITATION_GAUSSIAN;
+    for (int64_t r0 = 0; r0 < runs; r0 += LANES) {
+        const int lanes = runs - r0 < LANES ? (int)(runs - r0) : LANES;
+        RunState s[LANES];
+        double q[N_PARAMS][LANES];  /* this block's parameters, out of reach of the stores */
+        uint64_t key_process[LANES], key_measurement[LANES];
+        for (int i = 0; i < lanes; i++) {
+            s[i] = state[r0 + i];
+            for (int j = 0; j < N_PARAMS; j++) q[j][i] = p[j][r0 + i];
+            key_process[i] = noise_key(seeds[r0 + i], NOISE_STREAM_PROCESS);
+            key_measurement[i] = noise_key(seeds[r0 + i], NOISE_STREAM_MEASUREMENT);
+        }
+        for (int64_t k = k0; k < k1; k++) {
+            for (int i = 0; i < lanes; i++) {
+                const double a0 = q[P_A0][i], a1 = q[P_A1][i], a2 = q[P_A2][i], R = q[P_R][i];
+                double z, dc1, dc2, dc3;
+                if (gaussian)
+                    s[i].x = excitation_gauss_markov(s[i].x, q[P_A][i], q[P_Q][i],
+                                                     keyed_normal(key_process[i], k));
+                else
+                    s[i].x = excitation_sine(k, q[P_X][i], q[P_F][i], q[P_TS][i], q[P_PHI][i]);
+                z = sensor_measure(s[i].x, a0, a1, a2, R, keyed_normal(key_measurement[i], k));
+                s[i].est = chain_estimator_step(s[i].est, z, a0, a1, a2, q[P_FA][i], q[P_FQ][i],
+                                                R);
+                s[i].zbar = drift_running_mean(s[i].zbar, z, k);
+                s[i].x2bar = drift_running_mean(s[i].x2bar, s[i].x * s[i].x, k);
+                if (traj) {
+                    size_t j = (size_t)(r0 + i) * (size_t)n + (size_t)(k - 1);
+                    drift_estimates(s[i].est.drift, a2, &dc1, &dc2, &dc3);
+                    if (traj[T_X]) traj[T_X][j] = s[i].x;
+                    if (traj[T_Z]) traj[T_Z][j] = z;
+                    if (traj[T_XHAT]) traj[T_XHAT][j] = s[i].est.x;
+                    if (traj[T_P]) traj[T_P][j] = s[i].est.P;
+                    if (traj[T_DC1]) traj[T_DC1][j] = dc1;
+                    if (traj[T_DC2]) traj[T_DC2][j] = dc2;
+                    if (traj[T_DC3]) traj[T_DC3][j] = dc3;
+                    if (traj[T_EMPIRICAL]) traj[T_EMPIRICAL][j] = s[i].zbar - a0;
+                    if (traj[T_REALISED]) traj[T_REALISED][j] = a2 * s[i].x2bar;
+                }
+            }
+        }
+        for (int i = 0; i < lanes; i++) state[r0 + i] = s[i];
+    }
+}
+
+/* models.adxl203.simulate's start values, in these orders. */
+enum { E_KIND, E_A, E_Q, E_X0, E_X, E_F, E_PHI, E_XY, E_PHIY, E_SEED, N_EXCITATION };
+enum { S_A0, S_A1, S_A2, S_R, S_A3, S_CROSS, S_FC, S_VS, S_BITS, S_DENSITY, S_SEED, S_NOISE,
+       S_AXES, N_SENSOR };
+enum { D_A0, D_A1, D_A2, D_A, D_Q, D_R, D_X0, D_P0, D_ESTIMATOR, D_PROCESS, D_F, D_QH,
+       N_ESTIMATOR };
+/* Its columns, in this order (each n values; NULL: not wanted). */
+enum { C_TIME, C_X, C_Y, C_Z, C_ZY, C_XHAT, C_P, C_DC1, C_DC2, C_DC3, C_ZCOMP, N_COLUMNS };
+
+/* models.adxl203.simulate for one run: Excitation -> Accelerometer -> DriftEstimator, samples
+ * k = 1..n.  Returns 0, or 1 for an estimator or process the Python refuses. */
+int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
+                     const double *es, double *const *cols)
+{
+    const int64_t kind = (int64_t)ex[E_KIND], ex_seed = (int64_t)ex[E_SEED];
+    const int64_t sp_seed = (int64_t)sp[S_SEED], estimator = (int64_t)es[D_ESTIMATOR],
+                  process = (int64_t)es[D_PROCESS];
+    const int noise_on = sp[S_NOISE] != 0.0, axes = (int)sp[S_AXES];
+    Config cfg = adxl203_config(sp[S_A0], sp[S_A1], sp[S_A2], sp[S_R], sp[S_A3], sp[S_CROSS],
+                                sp[S_FC], sp[S_VS], (int64_t)sp[S_BITS], sp[S_DENSITY], Ts);
+    double C, S, x = ex[E_X0], y, zy = 0.0, lp = 0.0, lpy = 0.0;
+    int64_t lp_set = 0, lpy_set = 0;
+    HarmonicState state;
+    if (estimator < 1 || estimator > 3 ||
+        (process != HARMONIC_GAUSS_MARKOV && process != HARMONIC_HARMONIC))
+        return 1;
+    harmonic_rotation(es[D_F], Ts, &C, &S);
+    state = harmonic_estimator_init(process, es[D_X0], es[D_P0]);
+    for (int64_t k = 1; k <= n; k++) {
+        double v, vy, z, dcs[3], dc, row[N_COLUMNS];
+        if (kind == EXCITATION_GAUSSIAN) {
+            x = excitation_gaussian_sample(x, ex[E_A], ex[E_Q], ex_seed, k);
+            y = 0.0;
+        } else {
+            x = excitation_sine(k, ex[E_X], ex[E_F], Ts, ex[E_PHI]);
+            y = excitation_sine(k, ex[E_XY], ex[E_F], Ts, ex[E_PHIY]);
+        }
+        v = noise_on ? adxl203_noise(sp_seed, k, 1) : 0.0;
+        adxl203_measure(lp_set, lp, x, y, v, &cfg, &lp_set, &lp, &z);
+        if (axes == 2) {
+            vy = noise_on ? adxl203_noise(sp_seed, k, 2) : 0.0;
+            adxl203_measure(lpy_set, lpy, y, x, vy, &cfg, &lpy_set, &lpy, &zy);
+        }
+        state = harmonic_estimator_step(state, z, es[D_A0], es[D_A1], es[D_A2], es[D_R],
+                                        process, es[D_A], es[D_Q], C, S, es[D_QH]);
+        drift_estimates(state.drift, es[D_A2], &dcs[0], &dcs[1], &dcs[2]);
+        dc = drift_select(dcs, estimator);
+        row[C_TIME] = (double)(k - 1) * Ts;
+        row[C_X] = x;
+        row[C_Y] = y;
+        row[C_Z] = z;
+        row[C_ZY] = zy;
+        row[C_XHAT] = state.x;
+        row[C_P] = state.P;
+        row[C_DC1] = dcs[0];
+        row[C_DC2] = dcs[1];
+        row[C_DC3] = dcs[2];
+        row[C_ZCOMP] = z - dc;
+        for (int c = 0; c < N_COLUMNS; c++)
+            if (cols[c]) cols[c][k - 1] = row[c];
+    }
+    return 0;
+}
+
+/* models.dualaxis.simulate's start values (resolved by the caller: excitation_values,
+ * sensor_values, estimator_values, single_values), in these orders. */
+enum { DE_KIND, DE_A, DE_Q, DE_QY, DE_RHO, DE_X0, DE_X, DE_F, DE_PHI, DE_XY, DE_PHIY,
+       N_DUAL_EXCITATION };
+enum { DS_A0, DS_A1, DS_A2, DS_BX, DS_R, DS_A0Y, DS_A1Y, DS_A2Y, DS_BY, DS_RY, DS_NOISE,
+       N_DUAL_SENSOR };
+enum { DD_A0, DD_A1, DD_A2, DD_BX, DD_R, DD_A0Y, DD_A1Y, DD_A2Y, DD_BY, DD_RY, DD_A, DD_Q,
+       DD_QY, DD_RHO, DD_X0, DD_Y0, DD_P0, DD_P0Y, DD_F, DD_QH, DD_PROCESS, DD_ESTIMATOR,
+       N_DUAL_ESTIMATOR };
+/* single_values of one axis: a0, a1, a2, R, Q, x0, P0, A, process, f, Qh. */
+enum { D1_A0, D1_A1, D1_A2, D1_R, D1_Q, D1_X0, D1_P0, D1_A, D1_PROCESS, D1_F, D1_QH,
+       N_SINGLE };
+/* models.dualaxis.COLUMNS, in this order, then the realised moments (finals only). */
+enum { DC_TIME, DC_X, DC_Y, DC_ZX, DC_ZY, DC_XHAT, DC_YHAT, DC_PXX, DC_PXY, DC_PYY,
+       DC_DC1X, DC_DC2X, DC_DC3X, DC_DC1Y, DC_DC2Y, DC_DC3Y, DC_ZCOMPX, DC_ZCOMPY,
+       DC_SINGLE1X, DC_SINGLE1Y, N_DUAL_COLUMNS };
+enum { DM_XX = N_DUAL_COLUMNS, DM_XY, DM_YY, N_DUAL_FINALS };
+
+/* models.dualaxis.simulate for `runs` runs (FMU seed seeds[r] for the Excitation and the
+ * Accelerometer), the other start values shared: the recorded columns are (runs, n) arrays
+ * (NULL: not recorded), finals[c] (runs,) arrays of every column's last sample and the three
+ * realised moments.  Returns 0, or 1 for an estimator or process the Python refuses. */
+int driftfmu_dual(int64_t n, int64_t runs, const uint64_t *seeds, double Ts, const double *ex,
+                  const double *sp, const double *es, const double *single,
+                  double *const *cols, double *const *finals)
+{
+    const int64_t process = (int64_t)es[DD_PROCESS], estimator = (int64_t)es[DD_ESTIMATOR];
+    const int gaussian = (int64_t)ex[DE_KIND] == EXCITATION_GAUSSIAN,
+              noise_on = sp[DS_NOISE] != 0.0;
+    Axis sx, sy, fx, fy;
+    DualModel m;
+    double C[2], S[2];
+    if (estimator < 1 || estimator > 3 ||
+        (process != DUALAXIS_GAUSS_MARKOV && process != DUALAXIS_HARMONIC))
+        return 1;
+    for (int i = 0; i < 2; i++) {
+        const int64_t p1 = (int64_t)single[i * N_SINGLE + D1_PROCESS];
+        if (p1 != HARMONIC_GAUSS_MARKOV && p1 != HARMONIC_HARMONIC) return 1;
+        harmonic_rotation(single[i * N_SINGLE + D1_F], Ts, &C[i], &S[i]);
+    }
+    dualaxis_axes(sp[DS_A0], sp[DS_A1], sp[DS_A2], sp[DS_BX], sp[DS_R], sp[DS_A0Y],
+                  sp[DS_A1Y], sp[DS_A2Y], sp[DS_BY], sp[DS_RY], &sx, &sy);
+    dualaxis_axes(es[DD_A0], es[DD_A1], es[DD_A2], es[DD_BX], es[DD_R], es[DD_A0Y],
+                  es[DD_A1Y], es[DD_A2Y], es[DD_BY], es[DD_RY], &fx, &fy);
+    m = dualaxis_model(process, es[DD_A], es[DD_Q], es[DD_QY], es[DD_RHO], es[DD_F], Ts,
+                       es[DD_QH]);
+    for (int64_t r = 0; r < runs; r++) {
+        const int64_t seed = (int64_t)seeds[r];
+        DualEstimator st = dualaxis_estimator_init(process, es[DD_X0], es[DD_Y0], es[DD_P0],
+                                                   es[DD_P0Y]);
+        HarmonicState sst[2];
+        double x = ex[DE_X0], y = 0.0, mxx = 0.0, mxy = 0.0, myy = 0.0, row[N_DUAL_COLUMNS];
+        for (int i = 0; i < 2; i++) {
+            const double *s1 = single + i * N_SINGLE;
+            sst[i] = harmonic_estimator_init((int64_t)s1[D1_PROCESS], s1[D1_X0], s1[D1_P0]);
+        }
+        for (int64_t k = 1; k <= n; k++) {
+            double vx = 0.0, vy = 0.0, zx, zy, dx[3], dy[3], mom[5];
+            if (gaussian) {
+                excitation_gaussian_pair(x, y, ex[DE_A], ex[DE_Q], ex[DE_QY], ex[DE_RHO], seed,
+                                         k, &x, &y);
+            } else {
+                x = excitation_sine(k, ex[DE_X], ex[DE_F], Ts, ex[DE_PHI]);
+                y = excitation_sine(k, ex[DE_XY], ex[DE_F], Ts, ex[DE_PHIY]);
+            }
+            if (noise_on) dualaxis_noise(seed, k, &vx, &vy);
+            dualaxis_measure(x, y, sx, sy, vx, vy, &zx, &zy);
+            st = dualaxis_estimator_step(st, zx, zy, fx, fy, &m);
+            dualaxis_estimates(dualaxis_drift_of(&st, process), fx, fy, dx, dy);
+            for (int i = 0; i < 2; i++) {
+                const double *s1 = single + i * N_SINGLE;
+                sst[i] = harmonic_estimator_step(sst[i], i == 0 ? zx : zy, s1[D1_A0],
+                                                 s1[D1_A1], s1[D1_A2], s1[D1_R],
+                                                 (int64_t)s1[D1_PROCESS], s1[D1_A], s1[D1_Q],
+                                                 C[i], S[i], s1[D1_QH]);
+            }
+            mxx = drift_running_mean(mxx, x * x, k);
+            mxy = drift_running_mean(mxy, x * y, k);
+            myy = drift_running_mean(myy, y * y, k);
+            dualaxis_moments(&st, process, mom);
+            row[DC_TIME] = (double)(k - 1) * Ts;
+            row[DC_X] = x;
+            row[DC_Y] = y;
+            row[DC_ZX] = zx;
+            row[DC_ZY] = zy;
+            row[DC_XHAT] = mom[0];
+            row[DC_YHAT] = mom[1];
+            row[DC_PXX] = mom[2];
+            row[DC_PXY] = mom[3];
+            row[DC_PYY] = mom[4];
+            for (int i = 0; i < 3; i++) {
+                row[DC_DC1X + i] = dx[i];
+                row[DC_DC1Y + i] = dy[i];
+            }
+            row[DC_ZCOMPX] = zx - drift_select(dx, estimator);
+            row[DC_ZCOMPY] = zy - drift_select(dy, estimator);
+            row[DC_SINGLE1X] = single[D1_A2] * sst[0].drift.s1;
+            row[DC_SINGLE1Y] = single[N_SINGLE + D1_A2] * sst[1].drift.s1;
+            for (int c = 0; c < N_DUAL_COLUMNS; c++)
+                if (cols[c]) cols[c][(size_t)r * (size_t)n + (size_t)(k - 1)] = row[c];
+        }
+        for (int c = 0; c < N_DUAL_COLUMNS; c++) finals[c][r] = row[c];
+        finals[DM_XX][r] = mxx;
+        finals[DM_XY][r] = mxy;
+        finals[DM_YY][r] = myy;
+    }
+    return 0;
+}

@@ -1,0 +1,232 @@
+"""The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
+
+``batch_kernel.c`` (next to this file) writes the chains of
+:func:`driftfmu.simulations.batch.simulate`, :func:`driftfmu.models.adxl203.simulate` and
+:func:`driftfmu.models.dualaxis.simulate` out over the C port of models/
+(``fmu_src/native/models``, proven bit-equal to models/ by ``tests/test_native_models.py``),
+one run after another.  It is compiled once per machine (the native FMUs' flags, ``-O2
+-ffp-contract=off -fno-fast-math``) into a shared library in the temporary directory, named by
+the hash of its sources, written atomically, and called through ctypes on NumPy arrays.  Without
+a C compiler :func:`library` returns None and the callers use the NumPy engine (same results).
+
+``DRIFTFMU_KERNEL=numpy`` in the environment switches the kernel off (for comparisons and for
+machines whose compiler misbehaves); ``CC`` names the compiler (default ``cc``).
+"""
+import ctypes
+import hashlib
+import os
+import shlex
+import shutil
+import subprocess
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+SOURCE = HERE / "batch_kernel.c"
+#: The C units of models/ the kernel calls (with their own dependencies).
+UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c")
+#: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
+#: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``).
+PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "fA", "fQ")
+#: Fields of one run's state (``RunState``): float64 but the drift counter ``k`` (int64).
+STATE_FIELDS = 10
+#: models.adxl203.simulate's start values and columns, in the kernel's order.
+EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
+SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",
+          "axes")
+ESTIMATOR = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "estimator", "process", "f", "Qh")
+COLUMNS = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
+           "z_comp")
+#: models.dualaxis.simulate's start values and the single-axis estimators', in the kernel's
+#: order (its columns are models.dualaxis.COLUMNS).
+DUAL_EXCITATION = ("kind", "A", "Q", "Qy", "rho", "x0", "X", "f", "phi", "Xy", "phiy")
+DUAL_SENSOR = ("a0", "a1", "a2", "bx", "R", "a0y", "a1y", "a2y", "by", "Ry", "noise")
+DUAL_ESTIMATOR = ("a0", "a1", "a2", "bx", "R", "a0y", "a1y", "a2y", "by", "Ry", "A", "Q", "Qy",
+                  "rho", "x0", "y0", "P0", "P0y", "f", "Qh", "process", "estimator")
+SINGLE = ("a0", "a1", "a2", "R", "Q", "x0", "P0", "A", "process", "f", "Qh")
+
+#: Added to the native FMUs' flags (which keep the bits: no FMA contraction, no fast math):
+#: inlining across the models/ units (link-time optimisation, -O3; the units' functions are
+#: not interposable from outside the library) and no errno for sqrt;
+#: from 110 to 58 ns per sample-run of the Gaussian chain on the development machine (52 ns
+#: with the per-run noise keys of batch_kernel.c), at a load average of about 20.
+SPEED_FLAGS = ("-O3", "-fno-math-errno", "-flto", "-fno-semantic-interposition")
+
+_LIBRARY = []
+_P = ctypes.c_void_p
+
+
+def enabled():
+    """False when ``DRIFTFMU_KERNEL=numpy`` switches the kernel off."""
+    return os.environ.get("DRIFTFMU_KERNEL", "").strip().lower() != "numpy"
+
+
+def _sources():
+    from driftfmu.fmu_src.native.models import generate
+    return generate, [SOURCE] + [generate.HERE / u for u in UNITS]
+
+
+def library():
+    """The loaded kernel (ctypes library), or None without a working C compiler or when
+    :func:`enabled` is False.  Compiled at most once per machine and source version."""
+    if not enabled():
+        return None
+    if _LIBRARY:
+        return _LIBRARY[0]
+    lib = None
+    try:
+        lib = _load(_build())
+    except (OSError, subprocess.SubprocessError):
+        lib = None
+    _LIBRARY.append(lib)
+    return lib
+
+
+def _build():
+    """Path of the compiled kernel; compile it first when it is not there."""
+    generate, sources = _sources()
+    table = generate.parameters_table()
+    digest = hashlib.sha256()
+    for path in sorted(sources + sorted(generate.HERE.glob("*.h"))):
+        digest.update(path.name.encode() + b"\0" + path.read_bytes())
+    digest.update(table.encode())
+    digest.update(" ".join(generate.CFLAGS + SPEED_FLAGS).encode())
+    target = Path(tempfile.gettempdir()) / ("driftfmu-kernel-%s-%d.so"
+                                            % (digest.hexdigest()[:12], os.getuid()))
+    if target.exists():
+        return target
+    compiler = shlex.split(os.environ.get("CC", "cc"))
+    with tempfile.TemporaryDirectory(prefix="driftfmu_kernel_") as work:
+        (Path(work) / "parameters_table.h").write_text(table)
+        partial = Path(work) / "kernel.so"
+        command = compiler + list(generate.CFLAGS) + list(SPEED_FLAGS) + [
+            "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
+            str(s) for s in sources] + ["-o", str(partial), "-lm"]
+        try:
+            subprocess.run(command, check=True, capture_output=True)
+        except subprocess.CalledProcessError:  # a compiler without link-time optimisation
+            command = [c for c in command if c not in SPEED_FLAGS]
+            subprocess.run(command, check=True, capture_output=True)
+        staged = target.with_name(target.name + ".part%d" % os.getpid())
+        shutil.move(str(partial), str(staged))
+        os.replace(staged, target)
+    return target
+
+
+def _load(path):
+    lib = ctypes.CDLL(str(path))
+    i64, d = ctypes.c_int64, ctypes.c_double
+    lib.driftfmu_batch_init.restype = None
+    lib.driftfmu_batch_init.argtypes = [i64, _P, _P]
+    lib.driftfmu_batch_run.restype = None
+    lib.driftfmu_batch_run.argtypes = [i64, i64, i64, i64, _P, i64, _P, _P, _P]
+    lib.driftfmu_adxl203.restype = ctypes.c_int
+    lib.driftfmu_adxl203.argtypes = [i64, d, _P, _P, _P, _P]
+    lib.driftfmu_dual.restype = ctypes.c_int
+    lib.driftfmu_dual.argtypes = [i64, i64, _P, d, _P, _P, _P, _P, _P, _P]
+    return lib
+
+
+def _pointers(arrays):
+    """A C array of the arrays' data pointers (None: NULL)."""
+    return (_P * len(arrays))(*[None if a is None else a.ctypes.data for a in arrays])
+
+
+class Batch:
+    """The state of ``len(seeds)`` runs of batch.simulate's chain in the kernel.
+
+    ``params`` maps the names of :data:`PARAMS` to floats or ``(runs,)`` arrays.  :meth:`run`
+    advances every run over samples ``k0 .. k1 - 1``; :meth:`state` gives the run states.
+    """
+
+    def __init__(self, lib, seeds, params, kind, n, record):
+        from driftfmu.simulations.batch import TRAJECTORIES
+        self.lib = lib
+        self.seeds = np.ascontiguousarray(seeds, dtype=np.uint64)
+        runs = self.seeds.shape[0]
+        self.params = [np.ascontiguousarray(np.broadcast_to(np.asarray(params[name],
+                                                                       dtype=float), (runs,)))
+                       for name in PARAMS]
+        self.param_ptrs = _pointers(self.params)
+        self.kind, self.n, self.runs = int(kind), int(n), runs
+        self.traj = {name: np.empty((runs, n)) for name in record}
+        self.traj_ptrs = _pointers([self.traj.get(name) for name in TRAJECTORIES]) \
+            if self.traj else None
+        self.buffer = np.zeros((runs, STATE_FIELDS))
+        lib.driftfmu_batch_init(runs, self.param_ptrs, self.buffer.ctypes.data)
+
+    def run(self, k0, k1):
+        """Samples ``k0 .. k1 - 1`` (1-based) of every run."""
+        self.lib.driftfmu_batch_run(k0, k1, self.n, self.runs, self.seeds.ctypes.data,
+                                    self.kind, self.param_ptrs, self.buffer.ctypes.data,
+                                    self.traj_ptrs)
+
+    def state(self):
+        """``(x, zbar, x2bar, est)``: arrays ``(runs,)`` and a chain.EstimatorState of arrays."""
+        from driftfmu.models import chain, drift
+        b = self.buffer
+        k = b[:, 5].copy().view(np.int64)
+        est = chain.EstimatorState(b[:, 3].copy(), b[:, 4].copy(),
+                                   drift.DriftState(k, b[:, 6].copy(), b[:, 7].copy(),
+                                                    b[:, 8].copy(), b[:, 9].copy()))
+        return b[:, 0].copy(), b[:, 1].copy(), b[:, 2].copy(), est
+
+
+def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values, Ts,
+                     columns=COLUMNS):
+    """:func:`driftfmu.models.adxl203.simulate` for one run (scalar seeds) in the kernel, the same
+    defaults filled in; returns the ``columns`` asked for as ``(n,)`` arrays."""
+    from driftfmu.models import adxl203, excitation, harmonic, parameters
+    ex = dict(kind=excitation.GAUSSIAN, A=0.0, Q=0.01, x0=0.0, X=1.0, f=150.0, phi=0.0,
+              Xy=0.0, phiy=0.0, seed=1)
+    ex.update(excitation_values)
+    sp = adxl203.sensor_parameters(**sensor_values)
+    es = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=0.01, estimator=1,
+              process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default)
+    es.update(estimator_values)
+    vectors = [np.array([float(d[k]) for k in names])
+               for d, names in ((ex, EXCITATION), (sp, SENSOR), (es, ESTIMATOR))]
+    out = {c: np.empty(n) for c in columns}
+    ptrs = _pointers([out.get(c) for c in COLUMNS])
+    if lib.driftfmu_adxl203(n, float(Ts), *[v.ctypes.data for v in vectors], ptrs):
+        raise ValueError("estimator = %r, process = %r; allowed: estimator 1, 2 or 3 and "
+                         "process %d or %d" % (es["estimator"], es["process"],
+                                               harmonic.GAUSS_MARKOV, harmonic.HARMONIC))
+    return out
+
+
+def dual_simulate(lib, n, seeds, excitation_values, sensor_values, estimator_values, Ts,
+                  record=()):
+    """:func:`driftfmu.models.dualaxis.simulate` for ``len(seeds)`` runs in the kernel (run ``r``
+    with both FMU seeds ``seeds[r]``), the same results as its batch form: ``final_<column>``,
+    ``mean_xx``, ``mean_xy``, ``mean_yy``, each ``(runs,)``, and the ``record``-ed columns, each
+    ``(runs, n)``.  None when a start value other than the seeds is an array (per run): the
+    caller then uses the NumPy form."""
+    from driftfmu.models import dualaxis
+    ex = dualaxis.excitation_values(**excitation_values)
+    sp = dualaxis.sensor_values(**sensor_values)
+    es = dualaxis.estimator_values(**estimator_values)
+    singles = [dualaxis.single_values(es, axis) for axis in (1, 2)]
+    values = [(ex, DUAL_EXCITATION), (sp, DUAL_SENSOR), (es, DUAL_ESTIMATOR)] + \
+        [(s1, SINGLE) for s1 in singles]
+    if any(np.ndim(d[k]) for d, names in values for k in names):
+        return None
+    vectors = [np.array([float(d[k]) for k in names]) for d, names in values[:3]]
+    vectors.append(np.array([float(s1[k]) for s1 in singles for k in SINGLE]))
+    seeds = np.ascontiguousarray(seeds, dtype=np.uint64)
+    runs = seeds.shape[0]
+    cols = {c: np.empty((runs, n)) for c in record}
+    finals = [np.empty(runs) for _ in range(len(dualaxis.COLUMNS) + 3)]
+    if lib.driftfmu_dual(n, runs, seeds.ctypes.data, float(Ts),
+                         *[v.ctypes.data for v in vectors],
+                         _pointers([cols.get(c) for c in dualaxis.COLUMNS]), _pointers(finals)):
+        raise ValueError("estimator = %r, process = %r; allowed: estimator 1, 2 or 3 and "
+                         "process %d or %d" % (es["estimator"], es["process"],
+                                               dualaxis.GAUSS_MARKOV, dualaxis.HARMONIC))
+    out = {"final_" + c: v for c, v in zip(dualaxis.COLUMNS, finals)}
+    out.update(zip(("mean_xx", "mean_xy", "mean_yy"), finals[len(dualaxis.COLUMNS):]))
+    out.update(cols)
+    return out

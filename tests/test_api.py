@@ -1,0 +1,139 @@
+"""The public API (driftfmu.build_fmus, driftfmu.simulate, the experiments) against models/."""
+import inspect
+
+import numpy as np
+import pytest
+
+import driftfmu
+from driftfmu.models import chain
+
+N = 300
+
+
+@pytest.fixture(scope="module")
+def fmu_dir(python_fmus, native_fmus, tmp_path_factory):
+    """A folder in the layout build_fmus writes, linking the session's FMUs."""
+    d = tmp_path_factory.mktemp("api_fmus")
+    for name, path in python_fmus.items():
+        (d / path.name).symlink_to(path)
+    for v, paths in native_fmus.items():
+        (d / "native" / ("fmi%d" % v)).mkdir(parents=True)
+        for name, path in paths.items():
+            (d / "native" / ("fmi%d" % v) / path.name).symlink_to(path)
+    return d
+
+
+def _stop(n, Ts=1e-3):
+    return (n - 1) * Ts
+
+
+@pytest.mark.integration
+def test_simulate_the_chain_equals_models_sample_by_sample(fmu_dir):
+    result = driftfmu.simulate(stop_time=_stop(N), start_values={"a2": 0.05, "seed": 7},
+                               fmu_dir=fmu_dir)
+    assert result.dtype.names[0] == "time"
+    assert result.shape == (N,)
+    np.testing.assert_array_equal(result["time"], np.arange(N) * 1e-3)
+    ref = chain.simulate(N, 7, a2=0.05)
+    for c in ("x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"):
+        np.testing.assert_array_equal(result[c], np.asarray(ref[c]), err_msg=c)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("fmi_version", [2, 3])
+def test_native_backend_gives_the_python_fmus_bits(fmu_dir, fmi_version):
+    kw = dict(stop_time=_stop(N), start_values={"seed": 3}, fmu_dir=fmu_dir)
+    python = driftfmu.simulate(**kw)
+    native = driftfmu.simulate(backend="native", fmi_version=fmi_version, **kw)
+    assert native.dtype == python.dtype
+    for c in python.dtype.names:
+        np.testing.assert_array_equal(native[c], python[c], err_msg=c)
+
+
+@pytest.mark.integration
+def test_custom_excitation_from_an_array_equals_models(fmu_dir):
+    # the chain without the Excitation FMU, x from a NumPy array: the same run as models/
+    ref = chain.simulate(N, 5)
+    signal = np.zeros(N, dtype=[("time", float), ("x", float)])
+    signal["time"] = np.arange(N) * 1e-3
+    signal["x"] = ref["x"]
+    result = driftfmu.simulate(["Accelerometer", "DriftEstimator"], stop_time=_stop(N),
+                               start_values={"seed": 5}, input=signal, output=["z", "dc_ekf1"],
+                               fmu_dir=fmu_dir)
+    assert result.dtype.names == ("time", "z", "dc_ekf1")
+    np.testing.assert_array_equal(result["z"], np.asarray(ref["z"]))
+    np.testing.assert_array_equal(result["dc_ekf1"], np.asarray(ref["dc_ekf1"]))
+
+
+@pytest.mark.integration
+def test_input_is_held_between_its_rows_and_dotted_start_values_reach_one_fmu(fmu_dir):
+    signal = np.array([(0.0, 1.0), (0.0045, 2.0)], dtype=[("time", float), ("x", float)])
+    result = driftfmu.simulate(["Accelerometer"], stop_time=0.009, input=signal,
+                               start_values={"noise": 0, "Accelerometer.a2": 0.5, "a0": 0.1},
+                               output=["Accelerometer.z"], fmu_dir=fmu_dir)
+    x = np.where(np.arange(10) * 1e-3 < 0.0045, 1.0, 2.0)
+    np.testing.assert_array_equal(result["z"], 0.1 + x + 0.5 * x * x)
+
+
+@pytest.mark.integration
+def test_a_name_recorded_from_two_fmus_is_qualified(fmu_dir):
+    result = driftfmu.simulate(["DriftEstimator", "DualDriftEstimator"], stop_time=0.002,
+                               output=["x_hat", "P"], fmu_dir=fmu_dir)
+    assert result.dtype.names == ("time", "DriftEstimator.x_hat", "P",
+                                  "DualDriftEstimator.x_hat")
+
+
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(fmus=["Excitation", "Nope"]), ["'Nope'", "DriftEstimator"]),
+    (dict(fmus=[]), ["fmus = []"]),
+    (dict(step_size=0.0), ["step_size = 0.0", "> 0"]),
+    (dict(stop_time=-1.0), ["stop_time = -1.0"]),
+    (dict(backend="java"), ["backend = 'java'", "'native'"]),
+    (dict(fmi_version=3), ["fmi_version = 3", "allowed: 2"]),
+])
+def test_simulate_refuses_bad_settings_before_building(kwargs, words, tmp_path):
+    with pytest.raises(ValueError) as info:
+        driftfmu.simulate(fmu_dir=tmp_path / "none", **kwargs)
+    for word in words:
+        assert word in str(info.value)
+    assert not (tmp_path / "none").exists()
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("kwargs, words", [
+    (dict(start_values={"nope": 1.0}), ["'nope'", "a2"]),
+    (dict(input=np.zeros(3, dtype=[("time", float), ("x", float)])),
+     ["'x'", "Excitation"]),
+    (dict(input=np.zeros(3, dtype=[("t", float), ("x", float)])), ["'time'"]),
+    (dict(output=["nope"]), ["'nope'"]),
+])
+def test_simulate_refuses_bad_names(fmu_dir, kwargs, words):
+    with pytest.raises(ValueError) as info:
+        driftfmu.simulate(stop_time=0.002, fmu_dir=fmu_dir, **kwargs)
+    for word in words:
+        assert word in str(info.value)
+
+
+def test_build_fmus_refuses_what_it_cannot_build(tmp_path):
+    for kwargs, word in [(dict(backend="java"), "backend"), (dict(fmi_version=3), "fmi_version"),
+                         (dict(names=["Nope"]), "Nope")]:
+        with pytest.raises(ValueError, match=word):
+            driftfmu.build_fmus(tmp_path / "out", **kwargs)
+    assert not (tmp_path / "out").exists()
+
+
+@pytest.mark.integration
+def test_run_gaussian_is_simulate_plus_the_reference_checks(fmu_dir):
+    res = driftfmu.run_gaussian(n=N, fmu_dir=fmu_dir, seed=2)
+    sim = driftfmu.simulate(stop_time=_stop(N), start_values={"seed": 2}, fmu_dir=fmu_dir)
+    np.testing.assert_array_equal(np.asarray(res["columns"]["dc_ekf1"]), sim["dc_ekf1"])
+    assert res["summary"]
+
+
+def test_public_names_are_exactly_all_and_typed():
+    public = {n for n, v in vars(driftfmu).items()
+              if not n.startswith("_") and callable(v) and not inspect.ismodule(v)}
+    assert public == set(driftfmu.__all__) - {"__version__"}
+    for name in public:
+        signature = inspect.signature(getattr(driftfmu, name))
+        assert signature.return_annotation is not inspect.Signature.empty, name

@@ -1,0 +1,111 @@
+"""The documentation: the FMU reference page and each FMU's documentation/index.html are what the
+VARIABLES tables say; every public API function has a docstring and is in the API reference."""
+import html
+import inspect
+import re
+import zipfile
+from pathlib import Path
+
+import pytest
+
+import driftfmu
+from driftfmu.fmu_src import documentation
+
+ROOT = Path(__file__).resolve().parent.parent
+DOCS = ROOT / "docs"
+docs_only = pytest.mark.skipif(not DOCS.is_dir(), reason="no docs/ (an installed package)")
+
+
+@docs_only
+def test_fmu_reference_page_is_the_generated_one():
+    expected = documentation.reference_markdown()
+    assert (DOCS / "fmus.md").read_text(encoding="utf-8") == expected, (
+        "docs/fmus.md is stale: python -m driftfmu.fmu_src.documentation > docs/fmus.md")
+
+
+def test_reference_has_every_variable_of_every_fmu():
+    text = documentation.reference_markdown()
+    for name in documentation.NAMES:
+        for spec in documentation.slave_class(name).VARIABLES:
+            assert "| `%s` |" % spec["name"] in text, (name, spec["name"])
+
+
+def _fmus(python_fmus, native_fmus):
+    for name, path in python_fmus.items():
+        yield name, "python", 2, path
+    for v, paths in native_fmus.items():
+        for name, path in paths.items():
+            yield name, "native", v, path
+
+
+@pytest.mark.integration
+def test_every_fmu_carries_its_generated_documentation(python_fmus, native_fmus):
+    from fmpy import read_model_description
+    from fmpy.validation import validate_fmu
+    seen = 0
+    for name, kind, v, path in _fmus(python_fmus, native_fmus):
+        with zipfile.ZipFile(path) as archive:
+            names = archive.namelist()
+            page = archive.read("documentation/index.html").decode("utf-8")
+            assert page == documentation.index_html(name, kind, v,
+                                                    documentation.platforms_of(names)), path
+            if v == 3:
+                assert archive.read("documentation/licenses/LICENSE.txt") == \
+                    (ROOT / "LICENSE").read_bytes()
+        # the page's table agrees with the FMU's model description, row by row
+        md = {var.name: var for var in read_model_description(str(path)).modelVariables}
+        rows = re.findall(r"<tr><td>(\d+)</td><td>([^<]*)</td><td>([^<]*)</td>", page)
+        assert len(rows) == len(documentation.slave_class(name).VARIABLES)
+        for vr, var, causality in rows:
+            var = html.unescape(var)
+            assert md[var].valueReference == int(vr), (path, var)
+            assert md[var].causality == causality, (path, var)
+        assert validate_fmu(str(path)) == [], path
+        seen += 1
+    assert seen == len(python_fmus) + sum(len(p) for p in native_fmus.values())
+
+
+def test_index_html_states_equations_variables_and_the_letter():
+    page = documentation.index_html("DriftEstimator", "python", 2, ["linux64"])
+    for text in ("K = P- H / (H^2 P- + R)", "<td>dc_ekf1</td>", "Sensor Letters 4(4)",
+                 "Tested here: linux64 only", "binaries: linux64"):
+        assert text in page, text
+    assert "licenses/LICENSE.txt" in documentation.index_html("Excitation", "native", 3)
+
+
+API = [n for n in driftfmu.__all__ if n != "__version__"]
+
+
+@pytest.mark.parametrize("name", API)
+def test_public_function_has_a_numpydoc_docstring(name):
+    doc = inspect.getdoc(getattr(driftfmu, name)) or ""
+    assert doc.strip(), "%s has no docstring" % name
+    for section in ("Parameters\n----------", "Returns\n-------"):
+        assert section in doc, "%s: docstring lacks %s" % (name, section.split()[0])
+    # every parameter of the signature is documented
+    for p in inspect.signature(getattr(driftfmu, name)).parameters.values():
+        key = ("**" + p.name) if p.kind is p.VAR_KEYWORD else p.name
+        assert re.search(r"^\s*%s\b|[ ,]%s\b" % (re.escape(key), re.escape(p.name)), doc, re.M), \
+            "%s: parameter %s is not documented" % (name, key)
+
+
+@docs_only
+@pytest.mark.parametrize("name", API)
+def test_public_function_is_in_the_api_reference(name):
+    assert re.search(r"^::: driftfmu\.%s$" % name, (DOCS / "api.md").read_text(), re.M), \
+        "docs/api.md lacks '::: driftfmu.%s'" % name
+
+
+@docs_only
+def test_site_builds_in_strict_mode(tmp_path):
+    pytest.importorskip("mkdocs")
+    pytest.importorskip("mkdocstrings")
+    import subprocess
+    import sys
+    run = subprocess.run([sys.executable, "-m", "mkdocs", "build", "--strict", "--site-dir",
+                          str(tmp_path / "site")], cwd=ROOT, capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr[-3000:]
+    assert (tmp_path / "site" / "api" / "index.html").is_file()
+    api = (tmp_path / "site" / "api" / "index.html").read_text()
+    for name in API:
+        assert 'id="driftfmu.%s"' % name in api, name

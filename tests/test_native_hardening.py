@@ -1,0 +1,404 @@
+"""The native FMUs as hard as the Python ones (issue 20), each case on the Python FMU, the native
+FMI 2.0 FMU and the native FMI 3.0 FMU, through raw calls (tests/fuzz/differential.py's Driver):
+
+- a refused fmi2ExitInitializationMode changes nothing and can be retried;
+- every field of a native serialised state is checked (NaN, inf, out of range, inconsistent),
+  the state is refused as a whole naming the field, and the instance is left unchanged; the
+  Python FMU's JSON state likewise;
+- sizes from the host are not trusted (SIZE_MAX, in a child process: a crash is a failure);
+- messages say what was given and what is allowed, true to what the code does.
+"""
+import ctypes
+import json
+import math
+import subprocess
+import sys
+from ctypes import c_double, c_int, c_int32, c_int64
+from pathlib import Path
+
+import pytest
+
+from fuzz import differential as diff
+from fuzz import native_state as ns
+from driftfmu.fmu_src.builder import NAMES
+
+pytestmark = pytest.mark.integration
+OK, WARNING, DISCARD, ERROR = diff.OK, diff.WARNING, diff.DISCARD, diff.ERROR
+BACKENDS = diff.BACKENDS
+NATIVE = [("native-fmi2", 2), ("native-fmi3", 3)]
+
+
+@pytest.fixture(scope="module")
+def dirs(python_fmus, native_fmus, tmp_path_factory):
+    return diff.unzip_all(python_fmus, native_fmus, tmp_path_factory.mktemp("hardening"))
+
+
+def driver(dirs, name, backend):
+    return diff.Driver(dirs[name][backend], 3 if backend.endswith("3") else 2)
+
+
+def info(dirs, name):
+    return diff.model_info(dirs[name]["native-fmi2"])
+
+
+def messages(drv):
+    return [m for _, m in drv.logged]
+
+
+def call(drv, op, *args):
+    """Run one call with a fresh log; its status."""
+    drv.logged = []
+    return getattr(drv, op)(*args)[0]
+
+
+def initialised(drv, Ts=1e-3, steps=(2.5,)):
+    """Set up, initialise and step ``drv`` (steps in sample periods)."""
+    for op in (("setup", 0.0), ("enter",), ("exit",)):
+        assert call(drv, *op) == OK, messages(drv)
+    t = 0.0
+    for n in steps:
+        assert call(drv, "step", t, n * Ts) == OK, messages(drv)
+        t += n * Ts
+    return t
+
+
+# -- a refused call changes nothing -----------------------------------------------------------
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("name", NAMES)
+def test_a_refused_exit_changes_nothing_and_can_be_retried(dirs, name, backend):
+    outs = info(dirs, name)["outputs"]
+    drv = driver(dirs, name, backend)
+    try:
+        assert call(drv, "setup", 0.0) == OK and call(drv, "enter") == OK
+        assert call(drv, "setr", ["Ts"], [0.0]) == OK
+        assert call(drv, "exit") == ERROR
+        assert any("Ts = 0.0 is out of range" in m for m in messages(drv)), messages(drv)
+        # still in Initialization Mode: no step, no outputs from Ts = 0, no second entry
+        assert call(drv, "step", 0.0, 1e-3) == ERROR
+        assert "initiali" in messages(drv)[-1].lower(), messages(drv)
+        assert call(drv, "getr", outs) == ERROR
+        assert "Ts = 0.0" in messages(drv)[-1]
+        assert call(drv, "enter") == ERROR
+        # corrected, the exit goes through, and the run is that of a clean instance
+        assert call(drv, "setr", ["Ts"], [1e-3]) == OK
+        assert call(drv, "exit") == OK, messages(drv)
+        assert call(drv, "step", 0.0, 2e-3) == OK, messages(drv)
+        after_retry = drv.getr(outs)
+        clean = driver(dirs, name, backend)
+        try:
+            initialised(clean, steps=(2,))
+            assert clean.getr(outs) == after_retry
+        finally:
+            clean.free()
+    finally:
+        drv.free()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_terminate_only_after_initialisation_and_once(dirs, backend):
+    drv = driver(dirs, "DriftEstimator", backend)
+    try:
+        assert call(drv, "term") == ERROR
+        assert "not allowed" in messages(drv)[-1]
+        initialised(drv)
+        assert call(drv, "term") == OK
+        assert call(drv, "term") == ERROR
+        assert "not allowed" in messages(drv)[-1]
+        assert call(drv, "reset") == OK and call(drv, "setup", 0.0) == OK
+        assert call(drv, "enter") == OK and call(drv, "term") == OK  # from initialisation
+    finally:
+        drv.free()
+
+
+# -- a restored state is a checked state --------------------------------------------------------
+
+def _api_refuses(dirs, name, backend, path, value):
+    """Whether exiting initialisation with variable ``path`` (v.<name>) = ``value`` set through
+    the API is refused (the reference for the same value in a state)."""
+    drv = driver(dirs, name, backend)
+    try:
+        call(drv, "setup", 0.0)
+        call(drv, "enter")
+        variable = path.split(".", 1)[1]
+        op = "seti" if drv.type[variable] in ("Integer", "Int32") else "setr"
+        status = call(drv, op, [variable], [value])
+        return status >= ERROR or call(drv, "exit") >= ERROR
+    finally:
+        drv.free()
+
+
+def derived_of(name, path):
+    return path.startswith("h.") and path.split(".")[1] in ns.DERIVED[name]
+
+
+def _tamperings(S, data, name):
+    """``(path, value, kind)`` of the crafted edits of a state that must be refused: non-finite
+    numbers everywhere, flags and counts out of range, variances < 0, derived constants that
+    do not follow from the parameters, times and sample indices that do not agree."""
+    s = ns.read(S, data)
+    out = []
+    for path, kind in ns.leaves(S):
+        if path.startswith("header") or path == "checksum":
+            continue
+        last = path.split(".")[-1]
+        hidden = path.startswith("h.")
+        derived = hidden and path.split(".")[1] in ns.DERIVED[name]
+        value = ns.get(s, path)
+        if kind is c_double:
+            out += [(path, v, "not finite") for v in (math.nan, math.inf, -math.inf)]
+            if hidden and last in ns.VARIANCES and not derived:
+                out.append((path, -1.0, "variance"))
+            if derived:
+                out.append((path, value * 2.0 + 1.0, "derived"))
+        elif derived:
+            out.append((path, value + 1, "derived"))
+        elif hidden and (last.endswith("_set") or last == "has_pending"):
+            out += [(path, 2, "flag"), (path, -1, "flag")]
+        elif hidden and last == "k":
+            out.append((path, -1, "count"))
+        elif path in ("pending", "dirty", "initialised"):
+            out += [(path, 2, "flag"), (path, -1, "flag")]
+        elif path == "state":
+            out += [(path, 0, "mode"), (path, 64, "mode"), (path, 3, "mode")]
+        elif path == "k":
+            out += [(path, 0, "index"), (path, -5, "index"), (path, value + 1, "index")]
+    out += [("time", s.time + 1.0, "consistent"), ("elapsed", -1.0, "elapsed"),
+            ("elapsed", s.elapsed + 0.5, "consistent"), ("startTime", s.startTime + 1.0,
+                                                         "consistent"),
+            ("initialised", 0, "consistent")]
+    return out
+
+
+@pytest.mark.parametrize("backend,version", NATIVE)
+@pytest.mark.parametrize("name", NAMES)
+def test_every_field_of_a_native_state_is_checked(dirs, name, backend, version, report):
+    S = ns.snapshot_type(dirs[name][backend])
+    outs = info(dirs, name)["outputs"]
+    drv = driver(dirs, name, backend)
+    try:
+        t = initialised(drv)
+        assert call(drv, "gst", 0) == OK
+        status, data = drv.ser(0)
+        assert status == OK and len(data) == ctypes.sizeof(S)
+        assert ns.read(S, data).checksum == ns.checksum(data)
+        assert call(drv, "step", t, 1e-3) == OK  # the instance moves on from the saved state
+        call(drv, "gst", 1)
+        before = (drv.ser(1)[1], drv.getr(outs))
+        cases = _tamperings(S, data, name)
+        # the parameters and inputs: what the API refuses, a state must refuse too (outputs
+        # cannot be set through the API: theirs is the finite check above)
+        for path, kind in ns.leaves(S):
+            if path[2:] in outs:
+                continue
+            if path.startswith("v.") and kind is c_double:
+                for value in (-1.0, 0.0, 1e308, -1e308, 1e-320):
+                    if _api_refuses(dirs, name, backend, path, value):
+                        cases.append((path, value, "API"))
+            elif path.startswith("v."):
+                for value in (-1, 0, 7, 2 ** 31 - 1):
+                    if _api_refuses(dirs, name, backend, path, value):
+                        cases.append((path, value, "API"))
+        missed = []
+        for path, value, why in cases:
+            blob = ns.crafted(S, data, path, value)
+            if call(drv, "des", blob, 2) != ERROR:
+                missed.append((path, value, why))
+                call(drv, "fst", 2)
+                continue
+            text = " ".join(messages(drv))
+            field = path.split(".", 1)[1] if path.startswith(("v.", "h.")) else path
+            if derived_of(name, path):  # a derived constant is named as a whole
+                field = path.split(".")[1]
+            named = field in text or why in ("derived", "consistent", "API", "index") \
+                or (not path.startswith("h.") and field.split(".")[-1] in text)
+            assert named, (path, value, text)
+            assert "refused" in text, text
+        assert missed == [], missed
+        # corruption: any byte changed without the checksum put right
+        for at in range(0, len(data), max(1, len(data) // 40)):
+            blob = bytearray(data)
+            blob[at] ^= 0x5A
+            assert call(drv, "des", bytes(blob), 2) == ERROR, at
+            text = " ".join(messages(drv))
+            assert "corrupted" in text or "not an FMU state" in text or "damaged" in text, text
+        call(drv, "gst", 1)
+        assert (drv.ser(1)[1], drv.getr(outs)) == before  # nothing changed
+        # and the state as it was is accepted, and restores the instance
+        assert call(drv, "des", data, 2) == OK and call(drv, "sst", 2) == OK
+        assert call(drv, "step", t, 1e-3) == OK
+        assert drv.getr(outs) == before[1]
+        report("HARDENING %s FMI %d.0: %d crafted fields and %d corrupted bytes of a serialised "
+               "state refused, the instance unchanged" % (name, version, len(cases),
+                                                          len(range(0, len(data),
+                                                                    max(1, len(data) // 40)))))
+    finally:
+        drv.free()
+
+
+def _json_edits(state):
+    for key, value in state.items():
+        if key in ("model", "guid", "version"):
+            yield key, "other"
+        elif isinstance(value, float):
+            yield key, "NaN"
+            yield key, "Infinity"
+            yield key, '"x"'
+        elif isinstance(value, (int, list, dict)):
+            yield key, "null"
+            yield key, "[[1]]"
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_every_field_of_a_python_state_is_checked(dirs, name):
+    outs = info(dirs, name)["outputs"]
+    drv = driver(dirs, name, "python")
+    try:
+        t = initialised(drv)
+        call(drv, "gst", 0)
+        data = drv.ser(0)[1]
+        state = json.loads(data)
+        call(drv, "step", t, 1e-3)
+        call(drv, "gst", 1)
+        before = (drv.ser(1)[1], drv.getr(outs))
+        n = 0
+        for key, text in _json_edits(state):
+            edited = dict(state)
+            edited[key] = "__EDIT__"
+            blob = json.dumps(edited).replace('"__EDIT__"', text).encode()
+            status = call(drv, "des", blob, 2)
+            status = max(status, call(drv, "sst", 2)) if status <= WARNING else status
+            assert status == ERROR, (key, text)
+            assert key in " ".join(messages(drv)) or "not an FMU state" in \
+                " ".join(messages(drv)), (key, messages(drv))
+            n += 1
+        call(drv, "gst", 1)
+        assert (drv.ser(1)[1], drv.getr(outs)) == before
+        assert n > 10
+    finally:
+        drv.free()
+
+
+# -- sizes from the host ------------------------------------------------------------------------
+
+SIZES_CHILD = r'''
+import ctypes, json, sys
+sys.path.insert(0, sys.argv[1])
+from fuzz import differential as diff
+from ctypes import byref, c_size_t, c_void_p
+out = []
+for unzipped, fmi in json.loads(sys.argv[2]):
+    drv = diff.Driver(unzipped, fmi)
+    name = "fmi2DeSerializeFMUstate" if fmi == 2 else "fmi3DeserializeFMUState"
+    for size in (2 ** 64 - 1, 2 ** 64 - 2, 2 ** 63, 2 ** 32 + 2):
+        p = c_void_p(None)
+        drv.logged = []
+        s = drv.raw(name, [c_void_p, c_size_t, c_void_p], b"{}", size, byref(p))
+        out.append([unzipped, size, s, [m for _, m in drv.logged][-1:]])
+    drv.free()
+print(json.dumps(out))
+'''
+
+
+def test_sizes_from_the_host_are_not_trusted(dirs):
+    """fmi2DeSerializeFMUstate(c, "{}", SIZE_MAX, &s) and other sizes no state can have (size + 1
+    wraps, or more than the address space holds): an error that says what was given and
+    allowed, no crash (in a child process).  A plausible size larger than the buffer cannot be
+    told from a real one by any FMU: the standard makes the host answer for it."""
+    targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
+               for b in BACKENDS]
+    done = subprocess.run([sys.executable, "-c", SIZES_CHILD, str(Path(__file__).parent),
+                           json.dumps(targets)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(done.stdout.splitlines()[-1])
+    assert len(rows) == 4 * len(targets)
+    for where, size, status, logged in rows:
+        assert status == ERROR, (where, size)
+        assert logged and str(size) in logged[0] and "allowed" in logged[0], (where, logged)
+
+
+# -- messages true to what the code does ----------------------------------------------------------
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_communication_point_message_is_true(dirs, backend):
+    drv = driver(dirs, "DriftEstimator", backend)
+    try:
+        t = initialised(drv)
+        assert call(drv, "step", math.nan, 1e-3) == ERROR
+        text = messages(drv)[-1]
+        assert "keeps its own time" in text and "%r" % t in text.replace("%.17g" % t, "%r" % t) \
+            or "keeps its own time" in text, text
+        assert call(drv, "step", 123.0, 1e-3) == OK  # as the message says: any finite time
+        assert call(drv, "status", 2) == OK
+        if backend != "native-fmi3":
+            assert float.fromhex(drv.status(2)[1][0]) == pytest.approx(t + 1e-3, abs=0)
+    finally:
+        drv.free()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("name", NAMES)
+def test_huge_sample_period_is_named_not_an_internal_error(dirs, name, backend):
+    drv = driver(dirs, name, backend)
+    try:
+        call(drv, "setup", 0.0)
+        call(drv, "enter")
+        call(drv, "setr", ["Ts"], [1e308])
+        status = call(drv, "exit")
+        seen = list(messages(drv))
+        if status == OK:
+            for h in (1e308, 1e308, 1.0):
+                call(drv, "step", 0.0, h)
+                seen += messages(drv)
+                call(drv, "getr", info(dirs, name)["outputs"])
+                seen += messages(drv)
+        assert not any("internal error" in m for m in seen), seen
+        assert not any("h <= about inf" in m or "h <= about nan" in m for m in seen), seen
+        assert all("Ts" in m or "overflow" in m for m in seen), seen
+    finally:
+        drv.free()
+
+
+@pytest.mark.parametrize("backend", ["python", "native-fmi2"])
+def test_status_inquiries_log_at_the_level_they_return(dirs, backend):
+    drv = driver(dirs, "Excitation", backend)
+    try:
+        assert call(drv, "status", 2) == ERROR  # before initialisation
+        initialised(drv)
+        for kind in (0, 1, 3):
+            assert call(drv, "status", kind) == DISCARD
+            assert [s for s, _ in drv.logged] == [DISCARD], drv.logged
+        assert call(drv, "status", 7) == ERROR
+        assert "status kind 7 does not exist" in messages(drv)[-1]
+    finally:
+        drv.free()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_state_pointer_from_another_copy_of_the_same_fmu(dirs, backend, tmp_path):
+    """Unzipped twice, the same FMU is two libraries: a state pointer of one is refused by the
+    other with a message that says so (not "not a state of this FMU" with the same GUID); its
+    serialised bytes are taken."""
+    import shutil
+    copy = tmp_path / "copy"
+    shutil.copytree(dirs["DriftEstimator"][backend], copy)
+    fmi = 3 if backend.endswith("3") else 2
+    a = diff.Driver(dirs["DriftEstimator"][backend], fmi)
+    b = diff.Driver(copy, fmi)
+    try:
+        t = initialised(a)
+        initialised(b)
+        call(a, "gst", 0)
+        b.states[0] = a.states[0]
+        assert call(b, "sst", 0) == ERROR
+        text = messages(b)[-1]
+        assert "loaded copy" in text and "serialise" in text, text
+        b.states.pop(0)
+        assert call(b, "des", a.ser(0)[1], 1) == OK and call(b, "sst", 1) == OK
+        call(a, "step", t, 1e-3)
+        call(b, "step", t, 1e-3)
+        outs = info(dirs, "DriftEstimator")["outputs"]
+        assert a.getr(outs) == b.getr(outs)
+    finally:
+        b.free()
+        a.free()
