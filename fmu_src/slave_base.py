@@ -77,6 +77,7 @@ _STATE_FIELDS = ("k", "time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
 _ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
 _INF = math.inf
+_ceil = math.ceil
 _TERMINATED = ("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, "
                "fmi2FreeInstance, the get functions and fmi2GetFMUstate/fmi2SetFMUstate")
 
@@ -164,6 +165,7 @@ class SlaveBase(Fmi2Slave):
         self._in_init = False
         self._terminated = False
         self._pending = None    # hidden state after the pending sample, when not dirty
+        self._feedthrough = bool(self.DEPENDENCIES)  # outputs follow the inputs when read
         #: the committed hidden state, {name: value} over HIDDEN (replaced, never mutated)
         self._committed = {name: None for name in self.HIDDEN}
         self._specs = {}
@@ -196,6 +198,16 @@ class SlaveBase(Fmi2Slave):
     # -- getters ----------------------------------------------------------------------------
     def get_real(self, vrs):
         names = self._real_names
+        if len(vrs) == 1:  # the per-sample fast path: one value (the same checks, in order)
+            name = names.get(vrs[0])
+            if name is not None:
+                if self._dirty and self._at_sample and (self._in_init or (
+                        self._initialised and self._feedthrough)):
+                    try:  # outputs at this communication point, from its inputs
+                        self._refresh()
+                    except Exception as exc:
+                        self._failed("_refresh", exc)
+                return [float(self.__dict__[name])]
         try:
             wanted = [names[vr] for vr in vrs]
         except KeyError:  # the whole call is refused, and changes nothing
@@ -203,7 +215,7 @@ class SlaveBase(Fmi2Slave):
             return [float(getattr(self, names[vr])) if vr in names else math.nan
                     for vr in vrs]
         if self._dirty and self._at_sample and (self._in_init or (
-                self._initialised and self.DEPENDENCIES)):
+                self._initialised and self._feedthrough)):
             try:  # outputs at this communication point, from its inputs
                 self._refresh()
             except Exception as exc:
@@ -458,7 +470,7 @@ class SlaveBase(Fmi2Slave):
             self._fail("communication step h = %r s spans more than %d sample instants of "
                        "Ts = %r s; allowed: at most MAX_SAMPLES_PER_STEP = %d sample instants "
                        "per step, h <= about %r s" % (h, limit, Ts, limit, room))
-        last = math.ceil(position - tol)      # index (k - 1) of the first instant at or after t+h
+        last = _ceil(position - tol)          # index (k - 1) of the first instant at or after t+h
         m = max(0, last + 1 - k)              # instants in [t, t + h)
         at_sample = last <= position + tol    # t + h is that instant
         hidden = outputs = pending = None  # hidden None: the committed state stays
@@ -504,18 +516,17 @@ class SlaveBase(Fmi2Slave):
                        "allowed: inputs and parameters whose outputs stay finite (nothing was "
                        "changed)" % (k0 + n - 1, self._sample_time(k0 + n - 1),
                                      type(exc).__name__, exc))
-        k = k0 + n - 1
-        for value in outputs.values():
-            if value - value != 0.0:  # not finite (v - v is 0 for every finite v)
-                for name, value in outputs.items():
-                    if not math.isfinite(value):
-                        self._not_finite(name, value, k)
+        total = sum(outputs.values())  # not finite if any output is not (or if they overflow)
+        if total - total != 0.0:  # then look at each (v - v is 0 for every finite v)
+            for name, value in outputs.items():
+                if not math.isfinite(value):
+                    self._not_finite(name, value, k0 + n - 1)
         check = self.hidden_finite
         if check is not None and not check(hidden):
             for name, value in hidden.items():
                 for part, v in _numbers(name, value):
                     if not math.isfinite(v):
-                        self._not_finite("hidden state " + part, v, k)
+                        self._not_finite("hidden state " + part, v, k0 + n - 1)
         return hidden, outputs
 
     # -- hooks for the slaves ---------------------------------------------------------------

@@ -1,28 +1,61 @@
 """Fixtures shared by the test modules."""
+import json
+import os
+from pathlib import Path
+
 import pytest
 
 from driftfmu.fmu_src.builder import NAMES, build_fmus
 
+try:
+    import fcntl
+except ImportError:  # (Windows) each pytest-xdist worker builds its own
+    fcntl = None
+
+
+def built_once(tmp_path_factory, name, build):
+    """``build(folder)`` (a JSON-ready result) once per test run, shared by all its pytest-xdist
+    workers: the first one to ask builds in the run's common temporary folder under a file lock,
+    the others wait for it and read the recorded result."""
+    root = tmp_path_factory.getbasetemp()
+    if fcntl is None or not os.environ.get("PYTEST_XDIST_WORKER"):
+        return build(tmp_path_factory.mktemp(name))
+    root = root.parent  # <basetemp>/pytest-N/popen-gwK: pytest-N is the run's
+    with open(root / ("%s.lock" % name), "w") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes
+        record = root / name / "built.json"
+        if record.exists():
+            return json.loads(record.read_text())
+        (root / name).mkdir(exist_ok=True)
+        result = build(root / name)
+        record.write_text(json.dumps(result))
+        return result
+
 
 @pytest.fixture(scope="session")
 def built_fmus(python_fmus):
-    """The project's FMUs, built once per test session: dict name -> path of ``<Name>.fmu``."""
+    """The project's FMUs, built once per test run: dict name -> path of ``<Name>.fmu``."""
     return python_fmus
 
 
 @pytest.fixture(scope="session")
 def python_fmus(tmp_path_factory):
     """The pythonfmu FMUs (``built_fmus``; a module may override that name, this one stays)."""
-    out = tmp_path_factory.mktemp("fmus")
-    return dict(zip(NAMES, build_fmus(out, names=NAMES)))
+    paths = built_once(tmp_path_factory, "fmus",
+                       lambda out: [str(p) for p in build_fmus(out, names=NAMES)])
+    return dict(zip(NAMES, map(Path, paths)))
 
 
 @pytest.fixture(scope="session")
 def native_fmus(tmp_path_factory):
-    """The native (C) twins, built once per session: {2: {name: path}, 3: {name: path}}."""
+    """The native (C) twins, built once per test run: {2: {name: path}, 3: {name: path}}."""
     from driftfmu.fmu_src.native_build import build_native_fmus
-    out = tmp_path_factory.mktemp("fmus_native") / "native"  # the layout of build/fmus/native
-    return build_native_fmus(out, log=lambda line: None)
+
+    def build(out):  # the layout of build/fmus/native
+        return {v: {n: str(p) for n, p in fmus.items()}
+                for v, fmus in build_native_fmus(out / "native", log=lambda line: None).items()}
+    built = built_once(tmp_path_factory, "fmus_native", build)
+    return {int(v): {n: Path(p) for n, p in fmus.items()} for v, fmus in built.items()}
 
 
 #: The FMUs a behaviour test runs on: the pythonfmu FMUs and their native twins, FMI 2.0 and
@@ -45,16 +78,48 @@ def backend_fmus(request):
     return _NativeFmus(request.getfixturevalue("native_fmus")[int(request.param[-1])])
 
 
+#: The user property under which a pytest-xdist worker sends ``report`` lines to the controller.
+REPORT = "driftfmu-report"
+_printed = set()
+
+
+def pytest_runtest_logreport(report):
+    """On the controller of a pytest-xdist run: print the workers' ``report`` lines (each once;
+    a test's later phases carry its earlier lines again)."""
+    config = _config.get("config")
+    if config is None or hasattr(config, "workerinput"):
+        return
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    lines = [v for k, v in report.user_properties if k == REPORT]
+    for i, line in enumerate(lines):
+        if reporter is not None and (report.nodeid, i) not in _printed:
+            _printed.add((report.nodeid, i))
+            reporter.ensure_newline()
+            reporter.write_line(line)
+
+
+_config = {}
+
+
+def pytest_configure(config):
+    _config["config"] = config
+
+
 @pytest.fixture
 def report(request):
     """``report(line)``: write a line to the terminal past pytest's output capture, so the CI
     log shows what a passing test saw (which importer stepped the FMUs, the error texts of bad
-    inputs, the memory figure): ``pytest -ra`` hides passing tests' output."""
+    inputs, the memory figure): ``pytest -ra`` hides passing tests' output.  In a pytest-xdist
+    worker the line goes to the controller, which prints it."""
     plugins = request.config.pluginmanager
     reporter = plugins.get_plugin("terminalreporter")
     capture = plugins.get_plugin("capturemanager")
+    worker = hasattr(request.config, "workerinput")
 
     def write(line):
+        if worker:
+            request.node.user_properties.append((REPORT, line))
+            return
         if reporter is None or capture is None:
             print(line)
             return

@@ -398,8 +398,76 @@ static fmi2Status after(Instance *inst, fmi2Status status)
     if (!allowed(inst, function, states))                                                    \
         return fmi2Error
 
+/*
+ * One Python thread state per host thread, kept.  pythonfmu 0.7.0 starts Python in a thread of
+ * its own (PyState's worker) and wraps every call in PyGILState_Ensure/Release.  A host thread
+ * Python has never seen (any C host) has no thread state, so every call created one (with an
+ * mmap'ed frame stack) and destroyed it again: about 10 us per FMI call, most of the C host's
+ * step.  The first call of a thread once Python runs takes a thread state for that thread and
+ * keeps it (PyGILState_Ensure, then PyEval_SaveThread: the GIL is released, the state stays);
+ * pythonfmu's Ensure/Release then only take and release the GIL, as in a Python host.  A thread
+ * Python knows already (fmpy's) is left alone.  When the thread ends, its state is cleared and
+ * deleted under the GIL (not with PyGILState_Release: the C library may have cleared Python's
+ * own thread-specific slot already by then).
+ */
+typedef int py_gil_state; /* PyGILState_STATE, an enum */
+static struct {
+    int (*is_initialized)(void);
+    void *(*this_thread_state)(void);
+    py_gil_state (*ensure)(void);
+    void *(*save_thread)(void);
+    void (*restore_thread)(void *);
+    void (*clear)(void *);
+    void (*delete_current)(void);
+} py;
+static pthread_once_t py_once = PTHREAD_ONCE_INIT;
+static pthread_key_t pinned_key;
+static __thread int pinned;
+
+static void unpin_thread_state(void *tstate)
+{
+    if (py.is_initialized()) {
+        py.restore_thread(tstate);
+        py.clear(tstate);
+        py.delete_current(); /* and releases the GIL */
+    }
+}
+
+static void resolve_python(void)
+{
+    py.is_initialized = (int (*)(void))dlsym(RTLD_DEFAULT, "Py_IsInitialized");
+    py.this_thread_state = (void *(*)(void))dlsym(RTLD_DEFAULT, "PyGILState_GetThisThreadState");
+    py.ensure = (py_gil_state (*)(void))dlsym(RTLD_DEFAULT, "PyGILState_Ensure");
+    py.save_thread = (void *(*)(void))dlsym(RTLD_DEFAULT, "PyEval_SaveThread");
+    py.restore_thread = (void (*)(void *))dlsym(RTLD_DEFAULT, "PyEval_RestoreThread");
+    py.clear = (void (*)(void *))dlsym(RTLD_DEFAULT, "PyThreadState_Clear");
+    py.delete_current = (void (*)(void))dlsym(RTLD_DEFAULT, "PyThreadState_DeleteCurrent");
+    if (!(py.is_initialized && py.this_thread_state && py.ensure && py.save_thread &&
+          py.restore_thread && py.clear && py.delete_current) ||
+        pthread_key_create(&pinned_key, unpin_thread_state))
+        py.is_initialized = NULL; /* not found: every call keeps pythonfmu's own way */
+}
+
+static void pin_thread_state(void)
+{
+    if (pinned)
+        return;
+    pthread_once(&py_once, resolve_python);
+    if (!py.is_initialized) {
+        pinned = 1;
+        return;
+    }
+    if (!py.is_initialized())
+        return; /* before pythonfmu started Python: the next call pins */
+    pinned = 1;
+    if (py.this_thread_state())
+        return;
+    py.ensure();
+    pthread_setspecific(pinned_key, py.save_thread());
+}
+
 /* Forward to pythonfmu, raising the status to what the model logged. */
-#define CALL(expr) (inst->worst = fmi2OK, after(inst, merged(inst, (expr))))
+#define CALL(expr) (pin_thread_state(), inst->worst = fmi2OK, after(inst, merged(inst, (expr))))
 
 static int null_argument(Instance *inst, const char *function, const char *name, const void *p)
 {

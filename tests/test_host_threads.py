@@ -1,0 +1,56 @@
+"""The Python FMUs in a C host: one Python thread state per host thread (fmu_src/loader).
+
+pythonfmu 0.7.0 starts Python in a thread of its own, so a C host's thread had no Python thread
+state and every FMI call created one and destroyed it again (most of the C host's step time,
+benchmarks/bench_fmu_hosts.py).  The loader shim now gives each calling thread one state for
+good and deletes it when the thread ends.  tests/hosts/thread_host.c steps one FMU from two
+threads in turn and reports the thread states it saw.
+"""
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import fmpy
+import pytest
+
+from test_build import HOSTS, LIBDIR, clean_env, errors_in, host_args, run, value_of
+
+pytestmark = pytest.mark.integration
+
+
+@pytest.fixture(scope="module")
+def thread_host(tmp_path_factory):
+    """The compiled tests/hosts/thread_host.c."""
+    cc = shutil.which(os.environ.get("CC", "cc"))
+    if not cc:
+        pytest.skip("no C compiler to build the thread host")
+    exe = tmp_path_factory.mktemp("thread_host") / "thread_host"
+    headers = Path(fmpy.__file__).parent / "c-code"
+    subprocess.run([cc, "-std=c99", "-o", str(exe), str(HOSTS / "thread_host.c"),
+                    "-I%s" % headers, "-ldl", "-lpthread"], check=True)
+    return str(exe)
+
+
+def fields(output, key):
+    """``{first word: second word}`` of the lines starting with ``key``."""
+    return {line.split()[1]: line.split()[2] for line in output.splitlines()
+            if line.startswith(key + " ")}
+
+
+@pytest.mark.parametrize("name", ["Excitation", "DriftEstimator"])
+def test_each_host_thread_keeps_one_python_thread_state(python_fmus, thread_host, name,
+                                                         tmp_path):
+    args = host_args(python_fmus[name], tmp_path)
+    code, output = run([thread_host, *args], clean_env(LD_LIBRARY_PATH=LIBDIR))
+    assert code == 0 and not errors_in(output), output
+    # the same thread state after every call of a thread, not a new one per call (nor none)
+    assert fields(output, "STATE") == {"A": "1", "B": "1"}, output
+    # a thread's state is deleted when the thread ends: none is left behind
+    threads = fields(output, "THREADS")
+    assert threads["after-A"] == threads["before"] == threads["after-B"], output
+    # and the results are those of a Python host, bit for bit
+    code, reference = run([sys.executable, str(HOSTS / "ctypes_host.py"), *args], clean_env())
+    assert code == 0 and not errors_in(reference), reference
+    assert value_of(output) == value_of(reference)
