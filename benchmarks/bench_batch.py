@@ -9,6 +9,9 @@ scalar EKF and the three drift estimators.
 - the default ``driftfmu sweep`` (6 x 5 grid, 1000 runs of 1000 samples) on all local cores,
   the runs alone and with its files and figures, NumPy against the kernel; and the command
   itself (``driftfmu sweep``, a new process: start-up, runs, files, figures), wall time;
+- the NumPy engine with a quartic term ``a4 = 0.05`` (the general sensor of issue 16:
+  ``h``, ``h'`` and the 3rd/4th moments of the estimators; the kernel has the quadratic
+  sensor only), printed beside the NumPy figure with the ratio;
 - FMU path: one run co-simulated with the three FMUs (:func:`driftfmu.simulations.batch.fmu_simulate`),
   ``--fmu-n`` samples with the instantiation included, and per additional sample;
 - filterpy: ``filterpy.kalman.ExtendedKalmanFilter`` (1 state, 1 measurement) in a Python loop,
@@ -34,6 +37,8 @@ from driftfmu.simulations import batch, sweep
 from machine import cpu
 
 P = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4)
+#: The general sensor (issue 16): a quartic term in the sensor, the filter and the estimators.
+P4 = dict(P, a4=0.05)
 
 
 def best(fn, repeats):
@@ -45,9 +50,9 @@ def best(fn, repeats):
     return min(times)
 
 
-def bench_batch(runs, n, repeats, kernel):
+def bench_batch(runs, n, repeats, kernel, params=P):
     seeds = batch.run_seeds(1, runs)
-    return best(lambda: batch.simulate(n, seeds, kernel=kernel, **P), repeats) / (runs * n)
+    return best(lambda: batch.simulate(n, seeds, kernel=kernel, **params), repeats) / (runs * n)
 
 
 def bench_sweep(repeats, kernel_on):
@@ -142,6 +147,7 @@ def main(argv=None):
     from driftfmu.simulations import kernel
     have_kernel = kernel.library() is not None
     t_batch = bench_batch(args.runs, args.n, args.repeats, "numpy")
+    t_batch4 = bench_batch(args.runs, args.n, args.repeats, "numpy", P4)
     t_kernel = bench_batch(args.runs, args.n, args.repeats, "c") if have_kernel else None
     sweeps = {on: bench_sweep(args.repeats, on) for on in ((False, True) if have_kernel
                                                            else (False,))}
@@ -156,6 +162,8 @@ def main(argv=None):
     print("%-58s %12s" % ("", "ns/sample-run"))
     print("%-58s %12.1f" % ("batch engine, NumPy, 1 process (%d runs x %d samples)"
                             % (args.runs, args.n), t_batch * 1e9))
+    print("%-58s %12.1f" % ("batch engine, NumPy, 1 process, a4 = %g (general; %.2f x)"
+                            % (P4["a4"], t_batch4 / t_batch), t_batch4 * 1e9))
     if t_kernel is not None:
         print("%-58s %12.1f" % ("batch engine, compiled kernel, 1 process", t_kernel * 1e9))
     for on, (t, per, wall) in sweeps.items():

@@ -1,4 +1,5 @@
-"""Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + v, and the richer
+"""Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 + v
+(a3 = a4 = 0: the letter's specific case), and the richer
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
 noise density) of :mod:`driftfmu.models.adxl203`, every extra off by default; or (``dual = 1``) the
 dual-axis bilinear sensor of :mod:`driftfmu.models.dualaxis`, z = a0 + a1 x + a2 x^2 + bx x y + v_x and
@@ -41,6 +42,7 @@ class Accelerometer(SlaveBase):
         var("a2y", "parameter"),
         var("by", "parameter"),
         var("Ry", "parameter"),
+        var("a4", "parameter"),
     )
     DEPENDENCIES = {"z": ["x", "y"], "z_y": ["x", "y"]}
     DESCRIPTION = ("Weakly nonlinear accelerometer z_k = a0 + a1 x_k + a2 x_k^2 + v_k, "
@@ -55,13 +57,16 @@ class Accelerometer(SlaveBase):
     def check_parameters(self):
         problems = (super().check_parameters() + adxl203.problems(self.parameter_values())
                     + dualaxis.sensor_problems(self.parameter_values()))
+        if self.dual and self.a4 != 0.0:
+            problems.append("dual = 1 is not allowed with a4 = %r; allowed: dual = 1 with a4 = 0 "
+                            "(the bilinear sensor is of 2nd order)" % (self.a4,))
         if not problems:
             cfg = adxl203.config(**self.parameter_values())
-            for name in ("a0", "a1", "a2", "a3", "sigma"):
+            for name in ("a0", "a1", "a2", "a3", "sigma", "a4"):
                 value = getattr(cfg, name)
                 if not math.isfinite(value):
                     problems.append(
-                        "the parameters give the effective %s = %r (a1, a2, a3 and the noise "
+                        "the parameters give the effective %s = %r (a1, a2, a3, a4 and the noise "
                         "are scaled by S(Vs)/S(5 V) and density by sqrt(1/(2 Ts))); allowed: "
                         "parameters whose effective values are finite" % (name, value))
         return problems

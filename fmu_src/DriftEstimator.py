@@ -1,5 +1,6 @@
 """DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
-Gauss-Markov (the letter's scalar filter) or a harmonic oscillator at a known frequency."""
+Gauss-Markov (the letter's scalar filter, with the known input B u of eq. 1) or a harmonic
+oscillator at a known frequency; the sensor's characteristic up to 4th order (a3, a4)."""
 
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, check_estimator_plain, var
@@ -7,7 +8,7 @@ from driftfmu.models import chain, drift, harmonic
 
 
 class DriftEstimator(SlaveBase):
-    """EKF estimate of x from z and the state-dependent drift a2 E[x^2] (EKF1, EKF2, EKF3), subtracted from z."""
+    """EKF estimate of x from z and the state-dependent drift a2 E[x^2] + a3 E[x^3] + a4 E[x^4] (EKF1, EKF2, EKF3), subtracted from z."""
 
     VARIABLES = (
         var("a0", "parameter"),
@@ -34,11 +35,18 @@ class DriftEstimator(SlaveBase):
             description="drift estimate of the selected estimator"),
         var("z_comp", "output", start=0.0, unit="V",
             description="drift-compensated sensor output z_k - dc_k"),
+        var("a3", "parameter"),
+        var("a4", "parameter"),
+        var("B", "parameter", description="input gain B of the filter's prediction "
+            "x-_k = A x+_{k-1} + B u_k (Gauss-Markov process model; 0: no known input)"),
+        var("u", "input", start=0.0, unit="g",
+            description="known input u_k of the process model (used when B != 0)"),
     )
-    DEPENDENCIES = {name: ["z"] for name in
+    DEPENDENCIES = {name: ["z", "u"] for name in
                     ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp")}
-    DESCRIPTION = ("EKF estimate of x from z and the state-dependent drift a2 E[x^2] (EKF1, EKF2, "
-                   "EKF3), subtracted from z; process model Gauss-Markov or harmonic. The first "
+    DESCRIPTION = ("EKF estimate of x from z and the state-dependent drift a2 E[x^2] + a3 E[x^3] "
+                   "+ a4 E[x^4] (EKF1, EKF2, EKF3), subtracted from z; process model Gauss-Markov "
+                   "(with the known input B u) or harmonic. The first "
                    "sample instant of a step takes the z held from its start as the "
                    "measurement, further instants in the same step are predict-only")
     #: The filter and drift-estimator state after the last sample (x0, P0 before the first).
@@ -53,13 +61,14 @@ class DriftEstimator(SlaveBase):
 
     def prepare(self):
         C, S = harmonic.rotation(self.f, self.Ts)
-        self._model = dict(process=self.process, A=self.A, Q=self.Q, C=C, S=S, Qh=self.Qh)
+        self._model = dict(process=self.process, A=self.A, Q=self.Q, C=C, S=S, Qh=self.Qh,
+                           B=self.B)
 
     def initial_hidden(self):
         return {"_state": harmonic.estimator_init(self.process, self.x0, self.P0)}
 
     def _outputs(self, state):
-        dcs = drift.estimates(state.drift, self.a2)
+        dcs = drift.estimates(state.drift, self.a2, self.a3, self.a4)
         dc = drift.select(dcs, self.estimator)
         return {"x_hat": state.x, "P": state.P, "dc_ekf1": dcs[0], "dc_ekf2": dcs[1],
                 "dc_ekf3": dcs[2], "dc": dc, "z_comp": chain.compensate(self.z, dc)}
@@ -68,9 +77,9 @@ class DriftEstimator(SlaveBase):
         state = hidden["_state"]
         if first:  # the measurement: the z set at (or held from) the start of the step
             state = harmonic.estimator_step(state, self.z, self.a0, self.a1, self.a2, self.R,
-                                            **self._model)
-        else:      # samples between communication points carry no measurement
-            state = harmonic.estimator_predict(state, **self._model)
+                                            a3=self.a3, a4=self.a4, u=self.u, **self._model)
+        else:      # samples between communication points carry no measurement (u held)
+            state = harmonic.estimator_predict(state, u=self.u, **self._model)
         return {"_state": state}, self._outputs(state)
 
     def hold(self, hidden, k0, n, first):
@@ -78,7 +87,7 @@ class DriftEstimator(SlaveBase):
         if n > 1:
             state = hidden["_state"]
             for _ in range(n - 1):
-                state = harmonic.estimator_predict(state, **self._model)
+                state = harmonic.estimator_predict(state, u=self.u, **self._model)
             hidden, outputs = {"_state": state}, self._outputs(state)
         return hidden, outputs
 
@@ -95,7 +104,7 @@ class DriftEstimator(SlaveBase):
     def parse_hidden(self, name, value):
         if value is None:
             return None
-        check_estimator_plain(value, (3, 6), 5,
+        check_estimator_plain(value, (3, 6), (5, len(drift.DriftState._fields)),
                               "an estimator state [x, P, drift] or [x, d, P, P12, P22, drift]",
                               "a drift-estimator state [k, s1, dc2, s3, dc3]")
         return harmonic.from_plain(value)

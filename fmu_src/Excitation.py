@@ -1,6 +1,8 @@
 """Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; when Gaussian a
-second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0)."""
+second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0); the
+known input u_k (drive: Gaussian N(0, Qu) or Xu sin(2 pi fu t)) that enters the Gaussian x as
+B u_k (eq. 1) and that the DriftEstimator takes as its input u."""
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import excitation
@@ -28,6 +30,15 @@ class Excitation(SlaveBase):
                         "Gaussian y_k = A y_{k-1} + w_y,k (0 while Qy = 0)"),
         var("Qy", "parameter"),
         var("rho", "parameter"),
+        var("B", "parameter"),
+        var("drive", "parameter", description="known input u_k: 0 none (u = 0), 1 Gaussian "
+            "white N(0, Qu), 2 sinusoid Xu sin(2 pi fu t)"),
+        var("Qu", "parameter"),
+        var("Xu", "parameter"),
+        var("fu", "parameter"),
+        var("u", "output", start=0.0, unit="g",
+            description="known input u_k (drive), which drives x by B u_k when Gaussian; "
+                        "connect it to the DriftEstimator's u"),
     )
     DESCRIPTION = ("True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + w_k, w_k ~ N(0, Q), "
                    "or X sin(2 pi f t + phi); second axis y_k = Xy sin(2 pi f t_k + phiy), or "
@@ -40,12 +51,18 @@ class Excitation(SlaveBase):
         problems = super().check_parameters()
         if self.kind == excitation.SINUSOIDAL:
             problems += self.nyquist_problems()
+        if self.drive == excitation.SINUSOIDAL:
+            problems += self.nyquist_problems("fu")
         return problems
+
+    def _u(self, k):
+        return excitation.input_sample(self.drive, self.seed, k, self.Qu, self.Xu, self.fu,
+                                       self.Ts)
 
     def _sample(self, x_prev, y_prev, k):
         if self.kind == excitation.GAUSSIAN:
             return excitation.gaussian_pair(x_prev, y_prev, self.A, self.Q, self.Qy, self.rho,
-                                            self.seed, k)
+                                            self.seed, k, self.B, self._u(k))
         return (excitation.sine(k, self.X, self.f, self.Ts, self.phi),
                 excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy))
 
@@ -54,7 +71,7 @@ class Excitation(SlaveBase):
 
     def sample(self, hidden, k, first):
         x, y = self._sample(hidden["_x"], hidden["_y"], k)
-        return {"_x": x, "_y": y}, {"x": x, "y": y}
+        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": self._u(k)}
 
     #: the hidden x is the output x, which the base class checks
     hidden_finite = None
@@ -66,4 +83,4 @@ class Excitation(SlaveBase):
                 x, y = self._sample(x, y, k)
         else:  # the sinusoid needs no history
             x, y = self._sample(x, y, k0 + n - 1)
-        return {"_x": x, "_y": y}, {"x": x, "y": y}
+        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": self._u(k0 + n - 1)}

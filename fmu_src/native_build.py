@@ -420,6 +420,8 @@ def compiler(platform):
         command = shlex.split(os.environ.get(env, default))
         if command and shutil.which(command[0]):
             return command, extra, os.path.basename(command[0])
+        if os.environ.get(env) is not None:  # a compiler named but not installed: no fallback
+            return None
     return None
 
 
@@ -428,13 +430,34 @@ def _libraries(platform, command):
     return ["-lm"] if platform.endswith("-linux") or "mingw32" in " ".join(command) else []
 
 
+def compiler_problem(platform):
+    """Why ``platform`` (FMI 3.0 name; ``linux64``/``win64`` accepted) has no compiler, naming
+    what was looked for (``$CC`` or ``$MINGW_CC`` when set, zig) and how to get one; None when
+    it has one."""
+    platform = {"linux64": "x86_64-linux", "win64": "x86_64-windows"}.get(platform, platform)
+    if compiler(platform) is not None:
+        return None
+    looked, envs = [], []
+    for choice in PLATFORMS[platform][1]:
+        if choice == "zig":
+            looked.append("zig is not installed")
+            continue
+        env, default, _ = choice
+        envs.append(env)
+        given = os.environ.get(env)
+        looked.append("%s=%r is not an installed program" % (env, given) if given is not None
+                      else "%s is not installed" % default)
+    allowed = ("%s naming an installed C compiler, or %s" % (envs[0], _install_hint(platform))
+               if envs else _install_hint(platform))
+    return "no %s compiler: %s; allowed: %s" % (platform, ", ".join(looked), allowed)
+
+
 def compile_library(platform, sources_dir, c_files, target):
     """Compile ``c_files`` of ``sources_dir`` into the shared library ``target``; return
     ``(target, label of the compiler)``."""
     chosen = compiler(platform)
     if chosen is None:
-        raise NativeBuildError("no compiler for %s found (%s)"
-                               % (platform, _install_hint(platform)))
+        raise NativeBuildError(compiler_problem(platform))
     command, extra, label = chosen
     target.parent.mkdir(parents=True, exist_ok=True)
     if platform.endswith("-darwin"):  # the library's own name, not the build folder's path
@@ -557,8 +580,7 @@ def available_platforms(log=print):
     the missing ones and how to get them."""
     out = [p for p in PLATFORMS if compiler(p) is not None]
     if "x86_64-linux" not in out:
-        raise NativeBuildError("no C compiler for x86-64 Linux found (%s)"
-                               % _install_hint("x86_64-linux"))
+        raise NativeBuildError(compiler_problem("x86_64-linux"))
     missing = [p for p in PLATFORMS if p not in out]
     if missing:
         log("warning: no compiler for %s (%s); the native FMUs carry no binary for %s"

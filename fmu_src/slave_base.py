@@ -54,7 +54,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
-from driftfmu.models import parameters
+from driftfmu.models import drift, parameters
 
 _TYPES = {"Real": Real, "Integer": Integer}
 
@@ -380,13 +380,15 @@ class SlaveBase(Fmi2Slave):
                                     % (s["name"], v, low, s["name"], high))
         return problems
 
-    def nyquist_problems(self):
-        """The Nyquist check of a slave with a sinusoid at ``f`` (a list of at most one problem;
-        none where ``Ts`` itself is refused by its range).  C twin: ``slave_check_nyquist``."""
-        if self.Ts > 0 and self.f >= 0.5 / self.Ts:
+    def nyquist_problems(self, name="f"):
+        """The Nyquist check of a slave with a sinusoid at the frequency parameter ``name`` (a
+        list of at most one problem; none where ``Ts`` itself is refused by its range).  C twin:
+        ``slave_check_nyquist_named``."""
+        f = getattr(self, name)
+        if self.Ts > 0 and f >= 0.5 / self.Ts:
             nyquist = 0.5 / self.Ts
-            return ["f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
-                    "f < %r Hz" % (self.f, nyquist, nyquist)]
+            return ["%s = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
+                    "%s < %r Hz" % (name, f, nyquist, name, nyquist)]
         return []
 
     def _check_and_prepare(self, context):
@@ -735,7 +737,8 @@ def check_estimator_plain(value, sizes, drift_size, state_text, drift_text):
     if not isinstance(value, list) or len(value) not in sizes:
         raise ValueError("not %s" % state_text)
     *head, d = value
-    if not (isinstance(d, list) and len(d) == drift_size and isinstance(d[0], int)
+    drift_sizes = drift_size if isinstance(drift_size, tuple) else (drift_size,)
+    if not (isinstance(d, list) and len(d) in drift_sizes and isinstance(d[0], int)
             and not isinstance(d[0], bool) and d[0] >= 0):
         raise ValueError("not %s" % drift_text)
     for v in head + d[1:]:
@@ -771,7 +774,10 @@ DEFAULT_EXPERIMENT = DefaultExperiment(start_time=0.0, stop_time=2.0, step_size=
 
 
 def _plain(value):
-    """JSON-ready copy of hidden state (namedtuples become nested lists)."""
+    """JSON-ready copy of hidden state (namedtuples become nested lists; a drift-estimator state
+    without 3rd/4th-order sums keeps the letter's five entries, :func:`drift.plain`)."""
+    if isinstance(value, drift.DriftState):
+        return drift.plain(value)
     if isinstance(value, tuple):
         return [_plain(v) for v in value]
     return value

@@ -3,7 +3,8 @@
 Every extra effect is off by default, and then the output is the letter's sensor,
 ``z = a0 + a1 x + a2 x^2 + sqrt(R) v`` (:func:`driftfmu.models.sensor.measure`, same bits).  Switched on:
 
-* cubic term ``a3 u^3`` and cross-axis coupling: each axis senses its own acceleration plus
+* cubic and quartic terms ``a3 u^3 + a4 u^4`` (without any other extra: the general sensor
+  :func:`driftfmu.models.sensor.measure`) and cross-axis coupling: each axis senses its own acceleration plus
   ``cross`` times the other's, ``u_x = x + cross y``, ``u_y = y + cross x``;
 * the second axis (``axes = 2``): ``z_y`` from ``u_y`` with its own noise and filter;
 * noise given as a density (``density`` [g/sqrt(Hz)]): white noise sampled at ``fs = 1/Ts`` has the
@@ -51,7 +52,7 @@ MAX_BANDWIDTH = 2500.0
 RANGE_G = 1.7
 
 #: The sensor parameters and their off values (the letter's quadratic sensor).
-EXTRAS_OFF = dict(a3=0.0, cross=0.0, fc=0.0, Vs=0.0, bits=0, density=0.0, axes=1)
+EXTRAS_OFF = dict(a3=0.0, a4=0.0, cross=0.0, fc=0.0, Vs=0.0, bits=0, density=0.0, axes=1)
 
 #: ADXL203 stand-in (datasheet facts and the choices stated here; sources and assumptions in
 #: docs/method.md, section 6): 5 V supply (zero-g 2.5 V, 1000 mV/g), noise density
@@ -64,7 +65,7 @@ ADXL203 = dict(a0=2.5, a1=SENSITIVITY_5V, a2=0.01, a3=0.002, R=1e-4, cross=0.015
                fc=round(BANDWIDTH_RULE / 4.7e-9, 6), Vs=5.0, bits=12, density=110e-6, axes=2)
 PRESETS = {"adxl203": ADXL203}
 
-Config = namedtuple("Config", "plain a0 a1 a2 a3 R sigma cross alpha lsb levels")
+Config = namedtuple("Config", "plain a0 a1 a2 a3 R sigma cross alpha lsb levels a4")
 
 
 def settling_samples(fc, Ts, time_constants=10):
@@ -106,10 +107,10 @@ def problems(p):
 
 
 def config(a0=0.0, a1=1.0, a2=0.01, R=1e-4, a3=0.0, cross=0.0, fc=0.0, Vs=0.0, bits=0,
-           density=0.0, Ts=1e-3, **_ignored):
-    """Constants of the sensor, computed once from the (scalar) parameters."""
-    plain = (a3 == 0.0 and cross == 0.0 and fc == 0.0 and Vs == 0.0 and bits == 0
-             and density == 0.0)
+           density=0.0, Ts=1e-3, a4=0.0, **_ignored):
+    """Constants of the sensor, computed once from the (scalar) parameters.  ``plain``: no
+    extra on, the letter's general sensor ``h(x) + sqrt(R) v`` (any ``a3``, ``a4``)."""
+    plain = (cross == 0.0 and fc == 0.0 and Vs == 0.0 and bits == 0 and density == 0.0)
     scale = sensitivity(Vs) / sensitivity(VS_NOMINAL) if Vs > 0.0 else 1.0
     z0 = Vs / 2.0 if Vs > 0.0 else a0
     a1e, a2e, a3e = a1 * scale, a2 * scale, a3 * scale
@@ -117,7 +118,7 @@ def config(a0=0.0, a1=1.0, a2=0.01, R=1e-4, a3=0.0, cross=0.0, fc=0.0, Vs=0.0, b
     alpha = _ops.exp(-2.0 * math.pi * fc * Ts) if fc > 0.0 else None
     levels = 2 ** int(bits) if bits > 0 else 0
     lsb = (Vs if Vs > 0.0 else VS_NOMINAL) / levels if levels else 0.0
-    return Config(plain, z0, a1e, a2e, a3e, R, sigma, cross, alpha, lsb, levels)
+    return Config(plain, z0, a1e, a2e, a3e, R, sigma, cross, alpha, lsb, levels, a4 * scale)
 
 
 def noise(seed, k, axis=1):
@@ -126,10 +127,13 @@ def noise(seed, k, axis=1):
 
 
 def sense(own, other, v, cfg):
-    """Pre-filter signal [V above zero-g] of an axis: ``a1 (u + n) + a2 u^2 + a3 u^3``."""
+    """Pre-filter signal [V above zero-g] of an axis: ``a1 (u + n) + a2 u^2 + a3 u^3 + a4 u^4``
+    (the ``a4`` term only when ``a4 != 0``: same bits as the cubic sensor)."""
     u = own + cfg.cross * other
     u2 = u * u
-    return cfg.a1 * u + cfg.a2 * u2 + cfg.a3 * u2 * u + cfg.sigma * v
+    if cfg.a4 == 0.0:
+        return cfg.a1 * u + cfg.a2 * u2 + cfg.a3 * u2 * u + cfg.sigma * v
+    return cfg.a1 * u + cfg.a2 * u2 + cfg.a3 * u2 * u + cfg.a4 * u2 * u2 + cfg.sigma * v
 
 
 def lowpass(prev, s, alpha):
@@ -159,7 +163,7 @@ def measure(prev, own, other, v, cfg):
     extra off this is :func:`driftfmu.models.sensor.measure` (state None).
     """
     if cfg.plain:
-        return None, sensor.measure(own, cfg.a0, cfg.a1, cfg.a2, cfg.R, v)
+        return None, sensor.measure(own, cfg.a0, cfg.a1, cfg.a2, cfg.R, v, cfg.a3, cfg.a4)
     e = lowpass(prev, sense(own, other, v, cfg), cfg.alpha)
     return e, quantise(cfg.a0 + e, cfg)
 

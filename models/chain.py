@@ -24,10 +24,11 @@ def estimator_init(x0, P0):
     return EstimatorState(x0, P0, drift.initial_state())
 
 
-def estimator_step(state, z, a0, a1, a2, A, Q, R):
-    """One EKF predict/update with ``z`` and the three drift estimators folded forward."""
-    x, P = ekf.step(state.x, state.P, z, a0, a1, a2, A, Q, R)
-    return EstimatorState(x, P, drift.update(state.drift, x, P, a2))
+def estimator_step(state, z, a0, a1, a2, A, Q, R, a3=0.0, a4=0.0, B=0.0, u=0.0):
+    """One EKF predict (with the known input ``u``)/update with ``z`` and the three drift
+    estimators folded forward."""
+    x, P = ekf.step(state.x, state.P, z, a0, a1, a2, A, Q, R, a3, a4, B, u)
+    return EstimatorState(x, P, drift.update(state.drift, x, P, a2, a3, a4))
 
 
 def compensate(z, dc):
@@ -37,40 +38,51 @@ def compensate(z, dc):
 
 def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
              Ts=1e-3, estimator=1, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0,
-             filter_A=None, filter_Q=None, measure_noise=True):
+             filter_A=None, filter_Q=None, measure_noise=True, a3=0.0, a4=0.0, B=0.0,
+             drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0):
     """Run the chain for samples ``k = 1..n``; return a dict of the results columns.
 
     ``seed`` is an int (one run; each column a list of floats) or a ``uint64`` array of shape
     ``(runs,)`` (each column an array ``(runs, n)``).  The sensor and the filter share the model
     ``a0, a1, a2, R``; the excitation is Gauss-Markov ``(A, Q)`` or ``X sin(2 pi f t + phi)``.
     The filter's process model is ``(filter_A, filter_Q)``, by default the excitation's.
-    ``P0`` defaults to the stationary variance ``Q / (1 - A^2)``.
+    ``P0`` defaults to the stationary variance ``Q / (1 - A^2)``.  The general model: ``a3, a4``
+    (sensor and filter), and the known input ``u`` (``drive``, ``Qu``, ``Xu``, ``fu``) entering
+    the Gauss-Markov excitation and the filter's prediction through ``B``; the expected drift is
+    then ``a2 E[x^2] + a4 E[x^4]`` of :func:`driftfmu.models.excitation.state_moments`.  Their
+    defaults give the letter's chain, same bits.
     """
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = fQ / (1.0 - fA * fA)
-    var_x = excitation.stationary_variance(kind, A=A, Q=Q, X=X)
-    dc_expected = sensor.drift(a2, var_x)
+    if kind == excitation.GAUSSIAN and not (B == 0.0 or drive == excitation.DRIVE_OFF):
+        var_x, m4 = excitation.state_moments(A, Q, B, drive, Qu, Xu, fu, Ts)
+    else:
+        var_x = excitation.stationary_variance(kind, A=A, Q=Q, X=X)
+        m4 = 3.0 * var_x * var_x if kind == excitation.GAUSSIAN else 0.375 * X ** 4
+    dc_expected = sensor.drift(a2, var_x, a4, m4)
+    fB = B if kind == excitation.GAUSSIAN else 0.0  # a sinusoidal x has no input term
     scalar = isinstance(seed, int)
     cols = {c: [] for c in COLUMNS}
     x = x0
     est = estimator_init(x0, P0)
     for k in range(1, n + 1):
+        u = excitation.input_sample(drive, seed, k, Qu, Xu, fu, Ts)
         if kind == excitation.GAUSSIAN:
-            x = excitation.gauss_markov(x, A, Q, normal(seed, STREAM_PROCESS, k))
+            x = excitation.gauss_markov(x, A, Q, normal(seed, STREAM_PROCESS, k), B, u)
         else:
             x = excitation.sine(k, X, f, Ts, phi)
         v = normal(seed, STREAM_MEASUREMENT, k) if measure_noise else 0.0
-        z = sensor.measure(x, a0, a1, a2, R, v)
-        est = estimator_step(est, z, a0, a1, a2, fA, fQ, R)
-        dcs = drift.estimates(est.drift, a2)
+        z = sensor.measure(x, a0, a1, a2, R, v, a3, a4)
+        est = estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
+        dcs = drift.estimates(est.drift, a2, a3, a4)
         row = ((k - 1) * Ts, x, z, est.x, est.P, dcs[0], dcs[1], dcs[2],
                compensate(z, drift.select(dcs, estimator)))
         for c, value in zip(FMU_COLUMNS, row):
             cols[c].append(value)
     cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
-        cols["x"], cols["z"], a0, a2, dc_expected)
+        cols["x"], cols["z"], a0, a2, dc_expected, a3, a4)
     if not scalar:
         import numpy as np
         for c in COLUMNS:

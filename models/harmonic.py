@@ -55,13 +55,13 @@ def predict(x, d, P11, P12, P22, C, S, Qh):
     return xp, dp, p11, p12, p22
 
 
-def update(x, d, P11, P12, P22, z, a0, a1, a2, R):
+def update(x, d, P11, P12, P22, z, a0, a1, a2, R, a3=0.0, a4=0.0):
     """Measurement update with ``z``, linearised at the predicted ``x``; Joseph form."""
-    H = dh_dx(x, a1, a2)
+    H = dh_dx(x, a1, a2, a3, a4)
     Sv = H * H * P11 + R
     K1 = P11 * H / Sv
     K2 = P12 * H / Sv
-    e = z - h(x, a0, a1, a2)
+    e = z - h(x, a0, a1, a2, a3, a4)
     m11 = 1.0 - K1 * H
     m21 = -K2 * H
     p11 = m11 * m11 * P11 + K1 * K1 * R
@@ -70,9 +70,9 @@ def update(x, d, P11, P12, P22, z, a0, a1, a2, R):
     return x + K1 * e, d + K2 * e, p11, p12, p22
 
 
-def step(x, d, P11, P12, P22, z, a0, a1, a2, C, S, Qh, R):
+def step(x, d, P11, P12, P22, z, a0, a1, a2, C, S, Qh, R, a3=0.0, a4=0.0):
     """Predict from the previous posterior, then update with ``z``."""
-    return update(*predict(x, d, P11, P12, P22, C, S, Qh), z, a0, a1, a2, R)
+    return update(*predict(x, d, P11, P12, P22, C, S, Qh), z, a0, a1, a2, R, a3, a4)
 
 
 # -- the estimator (EKF + drift estimators) for either process model -----------------------------
@@ -88,20 +88,22 @@ def estimator_init(process, x0, P0):
 
 
 def estimator_step(state, z, a0, a1, a2, R, process=GAUSS_MARKOV, A=0.0, Q=0.0, C=1.0, S=0.0,
-                   Qh=0.0):
-    """One EKF predict/update with ``z`` (Gauss-Markov ``A, Q`` or harmonic ``C, S, Qh``) and
-    the three drift estimators folded forward with ``x+`` and ``P+_11``."""
+                   Qh=0.0, a3=0.0, a4=0.0, B=0.0, u=0.0):
+    """One EKF predict/update with ``z`` (Gauss-Markov ``A, Q`` with the known input ``B u``, or
+    harmonic ``C, S, Qh``) and the three drift estimators folded forward with ``x+`` and
+    ``P+_11``."""
     if process == GAUSS_MARKOV:
-        return chain.estimator_step(state, z, a0, a1, a2, A, Q, R)
+        return chain.estimator_step(state, z, a0, a1, a2, A, Q, R, a3, a4, B, u)
     x, d, p11, p12, p22 = step(state.x, state.d, state.P, state.P12, state.P22, z, a0, a1, a2,
-                               C, S, Qh, R)
-    return HarmonicState(x, d, p11, p12, p22, drift.update(state.drift, x, p11, a2))
+                               C, S, Qh, R, a3, a4)
+    return HarmonicState(x, d, p11, p12, p22, drift.update(state.drift, x, p11, a2, a3, a4))
 
 
-def estimator_predict(state, process=GAUSS_MARKOV, A=0.0, Q=0.0, C=1.0, S=0.0, Qh=0.0):
+def estimator_predict(state, process=GAUSS_MARKOV, A=0.0, Q=0.0, C=1.0, S=0.0, Qh=0.0, B=0.0,
+                      u=0.0):
     """Time update only (a sample without a measurement); the drift state is kept."""
     if process == GAUSS_MARKOV:
-        x, P = ekf.predict(state.x, state.P, A, Q)
+        x, P = ekf.predict(state.x, state.P, A, Q, B, u)
         return chain.EstimatorState(x, P, state.drift)
     x, d, p11, p12, p22 = predict(state.x, state.d, state.P, state.P12, state.P22, C, S, Qh)
     return HarmonicState(x, d, p11, p12, p22, state.drift)
@@ -115,12 +117,12 @@ def from_plain(values):
 
 
 def run(zs, a0, a1, a2, R, x0=0.0, P0=1.0, process=HARMONIC, f=150.0, Ts=1e-3, A=0.0, Q=0.0,
-        Qh=1e-8):
+        Qh=1e-8, a3=0.0, a4=0.0):
     """Run the estimator over recorded outputs ``zs`` (one measurement per sample, floats or
     arrays of runs); return the final state.  The same steps as the DriftEstimator FMU."""
     C, S = rotation(f, Ts)
     model = dict(process=process, A=A, Q=Q, C=C, S=S, Qh=Qh)
     state = estimator_init(process, x0, P0)
     for z in zs:
-        state = estimator_step(state, z, a0, a1, a2, R, **model)
+        state = estimator_step(state, z, a0, a1, a2, R, a3=a3, a4=a4, **model)
     return state

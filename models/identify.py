@@ -36,6 +36,26 @@ form: for white noise of variance ``s^2`` over ``N`` samples in whole periods,
 ``sd(a1) = sqrt(2/N) s / X``, ``sd(a2) = 2 sqrt(2/N) s / X^2``, ``sd(a0) = sqrt(3/N) s``,
 ``sd(R) = sqrt(2/N) s^2`` (see :func:`standard_errors`), which the tests use as tolerances.
 
+**Orders 3 and 4** (``order``, the letter's general sensor ``h(x) = a0 + ... + a4 x^4``).  With
+``x = X sin(theta)``: ``sin^3 = (3 sin - sin 3theta)/4`` and ``sin^4 = (3 - 4 cos 2theta +
+cos 4theta)/8``, so a 3rd-order term feeds the 1st and 3rd harmonics and a 4th-order term the
+DC, 2nd and 4th.  With ``A_j, B_j`` the sine and cosine coefficients of harmonic ``j`` rotated
+back by ``j phi_1``:
+
+.. math::
+
+    a_4 = 8 B_4 / X^4, \\qquad a_3 = -4 A_3 / X^3, \\qquad
+    a_2 = -(2 B_2 + a_4 X^4) / X^2, \\qquad a_1 = (A_1 - 3 a_3 X^3 / 4) / X, \\qquad
+    a_0 = c_0 - a_2 X^2 / 2 - 3 a_4 X^4 / 8
+
+Five harmonic coefficients for five unknowns: one drive amplitude resolves every order up to 4,
+provided the harmonics are distinct frequencies below the Nyquist rate, ``order * f < 1 / (2
+Ts)`` (else harmonic ``order`` aliases onto a lower one or the DC, and the fit refuses the order
+naming the highest order the data resolve).  The standard errors are those of the linear map
+from the least-squares coefficients (covariance ``R (B^T B)^{-1}``) to ``a0..a_order``, exact
+for white noise given ``X`` and ``phi_1``; over whole periods they are the closed forms of
+:func:`standard_errors`.  ``order = 2`` computes exactly what the 2nd-order fit computed.
+
 Sets are fitted one by one and the fits averaged (the letter's "one averaged 2nd-order model").
 Runs on NumPy (it is analysis, not an FMU's step).
 
@@ -51,7 +71,11 @@ import math
 import warnings
 from collections import namedtuple
 
-Fit = namedtuple("Fit", "a0 a1 a2 R X phi lag samples periods explained")
+Fit = namedtuple("Fit", "a0 a1 a2 R X phi lag samples periods explained a3 a4 order se",
+                 defaults=(0.0, 0.0, 2, None))
+
+#: Orders of the characteristic a fit can identify.
+ORDERS = (2, 3, 4)
 
 #: Fewest whole periods of the drive a fit accepts; below FEW_PERIODS it warns.
 MIN_PERIODS = 2
@@ -113,8 +137,33 @@ def _basis(theta, harmonics):
     return np.column_stack(cols)
 
 
-def fit_set(t, x, z, f, skip=0):
-    """Harmonic analysis of one set: a :class:`Fit` of ``z = a0 + a1 x + a2 x^2 + v``.
+def resolvable_order(f, Ts):
+    """Highest order (at most 4) whose harmonics ``j f``, ``j <= order``, lie below the Nyquist
+    rate ``1 / (2 Ts)``; 0 when not even the fundamental does."""
+    top = 0
+    for j in range(1, max(ORDERS) + 1):
+        if j * f * Ts < 0.5 - 1e-12:
+            top = j
+    return top
+
+
+def check_order(order, f, Ts):
+    """Raise :class:`IdentificationError` unless ``order`` is one of :data:`ORDERS` and its
+    harmonics are resolvable at ``f`` and ``Ts``."""
+    if order not in ORDERS:
+        raise IdentificationError("order = %r; allowed: %s" % (order, ", ".join(map(str, ORDERS))))
+    top = resolvable_order(f, Ts)
+    if order > 2 and order > top:  # (order 2 is checked as it always was: not here)
+        raise IdentificationError(
+            "order %d needs harmonic %d of f = %g Hz, %g Hz, below the Nyquist rate 1/(2 Ts) = "
+            "%g Hz, or it aliases and cannot be told apart; allowed: order <= %d at this f and "
+            "Ts (or f < %g Hz for order %d)"
+            % (order, order, f, order * f, 0.5 / Ts, top, 0.5 / (order * Ts), order))
+
+
+def fit_set(t, x, z, f, skip=0, order=2):
+    """Harmonic analysis of one set: a :class:`Fit` of ``z = a0 + a1 x + ... + a_order x^order
+    + v`` (``order`` 2, 3 or 4).
 
     ``t, x, z`` are sequences of equal length (``x`` the known drive, ``z`` the output), ``f``
     the drive frequency [Hz].  The first ``skip`` samples are left out (a start transient, e.g.
@@ -133,6 +182,7 @@ def fit_set(t, x, z, f, skip=0):
             "%d samples at Ts = %.6g s span %.3g periods of f = %g Hz; allowed: at least %d "
             "whole periods (%d samples)" % (len(t), Ts, len(t) * f * Ts, f, MIN_PERIODS,
                                             math.ceil(MIN_PERIODS / (f * Ts))))
+    check_order(order, f, Ts)
     m = whole_periods(len(t), f, Ts)
     t, x, z = t[:m], x[:m], z[:m]
     w = 2.0 * math.pi * f * (t - t[0])
@@ -155,15 +205,25 @@ def fit_set(t, x, z, f, skip=0):
                       "hold for many periods; the fit is rough"
                       % (round(m * f * Ts), f), IdentificationWarning, stacklevel=2)
     phi = math.atan2(c, s)
-    B = _basis(w + phi, 2)
+    B = _basis(w + phi, order)
     coef, *_ = np.linalg.lstsq(B, z, rcond=None)
-    c0, al1, be1, al2, be2 = coef
+    c0, al1, be1, al2, be2 = coef[:5]
     lag = math.atan2(-be1, al1)
-    a1 = math.hypot(al1, be1) / X
-    a2 = -2.0 / (X * X) * (be2 * math.cos(2 * lag) + al2 * math.sin(2 * lag))
-    a0 = c0 - a2 * X * X / 2.0
     resid = z - B @ coef
     R = float(resid @ resid) / max(1, m - B.shape[1])
+    a3 = a4 = 0.0
+    if order == 2:  # the 2nd-order fit, written as it always was (same bits)
+        a1 = math.hypot(al1, be1) / X
+        a2 = -2.0 / (X * X) * (be2 * math.cos(2 * lag) + al2 * math.sin(2 * lag))
+        a0 = c0 - a2 * X * X / 2.0
+    M = _coefficient_map(order, X, lag)
+    a = M @ coef
+    if order > 2:
+        a0, a1, a2, a3 = (float(v) for v in a[:4])
+        if order == 4:
+            a4 = float(a[4])
+    cov = R * (M @ np.linalg.pinv(B.T @ B) @ M.T)
+    se = {"a%d" % i: float(math.sqrt(max(cov[i, i], 0.0))) for i in range(order + 1)}
     if text is not None:
         # the part of x the sinusoid misses reaches z through a1 and is counted as noise
         leak = a1 * a1 * (1.0 - explained) * var_x / R if R > 0 else math.inf
@@ -171,7 +231,31 @@ def fit_set(t, x, z, f, skip=0):
                       "part of x is motion, it makes up to %.0f %% of the fitted R"
                       % (text, 100 * min(1.0, leak)), IdentificationWarning, stacklevel=2)
     return Fit(float(a0), float(a1), float(a2), R, X, phi, lag, m,
-               int(round(m * f * Ts)), explained)
+               int(round(m * f * Ts)), explained, a3, a4, order, se)
+
+
+def _coefficient_map(order, X, lag):
+    """The matrix ``M`` with ``(a0, .., a_order) = M c`` for the least-squares coefficients
+    ``c = (c0, alpha_1, beta_1, .., alpha_order, beta_order)`` (see the module docstring)."""
+    import numpy as np
+    n = 1 + 2 * order
+    # rotated coefficients: A_j = alpha_j cos(j lag) - beta_j sin(j lag),
+    #                       B_j = alpha_j sin(j lag) + beta_j cos(j lag)
+    Arow, Brow = {}, {}
+    for j in range(1, order + 1):
+        ra, rb = np.zeros(n), np.zeros(n)
+        cj, sj = math.cos(j * lag), math.sin(j * lag)
+        ra[2 * j - 1], ra[2 * j] = cj, -sj
+        rb[2 * j - 1], rb[2 * j] = sj, cj
+        Arow[j], Brow[j] = ra, rb
+    c0 = np.zeros(n)
+    c0[0] = 1.0
+    a4 = 8.0 * Brow[4] / X ** 4 if order >= 4 else np.zeros(n)
+    a3 = -4.0 * Arow[3] / X ** 3 if order >= 3 else np.zeros(n)
+    a2 = -(2.0 * Brow[2] + a4 * X ** 4) / X ** 2
+    a1 = (Arow[1] - 0.75 * a3 * X ** 3) / X
+    a0 = c0 - a2 * X ** 2 / 2.0 - 0.375 * a4 * X ** 4
+    return np.array([a0, a1, a2, a3, a4][:order + 1])
 
 
 def average(fits):
@@ -182,18 +266,34 @@ def average(fits):
     if not fits:
         raise IdentificationError("no sets to average; allowed: one or more fits")
     out = {"sets": len(fits)}
-    for name in ("a0", "a1", "a2", "R"):
+    order = max(getattr(fi, "order", 2) for fi in fits)
+    names = ("a0", "a1", "a2", "R") + (("a3",) if order >= 3 else ()) + \
+        (("a4",) if order >= 4 else ())
+    if order > 2:
+        out["order"] = order
+    for name in names:
         v = np.array([getattr(fi, name) for fi in fits])
         out[name] = float(v.mean())
         out["sd_" + name] = float(v.std(ddof=1)) if len(v) > 1 else None
     return out
 
 
-def standard_errors(sigma, X, n):
-    """Standard errors of one set's fit for white noise ``sigma`` over ``n`` samples."""
-    return {"a0": math.sqrt(3.0 / n) * sigma, "a1": math.sqrt(2.0 / n) * sigma / X,
-            "a2": 2.0 * math.sqrt(2.0 / n) * sigma / (X * X),
-            "R": math.sqrt(2.0 / n) * sigma * sigma}
+def standard_errors(sigma, X, n, order=2):
+    """Standard errors of one set's fit for white noise ``sigma`` over ``n`` samples in whole
+    periods (``var(c0) = s^2/n``, ``var(A_j) = var(B_j) = 2 s^2/n``, through the formulas of
+    the module docstring: e.g. at order 4 ``a0 = c0 + B2 + B4`` and ``a1 = (A1 + 3 A3) / X``)."""
+    if order == 2:
+        return {"a0": math.sqrt(3.0 / n) * sigma, "a1": math.sqrt(2.0 / n) * sigma / X,
+                "a2": 2.0 * math.sqrt(2.0 / n) * sigma / (X * X),
+                "R": math.sqrt(2.0 / n) * sigma * sigma}
+    out = {"a0": math.sqrt((3.0 if order == 3 else 5.0) / n) * sigma,
+           "a1": math.sqrt(20.0 / n) * sigma / X,
+           "a2": (2.0 * math.sqrt(2.0 / n) if order == 3 else math.sqrt(136.0 / n)) * sigma / X ** 2,
+           "a3": 4.0 * math.sqrt(2.0 / n) * sigma / X ** 3,
+           "R": standard_errors(sigma, X, n)["R"]}
+    if order == 4:
+        out["a4"] = 8.0 * math.sqrt(2.0 / n) * sigma / X ** 4
+    return out
 
 
 def read_csv(path):
@@ -211,6 +311,10 @@ def read_csv(path):
             rows = list(csv.reader(fh))
     except OSError as exc:
         raise ValueError("%s: cannot be read (%s)" % (path, exc.strerror or exc)) from None
+    except (UnicodeDecodeError, csv.Error) as exc:  # a binary file, NUL bytes
+        raise ValueError("%s: not a text CSV file (%s); allowed: a UTF-8 text file with a "
+                         "header row with columns %s, then numbers"
+                         % (path, str(exc).splitlines()[0], ", ".join(CSV_COLUMNS))) from None
     if not rows:
         raise ValueError("%s: empty file; allowed: a header row with columns %s, then numbers"
                          % (path, ", ".join(CSV_COLUMNS)))

@@ -29,6 +29,7 @@ STREAM_MEASUREMENT = 2  # v_k of the sensor
 STREAM_SENSOR_Y = 3     # second-axis excitation of the accelerometer
 STREAM_PHASE = 4        # random phase / amplitude draws of an experiment
 STREAM_MEASUREMENT_Y = 5  # v_k of the accelerometer's second axis
+STREAM_INPUT = 6        # Gaussian known input u_k of the process model (eq. 1)
 
 
 def _mix(z):

@@ -44,8 +44,8 @@ PARAMETERS = {p.name: p for p in (
     _p("Xy", 0.0, 0.0, unit="g", description="amplitude of the second-axis acceleration "
        "y = Xy sin(2 pi f t + phiy)"),
     _p("phiy", 0.0, unit="rad", description="phase of the second-axis acceleration"),
-    _p("a3", 0.0, unit="V/g3", description="third-order coefficient a3 of the accelerometer "
-       "(0: off)"),
+    _p("a3", 0.0, unit="V/g3", description="third-order coefficient a3 of the sensor "
+       "h(x) = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 (0: off; no drift of its own)"),
     _p("cross", 0.0, -1.0, 1.0, description="cross-axis coupling: each axis senses its own "
        "acceleration plus cross times the other's (0: off)"),
     _p("fc", 0.0, 0.0, unit="Hz", description="output low-pass bandwidth f-3dB = 5 uF / C "
@@ -76,6 +76,16 @@ PARAMETERS = {p.name: p for p in (
     _p("rho", 0.0, -1.0, 1.0, description="correlation of the two axes' process noises w_x, w_y"),
     _p("y0", 0.0, unit="g", description="initial second-axis state y_0 of the filter"),
     _p("P0y", 0.01, 0.0, unit="g2", description="initial error variance of the second axis"),
+    # -- the letter's general sensor: 4th-order term and the known input u (eqs. 1, 3-5) -----------
+    _p("a4", 0.0, unit="V/g4", description="fourth-order coefficient a4 of the sensor "
+       "h(x) = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 (0: off); its drift is a4 E[x^4]"),
+    _p("B", 0.0, unit="1", description="input gain B of x_k = A x_{k-1} + B u_k + w_k (0: no "
+       "known input, the letter's case)"),
+    _p("drive", 0, 0, 2, description="known input u_k: 0 none (the value set on the input "
+       "u_in), 1 Gaussian white N(0, Qu), 2 sinusoid Xu sin(2 pi fu t)"),
+    _p("Qu", 0.0, 0.0, unit="g2", description="variance sigma_u^2 of the Gaussian known input"),
+    _p("Xu", 0.0, 0.0, unit="g", description="amplitude of the sinusoidal known input"),
+    _p("fu", 0.0, 0.0, unit="Hz", description="frequency of the sinusoidal known input"),
 )}
 
 

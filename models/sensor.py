@@ -1,26 +1,45 @@
-"""The weakly nonlinear sensor of the letter (eqs. 2 and 6).
+"""The weakly nonlinear sensor of the letter (eqs. 2 and 6), up to the 4th order (eqs. 3-5).
 
-.. math:: z_k = h(x_k) + v_k = a_0 + a_1 x_k + a_2 x_k^2 + v_k, \\qquad v_k \\sim N(0, R)
+.. math:: z_k = h(x_k) + v_k, \\qquad
+          h(x) = a_0 + a_1 x + a_2 x^2 + a_3 x^3 + a_4 x^4, \\qquad v_k \\sim N(0, R)
 
-The even-order term makes a state-dependent DC offset (the drift) ``E[a2 x^2] = a2 sigma_x^2``.
+The letter's specific case is ``a3 = a4 = 0``; then every function here computes exactly what the
+quadratic sensor computed before the higher terms existed (same bits: the terms are not even
+evaluated).  The even-order terms make a state-dependent DC offset (the drift)
+``E[h(x)] - a0 - a1 E[x] = a2 E[x^2] + a3 E[x^3] + a4 E[x^4]``, which for a zero-mean Gaussian
+state is ``a2 sigma_x^2 + 3 a4 sigma_x^4`` (eqs. 4-5; the odd ``a3`` term averages to zero).
 """
 from . import _ops
 from .noise import STREAM_MEASUREMENT, normal
 
 
-def h(x, a0, a1, a2):
-    """Noise-free characteristic ``a0 + a1 x + a2 x^2``."""
-    return a0 + a1 * x + a2 * x * x
+def higher(a3, a4):
+    """True unless ``a3`` and ``a4`` are both the number 0 (the letter's quadratic sensor); an
+    array of coefficients (a batch that sweeps them) counts as higher-order."""
+    return not (_ops.is_scalar(a3) and a3 == 0.0 and _ops.is_scalar(a4) and a4 == 0.0)
 
 
-def dh_dx(x, a1, a2):
-    """Slope of the characteristic, ``a1 + 2 a2 x`` (the EKF's ``H``)."""
-    return a1 + 2.0 * a2 * x
+def h(x, a0, a1, a2, a3=0.0, a4=0.0):
+    """Noise-free characteristic ``a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4``."""
+    y = a0 + a1 * x + a2 * x * x
+    if higher(a3, a4):
+        x2 = x * x
+        y = y + a3 * x2 * x + a4 * x2 * x2
+    return y
 
 
-def measure(x, a0, a1, a2, R, v):
+def dh_dx(x, a1, a2, a3=0.0, a4=0.0):
+    """Slope of the characteristic, ``a1 + 2 a2 x + 3 a3 x^2 + 4 a4 x^3`` (the EKF's ``H``)."""
+    d = a1 + 2.0 * a2 * x
+    if higher(a3, a4):
+        x2 = x * x
+        d = d + 3.0 * a3 * x2 + 4.0 * a4 * x2 * x
+    return d
+
+
+def measure(x, a0, a1, a2, R, v, a3=0.0, a4=0.0):
     """Measurement ``h(x) + sqrt(R) v`` with ``v`` a standard normal draw."""
-    return h(x, a0, a1, a2) + _ops.sqrt(R) * v
+    return h(x, a0, a1, a2, a3, a4) + _ops.sqrt(R) * v
 
 
 def measurement_noise(seed, k):
@@ -39,6 +58,16 @@ def measure_bilinear(own, other, a0, a1, a2, b, R, v):
     return h_bilinear(own, other, a0, a1, a2, b) + _ops.sqrt(R) * v
 
 
-def drift(a2, variance):
-    """Expected drift of the quadratic sensor, ``a2 sigma_x^2`` (eq. 4)."""
-    return a2 * variance
+def drift(a2, variance, a4=0.0, m4=None):
+    """Expected drift ``a2 E[x^2] + a4 E[x^4]`` of a zero-mean state with symmetric distribution
+    (the odd ``a3`` term averages to zero).
+
+    ``variance`` is ``E[x^2]``; ``m4`` is ``E[x^4]``, by default the Gaussian ``3 sigma_x^4``, so
+    that the result is the letter's ``a2 sigma_x^2 + 3 a4 sigma_x^4`` (eqs. 4-5).  ``a4 = 0``
+    gives ``a2 sigma_x^2``, same bits as the quadratic sensor's.
+    """
+    if _ops.is_scalar(a4) and a4 == 0.0:
+        return a2 * variance
+    if m4 is None:
+        m4 = 3.0 * variance * variance
+    return a2 * variance + a4 * m4

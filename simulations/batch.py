@@ -23,7 +23,7 @@ from concurrent.futures import ProcessPoolExecutor
 
 import numpy as np
 
-from driftfmu.models import chain, drift, excitation, harmonic, noise, parameters, sensor
+from driftfmu.models import _ops, chain, drift, excitation, harmonic, noise, parameters, sensor
 from driftfmu.simulations.errors import UsageError
 
 #: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
@@ -108,7 +108,8 @@ def sine_phase(seed):
 # -- the engine -----------------------------------------------------------------------------
 def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
              Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
-             filter_Q=None, record=(), block=BLOCK, progress=None, kernel="auto"):
+             filter_Q=None, record=(), block=BLOCK, progress=None, kernel="auto", a3=0.0,
+             a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0):
     """Run ``len(seeds)`` Monte-Carlo runs of the chain for samples ``k = 1..n`` at once.
 
     Run ``r`` is the co-simulation of Excitation -> Accelerometer -> DriftEstimator with both
@@ -128,6 +129,10 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         (``x_k = X sin(2 pi f (k-1) Ts + phi)``).
     filter_A, filter_Q : float or array, optional
         The filter's process model, by default the excitation's ``A`` and ``Q``.
+    a3, a4, B, drive, Qu, Xu, fu : optional
+        The general sensor (``h`` up to 4th order, sensor and filter alike) and the known input
+        ``u`` (:func:`driftfmu.models.excitation.input_sample`) driving the Gaussian state and
+        the filter's prediction through ``B``; the defaults are the letter's case, same bits.
     record : sequence of str
         Names out of :data:`TRAJECTORIES` to return as ``(runs, n)`` arrays.
     block : int
@@ -155,7 +160,11 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = default_P0(fA, fQ)
-    lib = _kernel_library(kernel)
+    general = sensor.higher(a3, a4) or not (_ops.is_scalar(B) and B == 0.0)
+    if general and kernel == "c":
+        raise UsageError("kernel = 'c' has the letter's quadratic sensor only; allowed with a3, "
+                         "a4 or B != 0: kernel = 'auto' or 'numpy'")
+    lib = _kernel_library("numpy" if general and kernel in KERNELS else kernel)
     if lib is not None:
         return _simulate_kernel(lib, n, seeds, dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0,
                                                     P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
@@ -166,8 +175,12 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
                                                          shape).copy())
     zbar = 0.0
     x2bar = 0.0
+    hbar = 0.0  # realised drift (1/k) sum a2 x^2 + a3 x^3 + a4 x^4 of the general sensor
+    quadratic = not sensor.higher(a3, a4)
     traj = {name: np.empty((n, runs)) for name in record}
     gaussian = kind == excitation.GAUSSIAN
+    fB = B if gaussian else 0.0
+    inputs = gaussian and drive != excitation.DRIVE_OFF
     row = seeds[None, :]
     for k0 in range(1, n + 1, block):
         ks = np.arange(k0, min(k0 + block, n + 1), dtype=np.uint64)[:, None]
@@ -176,19 +189,24 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         V = sensor.measurement_noise(row, ks)
         for i in range(ks.shape[0]):
             k = k0 + i
+            u = excitation.input_sample(drive, row[0], k, Qu, Xu, fu, Ts) if inputs else 0.0
             if gaussian:
-                x = excitation.gauss_markov(x, A, Q, W[i])
+                x = excitation.gauss_markov(x, A, Q, W[i], fB, u)
             else:
                 x = excitation.sine(k, X, f, Ts, phi)
-            z = sensor.measure(x, a0, a1, a2, R, V[i])
-            est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R)
+            z = sensor.measure(x, a0, a1, a2, R, V[i], a3, a4)
+            est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
             zbar = drift.running_mean(zbar, z, k)
-            x2bar = drift.running_mean(x2bar, x * x, k)
+            x2 = x * x
+            x2bar = drift.running_mean(x2bar, x2, k)
+            if not quadratic:
+                hbar = drift.running_mean(hbar, a2 * x2 + a3 * x2 * x + a4 * x2 * x2, k)
             if traj:
-                _record(traj, k - 1, x, z, est, zbar, x2bar, a0, a2)
+                _record(traj, k - 1, x, z, est, zbar, a2 * x2bar if quadratic else hbar, a0,
+                        (a2, a3, a4))
         if progress is not None:
             progress(k0 - 1 + ks.shape[0])
-    dc1, dc2, dc3 = drift.estimates(est.drift, a2)
+    dc1, dc2, dc3 = drift.estimates(est.drift, a2, a3, a4)
     out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
            "zbar": zbar - a0, "x2bar": x2bar}
     out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), shape).copy()
@@ -236,12 +254,13 @@ def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
     return out
 
 
-def _record(traj, j, x, z, est, zbar, x2bar, a0, a2):
-    """Store sample ``j`` (0-based) of the recorded trajectories."""
+def _record(traj, j, x, z, est, zbar, realised, a0, coefficients):
+    """Store sample ``j`` (0-based) of the recorded trajectories (``coefficients`` are
+    ``(a2, a3, a4)``, ``realised`` the realised drift so far)."""
     values = {"x": lambda: x, "z": lambda: z, "x_hat": lambda: est.x, "P": lambda: est.P,
-              "dc_ekf1": lambda: drift.estimates(est.drift, a2)[0],
+              "dc_ekf1": lambda: drift.estimates(est.drift, *coefficients)[0],
               "dc_ekf2": lambda: est.drift.dc2, "dc_ekf3": lambda: est.drift.dc3,
-              "dc_empirical": lambda: zbar - a0, "dc_realised": lambda: a2 * x2bar}
+              "dc_empirical": lambda: zbar - a0, "dc_realised": lambda: realised}
     for name, arr in traj.items():
         arr[j] = values[name]()
 
@@ -350,6 +369,10 @@ def run_task(task):
     else:
         raise UsageError("engine = %r is not allowed; allowed: 'batch', 'fmu' or 'dual'"
                          % (task["engine"],))
+    if task.get("reduce"):  # "module:function": what the worker sends back instead of out
+        import importlib
+        module, name = task["reduce"].split(":")
+        out = getattr(importlib.import_module(module), name)(out, task)
     return out, time.perf_counter() - t0
 
 
@@ -375,10 +398,7 @@ def workers_default():
 def connect(scheduler, timeout=CONNECT_TIMEOUT):
     """A ``dask.distributed.Client`` of the cluster at ``scheduler``; a clear error within
     ``timeout`` seconds when nothing answers there."""
-    try:
-        from dask.distributed import Client
-    except ImportError as exc:  # pragma: no cover - dask[distributed] is a dependency
-        raise RuntimeError("--scheduler needs dask[distributed]: %s" % exc) from exc
+    Client = dask_client_class()
     def fail(why, exc):
         raise ConnectionError("no Dask scheduler answered at %r (%s); allowed: the address of "
                               "a running dask scheduler, e.g. tcp://host:8786"
@@ -396,6 +416,21 @@ def connect(scheduler, timeout=CONNECT_TIMEOUT):
         fail(_first_line(exc), exc)
     except Exception as exc:  # something answered, but not a Dask scheduler
         fail("something answered but not as a Dask scheduler: %s" % _first_line(exc), exc)
+
+
+#: How to get what ``--scheduler`` needs.
+DASK_EXTRA = "pip install 'driftfmu[dask]'"
+
+
+def dask_client_class():
+    """``dask.distributed.Client``; a usage error naming the extra to install when Dask is
+    missing (it is not part of the default install)."""
+    try:
+        from dask.distributed import Client
+    except ImportError as exc:
+        raise UsageError("--scheduler needs Dask, which is not installed (%s); install the "
+                         "extra: %s" % (_first_line(exc), DASK_EXTRA)) from None
+    return Client
 
 
 def _first_line(exc):
@@ -473,14 +508,35 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
-    from concurrent.futures import as_completed as cf_completed
-    with process_pool(min(workers, len(tasks))) as pool:
-        futures = {pool.submit(run_task, task): i for i, task in enumerate(tasks)}
+    workers = min(workers, len(tasks))
+    with process_pool(workers) as pool:
+        for i, res in bounded_map(pool, run_task, tasks, ahead=2 * workers,
+                                  meanwhile=meanwhile):
+            finished(i, res)
+    return results
+
+
+def bounded_map(pool, fn, items, ahead, meanwhile=None):
+    """Yield ``(i, fn(items[i]))`` as the tasks finish on ``pool``, with at most ``ahead`` of
+    them submitted and not yet done: the pool's queues then hold a few tasks, not all of them
+    (less memory; an interrupt has little to cancel).  ``meanwhile()``, when given, is called
+    once, after the first tasks are submitted (while the workers run them)."""
+    from concurrent.futures import FIRST_COMPLETED, wait
+    pending = {}
+    it = iter(enumerate(items))
+    while True:
+        for i, item in it:
+            pending[pool.submit(fn, item)] = i
+            if len(pending) >= ahead:
+                break
         if meanwhile is not None:
             meanwhile()
-        for fut in cf_completed(futures):
-            finished(futures[fut], fut.result())
-    return results
+            meanwhile = None
+        if not pending:
+            return
+        done, _ = wait(pending, return_when=FIRST_COMPLETED)
+        for fut in done:
+            yield pending.pop(fut), fut.result()
 
 
 def _worker_init():
@@ -545,10 +601,23 @@ class _Pool(ProcessPoolExecutor):
             return super().submit(*args, **kwargs)
 
 
-def stop_pool(pool, timeout=5.0):
+def stop_pool(pool, timeout=2.0):
     """Cancel the queued tasks of ``pool``, SIGTERM its worker processes (each removes its
-    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``."""
+    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``.
+
+    Then nothing of the pool may keep this process waiting: the queue feeder thread may be
+    blocked writing a task to the pipe that the stopped workers read (this process holds the
+    pipe's read end too, so the write never fails); the executor's manager thread may be
+    reading half a result that a stopped worker was sending (this process holds the pipe's
+    write end, so no end of file comes); the manager thread joins the feeder, and the
+    interpreter's exit joins the manager thread.  So both pipes' ends held here are closed
+    (the write fails, the read sees the end of the file) and the queue is told not to join
+    its feeder; the manager thread is waited for at most ``timeout`` more seconds.
+    """
     procs = list((getattr(pool, "_processes", None) or {}).values())
+    call_queue = getattr(pool, "_call_queue", None)
+    result_queue = getattr(pool, "_result_queue", None)
+    manager = getattr(pool, "_executor_manager_thread", None)
     pool.shutdown(wait=False, cancel_futures=True)
     for p in procs:
         with contextlib.suppress(Exception):
@@ -559,6 +628,16 @@ def stop_pool(pool, timeout=5.0):
         if p.is_alive():
             p.kill()
             p.join(1.0)
+    if call_queue is not None:
+        with contextlib.suppress(Exception):
+            call_queue.cancel_join_thread()
+        with contextlib.suppress(Exception):
+            call_queue._reader.close()
+    if result_queue is not None:  # a worker stopped half-way through sending its result
+        with contextlib.suppress(Exception):  # leaves the manager reading: this ends the read
+            result_queue._writer.close()
+    if manager is not None:
+        manager.join(timeout)
 
 
 def mp_context(preload="driftfmu.simulations.batch"):
@@ -589,11 +668,36 @@ def add_engine_options(p):
     p.add_argument("--engine", choices=("batch", "fmu"), default="batch",
                    help="batch: many runs at once through models/ (default); fmu: every run "
                         "co-simulated with the three FMUs")
-    p.add_argument("--scheduler", default=None, metavar="ADDRESS",
+    p.add_argument("--scheduler", default=None, metavar="ADDRESS", type=scheduler_address,
                    help="run on the Dask distributed cluster at ADDRESS (e.g. "
-                        "tcp://host:8786); default: local worker processes")
+                        "tcp://host:8786; needs the extra driftfmu[dask]); default: local "
+                        "worker processes")
     p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
                    help="local worker processes (default: one per core)")
+
+
+#: What ``--scheduler`` accepts.
+SCHEDULER_ALLOWED = ("the address of a Dask scheduler, [tcp:// | tls:// | ws:// | wss:// | "
+                     "ucx://]HOST:PORT (e.g. tcp://127.0.0.1:8786) or inproc://NAME")
+
+
+def scheduler_address(text):
+    """argparse type of ``--scheduler``: an address a Dask client can connect to, checked by
+    its form only (whether something answers there is the run's to find out)."""
+    import argparse
+    import importlib.util
+    import re
+    if importlib.util.find_spec("distributed") is None:
+        raise argparse.ArgumentTypeError("%r: --scheduler needs Dask, which is not installed; "
+                                         "install the extra: %s" % (text, DASK_EXTRA))
+    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
+                     r"(\d{1,5})", text.strip())
+    if text.strip().startswith("inproc://") and len(text.strip()) > len("inproc://"):
+        return text.strip()
+    if m is None or not 0 < int(m.group(3)) < 65536:
+        raise argparse.ArgumentTypeError("scheduler = %r is not allowed; allowed: %s"
+                                         % (text, SCHEDULER_ALLOWED))
+    return text.strip()
 
 
 def _positive_int(text):

@@ -17,7 +17,8 @@
 #include "sensor.h"
 
 /* One run of simulations.batch.simulate between blocks: the excitation, the filter and the two
- * running means (ten 8-byte fields, the layout of a (runs, 10) float64 array). */
+ * running means (fourteen 8-byte fields, the layout of a (runs, 14) float64 array: kernel.py's
+ * STATE_FIELDS). */
 typedef struct {
     double x, zbar, x2bar;
     EstimatorState est;

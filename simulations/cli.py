@@ -16,6 +16,7 @@ import math
 import os
 import signal
 import sys
+import time
 import warnings
 from pathlib import Path
 
@@ -28,7 +29,19 @@ class _Parser(argparse.ArgumentParser):
     """ArgumentParser whose errors are one readable line."""
 
     def error(self, message):
+        choices = self.command_choices()
+        if choices and message.startswith("the following arguments are required"):
+            # a bare ``driftfmu`` or ``driftfmu run``: the usage and the list of commands
+            self.print_help(sys.stderr)
+            message = "%s needs one of: %s" % (self.prog, ", ".join(choices))
         self.exit(EXIT_USAGE, "%s: error: %s\n" % (self.prog.split()[0], message))
+
+    def command_choices(self):
+        """The names of this parser's sub-commands (empty when it has none)."""
+        for action in self._actions:
+            if isinstance(action, argparse._SubParsersAction):
+                return list(action.choices)
+        return []
 
 
 def param_type(name):
@@ -82,38 +95,116 @@ def add_params(parser, names, **defaults):
                                  % (p.description, unit, allowed, default))
 
 
+#: Seconds between the plain progress lines written when standard error is not a terminal
+#: (a CI log, a file); the environment variable ``DRIFTFMU_PROGRESS_EVERY`` overrides it.
+PROGRESS_EVERY = 30.0
+
+
+class Progress:
+    """What a run calls as it goes: ``update(done)`` with the units done so far in the
+    current phase, and ``update.phase(desc, total, unit)`` when a new phase starts (for
+    example the validation after the runs), so that no long phase sits at 100 %.
+
+    On a terminal a tqdm bar; otherwise one plain line on standard error every ``every``
+    seconds (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``).
+    """
+
+    def __init__(self, total, desc, unit, bar=None, every=PROGRESS_EVERY, stream=None,
+                 clock=time.monotonic):
+        self.total, self.desc, self.unit, self.bar = total, desc, unit, bar
+        self.every, self.stream, self.clock = every, stream or sys.stderr, clock
+        self.done = 0
+        self.started = self.phase_started = self.last = clock()
+
+    def __call__(self, done):
+        self.done = done
+        if self.bar is not None:
+            self.bar.update(done - self.bar.n)
+            return
+        now = self.clock()
+        if now - self.last >= self.every:
+            self.last = now
+            self.write(now)
+
+    def phase(self, desc, total, unit=None):
+        """Start a new phase of ``total`` units (``unit``: the last one's by default)."""
+        self.desc, self.total, self.unit = desc, total, unit or self.unit
+        self.done = 0
+        self.phase_started = self.clock()
+        if self.bar is not None:
+            self.bar.reset(total=total)
+            self.bar.set_description(desc)
+            self.bar.unit = " " + self.unit
+        elif self.phase_started - self.started >= self.every:  # a long run: say so at once
+            self.last = self.phase_started
+            self.write(self.phase_started)
+
+    def write(self, now):
+        elapsed = now - self.phase_started
+        line = "driftfmu: progress: %s" % self.desc
+        if self.total:
+            line += " %.0f %% (%d/%d %ss)" % (100.0 * self.done / self.total, self.done,
+                                              self.total, self.unit)
+        line += ", %s" % _seconds(elapsed)
+        if self.total and 0 < self.done < self.total:
+            line += ", about %s left" % _seconds(elapsed * (self.total - self.done) / self.done)
+        self.stream.write(line + "\n")
+        self.stream.flush()
+
+
+def _seconds(s):
+    return "%.0f s" % s if s < 120 else "%.1f min" % (s / 60.0)
+
+
 @contextlib.contextmanager
 def progress(total, desc, unit, monitor=True):
-    """A tqdm progress bar over ``total`` units (``unit``: ``"sample"``, ``"set"``, ``"run"``) as
-    ``update(done)``; None when stderr is not a terminal.  ``monitor=False`` keeps tqdm from
-    starting its monitor thread, so that the process stays single-threaded and worker processes
-    can be forked."""
+    """A :class:`Progress` over ``total`` units (``unit``: ``"sample"``, ``"set"``, ``"run"``):
+    a tqdm bar when stderr is a terminal, periodic plain lines otherwise.  ``monitor=False``
+    keeps tqdm from starting its monitor thread, so that the process stays single-threaded
+    and worker processes can be forked."""
     if not sys.stderr.isatty():
-        yield None
+        every = os.environ.get("DRIFTFMU_PROGRESS_EVERY")
+        try:
+            every = PROGRESS_EVERY if every is None else float(every)
+        except ValueError:
+            every = PROGRESS_EVERY
+        yield Progress(total, desc, unit, every=every)
         return
     import tqdm
     if not monitor:
         tqdm.tqdm.monitor_interval = 0
     bar = tqdm.tqdm(total=total, desc=desc, unit=" " + unit, leave=False)
     try:
-        yield lambda done: bar.update(done - bar.n)
+        yield Progress(total, desc, unit, bar=bar)
     finally:
         bar.close()
 
 
+def start_phase(progress, desc, total, unit=None):
+    """Tell ``progress`` (a :class:`Progress`, any callable, or None) that a new phase of
+    ``total`` units starts."""
+    phase = getattr(progress, "phase", None)
+    if phase is not None:
+        phase(desc, total, unit)
+
+
 def cmd_build(args):
     from driftfmu.fmu_src.builder import build_fmus
-    from driftfmu.simulations.output import removing_new_folders
-    with removing_new_folders(args.out):  # no empty folder left by a failed or stopped build
-        paths = build_fmus(args.out)  # logs one line per FMU
-    fmus = {p.stem: p for p in map(Path, paths)}
-    native = None
-    if args.native or args.backend == "native":
-        from driftfmu.fmu_src.native_build import build_native_fmus
-        native = build_native_fmus(Path(args.out) / "native")  # one line per FMU
-    if args.cross_check:
-        from driftfmu.fmu_src.crosscheck import write_cross_check
-        with removing_new_folders(args.cross_check):
+    from driftfmu.simulations.output import removing_new_trees
+    native_wanted = args.native or args.backend == "native"
+    trees = [args.out, Path(args.out) / "native"]
+    trees += [args.cross_check] if args.cross_check else []
+    trees += [Path(args.ssp).parent] if args.ssp else []
+    # a failed or stopped build leaves no folder it created, half-filled or empty
+    with removing_new_trees(*trees):
+        paths = build_fmus(args.out, log=build_log)  # logs one line per FMU
+        fmus = {p.stem: p for p in map(Path, paths)}
+        native = None
+        if native_wanted:
+            from driftfmu.fmu_src.native_build import build_native_fmus
+            native = build_native_fmus(Path(args.out) / "native", log=build_log)
+        if args.cross_check:
+            from driftfmu.fmu_src.crosscheck import write_cross_check
             sets = ([(2, fmus, "python")] if native is None
                     else [(v, native[v], "native") for v in sorted(native)])
             for fmi_version, chosen, backend in sets:
@@ -121,16 +212,30 @@ def cmd_build(args):
                                            backend=backend):
                     print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)"
                           % d)
-    if args.ssp:
-        from driftfmu.fmu_src.ssp import build_ssp
-        chosen = fmus if args.backend == "python" else native[2]
-        with removing_new_folders(Path(args.ssp).parent):
+        if args.ssp:
+            from driftfmu.fmu_src.ssp import build_ssp
+            chosen = fmus if args.backend == "python" else native[2]
             print("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
                   "Gaussian run)" % (build_ssp(chosen, args.ssp), args.backend))
 
 
+def build_log(line):
+    """The builders' log: a line about a built FMU to standard output; a warning to standard
+    error, one line, as the command's other warnings."""
+    if line.startswith("warning: "):
+        sys.stderr.write("driftfmu: %s\n" % first_line(line))
+        sys.stderr.flush()
+    else:
+        print(line, flush=True)
+
+
 def check_build_args(args):
     """Usage errors of ``driftfmu build`` found before anything is built."""
+    if args.native or args.backend == "native":
+        from driftfmu.fmu_src import native_build
+        problem = native_build.compiler_problem("linux64")
+        if problem:
+            raise UsageError("build --native needs a C compiler: %s" % problem)
     if args.ssp:
         ssp = Path(args.ssp)
         if ssp.is_dir():
@@ -140,13 +245,20 @@ def check_build_args(args):
             raise UsageError("--ssp %s exists; add --force to replace it" % ssp)
 
 
+#: The general model's parameters (issue 16, docs/method.md section 9): off by default.
+GENERAL = ("a3", "a4", "B", "drive", "Qu", "Xu", "fu")
+
+
 def cmd_run_gaussian(args):
+    from driftfmu.simulations import budget
     from driftfmu.simulations.gaussian import run_gaussian
+    budget.check_run("gaussian", args.n, args.out, args.backend)
     with progress(args.n, "co-simulation", "sample") as update:
         res = run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
                            Q=args.Q, R=args.R, n=args.n, seed=args.seed, Ts=args.Ts,
                            P0=args.P0, estimator=args.estimator, fmu_dir=args.fmu_dir,
-                           progress=update, backend=args.backend)
+                           progress=update, backend=args.backend,
+                           **{name: getattr(args, name) for name in GENERAL})
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)
@@ -158,7 +270,8 @@ def cmd_run_gaussian(args):
         line += " (expected 10 log10(1 + R/(a1^2 Q)) = %.4f dB)" % s["ekf1_ekf2_gap_db_expected"]
     print(line)
     st = s["settled_from_sample"]
-    print("within 10 %% of the realised drift from sample: EKF1 %s, EKF2 %s, EKF3 %s"
+    print("within 10 %% of the realised drift from sample (and to the end): EKF1 %s, EKF2 %s, "
+          "EKF3 %s"
           % tuple(settled_text(st[e]) for e in ("ekf1", "ekf2", "ekf3")))
     print("validation: FMU outputs equal models/ (max |diff| %.3g, tolerance %g)"
           % (max(s["validation"]["max_abs_diff"].values()), s["validation"]["tolerance"]))
@@ -167,7 +280,7 @@ def cmd_run_gaussian(args):
 def settled_text(k, n=None):
     """A settling sample for people: ``"never"`` (None, or after the last sample ``n``)."""
     if k is None or (n is not None and k > n):
-        return "never (not within the band at the last sample)"
+        return "never (not within the band for the last 10 % of the samples)"
     return "%d" % k
 
 
@@ -181,8 +294,9 @@ PLUGINS = ("driftfmu.simulations.doctor", "driftfmu.simulations.sweep", "driftfm
 
 def make_parser():
     parser = _Parser(prog="driftfmu", description=(
-        "FMI 2.0 co-simulation FMUs of a weakly nonlinear accelerometer and an EKF drift "
-        "compensator (Chorti et al., Sensor Letters 2006), and fmpy masters around them."))
+        "Co-simulation FMUs (FMI 2.0; their native C twins FMI 2.0 and 3.0) of a weakly "
+        "nonlinear accelerometer and an EKF drift compensator (Chorti et al., Sensor Letters "
+        "2006), and fmpy masters around them."))
     from driftfmu import __version__
     parser.add_argument("--version", action="version", version="driftfmu %s" % __version__)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
@@ -217,6 +331,7 @@ def make_parser():
     runs.required = True
     g = runs.add_parser("gaussian", help="Gaussian excitation, the letter's Sec. III / Fig. 1")
     add_params(g, ("a0", "a1", "a2", "A", "Q", "R", "n", "seed", "Ts"))
+    add_params(g, GENERAL)
     g.add_argument("--P0", type=param_type("P0"), default=None, metavar="P0",
                    help="initial error variance of the filter [g2] (default: Q / (1 - A^2))")
     g.add_argument("--estimator", type=int, choices=(1, 2, 3), default=1,
@@ -256,11 +371,44 @@ def add_backend(parser, what=None):
 
 
 def check_out(args):
-    """Usage error when ``--out`` names something that is not a folder."""
-    out = getattr(args, "out", None)
-    if out is not None and os.path.exists(out) and not os.path.isdir(out):
-        raise UsageError("--out %s is an existing file; allowed: a folder (created if missing)"
-                         % out)
+    """Usage errors of the output options (``--out``, and ``build``'s ``--cross-check`` and
+    ``--ssp``), found before anything runs: an empty path, an existing file where a folder is
+    meant, a folder that cannot be created or written."""
+    for option, attr in (("--out", "out"), ("--cross-check", "cross_check")):
+        value = getattr(args, attr, None)
+        if value is not None:
+            check_folder(option, value)
+    ssp = getattr(args, "ssp", None)
+    if ssp is not None:
+        if not ssp.strip():
+            raise UsageError("--ssp '' is empty; allowed: the path of the .ssp file to write")
+        check_folder("--ssp", str(Path(ssp).parent), what="the folder of")
+
+
+def check_folder(option, value, what=""):
+    """Usage error unless ``value`` names a folder that exists and can be written to, or that
+    can be created: its nearest existing parent is a folder this process can write to (tried
+    with a temporary folder, so it holds for root and for read-only file systems alike)."""
+    if not value.strip():
+        raise UsageError("%s %r is empty; allowed: a folder path, e.g. results/run1"
+                         % (option, value))
+    path = Path(value)
+    if path.exists() and not path.is_dir():
+        raise UsageError("%s %s is an existing file; allowed: a folder (created if missing)"
+                         % (option, value))
+    parent = path
+    while not parent.exists() and parent != parent.parent:
+        parent = parent.parent
+    if not parent.is_dir():
+        raise UsageError("%s %s cannot be created: %s is a file; allowed: a folder path"
+                         % (option, value, parent))
+    import tempfile
+    try:
+        os.rmdir(tempfile.mkdtemp(prefix=".driftfmu-write-test-", dir=parent))
+    except OSError as exc:
+        raise UsageError("%s %s cannot be written: %s%s: %s; allowed: a folder you can write "
+                         "to" % (option, value, what + " " if what else "", parent,
+                                 exc.strerror or exc)) from None
 
 
 #: Set by the first SIGINT/SIGTERM: whatever exception the interrupted code then raises (an
@@ -310,10 +458,33 @@ def main(argv=None):
         with warnings.catch_warnings():
             warnings.simplefilter("always", UserWarning)  # every doubt, each on its own line
             warnings.showwarning = _show_warning
-            return _main(argv, previous)
+            status = _main(argv, previous)
     except KeyboardInterrupt:  # in the instant before _main's own handling
         sys.stderr.write("driftfmu: interrupted\n")
-        return EXIT_INTERRUPTED
+        status = EXIT_INTERRUPTED
+    if status == EXIT_INTERRUPTED and argv is None:
+        exit_watchdog(status)
+    return status
+
+
+#: Seconds the interpreter may take to exit after an interrupt before :func:`exit_watchdog`
+#: ends the process.
+EXIT_GRACE = 10.0
+
+
+def exit_watchdog(status, seconds=EXIT_GRACE):
+    """End this process with ``status`` if it is still alive ``seconds`` from now: after an
+    interrupt, nothing (a library's thread joined at the interpreter's exit, a worker that
+    never answers) may keep the command waiting for ever.  A daemon thread, so a clean exit
+    does not wait for it."""
+    import threading
+
+    def end():
+        time.sleep(seconds)
+        with contextlib.suppress(Exception):
+            sys.stderr.flush()
+        os._exit(status)
+    threading.Thread(target=end, name="driftfmu-exit-watchdog", daemon=True).start()
 
 
 def _show_warning(message, category, filename, lineno, file=None, line=None):

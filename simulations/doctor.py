@@ -98,7 +98,13 @@ def diagnose(fmu):
     if "modelDescription.xml" not in names:
         return [(FAIL, "%s has no modelDescription.xml" % fmu)]
     from fmpy import read_model_description
-    md = read_model_description(str(fmu))
+    try:
+        md = read_model_description(str(fmu))
+    except Exception as exc:  # an XML parser's or fmpy's validation message
+        text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        return [(FAIL, "its modelDescription.xml cannot be read (%s): the FMU is damaged or "
+                       "was edited; a host cannot even learn its variables. Rebuild it "
+                       "(driftfmu build)" % text)]
     if md.coSimulation is None:
         return [(FAIL, "the FMU has no co-simulation interface")]
     ident = md.coSimulation.modelIdentifier
@@ -110,15 +116,46 @@ def diagnose(fmu):
     present = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and
                       n.count("/") >= 2})
     if binary in names:
-        out.append(_architecture(zf.read(binary), binary, md.fmiVersion))
+        damaged = [(b, why) for b in sorted(n for n in names if n.startswith(
+            "binaries/%s/" % plat) and n.endswith(ext)) for why in [
+                _binary_problem(zf.read(b), zf.getinfo(b).file_size)] if why]
+        if damaged:
+            for b, why in damaged:
+                out.append((FAIL, "its binary %s is damaged: %s; no host can load it. "
+                                  "Rebuild the FMU (driftfmu build)" % (b, why)))
+        else:
+            out.append(_architecture(zf.read(binary), binary, md.fmiVersion))
     else:
         out.append((FAIL, "it has no binary for this platform (%s); it has: %s"
                     % (plat, ", ".join(present) or "none")))
     record = {}
+    python_fmu = "pythonfmu" in (md.generationTool or "").lower() or any(
+        n.endswith(("_pythonfmu.so", "_pythonfmu.dll", "_pythonfmu.dylib")) for n in names)
     if "resources/driftfmu_build.json" in names:
-        record = json.loads(zf.read("resources/driftfmu_build.json"))
-        out.append((OK, "built by driftfmu with Python %s (%s loader)"
-                    % (record.get("python_version", "?"), record.get("loader", "?"))))
+        try:
+            record = json.loads(zf.read("resources/driftfmu_build.json"))
+        except ValueError as exc:
+            out.append((FAIL, "resources/driftfmu_build.json is not valid JSON (%s): the "
+                              "loader cannot learn which libpython to load. Rebuild the FMU "
+                              "(driftfmu build)" % exc))
+        else:
+            out.append((OK, "built by driftfmu with Python %s (%s loader)"
+                        % (record.get("python_version", "?"), record.get("loader", "?"))))
+    elif python_fmu:
+        if not any(n.startswith("resources/") for n in names):
+            out.append((FAIL, "it has no resources/ folder: a Python FMU's code "
+                              "(resources/*.py, resources/slavemodule.txt) and its build record "
+                              "(resources/driftfmu_build.json) are missing, so no host can "
+                              "create the model. Rebuild the FMU (driftfmu build), or re-pack "
+                              "it with its resources/ folder"))
+        else:
+            out.append((WARN, "resources/driftfmu_build.json is missing: the FMU was not built "
+                              "by driftfmu or was re-packed; the libpython it needs is guessed"))
+        if "resources/slavemodule.txt" not in names and any(
+                n.startswith("resources/") for n in names):
+            out.append((FAIL, "resources/slavemodule.txt is missing: pythonfmu reads the name "
+                              "of the model's Python module from it, so no host can create the "
+                              "model. Rebuild the FMU (driftfmu build)"))
     host_py = "%d.%d" % sys.version_info[:2]
     built_py = ".".join(str(record.get("python_version", "")).split(".")[:2])
     if built_py and built_py != host_py:
@@ -126,7 +163,7 @@ def diagnose(fmu):
                         "Python hosts, whose own interpreter runs the FMU's code"
                     % (host_py, built_py)))
     pyfiles = [n for n in names if n.startswith("resources/") and n.endswith(".py")]
-    if not pyfiles and not record:  # a native FMU (fmu_src/native): no Python inside
+    if not pyfiles and not record and not python_fmu:  # a native FMU: no Python inside
         if "sources/" in {n[:8] for n in names}:
             out.append((OK, "a native FMU (no Python inside): a host needs no libpython; it is "
                             "also a source FMU (sources/) for platforms without a binary"))
@@ -164,7 +201,7 @@ def diagnose(fmu):
                     "the FMU's code needs modules that are neither bundled nor in the standard "
                     "library: %s%s" % (", ".join(foreign), "; not installed here: "
                                        + ", ".join(missing) if missing else "")))
-    else:
+    elif bundled:
         out.append((OK, "the FMU's code needs only the standard library and its bundled "
                         "modules (%s): any host with a matching libpython runs it"
                     % ", ".join(sorted(bundled))))
@@ -173,6 +210,35 @@ def diagnose(fmu):
                         "(not needed)" % ", ".join(optional)))
     out.append(_try_instantiate(fmu))
     return out
+
+
+def _binary_problem(data, size):
+    """Why a shared library cannot be loaded, in words, from its bytes alone (ELF, the
+    format of Linux binaries; other formats are left to the loader); None when it looks
+    whole."""
+    import struct
+    if platform.system() != "Linux":
+        return None
+    if size < 64 or data[:4] != b"\x7fELF":
+        return ("not an ELF shared library (%d bytes, starting %r)" % (size, data[:4])
+                if size else "an empty file")
+    if data[4] != 2 or data[5] != 1:
+        return ("a %s-bit %s-endian ELF file; this host runs 64-bit little-endian code"
+                % ({1: "32", 2: "64"}.get(data[4], "?"), {1: "little", 2: "big"}.get(data[5],
+                                                                                     "?")))
+    phoff, shoff = struct.unpack_from("<QQ", data, 0x20)
+    phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 0x36)
+    need = max(phoff + phentsize * phnum, shoff + shentsize * shnum)
+    if phoff + phentsize * phnum <= size:
+        for i in range(phnum):
+            p_type, _, p_offset = struct.unpack_from("<IIQ", data, phoff + i * phentsize)
+            p_filesz = struct.unpack_from("<Q", data, phoff + i * phentsize + 0x20)[0]
+            if p_type == 1:  # PT_LOAD: the loader maps these bytes of the file
+                need = max(need, p_offset + p_filesz)
+    if need > size:
+        return ("truncated: the file has %d bytes, its ELF headers describe %d (a loader "
+                "that maps it stops the host with SIGBUS)" % (size, need))
+    return None
 
 
 def _importable(module):
@@ -218,6 +284,14 @@ def _run_instantiate(code, fmu):
         return (FAIL, "instantiating the FMU in a Python host did not finish in 120 s")
     if r.returncode == 0:
         return (OK, "it instantiates and initialises in a Python host (fmpy) on this machine")
+    if r.returncode < 0:
+        import signal
+        try:
+            name = signal.Signals(-r.returncode).name
+        except ValueError:
+            name = "signal %d" % -r.returncode
+        return (FAIL, "instantiating it in a Python host (fmpy) crashed that host (%s): a "
+                      "binary of the FMU is damaged or does not fit this machine" % name)
     last = (r.stderr.strip().splitlines() or ["exit status %d" % r.returncode])[-1]
     return (FAIL, "instantiating it in a Python host (fmpy) failed: %s" % last)
 
@@ -231,8 +305,14 @@ def report(fmu):
         print("[%s] %s" % (mark[level], msg))
     bad = [m for lvl, m in findings if lvl == FAIL]
     print("verdict: %s" % ("this FMU will run on this host" if not bad else
-                           "this FMU will NOT run on this host as it is"))
+                           "this FMU will NOT run on this host as it is: %s"
+                           % "; ".join(_reason(m) for m in bad)))
     return 1 if bad else 0
+
+
+def _reason(message):
+    """The first clause of a problem, for the verdict line."""
+    return message.split(". ")[0].split(": the FMU is damaged")[0]
 
 
 def add_cli(groups):

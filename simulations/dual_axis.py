@@ -235,6 +235,8 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
                 done += 1
                 if progress is not None:
                     progress(done)
+        from driftfmu.simulations.cli import start_phase
+        start_phase(progress, "validation (FMU outputs against models/)", len(grid), "point")
         for i, (sw, v) in enumerate(grid):
             ex, sp, es = start_values(sw, v, s)
             ref = batch.dual_simulate(n, seeds, ex, sp, es, Ts, record=dualaxis.COLUMNS)
@@ -244,6 +246,8 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
                     worst = max(worst, d) if d == d else math.inf
             one = [_finals_of_columns(cols[(i, r)]) for r in range(runs)]
             finals[i] = {k: np.array([o[k] for o in one]) for k in one[0]}
+            if progress is not None:
+                progress(i + 1)
         if worst != 0.0:
             raise ValidationError("FMU outputs differ from models/ run directly by %.3g; "
                                   "allowed: equal bit for bit" % worst)
@@ -401,7 +405,7 @@ def plot_dual_axis(path, summary):
         labels += l
     fig.legend(handles, labels, loc="lower center", ncol=3, fontsize=8, frameon=False)
     fig.tight_layout(rect=(0, 0.12, 1, 0.96))
-    fig.savefig(path, dpi=120)
+    output.savefig(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -428,9 +432,10 @@ def add_cli(groups):
                                                "a2", "bx", "R", "a2y", "by", "Ry")})
     g.add_argument("--workers", type=_int_at_least(1, "workers"), default=None,
                    help="parallel processes (default: the number of cores)")
-    g.add_argument("--scheduler", default=None, metavar="ADDRESS",
+    g.add_argument("--scheduler", default=None, metavar="ADDRESS", type=batch.scheduler_address,
                    help="batch engine: run on the Dask distributed cluster at ADDRESS (e.g. "
-                        "tcp://host:8786); default: local worker processes")
+                        "tcp://host:8786; needs the extra driftfmu[dask]); default: local "
+                        "worker processes")
     cli.add_out(g, "results/dual_axis")
     cli.add_fmu_dir(g)
     cli.add_backend(g)

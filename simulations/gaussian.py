@@ -15,10 +15,23 @@ from driftfmu.simulations.errors import UsageError
 FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Accelerometer", "z", "DriftEstimator", "z"))
+#: The known input u (eq. 1) from the Excitation to the filter's prediction, wired when B != 0.
+INPUT_CONNECTION = ("Excitation", "u", "DriftEstimator", "u")
+#: The general model's parameters (issue 16) and their off values: the letter's case.
+GENERAL_OFF = dict(a3=0.0, a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0)
+
+
+def connections(B=0.0):
+    """The chain's connections; with the known input's (:data:`INPUT_CONNECTION`) when
+    ``B != 0``."""
+    return CONNECTIONS + ((INPUT_CONNECTION,) if B != 0.0 else ())
 #: Largest difference allowed between an FMU output and models/ run directly.
 TOLERANCE = 1e-12
 #: "Within 10 % of the realised drift".
 SETTLE_BAND = 0.10
+#: Share of a run's samples at its end that an estimate must stay inside the band for to count
+#: as settled (:func:`settled_from`).
+SETTLE_HOLD = 0.10
 
 
 class ValidationError(RuntimeError):
@@ -63,14 +76,25 @@ def fmu_paths(fmu_dir, backend="python"):
     return paths
 
 
+def settle_hold(n):
+    """Samples an estimate must stay inside the band at the end of a run of ``n`` samples to
+    count as settled: :data:`SETTLE_HOLD` of them, at least one."""
+    return max(1, math.ceil(SETTLE_HOLD * n))
+
+
 def settled_from(estimate, reference, band=SETTLE_BAND):
     """First sample (1-based) from which ``|estimate - reference| <= band |reference|`` holds
-    to the end, or None when the last sample is outside the band."""
+    to the end, or None when it does not hold for the last :func:`settle_hold` samples.
+
+    "Settled" means "stays inside from here on": a run that enters the band only in its last
+    few samples has not shown that it stays (a sinusoid's empirical drift passes through the
+    band at every whole number of periods), so it counts as not settled.
+    """
     last_out = 0
     for k, (e, r) in enumerate(zip(estimate, reference), start=1):
         if abs(e - r) > band * abs(r):
             last_out = k
-    return None if last_out == len(estimate) else last_out + 1
+    return None if last_out > len(estimate) - settle_hold(len(estimate)) else last_out + 1
 
 
 def compare(cols, ref, names=chain.FMU_COLUMNS, tolerance=None):
@@ -83,30 +107,43 @@ def compare(cols, ref, names=chain.FMU_COLUMNS, tolerance=None):
 
 
 def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3, x0=0.0,
-                 P0=None, estimator=1):
+                 P0=None, estimator=1, **general):
     """Start values of the three FMUs for the Gaussian run: {FMU name: {variable: value}}.
 
     The sensor and the filter share the model ``a0, a1, a2, R``; the filter's process model is
-    the excitation's ``(A, Q)``; ``P0`` defaults to ``Q / (1 - A^2)``.
+    the excitation's ``(A, Q)``; ``P0`` defaults to ``Q / (1 - A^2)``.  ``general``: the
+    general model's ``a3, a4`` (sensor and filter), ``B`` (excitation and filter) and the
+    known input ``drive, Qu, Xu, fu`` (excitation); only those given (and not off) are set, so
+    the letter's run sets exactly what it always set.
     """
+    unknown = set(general) - set(GENERAL_OFF)
+    if unknown:
+        raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
     if P0 is None:
         P0 = Q / (1.0 - A * A)
     model = dict(a0=a0, a1=a1, a2=a2, R=R)
+    on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
+    sensor_terms = {k: on[k] for k in ("a3", "a4") if k in on}
+    inputs = {k: on[k] for k in ("B", "drive", "Qu", "Xu", "fu") if k in on}
     return {
-        "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed),
-        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1),
-        "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator),
+        "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed,
+                           **inputs),
+        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1, **sensor_terms),
+        "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator,
+                               **sensor_terms, **({"B": on["B"]} if "B" in on else {})),
     }
 
 
 def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=2000, seed=1,
                  Ts=1e-3, x0=0.0, P0=None, estimator=1, fmu_dir="build/fmus", progress=None,
-                 plot=True, backend="python"):
+                 plot=True, backend="python", **general):
     """Co-simulate the three FMUs under Gaussian excitation; optionally write the results.
 
     Parameters are the letter's names (defaults: its Sec. III settings, 2000 samples).  ``P0``
     defaults to the stationary variance ``Q / (1 - A^2)``.  ``backend`` picks the FMUs
-    (:data:`BACKENDS`).  With ``out`` set, ``results.csv``,
+    (:data:`BACKENDS`).  ``general``: the general model's ``a3, a4, B, drive, Qu, Xu, fu``
+    (:func:`start_values`); with ``B != 0`` the Excitation's ``u`` is wired to the
+    DriftEstimator's.  With ``out`` set, ``results.csv``,
     ``summary.json`` and ``drift.png`` are written there, all of them or none.
 
     Returns
@@ -125,27 +162,31 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
     if P0 is None:
         P0 = Q / (1.0 - A * A)
     params["P0"] = P0
+    general = dict(GENERAL_OFF, **general)
+    params.update({k: v for k, v in general.items() if v != GENERAL_OFF[k]})
     problems = parameters.check(params)
     if problems:
         raise UsageError("; ".join(problems))
     if estimator not in (1, 2, 3):
         raise UsageError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
     start = start_values(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, seed=seed, Ts=Ts, x0=x0, P0=P0,
-                         estimator=estimator)
+                         estimator=estimator, **general)
     record = {"Excitation": ["x"], "Accelerometer": ["z"],
               "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
-    raw = master(backend)(fmu_paths(fmu_dir, backend), CONNECTIONS, n, Ts, start_values=start,
-                          record=record, progress=progress)
+    raw = master(backend)(fmu_paths(fmu_dir, backend), connections(general["B"]), n, Ts,
+                          start_values=start, record=record, progress=progress)
     cols = {"time": raw["time"]}
     for name, names in record.items():
         for v in names:
             cols[v] = raw["%s.%s" % (name, v)]
-    dc_expected = a2 * excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q)
-    cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
-        cols["x"], cols["z"], a0, a2, dc_expected)
-
     ref = chain.simulate(n, seed, a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0, P0=P0, Ts=Ts,
-                         estimator=estimator)
+                         estimator=estimator, **general)
+    if general == GENERAL_OFF:
+        dc_expected = a2 * excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q)
+    else:
+        dc_expected = ref["dc_expected"][0]
+    cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
+        cols["x"], cols["z"], a0, a2, dc_expected, general["a3"], general["a4"])
     diffs, bad = compare(cols, ref)
     summary = summarise(cols, params, a1=a1, Q=Q, R=R, A=A)
     summary["estimator"] = estimator

@@ -31,8 +31,10 @@ UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "ch
 #: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
 #: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``).
 PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "fA", "fQ")
-#: Fields of one run's state (``RunState``): float64 but the drift counter ``k`` (int64).
-STATE_FIELDS = 10
+#: Fields of one run's state (``RunState``): float64 but the drift counter ``k`` (int64):
+#: x, zbar, x2bar, the filter's x and P, and the drift estimators' state (whose 3rd/4th-order
+#: sums, 0 here, come last).
+STATE_FIELDS = 5 + 9
 #: models.adxl203.simulate's start values and columns, in the kernel's order.
 EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
 SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",
@@ -105,11 +107,14 @@ def _build():
         command = compiler + list(generate.CFLAGS) + list(SPEED_FLAGS) + [
             "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
             str(s) for s in sources] + ["-o", str(partial), "-lm"]
+        # the compiler's own temporary files (link-time optimisation writes several) go into
+        # the work folder, so an interrupted compile leaves none behind in TMPDIR
+        env = dict(os.environ, TMPDIR=work)
         try:
-            subprocess.run(command, check=True, capture_output=True)
+            subprocess.run(command, check=True, capture_output=True, env=env)
         except subprocess.CalledProcessError:  # a compiler without link-time optimisation
             command = [c for c in command if c not in SPEED_FLAGS]
-            subprocess.run(command, check=True, capture_output=True)
+            subprocess.run(command, check=True, capture_output=True, env=env)
         staged = target.with_name(target.name + ".part%d" % os.getpid())
         shutil.move(str(partial), str(staged))
         os.replace(staged, target)

@@ -34,6 +34,30 @@ def removing_new_folders(path):
 
 
 @contextlib.contextmanager
+def removing_new_trees(*paths):
+    """Run the block; when it fails (or is interrupted), remove every folder it would have
+    created for ``paths`` (each the highest folder of its path that did not exist before),
+    with whatever the block has put into it: a failed or stopped run leaves no folder it
+    created, not even a half-filled one.  Folders that existed before are left alone."""
+    new = []
+    for path in paths:
+        path = Path(path).absolute()
+        top = None
+        p = path
+        while not p.exists() and p != p.parent:
+            top = p
+            p = p.parent
+        if top is not None and top not in new:
+            new.append(top)
+    try:
+        yield
+    except BaseException:
+        for d in new:
+            shutil.rmtree(d, ignore_errors=True)
+        raise
+
+
+@contextlib.contextmanager
 def staged(out_dir):
     """Yield a staging folder; on success move its files into ``out_dir`` (created if missing).
 
@@ -127,8 +151,67 @@ def plot_drift(path, cols, title):
     bottom.set_xlabel("sample k (log scale)")
     caption(fig, title)
     fig.tight_layout()
-    fig.savefig(path, dpi=120)
+    savefig(fig, path, dpi=120)
     plt.close(fig)
+
+
+def mark_clipping(ax):
+    """Mark every curve of ``ax`` that leaves the y range: small triangles on the frame where
+    it is off the scale (pointing the way it went), and a note in the corner naming the curve,
+    the samples and how far it went.  Nothing is clipped without a mark (issue 19: drift.png's
+    bottom panel hid k = 1-99 of the empirical drift).  Log axes: values <= 0 are not drawable
+    and not counted.  Returns the notes."""
+    import numpy as np
+    y0, y1 = sorted(ax.get_ylim())
+    x0, x1 = sorted(ax.get_xlim())
+    logy = ax.get_yscale() == "log"
+    xname = "k" if any(a.get_xlabel().startswith("sample k")
+                       for a in ax.get_shared_x_axes().get_siblings(ax)) else "x"
+    ylabel = ax.get_ylabel()
+    unit = (" " + ylabel[ylabel.rindex("[") + 1:ylabel.rindex("]")]
+            if "[" in ylabel and ylabel.rstrip().endswith("]") else "")
+    notes = []
+    for line in list(ax.get_lines()):
+        label = line.get_label()
+        if label.startswith(("_child", "_nolegend_", "_clipped")):
+            continue  # unnamed helpers (axhline, axvline) and the marks themselves
+        label = label.lstrip("_")  # "_EKF1 5 %": named, kept out of the legend
+        x, y = (np.asarray(v, dtype=float) for v in line.get_data())
+        if x.shape != y.shape or not x.size:
+            continue
+        ok = np.isfinite(x) & np.isfinite(y) & (x >= x0) & (x <= x1)
+        if logy:
+            ok &= y > 0
+        for side, off, edge, marker in (("above", ok & (y > y1), y1, "^"),
+                                        ("below", ok & (y < y0), y0, "v")):
+            if not off.any():
+                continue
+            xs = x[off]
+            pick = np.unique(np.linspace(0, xs.size - 1, min(xs.size, 12)).astype(int))
+            ax.plot(xs[pick], np.full(pick.size, edge), ls="none", marker=marker, ms=5,
+                    color=line.get_color(), clip_on=False, zorder=5,
+                    label="_clipped %s" % label)
+            far = float(np.max(y[off]) if side == "above" else np.min(y[off]))
+            where = ("%g" % xs.min() if xs.min() == xs.max()
+                     else "%g to %g" % (xs.min(), xs.max()))
+            notes.append("%s off the scale %s at %s = %s (to %.3g%s)"
+                         % (label.split("  ")[0].split(" (")[0], side, xname, where, far,
+                            unit))
+    if notes:
+        ax.text(0.99, 0.02, "\n".join("%s %s" % ("▲" if " above " in t else "▼", t)
+                                      for t in notes),
+                transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.25",
+                bbox=dict(facecolor="white", edgecolor="0.7", alpha=0.85, lw=0.5))
+    return notes
+
+
+def savefig(fig, path, dpi=120):
+    """Lay out and save ``fig``: first every axes' curves that leave its y range are marked
+    (:func:`mark_clipping`)."""
+    for ax in fig.axes:  # get_ylim() autoscales what is still stale
+        if ax.get_visible() and ax.get_lines():
+            mark_clipping(ax)
+    fig.savefig(path, dpi=dpi)
 
 
 def caption(fig, text, width=95):

@@ -204,7 +204,8 @@ def add_cli(groups):
 
 
 def _cmd(args):
-    from driftfmu.simulations import cli
+    from driftfmu.simulations import budget, cli
+    budget.check_run("sinusoidal", args.n, args.out, args.backend)
     with cli.progress(args.n, "co-simulation", "sample") as update:
         res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,

@@ -160,15 +160,17 @@ def write(out, result, plot=True):
             subtitle = "a1 = %g, Q = %g, A = %g; %d runs of n = %d samples per point" % (
                 p["a1"], p["Q"], p["A"], p["runs"], p["n"])
             figures = [(stage / "fig2.png", "ekf1"), (stage / "fig3.png", "ekf3")]
+            ylim = grid_limits(result)  # one scale for both: EKF1 against EKF3 at a glance
             if not _fork_is_cheap():
                 for path, est in figures:
-                    plot_grid(path, result, est, subtitle)
+                    plot_grid(path, result, est, subtitle, ylim=ylim)
                 return
             # two cores: Fig. 3 in a forked process while this one draws Fig. 2
             drawn = {k: result[k] for k in ("table", "grid_a2", "grid_R")}
             with batch.process_pool(1, "driftfmu.simulations.sweep") as pool:
-                later = pool.submit(plot_grid, figures[1][0], drawn, figures[1][1], subtitle)
-                plot_grid(figures[0][0], drawn, figures[0][1], subtitle)
+                later = pool.submit(plot_grid, figures[1][0], drawn, figures[1][1], subtitle,
+                                    ylim)
+                plot_grid(figures[0][0], drawn, figures[0][1], subtitle, ylim)
                 later.result()
 
 
@@ -182,11 +184,33 @@ def _fork_is_cheap():
             and "matplotlib.pyplot" in sys.modules and hasattr(os, "fork"))
 
 
-def plot_grid(path, result, estimator, subtitle):
+def grid_limits(result, estimators=("ekf1", "ekf3")):
+    """Log-axis y limits that hold every curve of Figs. 2 and 3 (the errors of both
+    estimators against both references, and the drift): the two figures share one scale."""
+    t = result["table"]
+    values = [np.asarray(t["dc_expected"], dtype=float)]
+    for est in estimators:
+        for ref in ("realised", "empirical"):
+            values.append(np.asarray(t["mae_%s_%s" % (est, ref)], dtype=float))
+    v = np.concatenate([np.ravel(a) for a in values])
+    v = v[np.isfinite(v) & (v > 0)]
+    if not v.size:
+        return None
+    return float(v.min()) / 1.6, float(v.max()) * 1.6
+
+
+#: Line styles of the R curves, with hollow markers that shrink from curve to curve: curves
+#: that lie on each other still show as concentric rings in distinct dashes.
+R_STYLES = ("-", "--", ":", "-.", (0, (6, 2, 1, 2, 1, 2)))
+
+
+def plot_grid(path, result, estimator, subtitle, ylim=None):
     """Mean absolute error of one estimator over the (a2, R) grid: against the realised drift
     (left) and against the letter's empirical drift ``z̄ - a0`` (right), one line per R (its
-    own colour and marker, so lines that coincide stay distinguishable), and the drift itself
-    (dotted).  Legend beside the axes."""
+    own colour, dash and hollow marker, the markers shrinking from curve to curve, so lines
+    that coincide stay distinguishable as concentric rings), and the drift itself (dotted
+    black).  ``ylim``: the y range (:func:`grid_limits`, shared by Figs. 2 and 3).  Legend
+    beside the axes."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -197,8 +221,10 @@ def plot_grid(path, result, estimator, subtitle):
     for ax, ref in zip(axes, ("realised", "empirical")):
         mae = t["mae_%s_%s" % (estimator, ref)].reshape(len(a2), len(R))
         for j, r in enumerate(R):
-            ax.loglog(a2, mae[:, j], marker=markers[j % len(markers)], ms=6 - 0.5 * (j % 4),
-                      lw=1.2, color=plt.cm.viridis(0.9 * j / max(1, len(R) - 1)),
+            ax.loglog(a2, mae[:, j], marker=markers[j % len(markers)],
+                      ms=4.0 + 2.5 * (len(R) - 1 - j), mfc="none", mew=1.3,
+                      ls=R_STYLES[j % len(R_STYLES)], lw=1.3,
+                      color=plt.cm.viridis(0.9 * j / max(1, len(R) - 1)),
                       label="R = %.0e V²" % r)
         ax.loglog(a2, t["dc_expected"].reshape(len(a2), len(R))[:, 0], color="k", ls=":",
                   lw=1.2, label="the drift a2·Q/(1−A²)")
@@ -207,14 +233,17 @@ def plot_grid(path, result, estimator, subtitle):
         ax.set_title("%s against the %s drift%s" % (
             estimator.upper(), ref, " a2·mean(x²)" if ref == "realised"
             else " z̄ − a0 (the letter's)"), fontsize=10)
+        if ylim is not None:
+            ax.set_ylim(*ylim)
         ax.grid(True, which="major", alpha=0.3)
         ax.minorticks_off()  # log-axis minor ticks are most of the drawing time
     axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
-    fig.suptitle("Fig. %s of the letter: mean absolute error of %s over a grid of a2 and R (%s)"
-                 % ("2" if estimator == "ekf1" else "3", estimator.upper(), subtitle),
-                 fontsize=10.5)
-    fig.subplots_adjust(left=0.07, right=0.84, bottom=0.12, top=0.86, wspace=0.3)
-    fig.savefig(path, dpi=110)
+    output.caption(fig, "Fig. %s of the letter: mean absolute error of %s over a grid of a2 "
+                   "and R (%s); the y axes are those of Fig. %s, to compare EKF1 with EKF3"
+                   % ("2" if estimator == "ekf1" else "3", estimator.upper(), subtitle,
+                      "3" if estimator == "ekf1" else "2"), width=130)
+    fig.subplots_adjust(left=0.07, right=0.84, bottom=0.12, top=0.84, wspace=0.3)
+    output.savefig(fig, path, dpi=110)
     plt.close(fig)
 
 

@@ -78,52 +78,31 @@ def backend_fmus(request):
     return _NativeFmus(request.getfixturevalue("native_fmus")[int(request.param[-1])])
 
 
-#: The user property under which a pytest-xdist worker sends ``report`` lines to the controller.
-REPORT = "driftfmu-report"
-_printed = set()
+@pytest.fixture
+def report(request):
+    """``report(line)``: note what a passing test saw (which importer stepped the FMUs, the
+    error texts of bad inputs, the memory figure).  The lines are listed together after the
+    test session, under their own heading and each with its test's name, so that the CI log
+    shows them (``pytest -ra`` hides passing tests' output) without mixing them into the
+    progress lines, where they read as failures.  They travel as the test's user properties,
+    so pytest-xdist's workers hand them on too."""
+    def write(line):
+        request.node.user_properties.append(("report", str(line)))
+    return write
+
+
+#: ``(test id, line)`` of every :func:`report` line of this session.
+_REPORTED = []
 
 
 def pytest_runtest_logreport(report):
-    """On the controller of a pytest-xdist run: print the workers' ``report`` lines (each once;
-    a test's later phases carry its earlier lines again)."""
-    config = _config.get("config")
-    if config is None or hasattr(config, "workerinput"):
-        return
-    reporter = config.pluginmanager.get_plugin("terminalreporter")
-    lines = [v for k, v in report.user_properties if k == REPORT]
-    for i, line in enumerate(lines):
-        if reporter is not None and (report.nodeid, i) not in _printed:
-            _printed.add((report.nodeid, i))
-            reporter.ensure_newline()
-            reporter.write_line(line)
+    if report.when == "call":
+        _REPORTED.extend((report.nodeid, v) for k, v in report.user_properties if k == "report")
 
 
-_config = {}
-
-
-def pytest_configure(config):
-    _config["config"] = config
-
-
-@pytest.fixture
-def report(request):
-    """``report(line)``: write a line to the terminal past pytest's output capture, so the CI
-    log shows what a passing test saw (which importer stepped the FMUs, the error texts of bad
-    inputs, the memory figure): ``pytest -ra`` hides passing tests' output.  In a pytest-xdist
-    worker the line goes to the controller, which prints it."""
-    plugins = request.config.pluginmanager
-    reporter = plugins.get_plugin("terminalreporter")
-    capture = plugins.get_plugin("capturemanager")
-    worker = hasattr(request.config, "workerinput")
-
-    def write(line):
-        if worker:
-            request.node.user_properties.append((REPORT, line))
-            return
-        if reporter is None or capture is None:
-            print(line)
-            return
-        with capture.global_and_fixture_disabled():
-            reporter.ensure_newline()
-            reporter.write_line(line)
-    return write
+def pytest_terminal_summary(terminalreporter):
+    if _REPORTED:
+        terminalreporter.section("what passing tests saw (their report lines; not failures)",
+                                 sep="-")
+        for nodeid, line in _REPORTED:
+            terminalreporter.write_line("%s: %s" % (nodeid, line))

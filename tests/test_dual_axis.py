@@ -335,7 +335,7 @@ def test_bad_dual_value_gives_fmi2error_with_log_message(built_fmus, start, text
     with pytest.raises(CoSimulationError) as info:
         cosimulate(paths, dual_axis.CONNECTIONS, 5, 1e-3, start_values=start)
     msg = str(info.value)
-    report("BAD INPUT %s -> %s" % (start, " | ".join(msg.splitlines())))
+    report("refused, as it must be: %s -> %s" % (start, " | ".join(msg.splitlines())))
     assert "status 3 (error)" in msg and text in msg
 
 
@@ -531,6 +531,7 @@ def test_b_zero_dual_slave_under_any_step_is_two_single_axis_slaves(process):
 
 
 def test_batch_engine_on_an_unreachable_scheduler_fails_fast_and_writes_nothing(tmp_path):
+    pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not installed")
     with pytest.raises(ConnectionError, match="no Dask scheduler answered"):
         dual_axis.run_dual_axis(out=tmp_path / "o", engine="batch", runs=2, points=2, n=10,
                                 scheduler="tcp://127.0.0.1:1")
@@ -543,8 +544,11 @@ def test_new_parameters_are_appended_and_off_by_default():
     from driftfmu.fmu_src.Excitation import Excitation
     new = {Excitation: ("Qy", "rho"),
            Accelerometer: ("dual", "bx", "a0y", "a1y", "a2y", "by", "Ry")}
+    later = ("a4", "B", "drive", "Qu", "Xu", "fu", "u")  # appended after them (issue 16)
     for cls, names in new.items():
         table = [s["name"] for s in cls.VARIABLES]
+        while table[-1] in later:
+            table.pop()
         assert tuple(table[-len(names):]) == names
         starts = {s["name"]: s["start"] for s in cls.VARIABLES}
     assert (starts["dual"], starts["bx"], starts["by"]) == (0, 0.0, 0.0)

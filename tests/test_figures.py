@@ -60,6 +60,26 @@ def _check(fig, series):
         if legend is not None:
             overlap = legend.get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
             assert not overlap, "legend on the data: %s" % ax.get_title()
+    # nothing clipped without a mark: a labelled curve that leaves the y range has its
+    # triangles on the frame and a note (output.mark_clipping)
+    for ax in axes:
+        y0, y1 = sorted(ax.get_ylim())
+        x0, x1 = sorted(ax.get_xlim())
+        marks = {line.get_label()[len("_clipped "):] for line in ax.get_lines()
+                 if line.get_label().startswith("_clipped ")}
+        for line in ax.get_lines():
+            if line.get_label().startswith(("_child", "_nolegend_", "_clipped")):
+                continue  # axhline/axvline helpers, and the marks
+            x, y = (np.asarray(v, dtype=float) for v in line.get_data())
+            if x.shape != y.shape:
+                continue
+            ok = np.isfinite(x) & np.isfinite(y) & (x >= x0) & (x <= x1)
+            if ax.get_yscale() == "log":
+                ok &= y > 0
+            if (ok & ((y < y0) | (y > y1))).any():
+                assert line.get_label().lstrip("_") in marks, "clipped without a mark: %s in %r" % (
+                    line.get_label(), ax.get_title())
+                assert any("off the scale" in t.get_text() for t in ax.texts)
     # labels written on the data (margins, "k = 250") stay inside their axes, not over the
     # tick labels or cut at the frame
     for ax in axes:
@@ -98,6 +118,21 @@ def test_drift_png(figures, tmp_path, kind):
     assert (tmp_path / "drift.png").stat().st_size > 10000
 
 
+def test_drift_png_marks_what_its_range_clips(figures, tmp_path):
+    # a Gaussian run: the empirical drift z̄ - a0 starts far outside the bottom panel's range
+    # (its linear term a1 x̄ dwarfs the drift for k < 100)
+    cols = _one_run(n=2000, kind=1, Q=0.01)
+    output.plot_drift(tmp_path / "drift.png", cols, "Drift estimates of one Gaussian run, "
+                      "with enough words to be a caption")
+    (fig,) = figures
+    _check(fig, {0: ["EKF1"], 1: ["empirical", "EKF1"]})
+    bottom = fig.axes[1]
+    marks = [line for line in bottom.get_lines() if line.get_label().startswith("_clipped empirical")]
+    assert marks and all(np.all(np.asarray(m.get_xdata()) < 200) for m in marks)
+    note = [t.get_text() for t in bottom.texts if "off the scale" in t.get_text()]
+    assert note and "empirical" in note[0]
+
+
 def test_drift_png_of_one_sample_draws_without_warning(figures, tmp_path):
     output.plot_drift(tmp_path / "drift.png", _one_run(n=1), "One sample: still a figure, "
                       "without a warning from matplotlib")
@@ -111,22 +146,45 @@ def test_fig1_and_sine_png(figures, tmp_path, which):
     else:
         montecarlo.montecarlo_sinusoidal(runs=64, n=300, workers=1, out=tmp_path)
     (fig,) = figures
-    _check(fig, {0: ["EKF1", "EKF2", "EKF3"], 1: ["empirical", "EKF1", "realised"]})
+    _check(fig, {0: ["EKF1", "EKF2", "EKF3"], 1: ["EKF1", "realised"],
+                 2: ["empirical", "realised"]})
+    # linear drift axes in mV (no symmetric-log axis), and the EKF1 median not hidden under
+    # the realised drift's: thinner and drawn on top of it
+    assert all(ax.get_yscale() == "linear" for ax in fig.axes)
+    middle = {line.get_label().split(" median")[0]: line for line in fig.axes[1].get_lines()}
+    ekf1, realised = middle["EKF1"], middle["realised"]
+    assert ekf1.get_zorder() > realised.get_zorder()
+    assert ekf1.get_linewidth() < realised.get_linewidth()
+    assert ekf1.get_color() != realised.get_color()
     # the median and both percentile lines of each estimator: 3 lines each, none hidden in a
     # filled band
     top = fig.axes[0]
     assert len([c for c in top.collections if c.get_label().startswith("EKF")]) == 0
-    assert len([line for line in top.get_lines() if line.get_color() in ("C0", "C1", "C2")]) \
-        == 9
+    assert len([line for line in top.get_lines() if line.get_color() in ("C0", "C1", "C2")
+                and not line.get_label().startswith("_clipped")]) == 9
     assert any(t.get_text() == "k = 250" for t in top.texts)  # the claim's sample, labelled
 
 
-def test_fig2_fig3_png(figures, tmp_path):
+def test_fig2_fig3_png(figures, tmp_path, monkeypatch):
+    monkeypatch.setattr(sweep, "_fork_is_cheap", lambda: False)  # both figures in this process
     sweep.sweep(a2=[1e-3, 1e-2, 1e-1], R=[1e-6, 1e-4, 1e-2], runs=16, n=200, workers=1,
                 out=tmp_path)
     assert len(figures) == 2
     for fig in figures:
         _check(fig, {i: ["R = 1e-06", "R = 1e-04", "R = 1e-02", "the drift"] for i in (0, 1)})
+    # one scale: EKF1 (fig2) against EKF3 (fig3) can be compared by eye
+    limits = {tuple(np.round(np.log10(ax.get_ylim()), 9)) for fig in figures for ax in fig.axes}
+    assert len(limits) == 1, limits
+    # every curve distinguishable even where curves coincide: its own colour, dash and marker
+    # size (coincident hollow markers show as concentric rings)
+    for fig in figures:
+        for ax in fig.axes:
+            curves = [line for line in ax.get_lines() if line.get_label().startswith("R = ")]
+            assert len(curves) == 3
+            for attr in ("get_color", "get_linestyle", "get_markersize", "get_marker"):
+                values = [getattr(c, attr)() for c in curves]
+                assert len({str(v) for v in values}) == len(values), (attr, values)
+            assert all(c.get_markerfacecolor() == "none" for c in curves)
 
 
 def _per(freqs, held_out=3):
@@ -154,6 +212,15 @@ def test_fig4_png_shows_every_held_out_set_of_every_frequency(figures, tmp_path)
     marks = [line for line in left.get_lines() if line.get_linestyle() in ("None", "none", "")]
     assert len(marks) == 2 * len(freqs)  # markers, not lines joining discrete sets
     assert sum(len(line.get_xdata()) for line in marks) == 2 * 3 * len(freqs)
+    # right: every held-out set of every frequency (not one of them), each over its own
+    # empirical drift, against one reference line that needs no matching
+    right = fig.axes[1]
+    traces = [line for line in right.get_lines() if "Hz" in line.get_label()
+              and not line.get_label().startswith("_clipped")]
+    assert len(traces) == 3 * len(freqs)
+    refs = [line for line in right.get_lines() if "empirical drift" in line.get_label()]
+    assert len(refs) == 1 and set(refs[0].get_ydata()) == {100.0}
+    assert "[%]" in right.get_ylabel()
 
 
 def test_fig5_png(figures, tmp_path):
@@ -163,4 +230,7 @@ def test_fig5_png(figures, tmp_path):
     _check(fig, {0: ["drift", "rms(EKF1"]})
     ax = fig.axes[0]
     assert "dB re 1 V" in ax.get_ylabel() and "|value|" not in ax.get_ylabel()
+    # the convention and its reason, on the axis: 10 log10 of a voltage, as the letter
+    label = " ".join(ax.get_ylabel().split())
+    assert "10·log10(v / 1 V)" in label and "20 log10" in label and "letter" in label
     assert len([t for t in ax.texts if t.get_text().endswith(" dB")]) == 3

@@ -89,7 +89,7 @@ def test_bad_value_gives_fmi2error_with_log_message(backend_fmus, start, text, r
     with pytest.raises(CoSimulationError) as info:  # on every backend (tests/conftest.py)
         _run(backend_fmus, start)
     msg = str(info.value)
-    report("BAD INPUT %s -> %s" % (start, " | ".join(msg.splitlines())))
+    report("refused, as it must be: %s -> %s" % (start, " | ".join(msg.splitlines())))
     assert "status 3 (error)" in msg
     assert text in msg
 

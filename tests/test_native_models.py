@@ -26,7 +26,7 @@ PD, PI64 = ctypes.POINTER(D), ctypes.POINTER(I64)
 
 
 class DriftState(ctypes.Structure):
-    _fields_ = [("k", I64), ("s1", D), ("dc2", D), ("s3", D), ("dc3", D)]
+    _fields_ = [("k", I64)] + [(n, D) for n in drift.DriftState._fields[1:]]
 
 
 class EstimatorState(ctypes.Structure):
@@ -40,7 +40,7 @@ class HarmonicState(ctypes.Structure):
 class Config(ctypes.Structure):
     _fields_ = [("plain", I64), ("a0", D), ("a1", D), ("a2", D), ("a3", D), ("R", D),
                 ("sigma", D), ("cross", D), ("has_alpha", I64), ("alpha", D), ("lsb", D),
-                ("levels", I64)]
+                ("levels", I64), ("a4", D)]
 
 
 REPORT = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p)
@@ -424,7 +424,7 @@ def test_ekf_equals_models_at_A_nonzero_and_large_a2(c):
 
 
 def _drift_tuple(s):
-    return (s.k, s.s1, s.dc2, s.s3, s.dc3)
+    return tuple(getattr(s, n) for n in drift.DriftState._fields)
 
 
 def assert_drift(py, cv):

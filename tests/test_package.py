@@ -49,9 +49,7 @@ def dists(tmp_path_factory):
     tmp = tmp_path_factory.mktemp("dist")
     # a clean copy of the tracked tree, so files a developer left lying around do not count
     tree = tmp / "tree"
-    files = subprocess.run(["git", "ls-files", "-z", "--cached", "--others", "--exclude-standard"], cwd=ROOT, capture_output=True,
-                           check=True).stdout.decode().split("\0")
-    for name in filter(None, files):
+    for name in source_files(ROOT):
         if (ROOT / name).is_file():
             (tree / name).parent.mkdir(parents=True, exist_ok=True)
             shutil.copy2(ROOT / name, tree / name)
@@ -66,6 +64,44 @@ def dists(tmp_path_factory):
     (unpacked,) = (tmp / "unpacked").iterdir()
     rebuilt = _wheel(unpacked, tmp / "rebuilt")
     return wheel, sdist, rebuilt
+
+
+#: What a build or a run writes into a source tree (the .gitignore's entries, and the folders
+#: the README's commands make): left out of the clean copy when there is no git checkout.
+WRITTEN = ("__pycache__", ".pytest_cache", ".venv", "dist", "out", "results", ".git")
+WRITTEN_BUILD = ("fmus", "tmp", "cross-check")
+
+
+def source_files(root):
+    """The relative names of a source tree's files: from git when ``root`` is a git checkout
+    (tracked and untracked, without the ignored); otherwise (an unpacked sdist, an exported
+    tree, as a packager has it) every file but what a build or a run writes."""
+    try:
+        r = subprocess.run(["git", "ls-files", "-z", "--cached", "--others",
+                            "--exclude-standard"], cwd=root, capture_output=True)
+    except OSError:  # no git at all
+        r = None
+    if r is not None and r.returncode == 0 and (Path(root) / ".git").exists():
+        return sorted(filter(None, r.stdout.decode().split("\0")))
+    names = []
+    for dirpath, dirnames, filenames in os.walk(root):
+        rel = Path(dirpath).relative_to(root)
+        dirnames[:] = [d for d in dirnames if d not in WRITTEN and not d.endswith(".egg-info")
+                       and not (rel == Path("build") and d in WRITTEN_BUILD)]
+        names += [(rel / f).as_posix() for f in filenames
+                  if not f.endswith((".pyc", ".ssp"))]
+    return sorted(names)
+
+
+def test_the_source_files_are_found_without_git(tmp_path, monkeypatch):
+    for name in ("pyproject.toml", "models/a.py", "build/README.md", "results/x/results.csv",
+                 "build/fmus/Excitation.fmu", "models/__pycache__/a.cpython-311.pyc",
+                 "driftfmu.egg-info/PKG-INFO", "build/DriftChain.ssp", "dist/x.whl"):
+        (tmp_path / name).parent.mkdir(parents=True, exist_ok=True)
+        (tmp_path / name).write_text("x")
+    assert source_files(tmp_path) == ["build/README.md", "models/a.py", "pyproject.toml"]
+    monkeypatch.setenv("PATH", "")  # and with no git on the PATH
+    assert source_files(tmp_path) == ["build/README.md", "models/a.py", "pyproject.toml"]
 
 
 @integration
@@ -138,3 +174,11 @@ def test_suite_runs_against_the_code_it_means():
     else:
         for f in files:
             assert ROOT in f.parents, "testing %s, not the checkout at %s" % (f, ROOT)
+
+
+def test_what_the_readme_commands_make_is_git_ignored():
+    if not (ROOT / ".gitignore").exists():
+        pytest.skip("not a source checkout")
+    ignored = (ROOT / ".gitignore").read_text().split()
+    for made in ("/.venv/", "/dist/", "/results/", "/build/fmus/", "*.egg-info/"):
+        assert made in ignored, made

@@ -309,8 +309,9 @@ def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(mo
     monkeypatch.setattr(native_build, "zig_command", lambda: None)
     monkeypatch.setenv("CC", "no-such-cc")
     with pytest.raises(native_build.NativeBuildError,
-                       match="no C compiler for x86-64 Linux found \\(Debian: apt-get install "
-                       "gcc, or pip install ziglang\\)"):
+                       match="no x86_64-linux compiler: CC='no-such-cc' is not an installed "
+                       "program, zig is not installed; allowed: CC naming an installed C "
+                       "compiler, or Debian: apt-get install gcc, or pip install ziglang"):
         native_build.build_native_fmus(tmp_path, names=("Excitation",), log=lambda line: None)
     with pytest.raises(native_build.NativeBuildError, match="platforms mac are not known"):
         native_build.build_native_fmus(tmp_path, platforms=("x86_64-linux", "mac"))

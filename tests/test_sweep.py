@@ -87,7 +87,8 @@ def test_in_process_equals_worker_processes(local):
 
 
 def test_local_dask_cluster_equals_local_workers(local):
-    from dask.distributed import LocalCluster
+    LocalCluster = pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] "
+                                       "is not installed").LocalCluster
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
                       dashboard_address=None) as cluster:
         done = []

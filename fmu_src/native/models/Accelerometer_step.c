@@ -12,8 +12,8 @@ static const SlaveRange EXTRA[] = {{"noise", 0, 1}};
 
 static Config config_of(const ModelVariables *v)
 {
-    return adxl203_config(v->a0, v->a1, v->a2, v->R, v->a3, v->cross, v->fc, v->Vs, v->bits,
-                          v->density, v->Ts);
+    return adxl203_config_general(v->a0, v->a1, v->a2, v->R, v->a3, v->cross, v->fc, v->Vs,
+                                  v->bits, v->density, v->Ts, v->a4);
 }
 
 static void report(void *ctx, const char *message) { slave_problem((ModelInstance *)ctx, message); }
@@ -25,21 +25,29 @@ int model_check(ModelInstance *comp)
     n += adxl203_problems(v->Vs, v->fc, report, comp);
     n += dualaxis_sensor_problems(v->dual, v->a3, v->cross, v->fc, v->Vs, v->bits, v->density,
                                   report, comp);
+    if (v->dual && v->a4 != 0.0) {
+        char msg[PARAMETERS_MESSAGE_MAX], r[40];
+        parameters_repr_float(v->a4, r, sizeof r);
+        snprintf(msg, sizeof msg, "dual = 1 is not allowed with a4 = %s; allowed: dual = 1 "
+                 "with a4 = 0 (the bilinear sensor is of 2nd order)", r);
+        n += slave_problem(comp, msg);
+    }
     if (n == 0) { /* the effective values of the config must be finite */
         Config cfg = config_of(v);
-        const char *names[5] = {"a0", "a1", "a2", "a3", "sigma"};
-        double values[5];
+        const char *names[6] = {"a0", "a1", "a2", "a3", "sigma", "a4"};
+        double values[6];
         int i;
         values[0] = cfg.a0;
         values[1] = cfg.a1;
         values[2] = cfg.a2;
         values[3] = cfg.a3;
         values[4] = cfg.sigma;
-        for (i = 0; i < 5; i++) {
+        values[5] = cfg.a4;
+        for (i = 0; i < 6; i++) {
             if (!isfinite(values[i])) {
                 char msg[PARAMETERS_MESSAGE_MAX], r[40];
                 parameters_repr_float(values[i], r, sizeof r);
-                snprintf(msg, sizeof msg, "the parameters give the effective %s = %s (a1, a2, a3 "
+                snprintf(msg, sizeof msg, "the parameters give the effective %s = %s (a1, a2, a3, a4 "
                          "and the noise are scaled by S(Vs)/S(5 V) and density by "
                          "sqrt(1/(2 Ts))); allowed: parameters whose effective values are "
                          "finite", names[i], r);

@@ -33,7 +33,7 @@ static const char *outputs(ModelInstance *comp, const HarmonicState *s)
 {
     ModelVariables *v = &comp->v;
     double dcs[3];
-    drift_estimates(s->drift, v->a2, &dcs[0], &dcs[1], &dcs[2]);
+    drift_estimates_general(s->drift, v->a2, v->a3, v->a4, &dcs[0], &dcs[1], &dcs[2]);
     v->x_hat = s->x;
     v->P = s->P;
     v->dc_ekf1 = dcs[0];
@@ -69,10 +69,12 @@ static const char *hold(ModelInstance *comp, HarmonicState *s, int64_t n, int fi
     int64_t i;
     for (i = 0; i < n; i++) {
         if (first && i == 0)
-            *s = harmonic_estimator_step(*s, v->z, v->a0, v->a1, v->a2, v->R, v->process, v->A,
-                                         v->Q, h->C, h->S, v->Qh);
-        else
-            *s = harmonic_estimator_predict(*s, v->process, v->A, v->Q, h->C, h->S, v->Qh);
+            *s = harmonic_estimator_step_general(*s, v->z, v->a0, v->a1, v->a2, v->R, v->process,
+                                                 v->A, v->Q, h->C, h->S, v->Qh, v->a3, v->a4,
+                                                 v->B, v->u);
+        else /* u held, as z */
+            *s = harmonic_estimator_predict_general(*s, v->process, v->A, v->Q, h->C, h->S,
+                                                    v->Qh, v->B, v->u);
     }
     return outputs(comp, s);
 }

@@ -15,7 +15,14 @@ int model_check(ModelInstance *comp)
     int n;
     n = slave_check_parameters(comp, EXTRA, 1);
     if (v->kind == EXCITATION_SINUSOIDAL) n += slave_check_nyquist(comp, v->f, v->Ts);
+    if (v->drive == EXCITATION_SINUSOIDAL) n += slave_check_nyquist_named(comp, "fu", v->fu, v->Ts);
     return n;
+}
+
+/* Excitation._u: sample k of the known input. */
+static double sample_u(const ModelVariables *v, int64_t k)
+{
+    return excitation_input_sample(v->drive, v->seed, k, v->Qu, v->Xu, v->fu, v->Ts);
 }
 
 /* Excitation._sample: sample k of (x, y) from (x_prev, y_prev). */
@@ -23,7 +30,8 @@ static void sample_xy(const ModelVariables *v, double x_prev, double y_prev, int
                       double *x, double *y)
 {
     if (v->kind == EXCITATION_GAUSSIAN) {
-        excitation_gaussian_pair(x_prev, y_prev, v->A, v->Q, v->Qy, v->rho, v->seed, k, x, y);
+        excitation_gaussian_pair_general(x_prev, y_prev, v->A, v->Q, v->Qy, v->rho, v->seed, k,
+                                         v->B, sample_u(v, k), x, y);
     } else {
         *x = excitation_sine(k, v->X, v->f, v->Ts, v->phi);
         *y = excitation_sine(k, v->Xy, v->f, v->Ts, v->phiy);
@@ -43,8 +51,10 @@ static const char *hold(ModelInstance *comp, double *x, double *y, int64_t k0, i
     }
     comp->v.x = *x;
     comp->v.y = *y;
+    comp->v.u = sample_u(v, k0 + n - 1);
     if (!isfinite(comp->v.x)) return "x";
     if (!isfinite(comp->v.y)) return "y";
+    if (!isfinite(comp->v.u)) return "u";
     return NULL;
 }
 

@@ -19,16 +19,23 @@ double adxl203_noise_sigma(double density, double Ts) { return density * ops_sqr
 Config adxl203_config(double a0, double a1, double a2, double R, double a3, double cross,
                       double fc, double Vs, int64_t bits, double density, double Ts)
 {
+    return adxl203_config_general(a0, a1, a2, R, a3, cross, fc, Vs, bits, density, Ts, 0.0);
+}
+
+Config adxl203_config_general(double a0, double a1, double a2, double R, double a3,
+                              double cross, double fc, double Vs, int64_t bits, double density,
+                              double Ts, double a4)
+{
     Config c;
     double scale, z0;
-    c.plain = (a3 == 0.0 && cross == 0.0 && fc == 0.0 && Vs == 0.0 && bits == 0
-               && density == 0.0);
+    c.plain = (cross == 0.0 && fc == 0.0 && Vs == 0.0 && bits == 0 && density == 0.0);
     scale = Vs > 0.0 ? adxl203_sensitivity(Vs) / adxl203_sensitivity(ADXL203_VS_NOMINAL) : 1.0;
     z0 = Vs > 0.0 ? Vs / 2.0 : a0;
     c.a0 = z0;
     c.a1 = a1 * scale;
     c.a2 = a2 * scale;
     c.a3 = a3 * scale;
+    c.a4 = a4 * scale;
     c.R = R;
     c.sigma = density > 0.0 ? c.a1 * adxl203_noise_sigma(density, Ts) : ops_sqrt(R);
     c.cross = cross;
@@ -51,7 +58,8 @@ double adxl203_sense(double own, double other, double v, const Config *cfg)
 {
     double u = own + cfg->cross * other;
     double u2 = u * u;
-    return cfg->a1 * u + cfg->a2 * u2 + cfg->a3 * u2 * u + cfg->sigma * v;
+    if (cfg->a4 == 0.0) return cfg->a1 * u + cfg->a2 * u2 + cfg->a3 * u2 * u + cfg->sigma * v;
+    return cfg->a1 * u + cfg->a2 * u2 + cfg->a3 * u2 * u + cfg->a4 * u2 * u2 + cfg->sigma * v;
 }
 
 double adxl203_lowpass(int64_t prev_set, double prev, double s, int64_t has_alpha, double alpha)
@@ -78,7 +86,7 @@ void adxl203_measure(int64_t prev_set, double prev, double own, double other, do
     if (cfg->plain) {
         *e_set = 0;
         *e = 0.0;
-        *z = sensor_measure(own, cfg->a0, cfg->a1, cfg->a2, cfg->R, v);
+        *z = sensor_measure_general(own, cfg->a0, cfg->a1, cfg->a2, cfg->R, v, cfg->a3, cfg->a4);
         return;
     }
     *e = adxl203_lowpass(prev_set, prev, adxl203_sense(own, other, v, cfg), cfg->has_alpha,

@@ -24,6 +24,7 @@ typedef struct {
     double alpha;
     double lsb;
     int64_t levels;
+    double a4;
 } Config;
 
 double adxl203_bandwidth(double C);
@@ -31,6 +32,10 @@ double adxl203_sensitivity(double Vs);
 double adxl203_noise_sigma(double density, double Ts);
 Config adxl203_config(double a0, double a1, double a2, double R, double a3, double cross,
                       double fc, double Vs, int64_t bits, double density, double Ts);
+/* With the 4th-order coefficient a4 (Python's keyword argument; the above is a4 = 0). */
+Config adxl203_config_general(double a0, double a1, double a2, double R, double a3,
+                              double cross, double fc, double Vs, int64_t bits, double density,
+                              double Ts, double a4);
 /* Measurement-noise draw of axis (1: x, 2: y) at sample k. */
 double adxl203_noise(int64_t seed, int64_t k, int64_t axis);
 double adxl203_sense(double own, double other, double v, const Config *cfg);

@@ -11,6 +11,9 @@ typedef struct {
 } EstimatorState;
 
 EstimatorState chain_estimator_init(double x0, double P0);
+EstimatorState chain_estimator_step_general(EstimatorState state, double z, double a0,
+                                            double a1, double a2, double A, double Q, double R,
+                                            double a3, double a4, double B, double u);
 EstimatorState chain_estimator_step(EstimatorState state, double z, double a0, double a1,
                                     double a2, double A, double Q, double R);
 double chain_compensate(double z, double dc);

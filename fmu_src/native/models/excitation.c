@@ -5,9 +5,33 @@
 #include "noise.h"
 #include "ops.h"
 
+double excitation_gauss_markov_general(double x_prev, double A, double Q, double w, double B,
+                                       double u)
+{
+    if (B == 0.0) return A * x_prev + ops_sqrt(Q) * w;
+    return A * x_prev + B * u + ops_sqrt(Q) * w;
+}
+
 double excitation_gauss_markov(double x_prev, double A, double Q, double w)
 {
-    return A * x_prev + ops_sqrt(Q) * w;
+    return excitation_gauss_markov_general(x_prev, A, Q, w, 0.0, 0.0);
+}
+
+double excitation_gaussian_sample_general(double x_prev, double A, double Q, int64_t seed,
+                                          int64_t k, double B, double u)
+{
+    return excitation_gauss_markov_general(
+        x_prev, A, Q, noise_normal((uint64_t)seed, NOISE_STREAM_PROCESS, (uint64_t)k), B, u);
+}
+
+double excitation_input_sample(int64_t drive, int64_t seed, int64_t k, double Qu, double Xu,
+                               double fu, double Ts)
+{
+    if (drive == EXCITATION_GAUSSIAN)
+        return ops_sqrt(Qu) * noise_normal((uint64_t)seed, NOISE_STREAM_INPUT, (uint64_t)k);
+    if (drive == EXCITATION_SINUSOIDAL) return excitation_sine(k, Xu, fu, Ts, 0.0);
+    if (drive == EXCITATION_DRIVE_OFF) return 0.0;
+    return NAN;
 }
 
 double excitation_gaussian_sample(double x_prev, double A, double Q, int64_t seed, int64_t k)
@@ -19,8 +43,15 @@ double excitation_gaussian_sample(double x_prev, double A, double Q, int64_t see
 void excitation_gaussian_pair(double x_prev, double y_prev, double A, double Q, double Qy,
                               double rho, int64_t seed, int64_t k, double *x, double *y)
 {
+    excitation_gaussian_pair_general(x_prev, y_prev, A, Q, Qy, rho, seed, k, 0.0, 0.0, x, y);
+}
+
+void excitation_gaussian_pair_general(double x_prev, double y_prev, double A, double Q,
+                                      double Qy, double rho, int64_t seed, int64_t k, double B,
+                                      double u, double *x, double *y)
+{
     double w1 = noise_normal((uint64_t)seed, NOISE_STREAM_PROCESS, (uint64_t)k), w2;
-    *x = excitation_gauss_markov(x_prev, A, Q, w1);
+    *x = excitation_gauss_markov_general(x_prev, A, Q, w1, B, u);
     if (Qy == 0.0) {
         *y = 0.0;
         return;

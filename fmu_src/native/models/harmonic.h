@@ -28,6 +28,14 @@ void harmonic_predict(double x, double d, double P11, double P12, double P22, do
 void harmonic_update(double x, double d, double P11, double P12, double P22, double z,
                      double a0, double a1, double a2, double R, double *x_post,
                      double *d_post, double *p11, double *p12, double *p22);
+void harmonic_update_general(double x, double d, double P11, double P12, double P22, double z,
+                             double a0, double a1, double a2, double R, double a3, double a4,
+                             double *x_post, double *d_post, double *p11, double *p12,
+                             double *p22);
+void harmonic_step_general(double x, double d, double P11, double P12, double P22, double z,
+                           double a0, double a1, double a2, double C, double S, double Qh,
+                           double R, double a3, double a4, double *x_post, double *d_post,
+                           double *p11, double *p12, double *p22);
 void harmonic_step(double x, double d, double P11, double P12, double P22, double z, double a0,
                    double a1, double a2, double C, double S, double Qh, double R,
                    double *x_post, double *d_post, double *p11, double *p12, double *p22);
@@ -40,5 +48,14 @@ HarmonicState harmonic_estimator_step(HarmonicState state, double z, double a0, 
                                       double C, double S, double Qh);
 HarmonicState harmonic_estimator_predict(HarmonicState state, int64_t process, double A,
                                          double Q, double C, double S, double Qh);
+/* With a3, a4 and the known input (B, u) of the Gauss-Markov model (the harmonic model has no
+ * input; B, u are ignored there, as in Python). */
+HarmonicState harmonic_estimator_step_general(HarmonicState state, double z, double a0,
+                                              double a1, double a2, double R, int64_t process,
+                                              double A, double Q, double C, double S, double Qh,
+                                              double a3, double a4, double B, double u);
+HarmonicState harmonic_estimator_predict_general(HarmonicState state, int64_t process, double A,
+                                                 double Q, double C, double S, double Qh,
+                                                 double B, double u);
 
 #endif

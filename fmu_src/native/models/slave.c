@@ -48,6 +48,11 @@ int slave_check_parameters(ModelInstance *comp, const SlaveRange *extra, int n_e
 
 int slave_check_nyquist(ModelInstance *comp, double f, double Ts)
 {
+    return slave_check_nyquist_named(comp, "f", f, Ts);
+}
+
+int slave_check_nyquist_named(ModelInstance *comp, const char *name, double f, double Ts)
+{
     char msg[PARAMETERS_MESSAGE_MAX], rf[40], rn[40];
     double nyquist;
     if (!(Ts > 0.0)) return 0; /* Ts itself is refused by its range check */
@@ -55,8 +60,8 @@ int slave_check_nyquist(ModelInstance *comp, double f, double Ts)
     if (!(f >= nyquist)) return 0;
     parameters_repr_float(f, rf, sizeof rf);
     parameters_repr_float(nyquist, rn, sizeof rn);
-    snprintf(msg, sizeof msg, "f = %s Hz is at or above the Nyquist rate 1/(2 Ts) = %s Hz; "
-             "allowed: f < %s Hz", rf, rn, rn);
+    snprintf(msg, sizeof msg, "%s = %s Hz is at or above the Nyquist rate 1/(2 Ts) = %s Hz; "
+             "allowed: %s < %s Hz", name, rf, rn, name, rn);
     return slave_problem(comp, msg);
 }
 

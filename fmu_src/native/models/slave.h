@@ -24,6 +24,8 @@ int slave_problem(ModelInstance *comp, const char *message);
 /* The Nyquist check of Excitation and DriftEstimator: 1 (logged) if f >= 0.5 / Ts (0 where Ts
  * is not positive: its own range check refuses it). */
 int slave_check_nyquist(ModelInstance *comp, double f, double Ts);
+/* The same check of the frequency parameter `name` (SlaveBase.nyquist_problems(name)). */
+int slave_check_nyquist_named(ModelInstance *comp, const char *name, double f, double Ts);
 
 /* Checks of a restored hidden state (model_hidden_problems), each logging one problem named
  * "hidden <name> = <value> ..." and returning 1 (0 when the value is good): a finite number

@@ -1,0 +1,334 @@
+"""Issue 19: checks before the work, help for a bare command, reasons in the messages.
+
+Every usage error exits 2 with one line naming the value and what is allowed, before anything
+is built, run or written."""
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from driftfmu.simulations.cli import main
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+def _status(argv):
+    try:
+        return main(argv)
+    except SystemExit as exc:
+        return exc.code
+
+
+def _last_line(err):
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert lines and "Traceback" not in err, err
+    return lines[-1]
+
+
+def _one_line(err):
+    lines = [line for line in err.strip().splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+# -- help ----------------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv,commands", [
+    ([], ("build", "run", "doctor", "sweep", "montecarlo", "experiment", "identify")),
+    (["run"], ("gaussian", "sinusoidal")),
+    (["experiment"], ("adxl203", "dual-axis")),
+    (["montecarlo"], ("gaussian", "sinusoidal")),
+])
+def test_a_bare_command_prints_its_usage_and_names_its_choices(argv, commands, capsys):
+    assert _status(argv) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("usage: driftfmu")
+    last = _last_line(err)
+    assert last.startswith("driftfmu: error:") and "needs one of" in last
+    for c in commands:
+        assert c in last
+
+
+def test_the_help_names_both_fmi_versions(capsys):
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    out = capsys.readouterr().out
+    assert "FMI 2.0 and 3.0" in " ".join(out.split())
+
+
+# -- checks before the work ------------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv,words", [
+    (["sweep", "--scheduler", "nonsense"], ("scheduler = 'nonsense'", "HOST:PORT")),
+    (["sweep", "--scheduler", "tcp://host:99999"], ("99999", "HOST:PORT")),
+    (["montecarlo", "gaussian", "--scheduler", "tcp//x"], ("tcp//x",)),
+    (["experiment", "dual-axis", "--scheduler", "x y"], ("'x y'",)),
+    (["sweep", "--out", ""], ("--out ''", "is empty")),
+    (["run", "gaussian", "--out", " "], ("is empty",)),
+    (["build", "--out", ""], ("is empty",)),
+    (["build", "--ssp", ""], ("--ssp", "is empty")),
+    (["experiment", "adxl203", "--freqs", "100,100"], ("100 Hz more than once", "distinct")),
+    (["experiment", "adxl203", "--freqs", "100,200,100.0"], ("100 Hz more than once",)),
+])
+def test_a_bad_setting_is_a_usage_error_before_anything_runs(argv, words, tmp_path, capsys,
+                                                             monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    rc = _status(argv)
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2, line
+    for w in words:
+        assert w in line, line
+    assert os.listdir(tmp_path) == []  # nothing built, run or written
+
+
+def test_a_cross_check_path_that_is_a_file_is_refused_before_the_build(tmp_path, capsys):
+    f = tmp_path / "afile.txt"
+    f.write_text("x")
+    rc = _status(["build", "--out", str(tmp_path / "fmus"), "--cross-check", str(f)])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "--cross-check" in line and "existing file" in line
+    assert not (tmp_path / "fmus").exists()
+
+
+@pytest.mark.parametrize("argv", [
+    ["sweep", "--runs", "10"],
+    ["run", "gaussian", "--n", "10"],
+    ["build"],
+])
+def test_an_out_folder_that_cannot_be_written_is_refused_before_the_run(argv, tmp_path, capsys):
+    # /proc/1 cannot take a new folder, not even for root; a file as a parent cannot either
+    parent_file = tmp_path / "file"
+    parent_file.write_text("x")
+    for out in ("/proc/1/driftfmu-out", str(parent_file / "sub")):
+        rc = _status(argv + ["--out", out])
+        line = _one_line(capsys.readouterr().err)
+        assert rc == 2, line
+        assert "--out %s cannot be" % out in line and "allowed:" in line, line
+    assert sorted(os.listdir(tmp_path)) == ["file"]
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write into a read-only folder")
+def test_a_read_only_out_folder_is_refused_before_the_run(tmp_path, capsys):
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    ro.chmod(0o500)
+    try:
+        rc = _status(["sweep", "--runs", "10", "--out", str(ro / "res")])
+        line = _one_line(capsys.readouterr().err)
+        assert rc == 2 and "cannot be written" in line
+    finally:
+        ro.chmod(0o700)
+
+
+def test_the_scheduler_check_accepts_real_addresses():
+    from driftfmu.simulations.batch import scheduler_address
+    for ok in ("tcp://127.0.0.1:8786", "localhost:8786", "tls://host.example:1",
+               "tcp://[::1]:8786", "inproc://abc"):
+        assert scheduler_address(ok) == ok
+
+
+# -- dependencies ----------------------------------------------------------------------------------
+
+#: Make these imports fail, as in a default install without the extras.
+WITHOUT_EXTRAS = ("import sys\n"
+                  "for m in ('dask', 'distributed', 'scipy'):\n"
+                  "    sys.modules[m] = None\n"
+                  "from driftfmu.simulations.cli import main\n")
+
+
+def test_the_main_jobs_run_without_the_extras(tmp_path):
+    script = WITHOUT_EXTRAS + ("rc = main(['sweep', '--runs', '20', '--n', '50', '--out', 'sw'])\n"
+                               "rc = rc or main(['montecarlo', 'gaussian', '--runs', '8', '--n', "
+                               "'40', '--out', 'mc'])\n"
+                               "sys.exit(rc)\n")
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    assert (tmp_path / "sw" / "sweep.npz").exists() and (tmp_path / "mc" / "fig1.png").exists()
+
+
+def test_scheduler_without_dask_names_the_extra_to_install(tmp_path):
+    script = WITHOUT_EXTRAS + "sys.exit(main(['sweep', '--scheduler', 'tcp://127.0.0.1:8786']))\n"
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 2
+    line = _one_line(r.stderr)
+    assert "needs Dask" in line and "pip install 'driftfmu[dask]'" in line
+    assert os.listdir(tmp_path) == []
+
+
+def test_the_default_install_leaves_the_extras_out():
+    tomllib = pytest.importorskip("tomllib")
+    project = tomllib.loads((ROOT / "pyproject.toml").read_text())["project"]
+    names = [d.split(">")[0].split("=")[0].split("[")[0].split(";")[0].strip().lower()
+             for d in project["dependencies"]]
+    assert "dask" not in names and "scipy" not in names, names
+    assert any(d.startswith("dask[distributed]") for d in project["optional-dependencies"]["dask"])
+    assert any(d.startswith("scipy") for d in project["optional-dependencies"]["dev"])
+
+
+# -- input files ---------------------------------------------------------------------------------
+
+@pytest.mark.parametrize("content,words", [
+    (bytes(range(256)) * 4, ("not a text CSV file", "time, x, z")),       # not UTF-8
+    (b"\x89PNG\r\n\x1a\n\x00\x00\x00\rIHDR", ("not a text CSV file",)),  # a picture
+    (b"time,x,z\n0,0,0\n\x00\x01,1,1\n", ("line 3", "not a finite number")),  # NUL bytes
+])
+def test_identify_on_a_binary_file_names_the_file(content, words, tmp_path, capsys):
+    f = tmp_path / "rec.bin"
+    f.write_bytes(content)
+    rc = _status(["identify", str(f), "--f", "50", "--out", str(tmp_path / "o")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 1, line
+    assert str(f) in line and "allowed:" in line, line
+    for w in words:
+        assert w in line, line
+    assert not (tmp_path / "o").exists()
+
+
+# -- size checks before a run ----------------------------------------------------------------------
+
+@pytest.mark.parametrize("argv,words", [
+    (["montecarlo", "gaussian", "--runs", "1000000"],
+     ("montecarlo gaussian --runs 1000000 --n 1000 needs about", "of memory",
+      "at most --runs", "--summary-only")),
+    (["montecarlo", "sinusoidal", "--runs", "300000", "--n", "5000"], ("at most --runs",)),
+    (["run", "gaussian", "--n", "100000000"], ("run gaussian --n 100000000", "at most --n")),
+    (["run", "sinusoidal", "--n", "100000000"], ("at most --n",)),
+])
+def test_a_run_that_cannot_fit_the_memory_is_refused_before_it_starts(argv, words, tmp_path):
+    # under an address-space limit of 3 GB, as `ulimit -v 3000000` sets it
+    script = ("import resource, sys\n"
+              "resource.setrlimit(resource.RLIMIT_AS, (3 * 10**9, resource.RLIM_INFINITY))\n"
+              "from driftfmu.simulations.cli import main\n"
+              "sys.exit(main(%r))\n" % (argv + ["--out", "res", "--fmu-dir", "fmus"]))
+    r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
+                       text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    line = _one_line(r.stderr)
+    assert r.returncode == 2, line
+    for w in words:
+        assert w in line, line
+    assert os.listdir(tmp_path) == []
+
+
+def test_a_run_that_cannot_fit_the_disk_is_refused(tmp_path, capsys, monkeypatch):
+    from driftfmu.simulations import budget
+    monkeypatch.setattr(budget, "free_disk", lambda out: 2_000_000)
+    rc = _status(["montecarlo", "gaussian", "--runs", "100", "--n", "1000",
+                  "--out", str(tmp_path / "res")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2, line
+    assert "5.6 MB of disk" in line and "2 MB free at" in line and "at most --runs 35 " in line
+    assert not (tmp_path / "res").exists()
+
+
+def test_a_long_run_is_announced_before_it_starts(tmp_path, capsys, monkeypatch):
+    from driftfmu.simulations import budget
+    monkeypatch.setattr(budget, "LONG", 0.0)
+    rc = _status(["montecarlo", "gaussian", "--runs", "8", "--n", "50", "--workers", "1",
+                  "--out", str(tmp_path / "res")])
+    err = capsys.readouterr().err
+    assert rc == 0, err
+    assert err.startswith("driftfmu: note: montecarlo gaussian --runs 8 --n 50: about "), err
+    assert (tmp_path / "res" / "montecarlo.npz").exists()
+
+
+def test_the_size_estimates_hold_for_the_default_montecarlo_run(tmp_path):
+    # the estimate of what is written is what montecarlo.npz weighs (within 5 %)
+    from driftfmu.simulations import budget
+    assert _status(["montecarlo", "gaussian", "--runs", "200", "--n", "500", "--workers", "1",
+                    "--out", str(tmp_path)]) == 0
+    written = (tmp_path / "montecarlo.npz").stat().st_size
+    assert abs(written / (budget.MONTECARLO_DISK * 200 * 500) - 1) < 0.05
+
+
+# -- build: no half-built folders ------------------------------------------------------------------
+
+def test_build_native_with_a_missing_compiler_names_it_before_building(tmp_path, capsys,
+                                                                      monkeypatch):
+    monkeypatch.setenv("CC", "no-such-cc")
+    out = tmp_path / "x"
+    rc = _status(["build", "--native", "--out", str(out)])
+    captured = capsys.readouterr()
+    line = _one_line(captured.err)
+    assert rc == 2, line
+    assert "CC='no-such-cc' is not an installed program" in line and "allowed:" in line
+    assert captured.out == "" and not out.exists()
+
+
+def _fake_python_build(out_dir, log=print, **kw):
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    log("warning: the loader shim could not be compiled")
+    paths = []
+    for name in ("Excitation", "Accelerometer", "DriftEstimator"):
+        (out / ("%s.fmu" % name)).write_bytes(b"fmu")
+        log("built %s" % (out / ("%s.fmu" % name)))
+        paths.append(str(out / ("%s.fmu" % name)))
+    return paths
+
+
+@pytest.mark.parametrize("stop,status", [(RuntimeError("gcc broke"), 1),
+                                         (KeyboardInterrupt(), 130)])
+@pytest.mark.parametrize("existing", [False, True])
+def test_a_failed_or_stopped_native_build_leaves_no_folder_it_created(stop, status, existing,
+                                                                     tmp_path, capsys,
+                                                                     monkeypatch):
+    from driftfmu.fmu_src import builder, native_build
+
+    def half_native(out_dir, **kw):
+        for v in (2, 3):
+            (Path(out_dir) / ("fmi%d" % v)).mkdir(parents=True, exist_ok=True)
+        raise stop
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.setattr(native_build, "build_native_fmus", half_native)
+    monkeypatch.setattr(native_build, "compiler_problem", lambda platform: None)
+    out = tmp_path / "new" / "fmus"
+    if existing:
+        out.mkdir(parents=True)
+        (out / "mine.txt").write_text("keep")
+    rc = _status(["build", "--native", "--out", str(out)])
+    captured = capsys.readouterr()
+    assert rc == status, captured.err
+    if existing:  # what was there stays; the new native/ folder goes
+        assert sorted(os.listdir(out)) == ["Accelerometer.fmu", "DriftEstimator.fmu",
+                                           "Excitation.fmu", "mine.txt"]
+    else:
+        assert os.listdir(tmp_path) == []
+
+
+def test_build_warnings_go_to_stderr_with_the_prefix(tmp_path, capsys, monkeypatch):
+    from driftfmu.fmu_src import builder
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    assert _status(["build", "--out", str(tmp_path / "fmus")]) == 0
+    captured = capsys.readouterr()
+    assert _one_line(captured.err) == "driftfmu: warning: the loader shim could not be compiled"
+    assert "shim" not in captured.out and captured.out.count("built ") == 3
+
+
+# -- words that match the code -------------------------------------------------------------------
+
+def test_the_method_page_names_the_dual_axis_model_as_the_command_line_does():
+    page = ROOT / "docs" / "method.md"
+    if not page.exists():
+        pytest.skip("not a source checkout")
+    text = page.read_text()
+    assert "## 8. The dual-axis model" in text and "driftfmu experiment dual-axis" in text
+    assert "a_xy" not in text  # the cross term is bx (by), as --bx, --by and the FMU say
+    from driftfmu.simulations.cli import make_parser
+    dual = make_parser().parse_args(["experiment", "dual-axis"])
+    for name in ("bx", "by", "a2y", "Ry", "Xy", "Qy"):
+        assert hasattr(dual, name) and "`--%s`" % name in text, name
+
+
+def test_the_refusal_names_summary_only_and_summary_only_fits(tmp_path, capsys, monkeypatch):
+    from driftfmu.simulations import budget
+    monkeypatch.setattr(budget, "available_memory", lambda: 4e9)
+    rc = _status(["montecarlo", "gaussian", "--runs", "1000000", "--out", str(tmp_path / "r")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "--summary-only" in line, line
+    est = budget.check_montecarlo("gaussian", 1000000, 1000, 2, None, summary_only=True)
+    assert est["memory"] < 0.8 * 4e9  # the same run fits with --summary-only
+    assert not (tmp_path / "r").exists()

@@ -1,0 +1,86 @@
+"""``driftfmu doctor`` gives every "will NOT run" a reason in words and a verdict line that
+repeats it (issue 19): a broken modelDescription.xml, a missing resources/ folder, a truncated
+binary."""
+import glob
+import os
+import zipfile
+from pathlib import Path
+
+import numpy
+import pytest
+
+from driftfmu.simulations import doctor
+from driftfmu.simulations.cli import main
+
+
+def _rewrite(src, dst, drop=(), replace=None):
+    replace = replace or {}
+    with zipfile.ZipFile(src) as zin, zipfile.ZipFile(dst, "w") as zout:
+        for item in zin.infolist():
+            if any(item.filename.startswith(d) for d in drop):
+                continue
+            data = zin.read(item.filename)
+            if item.filename in replace:
+                data = replace[item.filename](data)
+            zout.writestr(item, data)
+    return dst
+
+
+def _a_shared_library():
+    found = sorted(glob.glob(os.path.join(os.path.dirname(numpy.__file__), "**", "*.so"),
+                             recursive=True), key=os.path.getsize)
+    if not found:
+        pytest.skip("no shared library to test with")
+    return Path(found[-1]).read_bytes()
+
+
+@pytest.mark.skipif(not os.uname().sysname == "Linux", reason="ELF checks are for Linux")
+def test_a_truncated_or_foreign_binary_is_named_from_its_bytes():
+    whole = _a_shared_library()
+    assert doctor._binary_problem(whole, len(whole)) is None
+    half = whole[:len(whole) // 2]
+    why = doctor._binary_problem(half, len(half))
+    assert why.startswith("truncated: the file has %d bytes" % len(half)), why
+    assert "not an ELF shared library" in doctor._binary_problem(b"MZ" + b"\0" * 100, 102)
+    assert doctor._binary_problem(b"", 0) == "an empty file"
+    bits32 = whole[:4] + b"\x01" + whole[5:]
+    assert "32-bit" in doctor._binary_problem(bits32, len(bits32))
+
+
+def _verdict(fmu, capsys):
+    with pytest.raises(SystemExit) as info:
+        main(["doctor", str(fmu)])
+    out = capsys.readouterr().out
+    assert info.value.code == 1, out
+    verdict = [line for line in out.splitlines() if line.startswith("verdict:")]
+    assert len(verdict) == 1, out
+    return out, verdict[0]
+
+
+@pytest.mark.integration
+def test_a_broken_model_description_is_named_with_a_verdict(built_fmus, tmp_path, capsys):
+    bad = _rewrite(built_fmus["Excitation"], tmp_path / "Excitation.fmu",
+                   replace={"modelDescription.xml": lambda data: data[:len(data) // 2]})
+    out, verdict = _verdict(bad, capsys)
+    assert "modelDescription.xml cannot be read" in out and "Rebuild it" in out
+    assert "will NOT run" in verdict and "modelDescription.xml cannot be read" in verdict
+
+
+@pytest.mark.integration
+def test_a_missing_resources_folder_is_named(built_fmus, tmp_path, capsys):
+    bad = _rewrite(built_fmus["Excitation"], tmp_path / "Excitation.fmu", drop=("resources/",))
+    out, verdict = _verdict(bad, capsys)
+    assert "no resources/ folder" in out and "resources/driftfmu_build.json" in out
+    assert "no resources/ folder" in verdict
+
+
+@pytest.mark.integration
+def test_a_truncated_native_binary_is_named_not_ok(native_fmus, tmp_path, capsys):
+    src = native_fmus[2]["Excitation"]
+    bad = _rewrite(src, tmp_path / "Excitation.fmu",
+                   replace={"binaries/linux64/Excitation.so": lambda data: data[:len(data) // 2]})
+    out, verdict = _verdict(bad, capsys)
+    assert "[  ok  ] it has a binary" not in out
+    assert "binaries/linux64/Excitation.so is damaged: truncated" in out
+    assert "damaged" in verdict
+    assert "exit status -7" not in out

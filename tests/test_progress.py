@@ -1,0 +1,114 @@
+"""Progress that tells (issue 19): every long phase shows progress (the dual-axis validation
+no longer sits at 100 %), and when standard error is not a terminal (a CI log) plain lines
+come at intervals instead of nothing until the end."""
+import io
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from driftfmu.simulations import cli
+
+ROOT = Path(__file__).resolve().parent.parent
+
+
+class Clock:
+    def __init__(self):
+        self.t = 0.0
+
+    def __call__(self):
+        return self.t
+
+
+def test_plain_lines_come_at_intervals_with_percent_and_time_left():
+    clock, out = Clock(), io.StringIO()
+    p = cli.Progress(1000, "runs", "run", every=10.0, stream=out, clock=clock)
+    clock.t = 5.0
+    p(100)
+    assert out.getvalue() == ""  # not yet 10 s
+    clock.t = 10.0
+    p(250)
+    assert out.getvalue() == "driftfmu: progress: runs 25 % (250/1000 runs), 10 s, about 30 s left\n"
+    clock.t = 12.0
+    p(300)
+    assert out.getvalue().count("\n") == 1  # one line per interval
+    clock.t = 20.0
+    p(500)
+    assert out.getvalue().count("\n") == 2
+
+
+def test_a_new_phase_restarts_the_count_and_is_announced_in_a_long_run():
+    clock, out = Clock(), io.StringIO()
+    p = cli.Progress(10, "runs", "run", every=10.0, stream=out, clock=clock)
+    clock.t = 30.0
+    p(10)
+    cli.start_phase(p, "validation", 4, "point")
+    lines = out.getvalue().splitlines()
+    assert lines[-1] == "driftfmu: progress: validation 0 % (0/4 points), 0 s"
+    clock.t = 45.0
+    p(1)
+    assert out.getvalue().splitlines()[-1] == ("driftfmu: progress: validation 25 % (1/4 points), "
+                                               "15 s, about 45 s left")
+    cli.start_phase(lambda done: None, "x", 1)  # a plain callable has no phases: ignored
+    cli.start_phase(None, "x", 1)
+
+
+class Bar:
+    def __init__(self):
+        self.n, self.total, self.desc, self.unit = 0, 5, "runs", " run"
+
+    def update(self, k):
+        self.n += k
+
+    def reset(self, total):
+        self.n, self.total = 0, total
+
+    def set_description(self, desc):
+        self.desc = desc
+
+
+def test_on_a_terminal_the_bar_follows_the_phases():
+    bar = Bar()
+    p = cli.Progress(5, "runs", "run", bar=bar)
+    p(5)
+    assert bar.n == 5
+    p.phase("validation", 3, "point")
+    assert (bar.n, bar.total, bar.desc, bar.unit) == (0, 3, "validation", " point")
+    p(2)
+    assert bar.n == 2
+
+
+def test_a_command_in_a_log_writes_progress_lines(tmp_path):
+    env = dict(os.environ, PYTHONPATH=str(ROOT), DRIFTFMU_PROGRESS_EVERY="0")
+    r = subprocess.run([sys.executable, "-m", "driftfmu", "montecarlo", "gaussian", "--runs",
+                        "600", "--n", "200", "--workers", "1", "--out", "res"],
+                       cwd=tmp_path, env=env, capture_output=True, text=True, timeout=600)
+    assert r.returncode == 0, r.stderr
+    lines = r.stderr.splitlines()
+    assert any(line.startswith("driftfmu: progress: montecarlo (batch engine) ") and "runs)" in
+               line for line in lines), r.stderr
+    assert any(line.startswith("driftfmu: progress: the summary, the files and the figure")
+               for line in lines), r.stderr
+
+
+@pytest.mark.integration
+def test_the_dual_axis_validation_is_a_phase_of_its_own(built_fmus):
+    from driftfmu.simulations import dual_axis
+    seen = []
+
+    class Recorder:
+        def __call__(self, done):
+            seen.append(done)
+
+        def phase(self, desc, total, unit=None):
+            seen.append((desc, total, unit))
+    fmu_dir = Path(built_fmus["Excitation"]).parent
+    dual_axis.run_dual_axis(points=2, runs=1, engine="fmu", fmu_dir=str(fmu_dir), workers=1,
+                            progress=Recorder(), plot=False, n=40)
+    i = next(i for i, s in enumerate(seen) if isinstance(s, tuple))
+    desc, total, unit = seen[i]
+    assert desc.startswith("validation") and unit == "point"
+    assert seen[i - 1] == total * 1  # the runs: 2 sweeps x 2 points x 1 run
+    assert seen[i + 1:] == list(range(1, total + 1))  # then the validation, point by point
