@@ -74,13 +74,16 @@ KINDS = {
         "Python FMU (pythonfmu 0.7.0, FMI 2.0 co-simulation). The model runs in CPython: the "
         "Linux binary (binaries/linux64) is driftfmu's loader shim, which finds a shared "
         "libpython 3.8-3.13 on the host (DRIFTFMU_LIBPYTHON may point at one). Tested here: "
-        "linux64 only. Any other binary in the FMU is pythonfmu's stock library and is not "
-        "tested; for Windows, macOS and hosts without Python take the native FMU."),
+        "linux64 only, the one binary it carries (pythonfmu's stock Windows library is left "
+        "out: nothing here loads it); for Windows, macOS, ARM and hosts without Python take "
+        "the native FMU."),
     "native": (
         "Native FMU (C, no Python needed). It carries binaries for the platforms listed above "
         "and all its C sources in sources/ (a source FMU: compile with any C99 compiler). "
-        "Its results equal the Python FMU's bit for bit (tested on linux64, and on win64 "
-        "under wine)."),
+        "Its results equal the Python FMU's bit for bit (run on x86-64 Linux, on x86-64 "
+        "Windows under wine and on aarch64 Linux under qemu; the macOS and ARM Windows "
+        "binaries are cross-built and checked by reading them, not run). "
+        "documentation/binaries.txt lists every binary, its architecture and its compiler."),
 }
 
 

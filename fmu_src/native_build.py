@@ -15,11 +15,18 @@ module generates, at build time,
 
 Each FMU is also a source FMU: ``sources/`` holds every C file and header it is compiled from
 (flat, so that ``cc -shared -fPIC -O2 -ffp-contract=off -Isources sources/*.c -lm`` builds it),
-and prebuilt binaries for x86-64 Linux (gcc) and x86-64 Windows (x86_64-w64-mingw32-gcc,
-``-static-libgcc``: no DLLs beyond the system's), all with ``-O2 -ffp-contract=off`` and no
-fast-math, so that IEEE 754 double arithmetic gives the bits of models/.
+and prebuilt binaries for x86-64 and aarch64 Linux, Windows and macOS (:data:`PLATFORMS`):
+gcc for x86-64 Linux, x86_64-w64-mingw32-gcc for x86-64 Windows (``-static-libgcc``: no DLLs
+beyond the system's), zig (ziglang from PyPI) for the rest, all with ``-O2 -ffp-contract=off``
+and no fast-math, so that IEEE 754 double arithmetic gives the bits of models/ (compilers for
+ARM contract ``a*b+c`` into an FMA unless told not to).  A platform without a compiler here is
+left out with one warning naming it.  ``documentation/binaries.txt`` lists every binary of the
+FMU (and what built it), the FMI 3.0 ``sources/buildDescription.xml`` has one configuration per
+prebuilt binary after the one for any compiler.  FMI 2.0 folder names: see
+:data:`FMI2_FOLDERS` and docs/platforms.md.
 
-Layout: ``<out>/fmi2/<Name>.fmu`` and ``<out>/fmi3/<Name>.fmu``; :data:`DEFAULT_OUT` is
+Layout: ``<out>/fmi2/<Name>.fmu``, ``<out>/fmi2-aarch64/<Name>.fmu`` and
+``<out>/fmi3/<Name>.fmu``; :data:`DEFAULT_OUT` is
 ``build/fmus/native``, beside the Python FMUs in ``build/fmus``.  Every FMU is validated with
 fmpy before it is moved into place (atomically).
 """
@@ -46,14 +53,45 @@ DEFAULT_OUT = "build/fmus/native"
 FMI_VERSIONS = (2, 3)
 #: Flags of every compilation: no contraction into FMAs, no fast-math, C99.
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math", "-fvisibility=hidden")
-#: Platforms: name -> (compiler (overridable by the environment variable), extra flags,
-#: binary folder by FMI version, library suffix).
+#: The platforms of the prebuilt binaries, by their FMI 3.0 name: (library suffix, the
+#: compilers to try in order (the first installed builds it), the extra flags).  A compiler is
+#: ("ENV", default command, extra flags): the environment variable overrides the command;
+#: "zig" stands for the ziglang C cross-compiler (``python -m ziglang cc`` from PyPI, or ``zig``
+#: on PATH) with the target triple of :data:`ZIG_TARGETS`.
 PLATFORMS = {
-    "linux64": ("CC", "cc", ("-shared", "-fPIC"), {2: "linux64", 3: "x86_64-linux"}, ".so"),
-    "win64": ("MINGW_CC", "x86_64-w64-mingw32-gcc",
-              ("-shared", "-static-libgcc", "-D__USE_MINGW_ANSI_STDIO=1"),
-              {2: "win64", 3: "x86_64-windows"}, ".dll"),
+    "x86_64-linux": (".so", (("CC", "cc", ("-shared", "-fPIC", "-s")), "zig")),
+    "x86_64-windows": (".dll", (("MINGW_CC", "x86_64-w64-mingw32-gcc",
+                                 ("-shared", "-s", "-static-libgcc",
+                                  "-Wl,--no-insert-timestamp", "-Wl,--disable-auto-image-base",
+                                  "-D__USE_MINGW_ANSI_STDIO=1")),
+                                "zig")),
+    "aarch64-linux": (".so", ("zig",)),
+    "aarch64-windows": (".dll", ("zig",)),
+    "x86_64-darwin": (".dylib", ("zig",)),
+    "aarch64-darwin": (".dylib", ("zig",)),
 }
+#: zig's target triples: glibc 2.17 (the first glibc for aarch64, so any glibc-based aarch64
+#: Linux has it), macOS 10.15 / 11.0 (11: the first Apple-silicon macOS), mingw-w64 (zig's
+#: aarch64 Windows C library is the UCRT, part of Windows 10 and 11).
+ZIG_TARGETS = {
+    "x86_64-linux": "x86_64-linux-gnu.2.17", "aarch64-linux": "aarch64-linux-gnu.2.17",
+    "x86_64-windows": "x86_64-windows-gnu", "aarch64-windows": "aarch64-windows-gnu",
+    "x86_64-darwin": "x86_64-macos.10.15", "aarch64-darwin": "aarch64-macos.11.0",
+}
+#: zig's flags beyond CFLAGS: a shared library, stripped (no debug info in the FMU).
+ZIG_FLAGS = ("-shared", "-s")
+#: The FMI 2.0 folders.  FMI 2.0 names no architecture: fmpy (``fmpy.platform``) and FMI Library
+#: (``fmi_platform`` in Config.cmake/fmiplatform.cmake) load ``binaries/linux64`` on every 64-bit
+#: Linux, x86-64 or aarch64, ``win64`` on every 64-bit Windows and ``darwin64`` on every Mac.  So
+#: the FMI 2.0 FMU holds the x86-64 Linux and Windows binaries and, in ``darwin64``, one
+#: universal Mach-O library of both Mac architectures (the Mac loader picks its slice); its twin
+#: for ARM (:data:`FMI2_ARM`, ``<out>/fmi2-aarch64``) holds the aarch64 Linux and Windows
+#: binaries in ``linux64`` and ``win64``, where those importers look on an ARM machine.
+FMI2_FOLDERS = {"x86_64-linux": "linux64", "x86_64-windows": "win64"}
+FMI2_ARM_FOLDERS = {"aarch64-linux": "linux64", "aarch64-windows": "win64"}
+FMI2_DARWIN = ("x86_64-darwin", "aarch64-darwin")
+#: The folder (under the native FMUs' folder) of the FMI 2.0 FMUs for ARM Linux and Windows.
+FMI2_ARM = "fmi2-aarch64"
 #: The plain compiler call of the README, on the unpacked sources (Linux).
 PLAIN_COMPILE = ("cc -shared -fPIC -std=c99 -O2 -ffp-contract=off -fno-fast-math "
                  "-Isources -o {identifier}.so sources/*.c -lm")
@@ -247,22 +285,45 @@ def fmi3_model_description(slave, token, log=print):
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
 
 
-def build_description(name, source_files):
-    """FMI 3.0 sources/buildDescription.xml: one configuration, C99, the flags of CFLAGS."""
+def build_description(name, source_files, built=None):
+    """FMI 3.0 sources/buildDescription.xml: first the configuration for any C99 compiler (the
+    flags of CFLAGS; an importer that builds the FMU takes the first), then one per prebuilt
+    binary (``platform``), naming the compiler and the flags it was built with.
+
+    ``built`` maps a platform of :data:`PLATFORMS` to its compiler's label."""
     root = ET.Element("fmiBuildDescription", fmiVersion="3.0")
-    config = ET.SubElement(root, "BuildConfiguration", modelIdentifier=name,
-                           description="x86-64 Linux/Windows and any C99 compiler: no "
-                           "contraction into FMAs, no fast-math")
-    files = ET.SubElement(config, "SourceFileSet", language="C99",
-                          compilerOptions=" ".join(f for f in CFLAGS
-                                                   if f not in ("-std=c99",)))
-    for f in source_files:
-        ET.SubElement(files, "SourceFile", name=f)
-    ET.SubElement(files, "IncludeDirectory", name=".")
-    ET.SubElement(config, "Library", name="m", description="the C maths library (sqrt, "
-                  "floor, frexp, ldexp: exact or correctly rounded)")
+    options = " ".join(f for f in CFLAGS if f != "-std=c99")
+    configs = [(None, "any C99 compiler: no contraction into FMAs, no fast-math", options, True)]
+    for platform, label in sorted((built or {}).items()):
+        command = compiler_flags(platform, label)
+        configs.append((platform, "the prebuilt binaries/%s/%s%s: %s %s"
+                        % (platform, name, PLATFORMS[platform][0], label, command),
+                        options, platform.endswith("-linux") or "mingw32" in label))
+    for platform, description, opts, libm in configs:
+        attrib = {"modelIdentifier": name, "description": description}
+        if platform:
+            attrib["platform"] = platform
+        config = ET.SubElement(root, "BuildConfiguration", attrib)
+        files = ET.SubElement(config, "SourceFileSet", language="C99", compilerOptions=opts)
+        for f in source_files:
+            ET.SubElement(files, "SourceFile", name=f)
+        ET.SubElement(files, "IncludeDirectory", name=".")
+        if libm:
+            ET.SubElement(config, "Library", name="m", description="the C maths library (sqrt, "
+                          "floor, frexp, ldexp: exact or correctly rounded)")
     ET.indent(root, space="  ")
     return b'<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="utf-8")
+
+
+def compiler_flags(platform, label):
+    """The flags (beyond CFLAGS) the prebuilt binary of ``platform`` gets from the compiler
+    ``label`` (for the build description)."""
+    if label.startswith("zig"):
+        return " ".join(CFLAGS + ZIG_FLAGS)
+    for choice in PLATFORMS[platform][1]:
+        if choice != "zig":
+            return " ".join(CFLAGS + choice[2])
+    return " ".join(CFLAGS)
 
 
 # -- sources ----------------------------------------------------------------------------------
@@ -332,93 +393,207 @@ def stage_sources(name, fmi_version, folder):
 
 # -- compiling --------------------------------------------------------------------------------
 
+def zig_command():
+    """The zig C compiler (list), or None: ``DRIFTFMU_ZIG`` if set, else ziglang from PyPI
+    (``python -m ziglang cc``), else ``zig cc`` from PATH."""
+    import importlib.util
+    import sys
+    if os.environ.get("DRIFTFMU_ZIG"):
+        command = shlex.split(os.environ["DRIFTFMU_ZIG"])
+        return command if shutil.which(command[0]) else None
+    if importlib.util.find_spec("ziglang") is not None:
+        return [sys.executable, "-m", "ziglang", "cc"]
+    return ["zig", "cc"] if shutil.which("zig") else None
+
+
 def compiler(platform):
-    """The compiler command (list) of ``platform``, or None when it is not installed."""
-    env, default = PLATFORMS[platform][:2]
-    command = shlex.split(os.environ.get(env, default))
-    return command if command and shutil.which(command[0]) else None
+    """``(command, extra flags, label)`` of the first installed compiler of ``platform``, or
+    None when none is."""
+    for choice in PLATFORMS[platform][1]:
+        if choice == "zig":
+            command = zig_command()
+            if command is not None:
+                return (command + ["-target", ZIG_TARGETS[platform]], ZIG_FLAGS,
+                        "zig cc -target %s" % ZIG_TARGETS[platform])
+            continue
+        env, default, extra = choice
+        command = shlex.split(os.environ.get(env, default))
+        if command and shutil.which(command[0]):
+            return command, extra, os.path.basename(command[0])
+        if os.environ.get(env) is not None:  # a compiler named but not installed: no fallback
+            return None
+    return None
+
+
+def _libraries(platform, command):
+    """``-lm`` where the C maths library is a library of its own (Linux; mingw-w64 as before)."""
+    return ["-lm"] if platform.endswith("-linux") or "mingw32" in " ".join(command) else []
 
 
 def compiler_problem(platform):
-    """Why ``platform`` has no compiler, naming the command that was looked for (``$CC`` or
-    ``$MINGW_CC`` when set) and how to get one; None when it is installed."""
+    """Why ``platform`` (FMI 3.0 name; ``linux64``/``win64`` accepted) has no compiler, naming
+    what was looked for (``$CC`` or ``$MINGW_CC`` when set, zig) and how to get one; None when
+    it has one."""
+    platform = {"linux64": "x86_64-linux", "win64": "x86_64-windows"}.get(platform, platform)
     if compiler(platform) is not None:
         return None
-    env, default = PLATFORMS[platform][:2]
-    given = os.environ.get(env)
-    what = ("%s=%r is not an installed program" % (env, given) if given is not None
-            else "%s is not installed" % default)
-    return ("no %s compiler: %s; allowed: %s naming an installed C compiler, or Debian: "
-            "apt-get install %s" % (platform, what, env,
-                                    "gcc" if platform == "linux64" else "gcc-mingw-w64-x86-64"))
+    looked, envs = [], []
+    for choice in PLATFORMS[platform][1]:
+        if choice == "zig":
+            looked.append("zig is not installed")
+            continue
+        env, default, _ = choice
+        envs.append(env)
+        given = os.environ.get(env)
+        looked.append("%s=%r is not an installed program" % (env, given) if given is not None
+                      else "%s is not installed" % default)
+    allowed = ("%s naming an installed C compiler, or %s" % (envs[0], _install_hint(platform))
+               if envs else _install_hint(platform))
+    return "no %s compiler: %s; allowed: %s" % (platform, ", ".join(looked), allowed)
 
 
 def compile_library(platform, sources_dir, c_files, target):
-    """Compile ``c_files`` of ``sources_dir`` into the shared library ``target``."""
-    command = compiler(platform)
-    if command is None:
+    """Compile ``c_files`` of ``sources_dir`` into the shared library ``target``; return
+    ``(target, label of the compiler)``."""
+    chosen = compiler(platform)
+    if chosen is None:
         raise NativeBuildError(compiler_problem(platform))
-    extra = PLATFORMS[platform][2]
+    command, extra, label = chosen
+    target.parent.mkdir(parents=True, exist_ok=True)
+    if platform.endswith("-darwin"):  # the library's own name, not the build folder's path
+        extra = tuple(extra) + ("-Wl,-install_name,@rpath/%s" % target.name,)
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
-            + [str(sources_dir / f) for f in c_files] + ["-lm"])
-    result = subprocess.run(args, capture_output=True, text=True)
+            + [str(sources_dir / f) for f in c_files] + _libraries(platform, command))
+    result = subprocess.run(args, capture_output=True, text=True, cwd=target.parent)
     if result.returncode != 0:
         raise NativeBuildError("compiling %s for %s failed:\n%s\n%s"
                                % (target.name, platform, " ".join(args), result.stderr.strip()))
-    return target
+    return target, label
+
+
+def _install_hint(platform):
+    if platform == "x86_64-linux":
+        return "Debian: apt-get install gcc, or pip install ziglang"
+    if platform == "x86_64-windows":
+        return "Debian: apt-get install gcc-mingw-w64-x86-64, or pip install ziglang"
+    return "pip install ziglang"
 
 
 # -- one FMU ----------------------------------------------------------------------------------
 
-def _build_one(name, fmi_version, out_dir, platforms, log):
+def _compile_all(name, fmi_version, sources, c_files, work, platforms):
+    """{platform: (library bytes, compiler label)} of ``platforms``, compiled side by side."""
+    def one(platform):
+        target = work / platform / (name + PLATFORMS[platform][0])
+        path, label = compile_library(platform, sources, c_files, target)
+        return platform, (path.read_bytes(), label)
+
+    from concurrent.futures import ThreadPoolExecutor
+    with ThreadPoolExecutor(max_workers=max(1, min(len(platforms), os.cpu_count() or 1))) \
+            as pool:
+        return dict(pool.map(one, platforms))
+
+
+def _layouts(name, fmi_version, built):
+    """The FMUs made of the compiled libraries ``built``: [(variant, {archive path: (bytes,
+    what it is)})], variant ``""`` for the FMU of ``fmi<v>/`` and :data:`FMI2_ARM` for the FMI
+    2.0 FMU for ARM Linux and Windows."""
+    def entry(platform):
+        data, label = built[platform]
+        return data, "%s, %s" % (platform, label)
+
+    if fmi_version == 3:
+        return [("", {"binaries/%s/%s%s" % (p, name, PLATFORMS[p][0]): entry(p)
+                      for p in built})]
+    darwin = [p for p in FMI2_DARWIN if p in built]
+    common = {}
+    if darwin:
+        from driftfmu.fmu_src import binaries
+        data = binaries.universal([built[p][0] for p in darwin])
+        common["binaries/darwin64/%s.dylib" % name] = (
+            data, "universal Mach-O: %s" % "; ".join(entry(p)[1] for p in darwin))
+    layouts = []
+    for variant, folders in (("", FMI2_FOLDERS), (FMI2_ARM, FMI2_ARM_FOLDERS)):
+        files = {"binaries/%s/%s%s" % (folder, name, PLATFORMS[p][0]): entry(p)
+                 for p, folder in folders.items() if p in built}
+        if files:
+            files.update(common)
+            layouts.append((variant, files))
+    return layouts
+
+
+def binaries_text(name, fmi_version, files, missing):
+    """documentation/binaries.txt: every binary of the FMU, where it runs, what built it."""
+    lines = ["%s (driftfmu %s, native C, FMI %d.0): the prebuilt binaries in this FMU"
+             % (name, __version__, fmi_version), ""]
+    for path in sorted(files):
+        data, what = files[path]
+        lines.append("%s  (%d bytes, sha256 %s)" % (path, len(data),
+                                                    hashlib.sha256(data).hexdigest()[:16]))
+        lines.append("    %s" % what)
+    lines += ["", "Every binary: C99, %s (IEEE 754 double arithmetic without FMA contraction "
+              "gives the bits of driftfmu's models/)." % " ".join(CFLAGS[1:4])]
+    if missing:
+        lines.append("Not built on this machine (no compiler for them): %s." % ", ".join(missing))
+    lines += ["For any other platform, compile sources/ (see sources/buildDescription.xml or the "
+              "model description's SourceFiles).", ""]
+    return "\n".join(lines)
+
+
+def _build_one(name, fmi_version, out_dir, platforms, missing, log):
     slave = slave_class(name)
     tok = token(name, fmi_version)
+    targets = []
     with tempfile.TemporaryDirectory(prefix="driftfmu_native_%s_" % name) as tmp:
         work = Path(tmp)
         sources = work / "sources"
         c_files = stage_sources(name, fmi_version, sources)
-        entries = {"sources/" + p.name: p.read_bytes() for p in sorted(sources.iterdir())}
+        base = {"sources/" + p.name: p.read_bytes() for p in sorted(sources.iterdir())}
+        built = _compile_all(name, fmi_version, sources, c_files, work, platforms)
         if fmi_version == 2:
-            entries["modelDescription.xml"] = fmi2_model_description(slave, tok, c_files, log)
+            base["modelDescription.xml"] = fmi2_model_description(slave, tok, c_files, log)
         else:
-            entries["modelDescription.xml"] = fmi3_model_description(slave, tok, log)
-            entries["sources/buildDescription.xml"] = build_description(name, c_files)
-        def one(platform):
-            folder, suffix = PLATFORMS[platform][3][fmi_version], PLATFORMS[platform][4]
-            library = compile_library(platform, sources, c_files,
-                                      work / ("%s_%s%s" % (name, platform, suffix)))
-            return "binaries/%s/%s%s" % (folder, name, suffix), library.read_bytes()
-
-        # the compilers run side by side (one per core); the archive is written in order
-        from concurrent.futures import ThreadPoolExecutor
-        with ThreadPoolExecutor(max_workers=max(1, min(len(platforms), os.cpu_count() or 1))) \
-                as pool:
-            entries.update(pool.map(one, platforms))
-        from driftfmu.fmu_src import documentation
-        entries.update(documentation.entries(name, "native", fmi_version, entries, slave))
-        target = out_dir / ("%s.fmu" % name)
-        builder._write_atomically(target, entries)
-    log("built %s (native C, FMI %d.0, %s)" % (target, fmi_version, ", ".join(platforms)))
-    return target
+            base["modelDescription.xml"] = fmi3_model_description(slave, tok, log)
+            base["sources/buildDescription.xml"] = build_description(
+                name, c_files, {p: label for p, (_, label) in built.items()})
+        for variant, files in _layouts(name, fmi_version, built):
+            entries = dict(base)
+            entries.update({path: data for path, (data, _) in files.items()})
+            entries["documentation/binaries.txt"] = binaries_text(
+                name, fmi_version, files, missing).encode()
+            from driftfmu.fmu_src import documentation
+            entries.update(documentation.entries(name, "native", fmi_version, entries, slave))
+            folder = out_dir / (variant or "fmi%d" % fmi_version)
+            folder.mkdir(parents=True, exist_ok=True)
+            target = folder / ("%s.fmu" % name)
+            builder._write_atomically(target, entries)
+            folders = sorted({p.split("/")[1] for p in files})
+            log("built %s (native C, FMI %d.0, %d kB: %s)"
+                % (target, fmi_version, (target.stat().st_size + 512) // 1024,
+                   ", ".join(folders)))
+            targets.append(target)
+    return targets
 
 
 def available_platforms(log=print):
-    """The platforms whose compiler is installed (Linux always required)."""
-    out = []
-    for platform in PLATFORMS:
-        if compiler(platform) is not None:
-            out.append(platform)
-        elif platform == "linux64":
-            raise NativeBuildError(compiler_problem(platform))
-        else:
-            log("warning: %s not found; the native FMUs carry no %s binary"
-                % (os.environ.get(PLATFORMS[platform][0], PLATFORMS[platform][1]), platform))
+    """The platforms with an installed compiler (x86-64 Linux required); one warning names
+    the missing ones and how to get them."""
+    out = [p for p in PLATFORMS if compiler(p) is not None]
+    if "x86_64-linux" not in out:
+        raise NativeBuildError(compiler_problem("x86_64-linux"))
+    missing = [p for p in PLATFORMS if p not in out]
+    if missing:
+        log("warning: no compiler for %s (%s); the native FMUs carry no binary for %s"
+            % (", ".join(missing), "; ".join(sorted({"%s: %s" % (p, _install_hint(p))
+                                                     for p in missing})),
+               "them" if len(missing) > 1 else "it"))
     return out
 
 
 def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSIONS,
                       platforms=None, log=print):
-    """Build, validate and move into place ``<out_dir>/fmi<v>/<Name>.fmu``.
+    """Build, validate and move into place ``<out_dir>/fmi<v>/<Name>.fmu`` (and, with the
+    aarch64 Linux or Windows binary, the FMI 2.0 FMUs for ARM ``<out_dir>/fmi2-aarch64/``).
 
     Parameters
     ----------
@@ -431,28 +606,30 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
     platforms : sequence of str, optional
         Keys of :data:`PLATFORMS`; default every platform whose compiler is installed.
     log : callable
-        Receives one line per FMU and warnings.
+        Receives one line per FMU (with its size) and warnings.
 
     Returns
     -------
     dict
-        ``{fmi_version: {name: path}}``.
+        ``{fmi_version: {name: path}}`` (the FMUs of ``fmi<v>/``).
     """
     out_dir = Path(out_dir)
     if platforms is None:
         platforms = available_platforms(log)
+    unknown = [p for p in platforms if p not in PLATFORMS]
+    if unknown:
+        raise NativeBuildError("platforms %s are not known; allowed: %s"
+                               % (", ".join(unknown), ", ".join(PLATFORMS)))
+    missing = [p for p in PLATFORMS if p not in platforms]
     from concurrent.futures import ThreadPoolExecutor
     jobs = [(n, v) for v in fmi_versions for n in names]
-    for v in fmi_versions:
-        (out_dir / ("fmi%d" % v)).mkdir(parents=True, exist_ok=True)
     # two FMUs at a time (each compiles its platforms side by side): compilers are processes
     with ThreadPoolExecutor(max_workers=2) as pool:
-        paths = list(pool.map(lambda job: _build_one(job[0], job[1],
-                                                      out_dir / ("fmi%d" % job[1]), platforms,
-                                                      log), jobs))
+        paths = list(pool.map(lambda job: _build_one(job[0], job[1], out_dir, platforms,
+                                                      missing, log), jobs))
     result = {v: {} for v in fmi_versions}
-    for (n, v), path in zip(jobs, paths):
-        result[v][n] = path
+    for (n, v), targets in zip(jobs, paths):
+        result[v][n] = targets[0]
     return result
 
 

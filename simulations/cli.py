@@ -317,8 +317,10 @@ def make_parser():
                    help="replace an existing --ssp FILE")
     p.add_argument("--native", action="store_true",
                    help="also build the native (C) twins of the FMUs, FMI 2.0 and FMI 3.0 source "
-                   "FMUs with x86-64 Linux and Windows binaries, as DIR/native/fmi2/<Name>.fmu "
-                   "and DIR/native/fmi3/<Name>.fmu (validated with fmpy)")
+                   "FMUs with binaries for Linux, Windows and macOS on x86-64 and aarch64 (those "
+                   "with a compiler here: gcc, mingw-w64, zig), as DIR/native/fmi2/<Name>.fmu, "
+                   "DIR/native/fmi2-aarch64/<Name>.fmu (FMI 2.0 for ARM Linux and Windows) and "
+                   "DIR/native/fmi3/<Name>.fmu (validated with fmpy); see docs/platforms.md")
     add_backend(p, what="the FMUs of the cross-check artifacts and the SSP export: python, or "
                 "native (implies --native; the cross-check then has folders for FMI 2.0 and "
                 "3.0 and for each platform)")

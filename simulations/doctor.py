@@ -10,6 +10,7 @@ loads and instantiates the FMU in a separate process, so a crash cannot take thi
 import ast
 import json
 import platform
+import struct
 import subprocess
 import sys
 import sysconfig
@@ -27,6 +28,24 @@ def _platform_dir(fmi_version="2.0"):
     bits = "64" if sys.maxsize > 2 ** 32 else "32"
     return {"Linux": "linux", "Darwin": "darwin", "Windows": "win"}.get(
         platform.system(), "unknown") + bits
+
+
+def _architecture(data, binary, fmi_version):
+    """(status, line) on whether ``binary`` is built for this machine's processor: FMI 2.0's
+    folders name no architecture (linux64 serves x86-64 and aarch64 alike, docs/platforms.md)."""
+    from driftfmu.fmu_src import binaries
+    machine = {"amd64": "x86_64", "arm64": "aarch64"}.get(platform.machine().lower(),
+                                                          platform.machine().lower())
+    try:
+        archs = [lib.arch for lib in binaries.inspect(data)]
+    except (binaries.BinaryFormatError, struct.error, ValueError, IndexError) as exc:
+        return WARN, "it has %s, which could not be read (%s)" % (binary, exc)
+    if machine in archs:
+        return OK, "it has a binary for this platform (%s, %s)" % (binary, "/".join(archs))
+    hint = (" (FMI 2.0 names no architecture: take the FMI 2.0 FMU built for %s; driftfmu's "
+            "native FMUs: fmi2/ for x86-64, fmi2-aarch64/ for ARM)" % machine
+            if fmi_version.startswith("2") else "")
+    return FAIL, "%s is for %s, this machine is %s%s" % (binary, "/".join(archs), machine, hint)
 
 
 def _stdlib_names():
@@ -105,7 +124,7 @@ def diagnose(fmu):
                 out.append((FAIL, "its binary %s is damaged: %s; no host can load it. "
                                   "Rebuild the FMU (driftfmu build)" % (b, why)))
         else:
-            out.append((OK, "it has a binary for this platform (%s)" % binary))
+            out.append(_architecture(zf.read(binary), binary, md.fmiVersion))
     else:
         out.append((FAIL, "it has no binary for this platform (%s); it has: %s"
                     % (plat, ", ".join(present) or "none")))

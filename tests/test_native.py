@@ -149,7 +149,7 @@ def test_source_fmu_declares_its_sources(native_fmus, name, version):
     platforms = {2: ("linux64", "win64"), 3: ("x86_64-linux", "x86_64-windows")}[version]
     suffix = {"linux64": ".so", "x86_64-linux": ".so", "win64": ".dll",
               "x86_64-windows": ".dll"}
-    for p in platforms:
+    for p in platforms:  # the rest: tests/test_platforms.py
         assert "binaries/%s/%s%s" % (p, name, suffix[p]) in files
     if version == 3:
         assert "sources/buildDescription.xml" in files
@@ -382,18 +382,55 @@ def hosts(tmp_path_factory):
     windows = None
     if chain.have_windows_tools():
         windows = chain.compile_host(folder / "chain_host.exe", windows=True)
-    return {"linux": linux, "windows": windows}
+    aarch64 = None
+    if chain.have_aarch64_tools():
+        aarch64 = chain.compile_host(folder / "chain_host_aarch64", aarch64=True)
+    return {"linux": linux, "windows": windows, "aarch64": aarch64}
 
 
-def host_run(host, fmus, run, folder, windows=False, record=None):
+def host_run(host, fmus, run, folder, windows=False, record=None, aarch64=False):
     start, connections, n, Ts = RUNS[run]()
     version = int(read_model_description(str(next(iter(fmus.values())))).fmiVersion[0])
     unpacked = {name: chain.unpack(path, Path(folder) / name) for name, path in fmus.items()}
     record = record or {name: OUTS[name] for name in fmus}
     text, keys = chain.script(version, unpacked, start, connections, record, n, Ts,
                               relative_to=folder if windows else None)
-    cols, _, _ = chain.run(host, text, keys, folder, windows=windows)
+    cols, _, _ = chain.run(host, text, keys, folder, windows=windows, aarch64=aarch64)
     return cols
+
+
+def every_output(fmus):
+    """{instance: [every output of its model description]}."""
+    return {name: [v.name for v in read_model_description(str(path)).modelVariables
+                   if v.causality == "output"] for name, path in fmus.items()}
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_aarch64_linux_binaries_under_qemu_give_the_python_fmus_bits(native_fmus,
+                                                                      python_results, hosts,
+                                                                      version, tmp_path):
+    """The C host cross-compiled for aarch64 (zig) runs the aarch64 Linux binaries under
+    qemu-user: the Gaussian chain, the harmonic sinusoidal chain and the ADXL203 preset give
+    every output of every FMU equal to the x86-64 Python FMUs' bit for bit.  FMI 2.0: the FMUs
+    for ARM (``fmi2-aarch64``, the aarch64 library in ``binaries/linux64``, where fmpy and FMI
+    Library look on an aarch64 Linux); FMI 3.0: ``binaries/aarch64-linux``."""
+    import os
+    if hosts["aarch64"] is None:
+        why = "zig, qemu-user or libc6-arm64-cross is not installed (.ci/run installs them)"
+        (pytest.fail if os.environ.get("DRIFTFMU_REQUIRE_PLATFORMS") else pytest.skip)(why)
+    fmus = chain_of(native_fmus[version])
+    if version == 2:
+        arm = fmus["Excitation"].parent.parent / native_build.FMI2_ARM
+        fmus = {n: arm / p.name for n, p in fmus.items()}
+    record = every_output(fmus)
+    for run in sorted(RUNS):
+        cols = host_run(hosts["aarch64"], fmus, run, tmp_path / run, record=record,
+                        aarch64=True)
+        ref = python_results[run]
+        assert set(cols) == set(ref), run
+        assert len(cols["time"]) == RUNS[run]()[2]
+        for key in cols:
+            assert cols[key] == ref[key], (run, key)
 
 
 @pytest.mark.parametrize("version", VERSIONS)
@@ -460,6 +497,49 @@ def test_source_fmu_rebuilt_with_the_plain_compiler_call_gives_the_same_bits(
         a = host_run(hosts["linux"], chain_of(native_fmus[version]), run, tmp_path / ("a" + run))
         b = host_run(hosts["linux"], chain_of(rebuilt), run, tmp_path / ("b" + run))
         assert a == b, run
+
+
+@pytest.mark.parametrize("version", VERSIONS)
+def test_fmpy_cmake_build_of_each_source_fmu_gives_the_same_bits(native_fmus, python_results,
+                                                                 version, tmp_path):
+    """fmpy's own source-FMU build (``fmpy.build.build_platform_binary``: its CMake project
+    over the FMU's declared sources, the successor of ``fmpy.util.compile_platform_binary``)
+    compiles every native FMU, binaries removed, on this machine; the rebuilt FMUs give the
+    Python FMUs' bits in the three runs (the chain) and the prebuilt FMU's in fmpy's
+    simulate_fmu (every FMU)."""
+    import os
+    if not shutil.which("cmake"):
+        why = "cmake is not installed (.ci/run installs it from PyPI)"
+        (pytest.fail if os.environ.get("DRIFTFMU_REQUIRE_PLATFORMS") else pytest.skip)(why)
+    from fmpy.build import build_platform_binary
+    rebuilt = {}
+    for name, path in native_fmus[version].items():
+        folder = (tmp_path / "src" / name).resolve()  # fmpy's CMake wants absolute paths
+        with zipfile.ZipFile(path) as archive:
+            archive.extractall(folder)
+        shutil.rmtree(folder / "binaries")
+        build_platform_binary(folder, build_dir=None)
+        built = sorted(p.relative_to(folder).as_posix()
+                       for p in (folder / "binaries").rglob("*") if p.is_file())
+        assert built == ["binaries/%s/%s.so" % ("linux64" if version == 2 else "x86_64-linux",
+                                                name)]
+        target = tmp_path / "fmus" / (name + ".fmu")
+        target.parent.mkdir(exist_ok=True)
+        with zipfile.ZipFile(target, "w") as dst:
+            for f in folder.rglob("*"):
+                if f.is_file():
+                    dst.write(f, f.relative_to(folder).as_posix())
+        rebuilt[name] = target
+    for run in sorted(RUNS):
+        start, connections, n, Ts = RUNS[run]()
+        assert cosimulate_fast(chain_of(rebuilt), connections, n, Ts, start_values=start) == \
+            python_results[run], run
+    opts = dict(stop_time=0.2, output_interval=1e-3)
+    for name in native_fmus[version]:
+        a = simulate_fmu(str(rebuilt[name]), **opts)
+        b = simulate_fmu(str(native_fmus[version][name]), **opts)
+        for column in b.dtype.names:
+            assert a[column].tolist() == b[column].tolist(), (name, column)
 
 
 @pytest.mark.parametrize("name,version", MODELS)

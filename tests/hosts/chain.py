@@ -1,6 +1,7 @@
-"""Drive tests/hosts/chain_host.c (an FMI 2.0/3.0 host with no Python in the process, for Linux
-and, cross-compiled with mingw-w64, for Windows under wine) from Python: compile it, write its
-script for a wired chain of FMUs, run it and read its rows back as floats."""
+"""Drive tests/hosts/chain_host.c (an FMI 2.0/3.0 host with no Python in the process, for Linux;
+cross-compiled with mingw-w64, for Windows under wine; cross-compiled with zig, for aarch64 Linux
+under qemu-user) from Python: compile it, write its script for a wired chain of FMUs, run it and
+read its rows back as floats."""
 import os
 import shutil
 import struct
@@ -12,6 +13,10 @@ from pathlib import Path
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "chain_host.c"
 WINE = "/usr/lib/wine/wine64"
+#: qemu-user for aarch64 and the aarch64 glibc it runs a program with (Debian: qemu-user,
+#: libc6-arm64-cross).
+QEMU_AARCH64 = shutil.which("qemu-aarch64") or shutil.which("qemu-aarch64-static")
+AARCH64_SYSROOT = Path("/usr/aarch64-linux-gnu")
 
 
 def fmi_headers():
@@ -19,13 +24,25 @@ def fmi_headers():
     return Path(fmpy.__file__).resolve().parent / "c-code"
 
 
-def compile_host(target, windows=False):
-    """Compile the chain host (``windows``: a .exe with x86_64-w64-mingw32-gcc); return it."""
-    cc = "x86_64-w64-mingw32-gcc" if windows else os.environ.get("CC", "cc")
-    command = [cc, "-std=c99", "-O2", "-I%s" % fmi_headers(), "-o", str(target), str(SOURCE)]
+def compile_host(target, windows=False, aarch64=False):
+    """Compile the chain host (``windows``: a .exe with x86_64-w64-mingw32-gcc; ``aarch64``: an
+    aarch64 Linux program with zig); return it."""
+    if aarch64:
+        from driftfmu.fmu_src.native_build import ZIG_TARGETS, zig_command
+        cc = zig_command() + ["-target", ZIG_TARGETS["aarch64-linux"]]
+    else:
+        cc = ["x86_64-w64-mingw32-gcc" if windows else os.environ.get("CC", "cc")]
+    command = cc + ["-std=c99", "-O2", "-I%s" % fmi_headers(), "-o", str(target), str(SOURCE)]
     command += ["-static-libgcc"] if windows else ["-ldl"]
     subprocess.run(command, check=True, capture_output=True, text=True)
     return Path(target)
+
+
+def have_aarch64_tools():
+    """True when zig, qemu-aarch64 and an aarch64 glibc are installed."""
+    from driftfmu.fmu_src.native_build import zig_command
+    return bool(zig_command() and QEMU_AARCH64
+                and (AARCH64_SYSROOT / "lib" / "ld-linux-aarch64.so.1").exists())
 
 
 def have_windows_tools():
@@ -79,13 +96,15 @@ def python_fmu_env():
     return env
 
 
-def run(host, text, keys, cwd, windows=False, env=None, timeout=600):
+def run(host, text, keys, cwd, windows=False, env=None, timeout=600, aarch64=False):
     """Run the host on script ``text`` in ``cwd``; return (columns by key, ns per step, output).
 
     Raises RuntimeError with the host's output when it fails."""
     path = Path(cwd) / "script.txt"
     path.write_text(text)
     command = [WINE, str(host), "script.txt"] if windows else [str(host), "script.txt"]
+    if aarch64:
+        command = [QEMU_AARCH64, "-L", str(AARCH64_SYSROOT)] + command
     if windows:
         env = dict(env or os.environ, WINEDEBUG="-all")
     result = subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=env,

@@ -38,8 +38,13 @@
 #else
 #include <dlfcn.h>
 #include <time.h>
+/* FMI 2.0 names no architecture: linux64 on every 64-bit Linux, as fmpy and FMI Library */
 #define PLATFORM2 "linux64"
+#if defined(__aarch64__)
+#define PLATFORM3 "aarch64-linux"
+#else
 #define PLATFORM3 "x86_64-linux"
+#endif
 #define SUFFIX ".so"
 #endif
 

@@ -1,0 +1,336 @@
+"""The native FMUs' binaries for every platform (issue 17), checked by reading them: each is a
+shared library of the right format and architecture, exports every FMI function under the name
+its platform's hosts look up (and nothing else of ours), imports nothing beyond the system's
+libraries; the FMU holds exactly the binaries its documentation and build description list.
+
+The binaries that can run here run elsewhere: x86-64 Linux everywhere, x86-64 Windows under wine
+and aarch64 Linux under qemu-user (tests/test_native.py).  The readers themselves
+(fmu_src/binaries.py) are checked against binutils on the binaries binutils can read.
+
+With ``DRIFTFMU_REQUIRE_PLATFORMS=1`` (set by .ci/run) a missing cross-compiler or tool fails
+these tests instead of skipping them.
+"""
+import os
+import re
+import shutil
+import subprocess
+import zipfile
+from pathlib import Path
+from xml.etree import ElementTree as ET
+
+import pytest
+
+from driftfmu.fmu_src import binaries, native_build
+from driftfmu.fmu_src.native_build import NAMES, PLATFORMS
+
+pytestmark = pytest.mark.integration
+SUFFIX = {"linux": ".so", "windows": ".dll", "darwin": ".dylib"}
+
+
+def need(ok, why):
+    """Skip (or, in CI, fail) when ``ok`` is false."""
+    if not ok:
+        (pytest.fail if os.environ.get("DRIFTFMU_REQUIRE_PLATFORMS") else pytest.skip)(why)
+
+
+def built_platforms():
+    """The platforms whose compiler is installed here (the build ships those)."""
+    return [p for p in PLATFORMS if native_build.compiler(p) is not None]
+
+
+def fmi_functions(version):
+    """Every function the standard's header declares (fmpy's copy of fmi2Functions.h /
+    fmi3Functions.h): what an FMU must export."""
+    header = native_build.fmi_headers(version)[0].read_text()
+    names = set(re.findall(r"FMI%d_Export\s+fmi%d\w+TYPE\s+(fmi%d\w+);" % ((version,) * 3),
+                           header))
+    assert len(names) == {2: 44, 3: 75}[version]  # the header read as it should be
+    return names
+
+
+@pytest.fixture(scope="module")
+def fmu_sets(native_fmus):
+    """{"fmi2": {name: path}, "fmi2-aarch64": {...}, "fmi3": {...}} (the ARM set when built)."""
+    arm_dir = native_fmus[2][NAMES[0]].parent.parent / native_build.FMI2_ARM
+    sets = {"fmi2": native_fmus[2], "fmi3": native_fmus[3]}
+    if arm_dir.is_dir():
+        sets[native_build.FMI2_ARM] = {n: arm_dir / ("%s.fmu" % n) for n in NAMES}
+    return sets
+
+
+def expected_binaries(kind, name):
+    """{archive path: [platform of each slice]} the FMU of ``kind`` must hold, and nothing else."""
+    have = built_platforms()
+    if kind == "fmi3":
+        return {"binaries/%s/%s%s" % (p, name, SUFFIX[p.split("-")[1]]): [p] for p in have}
+    folders = native_build.FMI2_FOLDERS if kind == "fmi2" else native_build.FMI2_ARM_FOLDERS
+    out = {"binaries/%s/%s%s" % (f, name, SUFFIX[p.split("-")[1]]): [p]
+           for p, f in folders.items() if p in have}
+    darwin = [p for p in native_build.FMI2_DARWIN if p in have]
+    if darwin:
+        out["binaries/darwin64/%s.dylib" % name] = darwin
+    return out
+
+
+def test_every_platform_has_a_compiler_here():
+    need(len(built_platforms()) == len(PLATFORMS),
+         "no compiler for %s (pip install ziglang)"
+         % ", ".join(sorted(set(PLATFORMS) - set(built_platforms()))))
+
+
+def test_the_fmi2_fmus_for_arm_are_built_when_zig_is_there(fmu_sets):
+    need("aarch64-linux" in built_platforms(), "zig is not installed (pip install ziglang)")
+    assert set(fmu_sets[native_build.FMI2_ARM]) == set(NAMES)
+    assert all(p.is_file() for p in fmu_sets[native_build.FMI2_ARM].values())
+
+
+def test_fmpy_validate_passes_the_fmi2_fmus_for_arm(fmu_sets):
+    import sys
+    if native_build.FMI2_ARM not in fmu_sets:
+        need(False, "the FMI 2.0 FMUs for ARM are not built (no zig)")
+    for path in fmu_sets[native_build.FMI2_ARM].values():
+        result = subprocess.run([sys.executable, "-m", "fmpy.cli", "validate", str(path)],
+                                capture_output=True, text=True)
+        assert result.stdout.strip() == "No problems found.", result.stdout + result.stderr
+
+
+@pytest.mark.parametrize("kind", ["fmi2", native_build.FMI2_ARM, "fmi3"])
+@pytest.mark.parametrize("name", NAMES)
+def test_fmu_holds_exactly_the_binaries_it_lists(fmu_sets, kind, name):
+    if kind not in fmu_sets:
+        need(False, "the FMI 2.0 FMUs for ARM are not built (no zig)")
+    path = fmu_sets[kind][name]
+    expected = expected_binaries(kind, name)
+    with zipfile.ZipFile(path) as archive:
+        files = archive.namelist()
+        listed = archive.read("documentation/binaries.txt").decode()
+        build = archive.read("sources/buildDescription.xml") if kind == "fmi3" else None
+        data = {p: archive.read(p) for p in expected}
+    assert {f for f in files if f.startswith("binaries/")} == set(expected)
+    assert "documentation/binaries.txt" in files
+    index = archive_text(path, "documentation/index.html")
+    assert "binaries: %s." % ", ".join(sorted({p.split("/")[1] for p in expected})) in index
+    assert set(re.findall(r"^(binaries/\S+)", listed, re.M)) == set(expected)
+    for p, blob in data.items():  # each line names its size
+        assert "%s  (%d bytes" % (p, len(blob)) in listed
+    missing = [p for p in PLATFORMS if p not in built_platforms()]
+    assert ("Not built on this machine" in listed) == bool(missing)
+    if build is not None:
+        configs = ET.fromstring(build).findall("BuildConfiguration")
+        assert configs[0].get("platform") is None      # the one for any compiler comes first
+        assert "-ffp-contract=off" in configs[0].find("SourceFileSet").get("compilerOptions")
+        assert sorted(c.get("platform") for c in configs[1:]) == sorted(built_platforms())
+        for c in configs[1:]:
+            assert "-ffp-contract=off" in c.get("description"), c.get("description")
+
+
+REQUIRED_IMPORTS = {
+    "linux": lambda lib: set(lib.imports) <= {"libc.so.6", "libm.so.6"},
+    # x86-64: mingw-w64 against msvcrt; aarch64: zig's mingw-w64 against the UCRT, which is part
+    # of every Windows 10 and 11 (api-ms-win-crt-*: the UCRT's API sets), Windows on ARM included
+    "windows": lambda lib: all(i.lower() in ("kernel32.dll", "msvcrt.dll")
+                               or i.lower().startswith("api-ms-win-crt-") for i in lib.imports),
+    "darwin": lambda lib: lib.imports == ["/usr/lib/libSystem.B.dylib"],
+}
+#: Symbols the Mach-O linker defines in every dylib (not ours).
+LINKER_SYMBOLS = {"darwin": {"__dso_handle", "_mh_dylib_header"}}
+
+
+@pytest.mark.parametrize("kind", ["fmi2", native_build.FMI2_ARM, "fmi3"])
+def test_every_binary_is_a_library_for_its_platform_exporting_every_fmi_function(fmu_sets,
+                                                                                 kind):
+    if kind not in fmu_sets:
+        need(False, "the FMI 2.0 FMUs for ARM are not built (no zig)")
+    version = 3 if kind == "fmi3" else 2
+    required = fmi_functions(version)
+    fmt = {"linux": "ELF", "windows": "PE", "darwin": "Mach-O"}
+    checked = 0
+    for name, path in fmu_sets[kind].items():
+        with zipfile.ZipFile(path) as archive:
+            for member, platforms in expected_binaries(kind, name).items():
+                slices = binaries.inspect(archive.read(member))
+                assert [s.arch + "-" + p.split("-")[1] for s, p in zip(slices, platforms)] \
+                    == platforms, (member, [s.arch for s in slices])
+                assert len(slices) == len(platforms)
+                for lib, platform in zip(slices, platforms):
+                    system = platform.split("-")[1]
+                    where = (name, kind, member, platform)
+                    assert lib.format == fmt[system] and lib.kind == "shared library", where
+                    assert lib.exports - LINKER_SYMBOLS.get(system, set()) == required, where
+                    assert REQUIRED_IMPORTS[system](lib), (where, lib.imports)
+                    if platform == "aarch64-linux":  # any aarch64 Linux since 2014
+                        assert binaries.glibc_version(lib) <= (2, 17), where
+                    if system == "darwin":
+                        assert lib.notes["minos"] <= ((10, 15, 0) if lib.arch == "x86_64"
+                                                      else (11, 0, 0)), where
+                        assert lib.notes["install_name"] == "@rpath/%s.dylib" % name, where
+                        # Apple silicon loads only signed code (zig's linker signs ad hoc)
+                        assert lib.arch != "aarch64" or lib.notes["code_signature"], where
+                    checked += 1
+    assert checked >= len(NAMES) * (2 if kind == "fmi2" else 1)
+
+
+def test_binaries_are_reproducible_and_darwin64_is_universal_of_the_thin_builds(native_fmus,
+                                                                               tmp_path):
+    """Compiled again elsewhere, every binary of an FMU comes out byte for byte the same (no
+    build path or time inside); the FMI 2.0 ``darwin64`` library is the universal binary of the
+    two thin macOS builds, each slice at a 2^14-aligned offset."""
+    import struct
+    name = "Excitation"
+    for version in (2, 3):
+        with tempfile_dir(tmp_path) as work:
+            sources = work / "sources"
+            c_files = native_build.stage_sources(name, version, sources)
+            again = {p: native_build.compile_library(
+                p, sources, c_files, work / p / (name + PLATFORMS[p][0]))[0].read_bytes()
+                for p in built_platforms()}
+        with zipfile.ZipFile(native_fmus[version][name]) as archive:
+            if version == 3:
+                for p, data in again.items():
+                    assert archive.read("binaries/%s/%s%s" % (p, name, PLATFORMS[p][0])) \
+                        == data, p
+                continue
+            for p, folder in native_build.FMI2_FOLDERS.items():
+                member = "binaries/%s/%s%s" % (folder, name, PLATFORMS[p][0])
+                assert p not in again or archive.read(member) == again[p], p
+            darwin = [p for p in native_build.FMI2_DARWIN if p in again]
+            if not darwin:
+                continue
+            fat = archive.read("binaries/darwin64/%s.dylib" % name)
+        assert fat == binaries.universal([again[p] for p in darwin])
+        magic, count = struct.unpack_from(">II", fat, 0)
+        assert (magic, count) == (0xCAFEBABE, len(darwin))
+        for i, p in enumerate(darwin):
+            _, _, offset, size, align = struct.unpack_from(">iiIII", fat, 8 + 20 * i)
+            assert align == 14 and offset % (1 << 14) == 0
+            assert fat[offset:offset + size] == again[p]
+    need(all(p in built_platforms() for p in native_build.FMI2_DARWIN), "zig is not installed")
+
+
+def archive_text(path, member):
+    with zipfile.ZipFile(path) as archive:
+        return archive.read(member).decode()
+
+
+class tempfile_dir:
+    """A fresh folder under ``tmp_path`` (a context manager, for symmetry with the builder)."""
+
+    def __init__(self, tmp_path):
+        self.path = Path(tmp_path) / "work"
+
+    def __enter__(self):
+        self.path.mkdir()
+        return self.path
+
+    def __exit__(self, *exc):
+        shutil.rmtree(self.path)
+
+
+# -- the readers, checked against binutils where binutils reads the format ------------------------
+
+def test_elf_reader_agrees_with_nm_and_readelf(native_fmus, tmp_path):
+    need(shutil.which("nm") and shutil.which("readelf"), "binutils is not installed")
+    with zipfile.ZipFile(native_fmus[3]["DriftEstimator"]) as archive:
+        for platform in ("x86_64-linux", "aarch64-linux"):
+            member = "binaries/%s/DriftEstimator.so" % platform
+            if member not in archive.namelist():
+                continue
+            so = tmp_path / (platform + ".so")
+            so.write_bytes(archive.read(member))
+            lib, = binaries.inspect(so.read_bytes())
+            nm = subprocess.run(["nm", "-D", "--defined-only", str(so)], capture_output=True,
+                                text=True, check=True).stdout
+            assert lib.exports == {line.split()[-1] for line in nm.splitlines()
+                                   if line.split()[1] in "TW"}
+            dynamic = subprocess.run(["readelf", "-dW", str(so)], capture_output=True,
+                                     text=True, check=True).stdout
+            assert lib.imports == re.findall(r"\(NEEDED\).*\[(.+)\]", dynamic)
+
+
+def test_pe_reader_agrees_with_objdump(native_fmus, tmp_path):
+    objdump = shutil.which("x86_64-w64-mingw32-objdump")
+    need(objdump, "x86_64-w64-mingw32-objdump is not installed")
+    dll = tmp_path / "DriftEstimator.dll"
+    with zipfile.ZipFile(native_fmus[2]["DriftEstimator"]) as archive:
+        dll.write_bytes(archive.read("binaries/win64/DriftEstimator.dll"))
+    lib, = binaries.inspect(dll.read_bytes())
+    dump = subprocess.run([objdump, "-p", str(dll)], capture_output=True, text=True,
+                          check=True).stdout
+    table = dump[dump.index("[Ordinal/Name Pointer] Table"):]
+    names = set(re.findall(r"^\s*\[\s*\d+\] (fmi2\w+)$", table, re.M))
+    assert names and lib.exports == names
+    assert [d.lower() for d in lib.imports] == [
+        d.lower() for d in re.findall(r"DLL Name: (\S+)", dump)]
+
+
+def test_readers_refuse_what_is_not_a_library():
+    with pytest.raises(binaries.BinaryFormatError, match="not an ELF, PE or Mach-O"):
+        binaries.inspect(b"#!/bin/sh\n")
+    with pytest.raises(binaries.BinaryFormatError, match="thin 64-bit Mach-O"):
+        binaries.universal([b"\x7fELF" + bytes(60)])
+
+
+# -- the Python FMUs ship only the binary that is tested ------------------------------------------
+
+def test_python_fmus_ship_only_the_linux_binaries(built_fmus):
+    for name, path in built_fmus.items():
+        with zipfile.ZipFile(path) as archive:
+            folders = {n.split("/")[1] for n in archive.namelist()
+                       if n.startswith("binaries/") and n.count("/") >= 2}
+        assert folders == {"linux64"}, (name, folders)
+
+
+# -- a machine with only the host's compiler ---------------------------------------------------
+
+def test_without_zig_and_mingw_the_build_ships_what_it_can_and_names_the_rest(monkeypatch,
+                                                                            tmp_path):
+    monkeypatch.setattr(native_build, "zig_command", lambda: None)
+    monkeypatch.setenv("MINGW_CC", "no-such-mingw-gcc")
+    lines = []
+    built = native_build.build_native_fmus(tmp_path, names=("Excitation",), log=lines.append)
+    warning, = [line for line in lines if line.startswith("warning")]
+    for p in PLATFORMS:
+        assert (p in warning) == (p != "x86_64-linux"), (p, warning)
+    assert "pip install ziglang" in warning and "gcc-mingw-w64-x86-64" in warning
+    assert not (tmp_path / native_build.FMI2_ARM).exists()
+    for version, folder in ((2, "linux64"), (3, "x86_64-linux")):
+        with zipfile.ZipFile(built[version]["Excitation"]) as archive:
+            names = archive.namelist()
+            listed = archive.read("documentation/binaries.txt").decode()
+        assert [n for n in names if n.startswith("binaries/")] == [
+            "binaries/%s/Excitation.so" % folder]
+        assert "Not built on this machine (no compiler for them): %s." % ", ".join(
+            p for p in PLATFORMS if p != "x86_64-linux") in listed
+    assert sum(" kB: " in line for line in lines) == 2   # each FMU's size is printed
+
+
+def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(monkeypatch,
+                                                                             tmp_path):
+    monkeypatch.setattr(native_build, "zig_command", lambda: None)
+    monkeypatch.setenv("CC", "no-such-cc")
+    with pytest.raises(native_build.NativeBuildError,
+                       match="no x86_64-linux compiler: CC='no-such-cc' is not an installed "
+                       "program, zig is not installed; allowed: CC naming an installed C "
+                       "compiler, or Debian: apt-get install gcc, or pip install ziglang"):
+        native_build.build_native_fmus(tmp_path, names=("Excitation",), log=lambda line: None)
+    with pytest.raises(native_build.NativeBuildError, match="platforms mac are not known"):
+        native_build.build_native_fmus(tmp_path, platforms=("x86_64-linux", "mac"))
+
+
+def test_doctor_tells_an_fmi2_fmu_for_another_architecture(fmu_sets, capsys):
+    """FMI 2.0's linux64 names no architecture: the doctor reads the binary and says whose it
+    is (the FMI 2.0 FMU for ARM on this x86-64 machine: a problem, with the FMU to take)."""
+    import platform as host
+    from driftfmu.simulations.cli import main
+    if host.machine().lower() not in ("x86_64", "amd64"):
+        pytest.skip("the check below is written for an x86-64 machine")
+    assert main(["doctor", str(fmu_sets["fmi2"]["DriftEstimator"])]) == 0
+    assert "binaries/linux64/DriftEstimator.so, x86_64" in capsys.readouterr().out
+    if native_build.FMI2_ARM not in fmu_sets:
+        need(False, "the FMI 2.0 FMUs for ARM are not built (no zig)")
+    with pytest.raises(SystemExit) as info:
+        main(["doctor", str(fmu_sets[native_build.FMI2_ARM]["DriftEstimator"])])
+    out = capsys.readouterr().out
+    assert info.value.code == 1
+    assert ("binaries/linux64/DriftEstimator.so is for aarch64, this machine is x86_64 (FMI 2.0 "
+            "names no architecture" in out), out
