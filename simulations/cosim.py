@@ -40,18 +40,24 @@ def remove_extracted():
         _remove(d)
 
 
-def _extract(path):
-    """Extract the FMU at ``path`` into a new temporary folder, registered in
-    :data:`EXTRACTED` before anything is written there (SIGTERM held back until it is)."""
+def new_extract_folder(prefix="driftfmu_fmu_"):
+    """A new temporary folder, registered in :data:`EXTRACTED` before anything is written there
+    (SIGTERM held back until it is), so that a worker told to stop removes it."""
     mask = hasattr(signal, "pthread_sigmask")
     if mask:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
     try:
-        unzipdir = tempfile.mkdtemp(prefix="driftfmu_fmu_")
+        unzipdir = tempfile.mkdtemp(prefix=prefix)
         EXTRACTED.add(unzipdir)
     finally:
         if mask:
             signal.pthread_sigmask(signal.SIG_SETMASK, old)
+    return unzipdir
+
+
+def _extract(path):
+    """Extract the FMU at ``path`` into a new temporary folder (:func:`new_extract_folder`)."""
+    unzipdir = new_extract_folder()
     try:
         return extract(path, unzipdir=unzipdir)
     except BaseException:

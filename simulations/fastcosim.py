@@ -23,7 +23,8 @@ import numpy as np
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
-from driftfmu.simulations.cosim import _STATUS, CoSimulationError, failed, free_all
+from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, failed, free_all, \
+    new_extract_folder
 
 
 #: fmpy FMU objects whose instance was freed but whose library stays loaded, for the next run
@@ -137,13 +138,13 @@ def unpacked(path):
     import atexit
     import os
     import platform
-    import tempfile
     import zipfile
     stat = os.stat(path)
     key = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)
     if key not in _UNPACKED:
-        folder = tempfile.mkdtemp(prefix="driftfmu_fast_")
-        atexit.register(shutil.rmtree, folder, True)
+        # registered where a worker told to stop finds it (batch._worker_stop), removed at exit
+        folder = new_extract_folder(prefix="driftfmu_fast_")
+        atexit.register(_remove, folder)
         here = {"Linux": ("linux64", "x86_64-linux"), "Windows": ("win64", "x86_64-windows"),
                 "Darwin": ("darwin64", "x86_64-darwin", "aarch64-darwin")}.get(
                     platform.system(), ())
