@@ -304,13 +304,13 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
                       label="R = %.0e V²" % r)
         ax.loglog(a2, t["dc_expected"].reshape(len(a2), len(R))[:, 0], color="k", ls=":",
                   lw=1.2, label="the drift a2·Q/(1−A²)" if axis == "a2"
-                  else "the drift a2·σx² + 3·a4·σx⁴")
+                  else "drift a2σx²+3a4σx⁴")
         ax.set_xscale(xscale)
         ax.set_xlabel("a2 [V/g²]" if axis == "a2" else "a4 [V/g⁴]")
         ax.set_ylabel("mean |%s − %s drift| [V]" % (estimator.upper(), ref))
         ax.set_title("%s against the %s drift%s" % (
-            estimator.upper(), ref, " a2·mean(x²)" if ref == "realised"
-            else " z̄ − a0 (the letter's)"), fontsize=10)
+            estimator.upper(), ref, (" a2·mean(x²)" if axis == "a2" else " mean(h(x)−a0−a1x)")
+            if ref == "realised" else " z̄ − a0 (the letter's)"), fontsize=10)
         if ylim is not None:
             ax.set_ylim(*ylim)
         ax.grid(True, which="major", alpha=0.3)
