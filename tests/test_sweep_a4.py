@@ -57,9 +57,10 @@ def test_closed_form_a2_var_plus_3_a4_var2_holds_over_the_runs(over_a4):
         assert t["mean_dc_ekf1"][i] == pytest.approx(over_a4["grid_dc1"][i, 0].mean(), rel=1e-12)
         assert t["mae_ekf1_realised"][i] == pytest.approx(np.mean(np.abs(
             over_a4["grid_dc1"][i, 0] - over_a4["grid_dc_realised"][i, 0])), rel=1e-12)
-        # EKF3 (smoothed) stays low: its mean below the closed form by more than its band
-        v3 = over_a4["grid_dc3"][i, 0]
-        assert v3.mean() + 4 * v3.std(ddof=1) / math.sqrt(RUNS) < expected
+        # EKF3 (smoothed, a running mean of running means) stays low: below EKF1 run by run,
+        # the paired difference's mean by more than four of its standard errors
+        d = over_a4["grid_dc3"][i, 0] - over_a4["grid_dc1"][i, 0]
+        assert d.mean() + 4 * d.std(ddof=1) / math.sqrt(RUNS) < 0
     # as in the letter's Figs. 2-3 for a2: the errors against the realised drift grow with a4
     # (docs/method.md section 9)
     for e in ("ekf1", "ekf3"):
