@@ -125,3 +125,14 @@ def test_fmu_engine_equals_batch_engine_for_the_general_model(built_fmus):
                                          "letter's sensor only"):
         montecarlo.montecarlo_sinusoidal(runs=1, n=5, a4=0.01, engine="fmu",
                                          fmu_dir=built_fmus["Excitation"].parent)
+
+
+def test_the_public_api_takes_the_general_parameters():
+    import driftfmu
+    kw = dict(runs=4, n=50, seed=6, workers=1)
+    got = driftfmu.montecarlo("gaussian", a4=0.003, B=0.5, drive=1, Qu=0.1, **kw)
+    want = montecarlo.montecarlo_gaussian(a4=0.003, B=0.5, drive=1, Qu=0.1, **kw)
+    assert np.array_equal(got["fig1_dc1"], want["fig1_dc1"])
+    assert not np.array_equal(got["fig1_dc1"], montecarlo.montecarlo_gaussian(**kw)["fig1_dc1"])
+    sw = driftfmu.sweep(a2=[0.02], R=[1e-3], runs=4, n=50, a4=[0.0, 0.002], workers=1)
+    assert sw["axis"] == "a4" and sw["grid_dc1"].shape == (2, 1, 4)
