@@ -60,3 +60,79 @@ def test_simulate_carries_u_to_the_filter(fmu_dir, unwired, backend, fmi_version
         np.testing.assert_array_equal(result[c], np.asarray(ref[c]), err_msg=c)
     assert np.any(result["u"] != 0.0)
     assert np.any(np.asarray(unwired["x_hat"]) != result["x_hat"])  # the test can fail
+
+
+#: The sinusoidal master with a shaker's commanded motion as the known input: the filter
+#: (Gauss-Markov, A = 0, B = 1) predicts the commanded u = X sin(2 pi f t).
+SINE = dict(X=1.0, f=40.0, a2=0.05, R=1e-3, A=0.0, Q=1e-3, P0=1e-3)
+SINE_INPUT = dict(B=1.0, drive=excitation.SINUSOIDAL, Xu=1.0, fu=40.0)
+
+
+def _sine_reference(B):
+    """models/adxl203.simulate with the filter's ``B`` given here (not taken from the master's
+    start values), the Excitation's u the commanded sinusoid."""
+    from driftfmu.models import adxl203, harmonic
+    p = SINE
+    ex = dict(kind=excitation.SINUSOIDAL, X=p["X"], f=p["f"], seed=2, drive=excitation.SINUSOIDAL,
+              Xu=1.0, fu=40.0)
+    sp = dict(a0=0.0, a1=1.0, a2=p["a2"], R=p["R"], seed=2, Ts=1e-3, noise=1)
+    es = dict(a0=0.0, a1=1.0, a2=p["a2"], R=p["R"], A=p["A"], Q=p["Q"], P0=p["P0"], x0=0.0,
+              process=harmonic.GAUSS_MARKOV, f=p["f"], B=B)
+    return adxl203.simulate(N, ex, sp, es, 1e-3)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("backend", ["python", "native"])
+def test_sinusoidal_master_carries_u_to_the_filter(fmu_dir, backend):
+    from driftfmu.simulations import sinusoidal
+    res = sinusoidal.run_sinusoidal(n=N, seed=2, process=1, fmu_dir=fmu_dir, plot=False,
+                                    backend=backend, **SINE, **SINE_INPUT)
+    assert res["summary"]["validation"]["passed"]
+    ref, blind = _sine_reference(1.0), _sine_reference(0.0)
+    for c in COLUMNS:
+        assert list(res["columns"][c]) == list(ref[c]), c
+    assert list(res["columns"]["x_hat"]) != list(blind["x_hat"])  # the test can fail
+    # the commanded motion is the motion here: the filter's error is the noise's, not x's
+    err = np.abs(np.asarray(res["columns"]["x_hat"]) - np.asarray(res["columns"]["x"]))
+    err_blind = np.abs(np.asarray(blind["x_hat"]) - np.asarray(blind["x"]))
+    assert err.mean() < 0.5 * err_blind.mean()
+
+
+def test_sinusoidal_master_refuses_B_with_the_harmonic_filter_and_fu_over_nyquist():
+    from driftfmu.simulations import sinusoidal
+    from driftfmu.simulations.errors import UsageError
+    with pytest.raises(UsageError, match=r"B = 1.0 is not allowed with process = 2"):
+        sinusoidal.run_sinusoidal(n=10, process=2, B=1.0, drive=2, Xu=1.0, fu=40.0)
+    with pytest.raises(UsageError, match=r"fu = 600.0 Hz is not allowed at Ts = 0.001 s"):
+        sinusoidal.run_sinusoidal(n=10, process=1, B=1.0, drive=2, Xu=1.0, fu=600.0)
+    with pytest.raises(TypeError, match="a3"):
+        sinusoidal.run_sinusoidal(n=10, a3=0.1)
+    assert sinusoidal.connections(0.0) == sinusoidal.CONNECTIONS
+    assert sinusoidal.connections(0.5)[-1] == ("Excitation", "u", "DriftEstimator", "u")
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("backend", ["python", "native"])
+def test_fmu_engine_equals_the_batch_engine_with_the_input(fmu_dir, backend):
+    from driftfmu.simulations import batch
+    general = dict(a3=0.02, a4=0.03, B=0.8, drive=excitation.GAUSSIAN, Qu=0.3)
+    p = dict(a0=0.1, a2=0.05, A=0.6, Q=0.05, R=1e-3)
+    one = batch.fmu_simulate(N, 9, fmu_dir=fmu_dir, record=("x_hat",), backend=backend, **p,
+                             **general)
+    many = batch.simulate(N, np.array([9], dtype=np.uint64), record=("x_hat",), kernel="numpy",
+                          **p, **general)
+    for key in batch.FINALS:
+        assert one["final_" + key] == many["final_" + key][0], key
+    np.testing.assert_array_equal(one["x_hat"], many["x_hat"][0])
+    without = batch.simulate(N, np.array([9], dtype=np.uint64), kernel="numpy", **p,
+                             **dict(general, B=0.0))
+    assert one["final_x_hat"] != without["final_x_hat"][0]  # the input matters here
+
+
+def test_fmu_engine_refuses_the_input_with_the_sinusoid():
+    from driftfmu.simulations import batch
+    from driftfmu.simulations.errors import UsageError
+    with pytest.raises(UsageError, match=r"B, drive with the Gaussian excitation only"):
+        batch.fmu_simulate(10, 1, kind=excitation.SINUSOIDAL, B=0.5, drive=1)
+    with pytest.raises(TypeError, match="Bx"):
+        batch.fmu_simulate(10, 1, Bx=0.5)
