@@ -136,3 +136,51 @@ def test_fmu_engine_refuses_the_input_with_the_sinusoid():
         batch.fmu_simulate(10, 1, kind=excitation.SINUSOIDAL, B=0.5, drive=1)
     with pytest.raises(TypeError, match="Bx"):
         batch.fmu_simulate(10, 1, Bx=0.5)
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("backend, fmi_version", [("python", 2), ("native", 2), ("native", 3)])
+def test_excitation_takes_u_from_the_host(fmu_dir, backend, fmi_version):
+    """drive = 0: the Excitation's u is the host's input u_in.  Fed the samples its own
+    Gaussian drive would make, the chain gives models/' run with that drive bit for bit."""
+    ref = _reference(seed=6)
+    u = [excitation.input_sample(INPUT["drive"], 6, k, INPUT["Qu"]) for k in range(1, N + 1)]
+    signal = np.zeros(N, dtype=[("time", float), ("u_in", float)])
+    signal["time"] = np.arange(N) * 1e-3
+    signal["u_in"] = u
+    result = driftfmu.simulate(stop_time=(N - 1) * 1e-3, input=signal,
+                               start_values=dict(GENERAL, seed=6, P0=0.2), backend=backend,
+                               fmi_version=fmi_version, fmu_dir=fmu_dir)
+    np.testing.assert_array_equal(result["u"], np.asarray(u))
+    for c in COLUMNS:
+        np.testing.assert_array_equal(result[c], np.asarray(ref[c]), err_msg=c)
+    # without the host's input (u_in = 0) the state and the filter differ
+    assert not np.array_equal(result["x"], np.asarray(_reference(seed=6, Qu=0.0)["x"]))
+
+
+@pytest.mark.integration
+def test_host_input_is_a_feedthrough_of_the_excitation(python_fmus, native_fmus):
+    """u_in set at a communication point moves x (by B u) and u at that point, in the Python
+    FMU and its native twins alike, and the model description declares the dependency."""
+    from fmpy import read_model_description
+    from driftfmu.simulations.cosim import cosimulate
+    start = {"Excitation": dict(A=0.5, Q=0.01, B=2.0, seed=3)}
+    u = [0.0, 1.0, -0.5, 0.25, 3.0]
+    runs = {}
+    for name, path in (("python", python_fmus["Excitation"]),
+                       ("fmi2", native_fmus[2]["Excitation"]),
+                       ("fmi3", native_fmus[3]["Excitation"])):
+        md = read_model_description(str(path))
+        vr = {v.name: v for v in md.modelVariables}
+        assert vr["u_in"].causality == "input"
+        deps = {o.variable.name: [d.name for d in o.dependencies] for o in md.outputs}
+        assert deps["x"] == ["u_in"] and deps["u"] == ["u_in"], deps
+        runs[name] = cosimulate({"Excitation": path}, [], len(u), 1e-3, start_values=start,
+                                inputs={"Excitation": {"u_in": u}})
+        assert runs[name]["Excitation.u"] == u
+    assert runs["python"] == runs["fmi2"] == runs["fmi3"]
+    x, w = 0.0, []
+    for k, uk in enumerate(u, start=1):
+        x = excitation.gaussian_sample(x, 0.5, 0.01, 3, k, 2.0, uk)
+        w.append(x)
+    assert runs["python"]["Excitation.x"] == w
