@@ -184,3 +184,72 @@ def test_host_input_is_a_feedthrough_of_the_excitation(python_fmus, native_fmus)
         x = excitation.gaussian_sample(x, 0.5, 0.01, 3, k, 2.0, uk)
         w.append(x)
     assert runs["python"]["Excitation.x"] == w
+
+
+# -- without FMUs: what the mutation check can run --------------------------------------------
+
+def test_every_wiring_has_the_input_connection_when_B_is_set():
+    from driftfmu import _api
+    from driftfmu.fmu_src import ssp
+    from driftfmu.simulations import gaussian, sinusoidal
+    u = ("Excitation", "u", "DriftEstimator", "u")
+    assert u in _api.CONNECTIONS
+    assert gaussian.connections(0.5)[-1] == u and u not in gaussian.connections(0.0)
+    assert sinusoidal.connections(0.5)[-1] == u and u not in sinusoidal.connections(0.0)
+    assert ssp.connections(ssp.chain_start_values(**dict(GENERAL, **INPUT)))[-1] == u
+    assert ssp.connections(ssp.chain_start_values(**dict(GENERAL, B=0.0))) == ssp.CONNECTIONS
+
+
+def test_the_jacobi_reference_with_the_input_delays_u_by_one_step():
+    """With u held in the filter (and everything else as the chain's), the Jacobi reference's
+    estimator takes u_{i+1} at row i: the first row's filter sees u = 0 (fmpy's connectors start
+    at 0), the next ones the Excitation's u of the row before."""
+    from driftfmu.fmu_src import ssp
+    p = dict(GENERAL, **INPUT, seed=3)
+    ref = ssp.jacobi_reference(6, **p)
+    assert ref["DriftEstimator.u"] == ref["Excitation.u"]
+    u = [excitation.input_sample(1, 3, k, INPUT["Qu"]) for k in range(1, 8)]
+    assert ref["Excitation.u"] == u[1:7]
+    # row 0: the estimator updated with z = 0 and u = 0 (twice: committed, then shown)
+    from driftfmu.models import chain as ch
+    q = {k: p[k] for k in ("a0", "a2", "A", "Q", "R", "a3", "a4", "B")}
+    args = lambda s, z, uk: ch.estimator_step(s, z, q["a0"], 1.0, q["a2"], q["A"], q["Q"],
+                                              q["R"], q["a3"], q["a4"], q["B"], uk)
+    s0 = ch.estimator_init(0.0, p["Q"] / (1 - p["A"] ** 2))
+    assert ref["DriftEstimator.x_hat"][0] == args(args(s0, 0.0, 0.0), 0.0, 0.0).x
+    z0 = ref["DriftEstimator.z"][0]
+    c1 = args(args(s0, 0.0, 0.0), z0, u[1])
+    assert ref["DriftEstimator.x_hat"][1] == args(c1, z0, u[1]).x
+
+
+def test_the_excitation_slave_takes_u_in_when_drive_is_0():
+    """The Python slave (no FMU built): u_in moves u and, by B u, x at the same sample."""
+    from driftfmu.fmu_src.Excitation import Excitation
+    e = Excitation(instance_name="e")
+    vr = {s["name"]: i for i, s in enumerate(Excitation.VARIABLES)}
+    e.set_real([vr["A"], vr["Q"], vr["B"]], [0.5, 0.01, 2.0])
+    e.enter_initialization_mode()
+    e.exit_initialization_mode()
+    e.set_real([vr["u_in"]], [1.5])
+    x, u = e.get_real([vr["x"], vr["u"]])
+    assert u == 1.5
+    assert x == excitation.gaussian_sample(0.0, 0.5, 0.01, 1, 1, 2.0, 1.5)
+    e.do_step(0.0, 1e-3)
+    e.set_real([vr["u_in"]], [-0.25])
+    x2, u2 = e.get_real([vr["x"], vr["u"]])
+    assert (u2, x2) == (-0.25, excitation.gaussian_sample(x, 0.5, 0.01, 1, 2, 2.0, -0.25))
+
+
+def test_the_sinusoidal_reference_predicts_with_the_commanded_input():
+    """models/adxl203.simulate (the sinusoidal master's reference) with B = 1, A = 0 and u the
+    commanded sinusoid: the filter's prediction is u_k, sample by sample."""
+    from driftfmu.models import chain as ch
+    ref = _sine_reference(1.0)
+    p = SINE
+    s = ch.estimator_init(0.0, p["P0"])
+    for k in range(1, 30):
+        uk = excitation.sine(k, 1.0, 40.0, 1e-3)
+        assert ref["x"][k - 1] == excitation.sine(k, p["X"], p["f"], 1e-3)
+        s = ch.estimator_step(s, ref["z"][k - 1], 0.0, 1.0, p["a2"], p["A"], p["Q"], p["R"],
+                              B=1.0, u=uk)
+        assert ref["x_hat"][k - 1] == s.x, k
