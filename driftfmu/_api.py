@@ -31,6 +31,8 @@ CONNECTIONS = (
     ("Accelerometer", "z", "DriftEstimator", "z"),
     ("Accelerometer", "z", "DualDriftEstimator", "z_x"),
     ("Accelerometer", "z_y", "DualDriftEstimator", "z_y"),
+    # the known input u (eq. 1) to the filter's prediction B u; with B = 0 the filter ignores it
+    ("Excitation", "u", "DriftEstimator", "u"),
 )
 
 #: The FMU kinds: ``"python"`` (pythonfmu, FMI 2.0) and ``"native"`` (C, FMI 2.0 or 3.0).

@@ -121,8 +121,8 @@ def test_fmu_engine_equals_batch_engine_for_the_general_model(built_fmus):
     for key in want:
         if isinstance(want[key], np.ndarray):
             assert np.array_equal(fmu[key], want[key]), key
-    with pytest.raises(ValueError, match="FMU engine runs the sinusoidal state with the "
-                                         "letter's sensor only"):
+    with pytest.raises(ValueError, match="FMU engine runs a4 with the Gaussian excitation "
+                                         "only"):
         montecarlo.montecarlo_sinusoidal(runs=1, n=5, a4=0.01, engine="fmu",
                                          fmu_dir=built_fmus["Excitation"].parent)
 
