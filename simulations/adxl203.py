@@ -625,11 +625,14 @@ def add_cli(groups):
 
 
 def _cmd_experiment(args):
+    """``driftfmu experiment adxl203``: :func:`driftfmu.experiment_adxl203`."""
+    import driftfmu
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
     held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
     with cli.progress(total, "sets", "set") as update:
-        s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
+        s = driftfmu.experiment_adxl203(
+                        out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
                         workers=args.workers, progress=update, backend=args.backend)
     print("wrote %s/adxl203.csv, adxl203.json, adxl203.npz, fig4.png, fig5.png" % args.out)
@@ -658,8 +661,10 @@ def timing_line(t):
 
 
 def _cmd_identify(args):
-    s = run_identify(args.files, args.f, held_out=args.held_out, out=args.out,
-                     order=args.order)
+    """``driftfmu identify``: :func:`driftfmu.identify`."""
+    import driftfmu
+    s = driftfmu.identify(args.files, args.f, held_out=args.held_out, out=args.out,
+                          order=args.order)
     m = s["model"]
     print("wrote %s/identify.json%s" % (args.out, ", identify.csv" if args.held_out else ""))
     print("model from %d set(s): a0 %.6g, a1 %.6g, a2 %.6g, R %.4g"

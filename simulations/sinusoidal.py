@@ -216,10 +216,12 @@ def add_cli(groups):
 
 
 def _cmd(args):
+    """``driftfmu run sinusoidal``: :func:`driftfmu.run_sinusoidal`."""
+    import driftfmu
     from driftfmu.simulations import budget, cli
     budget.check_run("sinusoidal", args.n, args.out, args.backend)
     with cli.progress(args.n, "co-simulation", "sample") as update:
-        res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
+        res = driftfmu.run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
                              P0=args.P0, estimator=args.estimator, preset=args.preset,

@@ -267,12 +267,14 @@ def add_cli(groups):
 
 
 def cmd_sweep(args):
+    """``driftfmu sweep``: :func:`driftfmu.sweep`."""
+    import driftfmu
     total = len(args.a2) * len(args.R) * args.runs
     t0 = time.perf_counter()
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine
     with cli.progress(total, desc, "run", monitor=False) as update:
-        res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
+        res = driftfmu.sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
                     runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, engine=args.engine,
                     scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
                     out=args.out, progress=update)
