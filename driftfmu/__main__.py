@@ -1,4 +1,6 @@
-"""``python -m driftfmu``: the ``driftfmu`` command."""
+"""Internal (not a stable API; use the driftfmu command instead).
+
+``python -m driftfmu``: the ``driftfmu`` command."""
 import sys
 
 from driftfmu.simulations.cli import main

@@ -1,4 +1,6 @@
-"""The letter's accelerometer experiment (Sec. IV, Figs. 4-5) on the ADXL203 stand-in.
+"""Internal (not a stable API; use driftfmu.experiment_adxl203 or driftfmu.identify instead).
+
+The letter's accelerometer experiment (Sec. IV, Figs. 4-5) on the ADXL203 stand-in.
 
 For each drive frequency, ``sets`` recordings of ``n`` samples are co-simulated with the FMUs:
 Excitation (sinusoid, per-set amplitude and phase; small transverse motion ``y``) ->

@@ -1,4 +1,6 @@
-"""The ``driftfmu`` command.
+"""Internal (not a stable API; use the driftfmu command or the functions of driftfmu instead).
+
+The ``driftfmu`` command.
 
 One convention for every sub-command: model parameters by their paper names (``--a2 0.01``,
 ``--R 1e-4``), ``--n`` samples, ``--runs`` Monte-Carlo runs, ``--seed``, ``--out DIR`` (created if

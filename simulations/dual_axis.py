@@ -1,4 +1,6 @@
-"""Drift from axis cross-correlation: the dual-axis experiment (the letter's conclusion, built).
+"""Internal (not a stable API; use driftfmu.experiment_dual_axis instead).
+
+Drift from axis cross-correlation: the dual-axis experiment (the letter's conclusion, built).
 
 The chain Excitation (two axes) -> Accelerometer (``dual = 1``: ``z_x = a0 + a1 x + a2 x^2 +
 bx x y + v_x``, ``z_y`` likewise with ``by``) -> DualDriftEstimator (both outputs, EKF1), with a

@@ -1,4 +1,6 @@
-"""Monte-Carlo populations of whole trajectories: the letter's Fig. 1 claims over many runs.
+"""Internal (not a stable API; use driftfmu.montecarlo instead).
+
+Monte-Carlo populations of whole trajectories: the letter's Fig. 1 claims over many runs.
 
 ``driftfmu montecarlo gaussian`` runs the Gaussian chain (Sec. III) ``runs`` times, run ``r`` with
 FMU seed ``seed + r``, and keeps every trajectory; ``driftfmu montecarlo sinusoidal`` does the

@@ -1,4 +1,6 @@
-"""Sinusoidal excitation (the letter's Sec. IV drive) as an FMU co-simulation.
+"""Internal (not a stable API; use driftfmu.run_sinusoidal instead).
+
+Sinusoidal excitation (the letter's Sec. IV drive) as an FMU co-simulation.
 
 Excitation (``x = X sin(2 pi f t + phi)``, and ``y`` for the second axis) -> Accelerometer ->
 DriftEstimator, fixed step ``Ts``, one row per sample.  The filter's process model is the letter's

@@ -1,4 +1,6 @@
-"""The letter's Figs. 2 and 3: drift error over a grid of a2 and R, averaged over many runs.
+"""Internal (not a stable API; use driftfmu.sweep instead).
+
+The letter's Figs. 2 and 3: drift error over a grid of a2 and R, averaged over many runs.
 
 For every grid point ``(a2_i, R_j)`` and run ``r`` (FMU seed ``seed + r``, the same seeds at every
 grid point) the Gaussian chain runs ``n`` samples; the final-sample drift estimates of EKF1-3 are
