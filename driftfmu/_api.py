@@ -208,7 +208,10 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     start_values : dict of str to float, optional
         Parameter values by name.  A plain name (``"a2"``, ``"seed"``, ``"Ts"``) is set in
         every simulated FMU that has the variable; ``"Accelerometer.a2"`` sets it in one FMU.
-        Unset parameters keep the FMUs' defaults (the letter's settings).
+        Unset parameters keep the FMUs' defaults (the letter's settings).  The general sensor
+        (docs/method.md section 9) is set the same way: ``a3``, ``a4`` (Accelerometer and
+        DriftEstimator), ``B`` (Excitation and DriftEstimator) and the Excitation's known
+        input ``drive``, ``Qu``, ``Xu``, ``fu``; all off by default.
     input : numpy.ndarray, optional
         A structured array with a first field ``time`` and one field per input variable it
         drives (``"x"`` or ``"Accelerometer.x"``), like FMPy's ``input``.  At each
