@@ -1,9 +1,7 @@
 """Internal (not a stable API; use the driftfmu command instead).
 
 ``python -m driftfmu``: the ``driftfmu`` command."""
-import sys
-
-from driftfmu.simulations.cli import main
+from driftfmu.simulations.cli import run_program
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_program()

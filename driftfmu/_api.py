@@ -515,8 +515,11 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
         ``P0``; for ``"sinusoidal"`` also ``X, f``, with the filter's ``Q`` defaulting to
         ``X^2 / 2``), ``summary_only`` (keep per-run summaries and the figure's first runs,
         not every trajectory) and the engine's options (``workers``, ``scheduler`` (a Dask
-        address), ``client``, ``backend``, ``fmu_dir``).  The letter's quadratic sensor
-        only: the general model's ``a3, a4, B, u`` are parameters of :func:`run_gaussian`.
+        address), ``client``, ``backend``, ``fmu_dir``).  The general sensor (docs/method.md
+        section 9), off by default: for ``"gaussian"`` ``a3, a4, B, drive, Qu, Xu, fu`` as in
+        :func:`run_gaussian`; for ``"sinusoidal"`` ``a3, a4`` (batch engine only).  The
+        realised and expected drifts then count the ``a3``, ``a4`` terms; the batch engine
+        runs the general model in NumPy (the compiled kernel has the letter's sensor only).
 
     Returns
     -------
@@ -545,7 +548,8 @@ def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = N
     Parameters
     ----------
     a2, R : sequence of float, optional
-        The grid; defaults ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)``.
+        The grid; defaults ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)`` (in a sweep
+        over ``a4``, ``a2`` is one value, default 0.01).
     runs, n : int
         Monte-Carlo runs per grid point and samples per run.
     out : str or pathlib.Path, optional
@@ -553,19 +557,22 @@ def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = N
     progress : callable, optional
         Called as the grid goes with the number of runs done so far (over all grid points).
     **parameters
-        ``a0, a1, Q, A, seed, Ts`` and the engine's options (``engine``, ``workers``,
-        ``scheduler`` (a Dask address), ``client``, ``chunk``, ``fmu_dir``).  The letter's
-        quadratic sensor only: the general model's ``a3, a4, B, u`` are parameters of
-        :func:`run_gaussian`.
+        ``a0, a1, Q, A, seed, Ts``, the engine's options (``engine``, ``workers``,
+        ``scheduler`` (a Dask address), ``client``, ``chunk``, ``fmu_dir``) and the general
+        sensor, off by default: ``a4``, one value for every grid point or several, which make
+        the grid ``(a4, R)`` at one ``a2`` (Fig. 2 over ``a4``), and ``a3, B, drive, Qu, Xu,
+        fu`` as in :func:`run_gaussian`, shared by every grid point.
 
     Returns
     -------
     dict
-        ``grid_a2``, ``grid_R`` and the final values of each run, ``grid_dc1``, ``grid_dc2``,
-        ``grid_dc3`` (EKF1-3), ``grid_zbar`` and ``grid_x2bar`` (the running means of ``z`` and
-        ``x^2``), each of shape ``(len(a2), len(R), runs)``; ``table``, the columns of
-        ``sweep.csv`` (mean errors per grid point against the realised, empirical and expected
-        drift); ``seconds``, the wall time of the runs.
+        ``grid_a2`` (``grid_a4`` in a sweep over ``a4``), ``grid_R`` and the final values of
+        each run, ``grid_dc1``, ``grid_dc2``, ``grid_dc3`` (EKF1-3), ``grid_zbar`` and
+        ``grid_x2bar`` (the running means of ``z`` and ``x^2``; with the general sensor also
+        ``grid_dc_realised``), each of shape ``(len(a2), len(R), runs)``; ``axis`` (``"a2"``
+        or ``"a4"``); ``table``, the columns of ``sweep.csv`` (mean errors per grid point
+        against the realised, empirical and expected drift); ``seconds``, the wall time of
+        the runs.
 
     Raises
     ------
@@ -586,8 +593,9 @@ def experiment_adxl203(out: Optional[PathLike] = None, *,
                        **settings: Any) -> Dict[str, Any]:
     """The letter's Sec. IV (Figs. 4-5) on the ADXL203 stand-in, through the FMUs.
 
-    Per drive frequency, ``sets`` recordings are co-simulated; one 2nd-order model is fitted
-    on all but the last ``held_out`` sets, and EKF1 runs on those.
+    Per drive frequency, ``sets`` recordings are co-simulated; one model (2nd order, the
+    letter's, or with ``order`` 3 or 4 also ``a3``, ``a4``) is fitted on all but the last
+    ``held_out`` sets, and EKF1 runs with it on those.
 
     Parameters
     ----------
@@ -599,15 +607,16 @@ def experiment_adxl203(out: Optional[PathLike] = None, *,
     **settings
         ``freqs`` (Hz, default 100..200 by 25), ``sets`` (30), ``held_out`` (``sets // 6``),
         ``n`` (60,000 samples per set), ``Ts``, ``seed``, ``workers``, ``backend``,
-        ``fmu_dir``.  The full size takes minutes; ``sets=6, n=6000`` about ten seconds.
-        The fitted model is of 2nd order (the letter's); :func:`identify` fits order 3 or 4.
+        ``fmu_dir`` and ``order`` (2, 3 or 4: the order of the model fitted and run by the
+        filter; the stand-in has a cubic term).  The full size takes minutes; ``sets=6,
+        n=6000`` about ten seconds.
 
     Returns
     -------
     dict
         The summary: ``"per_frequency"`` holds each frequency's fitted model, drift, rms
-        difference of EKF1 and the margin in dB; ``"claim_holds"``, ``"timing"``,
-        ``"wall_time_s"``.
+        difference of EKF1 and the margin in dB; ``"settings"`` (with ``"order"``),
+        ``"claim_holds"``, ``"timing"``, ``"wall_time_s"``.
 
     Raises
     ------

@@ -202,7 +202,9 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
 
     The seeds (and the sinusoid's ``X``, ``phi``, ``Xy``, ``phiy``) may be arrays of shape
     ``(runs,)``: every column is then an array ``(runs, n)``; otherwise lists of floats.
-    Returns the columns ``time, x, y, z, z_y, x_hat, P, dc_ekf1, dc_ekf2, dc_ekf3, z_comp``.
+    The filter's model may hold ``a3``, ``a4`` (the DriftEstimator's; 0 by default, the
+    letter's quadratic model, same bits).  Returns the columns ``time, x, y, z, z_y, x_hat, P,
+    dc_ekf1, dc_ekf2, dc_ekf3, z_comp``.
     """
     from . import drift, harmonic
     ex = dict(kind=excitation.GAUSSIAN, A=0.0, Q=0.01, x0=0.0, X=1.0, f=150.0, phi=0.0,
@@ -210,7 +212,8 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
     ex.update(excitation_values)
     sp = sensor_parameters(**sensor_values)
     es = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=0.01, estimator=1,
-              process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default)
+              process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default,
+              a3=0.0, a4=0.0)
     es.update(estimator_values)
     cfg = config(Ts=Ts, **{k: v for k, v in sp.items() if k != "Ts"})
     C, S = harmonic.rotation(es["f"], Ts)
@@ -234,8 +237,9 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
         if sp["axes"] == 2:
             vy = noise(sp["seed"], k, 2) if sp["noise"] else 0.0
             lpy, zy = measure(lpy, y, x, vy, cfg)
-        state = harmonic.estimator_step(state, z, es["a0"], es["a1"], es["a2"], es["R"], **model)
-        dcs = drift.estimates(state.drift, es["a2"])
+        state = harmonic.estimator_step(state, z, es["a0"], es["a1"], es["a2"], es["R"],
+                                        a3=es["a3"], a4=es["a4"], **model)
+        dcs = drift.estimates(state.drift, es["a2"], es["a3"], es["a4"])
         dc = drift.select(dcs, es["estimator"])
         row = ((k - 1) * Ts, x, y, z, zy, state.x, state.P, dcs[0], dcs[1], dcs[2], z - dc)
         for c, value in zip(names, row):
