@@ -25,19 +25,23 @@ COMMANDS = [
     (["run", "sinusoidal", "--n", "9", "--f", "50", "--preset", "adxl203", "--out", "{tmp}/o"],
      "run_sinusoidal", {"out": "{tmp}/o", "n": 9, "parameters": {"f": 50.0,
                                                                  "preset": "adxl203"}}),
-    (["montecarlo", "gaussian", "--runs", "3", "--n", "5", "--summary-only", "--out", "{tmp}/o"],
+    (["montecarlo", "gaussian", "--runs", "3", "--n", "5", "--summary-only", "--a3", "0.002",
+      "--out", "{tmp}/o"],
      "montecarlo", {"kind": "gaussian", "runs": 3, "n": 5, "out": "{tmp}/o",
-                    "parameters": {"summary_only": True}}),
+                    "parameters": {"summary_only": True, "a3": 0.002}}),
     (["montecarlo", "sinusoidal", "--runs", "2", "--n", "5", "--f", "40", "--engine", "fmu",
       "--out", "{tmp}/o"], "montecarlo",
      {"kind": "sinusoidal", "runs": 2, "engine": "fmu", "parameters": {"f": 40.0}}),
     (["sweep", "--a2", "0.01", "0.02", "--R", "1e-4", "--runs", "2", "--n", "5",
       "--out", "{tmp}/o"], "sweep",
      {"a2": [0.01, 0.02], "R": [1e-4], "runs": 2, "n": 5, "out": "{tmp}/o"}),
+    (["sweep", "--a4", "0.001", "0.002", "--R", "1e-4", "--runs", "2", "--n", "5",
+      "--out", "{tmp}/o"], "sweep",
+     {"a2": [0.01], "parameters": {"a4": [0.001, 0.002]}}),
     (["experiment", "adxl203", "--sets", "4", "--n", "600", "--freqs", "100,150",
-      "--out", "{tmp}/o"], "experiment_adxl203",
+      "--order", "3", "--out", "{tmp}/o"], "experiment_adxl203",
      {"out": "{tmp}/o", "settings": {"sets": 4, "held_out": 1, "n": 600,
-                                     "freqs": [100.0, 150.0]}}),
+                                     "freqs": [100.0, 150.0], "order": 3}}),
     (["experiment", "dual-axis", "--points", "2", "--runs", "1", "--out", "{tmp}/o"],
      "experiment_dual_axis", {"out": "{tmp}/o", "settings": {"points": 2, "runs": 1}}),
     (["identify", "{tmp}/a.csv", "{tmp}/b.csv", "--f", "50", "--held-out", "1", "--order", "3",
@@ -58,8 +62,8 @@ def _fill(value, tmp):
 
 
 @pytest.mark.parametrize("argv,name,expected", COMMANDS,
-                         ids=["%s-%s" % (c[0][0], c[0][1]) if not c[0][1].startswith("-")
-                              else c[0][0] for c in COMMANDS])
+                         ids=["-".join(w.lstrip("-") for w in c[0][:3] if w[-1].isalpha())
+                              for c in COMMANDS])
 def test_each_command_calls_its_api_function(argv, name, expected, tmp_path, monkeypatch,
                                              capsys):
     real = getattr(driftfmu, name)
