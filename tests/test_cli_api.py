@@ -62,7 +62,7 @@ def _fill(value, tmp):
 
 
 @pytest.mark.parametrize("argv,name,expected", COMMANDS,
-                         ids=["-".join(w.lstrip("-") for w in c[0][:3] if w[-1].isalpha())
+                         ids=["-".join(w.lstrip("-") for w in c[0][:3] if w[0].isalpha())
                               for c in COMMANDS])
 def test_each_command_calls_its_api_function(argv, name, expected, tmp_path, monkeypatch,
                                              capsys):
