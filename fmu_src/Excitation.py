@@ -1,4 +1,6 @@
-"""Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; when Gaussian a
 second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0); the
 known input u_k (drive: Gaussian N(0, Qu) or Xu sin(2 pi fu t), or from the host through the

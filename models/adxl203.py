@@ -1,4 +1,6 @@
-"""A richer accelerometer that can play the ADXL203, and the chain around it.
+"""Internal (not a stable API; use driftfmu.experiment_adxl203 instead).
+
+A richer accelerometer that can play the ADXL203, and the chain around it.
 
 Every extra effect is off by default, and then the output is the letter's sensor,
 ``z = a0 + a1 x + a2 x^2 + sqrt(R) v`` (:func:`driftfmu.models.sensor.measure`, same bits).  Switched on:

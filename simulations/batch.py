@@ -1,4 +1,6 @@
-"""Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
+"""Internal (not a stable API; use driftfmu.montecarlo or driftfmu.sweep instead).
+
+Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
 
 Runs sit on the leading axis of NumPy arrays.  Sample ``k`` of every run is computed by calling
 :mod:`driftfmu.models.excitation`, :mod:`driftfmu.models.sensor`, :mod:`driftfmu.models.chain` (EKF and drift estimators)
