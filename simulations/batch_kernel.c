@@ -201,7 +201,7 @@ enum { E_KIND, E_A, E_Q, E_X0, E_X, E_F, E_PHI, E_XY, E_PHIY, E_SEED, N_EXCITATI
 enum { S_A0, S_A1, S_A2, S_R, S_A3, S_CROSS, S_FC, S_VS, S_BITS, S_DENSITY, S_SEED, S_NOISE,
        S_AXES, N_SENSOR };
 enum { D_A0, D_A1, D_A2, D_A, D_Q, D_R, D_X0, D_P0, D_ESTIMATOR, D_PROCESS, D_F, D_QH,
-       N_ESTIMATOR };
+       D_A3, D_A4, N_ESTIMATOR };
 /* Its columns, in this order (each n values; NULL: not wanted). */
 enum { C_TIME, C_X, C_Y, C_Z, C_ZY, C_XHAT, C_P, C_DC1, C_DC2, C_DC3, C_ZCOMP, N_COLUMNS };
 
@@ -214,6 +214,8 @@ int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
     const int64_t sp_seed = (int64_t)sp[S_SEED], estimator = (int64_t)es[D_ESTIMATOR],
                   process = (int64_t)es[D_PROCESS];
     const int noise_on = sp[S_NOISE] != 0.0, axes = (int)sp[S_AXES];
+    /* the filter's model with the identified 3rd/4th-order terms (the DriftEstimator's a3, a4) */
+    const int higher = es[D_A3] != 0.0 || es[D_A4] != 0.0;
     Config cfg = adxl203_config(sp[S_A0], sp[S_A1], sp[S_A2], sp[S_R], sp[S_A3], sp[S_CROSS],
                                 sp[S_FC], sp[S_VS], (int64_t)sp[S_BITS], sp[S_DENSITY], Ts);
     double C, S, x = ex[E_X0], y, zy = 0.0, lp = 0.0, lpy = 0.0;
@@ -239,9 +241,17 @@ int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
             vy = noise_on ? adxl203_noise(sp_seed, k, 2) : 0.0;
             adxl203_measure(lpy_set, lpy, y, x, vy, &cfg, &lpy_set, &lpy, &zy);
         }
-        state = harmonic_estimator_step(state, z, es[D_A0], es[D_A1], es[D_A2], es[D_R],
-                                        process, es[D_A], es[D_Q], C, S, es[D_QH]);
-        drift_estimates(state.drift, es[D_A2], &dcs[0], &dcs[1], &dcs[2]);
+        if (higher) {
+            state = harmonic_estimator_step_general(state, z, es[D_A0], es[D_A1], es[D_A2],
+                                                    es[D_R], process, es[D_A], es[D_Q], C, S,
+                                                    es[D_QH], es[D_A3], es[D_A4], 0.0, 0.0);
+            drift_estimates_general(state.drift, es[D_A2], es[D_A3], es[D_A4], &dcs[0],
+                                    &dcs[1], &dcs[2]);
+        } else {
+            state = harmonic_estimator_step(state, z, es[D_A0], es[D_A1], es[D_A2], es[D_R],
+                                            process, es[D_A], es[D_Q], C, S, es[D_QH]);
+            drift_estimates(state.drift, es[D_A2], &dcs[0], &dcs[1], &dcs[2]);
+        }
         dc = drift_select(dcs, estimator);
         row[C_TIME] = (double)(k - 1) * Ts;
         row[C_X] = x;

@@ -1,4 +1,6 @@
-"""The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
+"""Internal (not a stable API; use driftfmu.montecarlo or driftfmu.sweep instead).
+
+The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
 
 ``batch_kernel.c`` (next to this file) writes the chains of
 :func:`driftfmu.simulations.batch.simulate`, :func:`driftfmu.models.adxl203.simulate` and
@@ -39,7 +41,8 @@ STATE_FIELDS = 5 + 9
 EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
 SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",
           "axes")
-ESTIMATOR = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "estimator", "process", "f", "Qh")
+ESTIMATOR = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "estimator", "process", "f", "Qh",
+             "a3", "a4")
 COLUMNS = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
            "z_comp")
 #: models.dualaxis.simulate's start values and the single-axis estimators', in the kernel's
@@ -218,7 +221,8 @@ def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values,
     ex.update(excitation_values)
     sp = adxl203.sensor_parameters(**sensor_values)
     es = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=0.01, estimator=1,
-              process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default)
+              process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default,
+              a3=0.0, a4=0.0)
     es.update(estimator_values)
     vectors = [np.array([float(d[k]) for k in names])
                for d, names in ((ex, EXCITATION), (sp, SENSOR), (es, ESTIMATOR))]
