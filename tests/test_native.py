@@ -406,7 +406,7 @@ def every_output(fmus):
 
 
 @pytest.mark.parametrize("version", VERSIONS)
-def test_aarch64_linux_binaries_under_qemu_give_the_python_fmus_bits(native_fmus,
+def test_aarch64_linux_binaries_under_qemu_give_the_python_fmus_bits(native_fmus_all,
                                                                       python_results, hosts,
                                                                       version, tmp_path):
     """The C host cross-compiled for aarch64 (zig) runs the aarch64 Linux binaries under
@@ -418,7 +418,7 @@ def test_aarch64_linux_binaries_under_qemu_give_the_python_fmus_bits(native_fmus
     if hosts["aarch64"] is None:
         why = "zig, qemu-user or libc6-arm64-cross is not installed (.ci/run installs them)"
         (pytest.fail if os.environ.get("DRIFTFMU_REQUIRE_PLATFORMS") else pytest.skip)(why)
-    fmus = chain_of(native_fmus[version])
+    fmus = chain_of(native_fmus_all[version])  # with the cross-built binaries
     if version == 2:
         arm = fmus["Excitation"].parent.parent / native_build.FMI2_ARM
         fmus = {n: arm / p.name for n, p in fmus.items()}
