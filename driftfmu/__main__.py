@@ -1,7 +1,5 @@
 """``python -m driftfmu``: the ``driftfmu`` command."""
-import sys
-
-from driftfmu.simulations.cli import main
+from driftfmu.simulations.cli import run_program
 
 if __name__ == "__main__":
-    sys.exit(main())
+    run_program()

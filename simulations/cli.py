@@ -521,5 +521,26 @@ def _main(argv, previous):
     return 0
 
 
+def run_program():
+    """``driftfmu`` as a program (``python -m driftfmu``): run :func:`main` and end the process
+    with its status.
+
+    An interrupted command ends here, after the exit handlers, with ``os._exit``.  Through
+    ``sys.exit`` it could end killed by SIGINT instead of with status 130: when Ctrl-C lands in
+    code that runs from a string (``exec``/``eval``, as ``dataclasses`` and ``namedtuple`` do
+    while a module is imported), CPython notes the KeyboardInterrupt as unhandled even though
+    it was caught, and ``python -m`` then re-raises SIGINT at its exit whatever status is given.
+    """
+    status = main()
+    if status == EXIT_INTERRUPTED:
+        import atexit
+        atexit._run_exitfuncs()  # noqa: SLF001 (what the interpreter's exit would run)
+        for stream in (sys.stdout, sys.stderr):
+            with contextlib.suppress(Exception):
+                stream.flush()
+        os._exit(status)
+    sys.exit(status)
+
+
 if __name__ == "__main__":
-    sys.exit(main())
+    run_program()

@@ -291,6 +291,25 @@ def test_ctrl_c_early_is_one_line_and_130(tmp_path, after):
     assert not (tmp_path / "res").exists()
 
 
+def test_ctrl_c_inside_code_run_from_a_string_still_exits_130(tmp_path):
+    # A Ctrl-C that lands in code run by exec/eval of a string (dataclasses and namedtuple
+    # build their methods so while a module is imported) makes CPython end `python -m` by
+    # re-raising SIGINT at exit (returncode -2), unless the program ends itself with its status
+    (tmp_path / "interrupted_in_exec.py").write_text(
+        "from driftfmu.simulations import cli\n"
+        "def make_parser():\n"
+        "    p = cli._Parser(prog='driftfmu')\n"
+        "    p.set_defaults(func=lambda args: exec('raise KeyboardInterrupt'))\n"
+        "    return p\n"
+        "cli.make_parser = make_parser\n"
+        "cli.run_program()\n")
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(tmp_path), str(ROOT)]))
+    p = subprocess.run([sys.executable, "-m", "interrupted_in_exec"], cwd=tmp_path, env=env,
+                       capture_output=True, text=True, timeout=120)
+    assert p.returncode == 130, (p.returncode, p.stderr)
+    assert "interrupted" in _one_error_line(p.stderr)
+
+
 @pytest.mark.integration
 def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path):
     # what `timeout` or `kill PID` do: SIGTERM to the main process, not to the group
