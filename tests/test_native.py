@@ -375,17 +375,30 @@ def test_random_parameters_and_non_whole_steps(built_fmus, native_fmus, case):
 
 # -- hosts without Python: the C host, wine, the rebuilt source FMU -----------------------------
 
+class _Hosts(dict):
+    """The C host for "linux", "windows" (mingw-w64, run under wine) and "aarch64" (zig, run
+    under qemu-user), each compiled when a test first asks for it (None without its tools)."""
+
+    def __init__(self, folder):
+        super().__init__()
+        self.folder = folder
+
+    def __missing__(self, kind):
+        if kind == "linux":
+            host = chain.compile_host(self.folder / "chain_host")
+        elif kind == "windows":
+            host = chain.compile_host(self.folder / "chain_host.exe", windows=True) \
+                if chain.have_windows_tools() else None
+        else:
+            host = chain.compile_host(self.folder / "chain_host_aarch64", aarch64=True) \
+                if chain.have_aarch64_tools() else None
+        self[kind] = host
+        return host
+
+
 @pytest.fixture(scope="module")
 def hosts(tmp_path_factory):
-    folder = tmp_path_factory.mktemp("hosts")
-    linux = chain.compile_host(folder / "chain_host")
-    windows = None
-    if chain.have_windows_tools():
-        windows = chain.compile_host(folder / "chain_host.exe", windows=True)
-    aarch64 = None
-    if chain.have_aarch64_tools():
-        aarch64 = chain.compile_host(folder / "chain_host_aarch64", aarch64=True)
-    return {"linux": linux, "windows": windows, "aarch64": aarch64}
+    return _Hosts(tmp_path_factory.mktemp("hosts"))
 
 
 def host_run(host, fmus, run, folder, windows=False, record=None, aarch64=False):
