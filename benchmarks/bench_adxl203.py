@@ -40,7 +40,7 @@ GOALS = {"native": 5.0, "python": 60.0}
 
 def baseline_run_set(task):
     """The experiment's worker as it was before the speed-up (same results, slower)."""
-    paths, f, seed, n, Ts, model, validate, backend = task
+    paths, f, seed, n, Ts, model, validate, backend, order = task
     t0 = time.perf_counter()
     cosimulate = master(backend)
     ex = dict(experiment.set_drive(seed, f), Ts=Ts)
@@ -52,7 +52,7 @@ def baseline_run_set(task):
                                                           "Accelerometer": ["z"]})
         t1 = time.perf_counter()
         fit = identify.fit_set(raw["time"], raw["Excitation.x"], raw["Accelerometer.z"], f,
-                               skip=adxl203.settling_samples(sp["fc"], Ts))
+                               skip=adxl203.settling_samples(sp["fc"], Ts), order=order)
         return {"fit": fit._asdict(), "seconds": {"simulation": t1 - t0,
                                                   "identification": time.perf_counter() - t1}}
     es = experiment.estimator_values(model, f, Ts)

@@ -574,6 +574,8 @@ def _build_one(name, fmi_version, out_dir, platforms, missing, log, cache=None):
         sources = work / "sources"
         c_files = stage_sources(name, fmi_version, sources)
         base = {"sources/" + p.name: p.read_bytes() for p in sorted(sources.iterdir())}
+        log("compiling %s (native C, FMI %d.0) for %s ..."
+            % (name, fmi_version, ", ".join(platforms)))
         built = _compile_all(name, fmi_version, sources, c_files, work, platforms, cache)
         if fmi_version == 2:
             base["modelDescription.xml"] = fmi2_model_description(slave, tok, c_files, log)
