@@ -1,4 +1,6 @@
-"""DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
 Gauss-Markov (the letter's scalar filter, with the known input B u of eq. 1) or a harmonic
 oscillator at a known frequency; the sensor's characteristic up to 4th order (a3, a4)."""
 

@@ -1,8 +1,11 @@
-"""Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; when Gaussian a
 second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0); the
-known input u_k (drive: Gaussian N(0, Qu) or Xu sin(2 pi fu t)) that enters the Gaussian x as
-B u_k (eq. 1) and that the DriftEstimator takes as its input u."""
+known input u_k (drive: Gaussian N(0, Qu) or Xu sin(2 pi fu t), or from the host through the
+input u_in when drive = 0) that enters the Gaussian x as B u_k (eq. 1) and that the
+DriftEstimator takes as its input u."""
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
 from driftfmu.models import excitation
@@ -31,7 +34,8 @@ class Excitation(SlaveBase):
         var("Qy", "parameter"),
         var("rho", "parameter"),
         var("B", "parameter"),
-        var("drive", "parameter", description="known input u_k: 0 none (u = 0), 1 Gaussian "
+        var("drive", "parameter", description="known input u_k: 0 from the host (the input "
+            "u_in; 0 unless set), 1 Gaussian "
             "white N(0, Qu), 2 sinusoid Xu sin(2 pi fu t)"),
         var("Qu", "parameter"),
         var("Xu", "parameter"),
@@ -39,7 +43,12 @@ class Excitation(SlaveBase):
         var("u", "output", start=0.0, unit="g",
             description="known input u_k (drive), which drives x by B u_k when Gaussian; "
                         "connect it to the DriftEstimator's u"),
+        var("u_in", "input", start=0.0, unit="g",
+            description="known input u_k from the host (a shaker's drive, a commanded "
+                        "motion), used when drive = 0; held between communication points"),
     )
+    #: x (through B u_k) and u follow the host's u_in at the same communication point.
+    DEPENDENCIES = {"x": ["u_in"], "u": ["u_in"]}
     DESCRIPTION = ("True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + w_k, w_k ~ N(0, Q), "
                    "or X sin(2 pi f t + phi); second axis y_k = Xy sin(2 pi f t_k + phiy), or "
                    "Gauss-Markov y_k = A y_{k-1} + w_y,k with corr(w_x, w_y) = rho when Qy > 0")
@@ -56,6 +65,8 @@ class Excitation(SlaveBase):
         return problems
 
     def _u(self, k):
+        if self.drive == excitation.DRIVE_OFF:  # from the host (0 unless it sets u_in)
+            return self.u_in
         return excitation.input_sample(self.drive, self.seed, k, self.Qu, self.Xu, self.fu,
                                        self.Ts)
 

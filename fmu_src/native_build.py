@@ -1,4 +1,6 @@
-"""Build the native (C) twins of the three FMUs, FMI 2.0 and FMI 3.0, from the slaves' tables.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Build the native (C) twins of the three FMUs, FMI 2.0 and FMI 3.0, from the slaves' tables.
 
 One source of truth: the slave classes' ``VARIABLES`` and ``DEPENDENCIES`` (fmu_src/<Name>.py),
 the same tables pythonfmu registers for the Python FMUs.  For each model and FMI version this

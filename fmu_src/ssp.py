@@ -1,10 +1,13 @@
-"""The wired chain Excitation -> Accelerometer -> DriftEstimator as an SSP 1.0 archive.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+The wired chain Excitation -> Accelerometer -> DriftEstimator as an SSP 1.0 archive.
 
 ``DriftChain.ssp`` holds ``SystemStructure.ssd`` and the three FMUs under ``resources/``.  The
 SSD declares each FMU's outputs, its connected inputs and its bound parameters as connectors
 (unconnected inputs keep their start values and get no connector), the two
 connections of the master (``Excitation.x -> Accelerometer.x``, ``Accelerometer.z ->
-DriftEstimator.z``), the start values of the letter's Gaussian run as an inline parameter set
+DriftEstimator.z``) and, when the DriftEstimator's ``B != 0``, the known input's
+``Excitation.u -> DriftEstimator.u`` (eq. 1, :func:`connections`), the start values of the letter's Gaussian run as an inline parameter set
 on each component (SSV 1.0), and the default experiment (``stopTime = (n - 1) Ts``).  SSP has no
 standard element for the communication step: use ``Ts`` (the ``description`` of the system
 says so).
@@ -41,7 +44,8 @@ import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
 
-from driftfmu.models import chain, drift, sensor
+from driftfmu.models import chain, drift, excitation, sensor
+from driftfmu.simulations.gaussian import GENERAL_OFF, INPUT_CONNECTION
 from driftfmu.simulations.gaussian import start_values as chain_start_values
 
 NS = {
@@ -54,6 +58,16 @@ FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Accelerometer", "z", "DriftEstimator", "z"))
 DRIFT_OUTPUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp")
+
+
+
+def connections(start_values):
+    """The archive's connections: :data:`CONNECTIONS`, and the known input's
+    (``Excitation.u -> DriftEstimator.u``) when ``start_values`` give the DriftEstimator a
+    ``B != 0``."""
+    B = start_values.get("DriftEstimator", {}).get("B", 0.0)
+    return CONNECTIONS + ((INPUT_CONNECTION,) if B != 0.0 else ())
+
 
 for _prefix, _uri in NS.items():
     ET.register_namespace(_prefix, _uri)
@@ -74,6 +88,8 @@ def system_structure(fmus, start_values, n, Ts):
         "description": "Excitation -> Accelerometer -> DriftEstimator (Chorti et al. 2006), "
                        "fixed communication step Ts = %r s" % Ts})
     elements = ET.SubElement(system, _q("ssd", "Elements"))
+    wiring = connections(start_values)
+    wired = {(d, i) for _, _, d, i in wiring}
     for name in FMU_NAMES:
         md = read_model_description(str(fmus[name]))
         types = {v.name: v.type for v in md.modelVariables}
@@ -82,7 +98,6 @@ def system_structure(fmus, start_values, n, Ts):
             "name": name, "type": "application/x-fmu-sharedlibrary",
             "source": "resources/%s.fmu" % name})
         connectors = ET.SubElement(comp, _q("ssd", "Connectors"))
-        wired = {(d, i) for _, _, d, i in CONNECTIONS}
         for v in md.modelVariables:
             # an input no connection feeds gets no connector: fmpy (0.3.32) would wire it to
             # the source of the previous input (get_connections keeps a stale start path)
@@ -101,7 +116,7 @@ def system_structure(fmus, start_values, n, Ts):
                 text = str(int(value)) if types[var] == "Integer" else repr(float(value))
                 ET.SubElement(p, _q("ssv", types[var]), {"value": text})
     conns = ET.SubElement(system, _q("ssd", "Connections"))
-    for s, o, d, i in CONNECTIONS:
+    for s, o, d, i in wiring:
         ET.SubElement(conns, _q("ssd", "Connection"), {
             "startElement": s, "startConnector": o, "endElement": d, "endConnector": i})
     ET.SubElement(root, _q("ssd", "DefaultExperiment"),
@@ -173,7 +188,7 @@ def simulate(ssp, n, Ts=1e-3):
 
 
 def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,
-                     x0=0.0, P0=None, estimator=1, initial="zero"):
+                     x0=0.0, P0=None, estimator=1, initial="zero", **general):
     """What a Jacobi master such as fmpy's ``simulate_ssp`` shows for the chain, from models/.
 
     Returns ``{"time", "<Component>.<connector>": list}`` for the rows ``i = 0 .. n-1`` (see
@@ -185,20 +200,34 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
     connectors start at 0) or ``"outputs"`` (libcosim: the outputs read after initialisation
     are copied along the connections, ``x_1`` and the Accelerometer's ``z`` of ``x_1``, which
     libcosim's initialisation passed along in Initialization Mode).
+
+    ``general``: the general model's ``a3, a4, B, drive, Qu, Xu, fu`` (as
+    :func:`chain_start_values`); with ``B != 0`` the known input ``u`` is a connection too,
+    delayed like the others (the columns ``Excitation.u`` and ``DriftEstimator.u``).
     """
+    unknown = set(general) - set(GENERAL_OFF)
+    if unknown:
+        raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
+    g = dict(GENERAL_OFF, **general)
+    a3, a4, B = g["a3"], g["a4"], g["B"]
     if P0 is None:
         P0 = Q / (1.0 - A * A)
     xs = chain.simulate(n + 1, seed, a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0, P0=P0,
-                        Ts=Ts)["x"]          # x_1 .. x_{n+1}
+                        Ts=Ts, **general)["x"]  # x_1 .. x_{n+1}
+    us = [excitation.input_sample(g["drive"], seed, k, g["Qu"], g["Xu"], g["fu"], Ts)
+          for k in range(1, n + 2)]          # u_1 .. u_{n+1}
+    wired = B != 0.0
     cols = {c: [] for c in ("time", "Excitation.x", "Accelerometer.x", "Accelerometer.z",
                             "DriftEstimator.z") + tuple("DriftEstimator." + c
-                                                        for c in DRIFT_OUTPUTS)}
+                                                        for c in DRIFT_OUTPUTS)
+            + (("Excitation.u", "DriftEstimator.u") if wired else ())}
     if initial == "zero":
-        u_acc = u_est = 0.0                  # fmpy: the connectors start at 0
+        u_acc = u_est = u_in = 0.0           # fmpy: the connectors start at 0
     elif initial == "outputs":
         u_acc = xs[0]                        # x_1, and z of sample 1 from x_1: the outputs
         u_est = sensor.measure(u_acc, a0, a1, a2, R,  # read in Initialization Mode follow the
-                               sensor.measurement_noise(seed, 1))  # inputs set there
+                               sensor.measurement_noise(seed, 1), a3, a4)  # inputs set there
+        u_in = us[0] if wired else 0.0       # u_1
 
     else:
         raise ValueError("initial = %r is not allowed; allowed: 'zero' or 'outputs'"
@@ -207,13 +236,17 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
     t = 0.0
     for i in range(n):
         x = xs[i + 1]                        # x_{i+2}
-        z = sensor.measure(u_acc, a0, a1, a2, R, sensor.measurement_noise(seed, i + 2))
-        committed = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R)
-        shown = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R)
-        dcs = drift.estimates(shown.drift, a2)
+        z = sensor.measure(u_acc, a0, a1, a2, R, sensor.measurement_noise(seed, i + 2), a3, a4)
+        committed = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
+        shown = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
+        dcs = drift.estimates(shown.drift, a2, a3, a4)
         dc = drift.select(dcs, estimator)
         values = (shown.x, shown.P) + tuple(dcs) + (dc, chain.compensate(u_est, dc))
         u_acc, u_est = x, z                  # the connections, after every FMU has stepped
+        if wired:
+            cols["Excitation.u"].append(us[i + 1])      # u_{i+2}, beside x_{i+2}
+            cols["DriftEstimator.u"].append(us[i + 1])  # the input it holds from now on
+            u_in = us[i + 1]
         cols["time"].append(t)
         cols["Excitation.x"].append(x)
         cols["Accelerometer.x"].append(u_acc)

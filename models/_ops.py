@@ -1,4 +1,6 @@
-"""Elementwise helpers that work unchanged on a Python float and on a NumPy array.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Elementwise helpers that work unchanged on a Python float and on a NumPy array.
 
 The model functions in this package are written with plain arithmetic (``+ - * /``) and the
 helpers below, so one instance inside an FMU runs them on floats with the standard library only,

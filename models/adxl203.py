@@ -1,4 +1,6 @@
-"""A richer accelerometer that can play the ADXL203, and the chain around it.
+"""Internal (not a stable API; use driftfmu.experiment_adxl203 instead).
+
+A richer accelerometer that can play the ADXL203, and the chain around it.
 
 Every extra effect is off by default, and then the output is the letter's sensor,
 ``z = a0 + a1 x + a2 x^2 + sqrt(R) v`` (:func:`driftfmu.models.sensor.measure`, same bits).  Switched on:
@@ -203,19 +205,28 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
     The filter's model may hold ``a3``, ``a4`` (the DriftEstimator's; 0 by default, the
     letter's quadratic model, same bits).  Returns the columns ``time, x, y, z, z_y, x_hat, P,
     dc_ekf1, dc_ekf2, dc_ekf3, z_comp``.
+
+    The known input ``u_k`` (the Excitation's ``drive, Qu, Xu, fu``) drives a Gaussian ``x`` by
+    the Excitation's ``B``, and reaches the filter's prediction by the DriftEstimator's ``B``
+    (the master's connection ``Excitation.u -> DriftEstimator.u``); a sinusoidal ``x`` does not
+    move with it.  Both ``B = 0`` (the defaults) give the letter's chain, same bits.
     """
     from . import drift, harmonic
     ex = dict(kind=excitation.GAUSSIAN, A=0.0, Q=0.01, x0=0.0, X=1.0, f=150.0, phi=0.0,
-              Xy=0.0, phiy=0.0, seed=1)
+              Xy=0.0, phiy=0.0, seed=1, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0,
+              fu=0.0)
     ex.update(excitation_values)
     sp = sensor_parameters(**sensor_values)
     es = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=0.01, estimator=1,
               process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default,
-              a3=0.0, a4=0.0)
+              a3=0.0, a4=0.0, B=0.0)
     es.update(estimator_values)
     cfg = config(Ts=Ts, **{k: v for k, v in sp.items() if k != "Ts"})
     C, S = harmonic.rotation(es["f"], Ts)
-    model = dict(process=es["process"], A=es["A"], Q=es["Q"], C=C, S=S, Qh=es["Qh"])
+    model = dict(process=es["process"], A=es["A"], Q=es["Q"], C=C, S=S, Qh=es["Qh"],
+                 B=es["B"])
+    inputs = ex["drive"] != excitation.DRIVE_OFF
+    u = 0.0
     state = harmonic.estimator_init(es["process"], es["x0"], es["P0"])
     names = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
              "z_comp")
@@ -224,8 +235,11 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
     lp = lpy = None
     zy = 0.0
     for k in range(1, n + 1):
+        if inputs:
+            u = excitation.input_sample(ex["drive"], ex["seed"], k, ex["Qu"], ex["Xu"], ex["fu"],
+                                        Ts)
         if ex["kind"] == excitation.GAUSSIAN:
-            x = excitation.gaussian_sample(x, ex["A"], ex["Q"], ex["seed"], k)
+            x = excitation.gaussian_sample(x, ex["A"], ex["Q"], ex["seed"], k, ex["B"], u)
             y = 0.0
         else:
             x = excitation.sine(k, ex["X"], ex["f"], Ts, ex["phi"])
@@ -235,7 +249,7 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
         if sp["axes"] == 2:
             vy = noise(sp["seed"], k, 2) if sp["noise"] else 0.0
             lpy, zy = measure(lpy, y, x, vy, cfg)
-        state = harmonic.estimator_step(state, z, es["a0"], es["a1"], es["a2"], es["R"],
+        state = harmonic.estimator_step(state, z, es["a0"], es["a1"], es["a2"], es["R"], u=u,
                                         a3=es["a3"], a4=es["a4"], **model)
         dcs = drift.estimates(state.drift, es["a2"], es["a3"], es["a4"])
         dc = drift.select(dcs, es["estimator"])

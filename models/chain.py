@@ -1,4 +1,6 @@
-"""The whole measurement chain, excitation -> sensor -> EKF -> drift estimators.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+The whole measurement chain, excitation -> sensor -> EKF -> drift estimators.
 
 :func:`estimator_step` is what the DriftEstimator FMU runs on each sample; :func:`simulate` runs
 the chain sample by sample through the same functions as the three FMUs, on floats (one run, the

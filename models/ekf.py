@@ -1,4 +1,6 @@
-"""Scalar extended Kalman filter for the sensor model, in procedural form.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Scalar extended Kalman filter for the sensor model, in procedural form.
 
 .. math::
 

@@ -1,4 +1,6 @@
-"""Excitation: the true acceleration ``x_k`` that drives the sensor.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Excitation: the true acceleration ``x_k`` that drives the sensor.
 
 Sample ``k = 1, 2, ...`` sits at time ``t_k = t0 + (k - 1) Ts``.
 

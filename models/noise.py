@@ -1,4 +1,6 @@
-"""Counter-based Gaussian noise: a pure function of (seed, stream, sample index).
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Counter-based Gaussian noise: a pure function of (seed, stream, sample index).
 
 Sample ``k`` of stream ``s`` under seed ``seed`` is computed from those three integers alone, so
 the same noise comes out of one FMU instance stepping sample by sample, out of a batch of

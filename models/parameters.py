@@ -1,4 +1,6 @@
-"""Every model parameter once: paper name, default, allowed range, unit and meaning.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Every model parameter once: paper name, default, allowed range, unit and meaning.
 
 The FMUs take their start values, ``min``/``max`` and descriptions from here, the command line
 takes its options and checks from here, and :func:`check` words every range error the same way
@@ -81,8 +83,8 @@ PARAMETERS = {p.name: p for p in (
        "h(x) = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 (0: off); its drift is a4 E[x^4]"),
     _p("B", 0.0, unit="1", description="input gain B of x_k = A x_{k-1} + B u_k + w_k (0: no "
        "known input, the letter's case)"),
-    _p("drive", 0, 0, 2, description="known input u_k: 0 none (the value set on the input "
-       "u_in), 1 Gaussian white N(0, Qu), 2 sinusoid Xu sin(2 pi fu t)"),
+    _p("drive", 0, 0, 2, description="known input u_k: 0 from the host (the Excitation's "
+       "input u_in; 0 unless set), 1 Gaussian white N(0, Qu), 2 sinusoid Xu sin(2 pi fu t)"),
     _p("Qu", 0.0, 0.0, unit="g2", description="variance sigma_u^2 of the Gaussian known input"),
     _p("Xu", 0.0, 0.0, unit="g", description="amplitude of the sinusoidal known input"),
     _p("fu", 0.0, 0.0, unit="Hz", description="frequency of the sinusoidal known input"),

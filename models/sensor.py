@@ -1,4 +1,6 @@
-"""The weakly nonlinear sensor of the letter (eqs. 2 and 6), up to the 4th order (eqs. 3-5).
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+The weakly nonlinear sensor of the letter (eqs. 2 and 6), up to the 4th order (eqs. 3-5).
 
 .. math:: z_k = h(x_k) + v_k, \\qquad
           h(x) = a_0 + a_1 x + a_2 x^2 + a_3 x^3 + a_4 x^4, \\qquad v_k \\sim N(0, R)

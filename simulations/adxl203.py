@@ -1,4 +1,6 @@
-"""The letter's accelerometer experiment (Sec. IV, Figs. 4-5) on the ADXL203 stand-in.
+"""Internal (not a stable API; use driftfmu.experiment_adxl203 or driftfmu.identify instead).
+
+The letter's accelerometer experiment (Sec. IV, Figs. 4-5) on the ADXL203 stand-in.
 
 For each drive frequency, ``sets`` recordings of ``n`` samples are co-simulated with the FMUs:
 Excitation (sinusoid, per-set amplitude and phase; small transverse motion ``y``) ->
@@ -652,11 +654,14 @@ def add_cli(groups):
 
 
 def _cmd_experiment(args):
+    """``driftfmu experiment adxl203``: :func:`driftfmu.experiment_adxl203`."""
+    import driftfmu
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
     held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
     with cli.progress(total, "sets", "set") as update:
-        s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
+        s = driftfmu.experiment_adxl203(
+                        out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
                         workers=args.workers, progress=update, backend=args.backend,
                         order=args.order)
@@ -687,8 +692,10 @@ def timing_line(t):
 
 
 def _cmd_identify(args):
-    s = run_identify(args.files, args.f, held_out=args.held_out, out=args.out,
-                     order=args.order)
+    """``driftfmu identify``: :func:`driftfmu.identify`."""
+    import driftfmu
+    s = driftfmu.identify(args.files, args.f, held_out=args.held_out, out=args.out,
+                          order=args.order)
     m = s["model"]
     print("wrote %s/identify.json%s" % (args.out, ", identify.csv" if args.held_out else ""))
     print("model from %d set(s): a0 %.6g, a1 %.6g, a2 %.6g, R %.4g"

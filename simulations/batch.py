@@ -1,4 +1,6 @@
-"""Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
+"""Internal (not a stable API; use driftfmu.montecarlo or driftfmu.sweep instead).
+
+Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
 
 Runs sit on the leading axis of NumPy arrays.  Sample ``k`` of every run is computed by calling
 :mod:`driftfmu.models.excitation`, :mod:`driftfmu.models.sensor`, :mod:`driftfmu.models.chain` (EKF and drift estimators)
@@ -312,15 +314,22 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
     """One run co-simulated with the three FMUs (FMU seed ``seed``); same outputs as one row of
     :func:`simulate`: the :data:`FINALS` as floats and the recorded trajectories as arrays.
 
-    ``general``: the general model's ``a3, a4, B, drive, Qu, Xu, fu`` of a Gaussian run
-    (:func:`driftfmu.simulations.gaussian.run_gaussian`); the sinusoidal run has the letter's
-    sensor only.
-
     Gaussian runs go through :func:`driftfmu.simulations.gaussian.run_gaussian`, sinusoidal ones through
     :func:`driftfmu.simulations.sinusoidal.run_sinusoidal` with the Gauss-Markov filter; both also check
     the FMUs against models/.  ``backend`` picks the FMUs (``"python"`` or ``"native"``).
+    ``general``: the general model's ``a3, a4, B, drive, Qu, Xu, fu`` as in :func:`simulate`
+    (Gaussian runs; with ``B != 0`` the master wires ``Excitation.u -> DriftEstimator.u``).
     """
     from driftfmu.simulations import gaussian
+    unknown = set(general) - set(gaussian.GENERAL_OFF)
+    if unknown:
+        raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
+    on = sorted(k for k, v in general.items() if v != gaussian.GENERAL_OFF[k])
+    if on and kind != excitation.GAUSSIAN:
+        raise UsageError("the FMU engine runs %s with the Gaussian excitation only (its "
+                         "sinusoidal state has the letter's sensor); allowed with kind = %r: "
+                         "%s, or engine 'batch'" % (", ".join(on), kind, ", ".join(
+                             "%s = %r" % (k, gaussian.GENERAL_OFF[k]) for k in on)))
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
@@ -331,11 +340,6 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
         cols = gaussian.run_gaussian(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed,
                                      Ts=Ts, x0=x0, P0=P0, fmu_dir=fmu_dir, plot=False,
                                      backend=backend, **on)["columns"]
-    elif kind == excitation.SINUSOIDAL and on:
-        raise UsageError("the FMU engine runs the sinusoidal state with the letter's sensor "
-                         "only, not with %s; allowed: engine 'batch' for these, or %s = 0"
-                         % (", ".join("%s = %r" % kv for kv in sorted(on.items())),
-                            " = ".join(sorted(on))))
     elif kind == excitation.SINUSOIDAL:
         from driftfmu.simulations.sinusoidal import run_sinusoidal
         cols = run_sinusoidal(X=X, f=f, phi=phi, Ts=Ts, n=n, seed=seed, a0=a0, a1=a1, a2=a2,

@@ -1,4 +1,6 @@
-"""A fast fixed-step master: the loop of :func:`driftfmu.simulations.cosim.cosimulate` with the FMI
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+A fast fixed-step master: the loop of :func:`driftfmu.simulations.cosim.cosimulate` with the FMI
 functions called directly through ctypes on preallocated arrays, for FMI 2.0 and FMI 3.0.
 
 fmpy's ``FMU2Slave`` wrappers build argument arrays and check statuses in Python on every call

@@ -1,4 +1,6 @@
-"""The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
+"""Internal (not a stable API; use driftfmu.montecarlo or driftfmu.sweep instead).
+
+The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
 
 ``batch_kernel.c`` (next to this file) writes the chains of
 :func:`driftfmu.simulations.batch.simulate`, :func:`driftfmu.models.adxl203.simulate` and

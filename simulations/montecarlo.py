@@ -1,4 +1,6 @@
-"""Monte-Carlo populations of whole trajectories: the letter's Fig. 1 claims over many runs.
+"""Internal (not a stable API; use driftfmu.montecarlo instead).
+
+Monte-Carlo populations of whole trajectories: the letter's Fig. 1 claims over many runs.
 
 ``driftfmu montecarlo gaussian`` runs the Gaussian chain (Sec. III) ``runs`` times, run ``r`` with
 FMU seed ``seed + r``, and keeps every trajectory; ``driftfmu montecarlo sinusoidal`` does the
@@ -412,14 +414,18 @@ def add_summary_only(p):
                         "--n" % FIGURE_RUNS)
 
 
-def _with_bar(args, fn, **kw):
+def _with_bar(args, **kw):
+    """Both sub-commands: :func:`driftfmu.montecarlo` of kind ``args.experiment``."""
+    import driftfmu
     from driftfmu.simulations import budget, cli
     budget.check_montecarlo(args.experiment, args.runs, args.n, args.workers, args.out,
                             summary_only=args.summary_only)
     desc = "montecarlo (%s engine)" % args.engine
     with cli.progress(args.runs, desc, "run", monitor=False) as update:
-        return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
-                  a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
+        return driftfmu.montecarlo(
+                  args.experiment, runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts,
+                  a0=args.a0, a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q,
+                  engine=args.engine,
                   scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
                   out=args.out, progress=update, backend=args.backend,
                   summary_only=args.summary_only, **kw)
@@ -431,14 +437,13 @@ def _general(args, names):
 
 def cmd_gaussian(args):
     from driftfmu.simulations import cli
-    res = _with_bar(args, montecarlo_gaussian, P0=args.P0, **_general(args, cli.GENERAL))
+    res = _with_bar(args, P0=args.P0, **_general(args, cli.GENERAL))
     print_summary(res["summary"], ("realised", "empirical"))
     print("wrote %s/montecarlo.npz, summary.json, fig1.png" % args.out)
 
 
 def cmd_sinusoidal(args):
-    res = _with_bar(args, montecarlo_sinusoidal, X=args.X, f=args.f,
-                    **_general(args, SINE_GENERAL))
+    res = _with_bar(args, X=args.X, f=args.f, **_general(args, SINE_GENERAL))
     print_summary(res["summary"], ("empirical", "realised"))
     print("wrote %s/montecarlo.npz, summary.json, sine.png" % args.out)
 

@@ -1,4 +1,6 @@
-"""Sinusoidal excitation (the letter's Sec. IV drive) as an FMU co-simulation.
+"""Internal (not a stable API; use driftfmu.run_sinusoidal instead).
+
+Sinusoidal excitation (the letter's Sec. IV drive) as an FMU co-simulation.
 
 Excitation (``x = X sin(2 pi f t + phi)``, and ``y`` for the second axis) -> Accelerometer ->
 DriftEstimator, fixed step ``Ts``, one row per sample.  The filter's process model is the letter's
@@ -23,18 +25,30 @@ from driftfmu.simulations.gaussian import TOLERANCE, ValidationError, compare, f
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Excitation", "y", "Accelerometer", "y"),
                ("Accelerometer", "z", "DriftEstimator", "z"))
+#: The known input u (eq. 1) from the Excitation to the filter's prediction, wired when B != 0.
+INPUT_CONNECTION = ("Excitation", "u", "DriftEstimator", "u")
+#: The known input's parameters and their off values (the letter's drive).
+INPUT_OFF = dict(B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0)
+
+
+def connections(B=0.0):
+    """The sinusoidal chain's connections; with the known input's (:data:`INPUT_CONNECTION`)
+    when the filter's ``B != 0``."""
+    return CONNECTIONS + ((INPUT_CONNECTION,) if B != 0.0 else ())
+
+
 RECORD = {"Excitation": ["x", "y"], "Accelerometer": ["z", "z_y"],
           "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
 FMU_COLUMNS = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
                "z_comp")
 
 
-def check_frequency(f, Ts):
-    """ValueError unless ``0 < f < 1 / (2 Ts)``."""
+def check_frequency(f, Ts, name="f"):
+    """ValueError unless ``0 < f < 1 / (2 Ts)`` (``name``: the parameter's name)."""
     nyquist = 0.5 / Ts
     if not 0.0 < f < nyquist:
-        raise UsageError("f = %r Hz is not allowed at Ts = %r s; allowed: 0 < f < 1/(2 Ts) = "
-                         "%r Hz (the Nyquist rate)" % (f, Ts, nyquist))
+        raise UsageError("%s = %r Hz is not allowed at Ts = %r s; allowed: 0 < %s < 1/(2 Ts) = "
+                         "%r Hz (the Nyquist rate)" % (name, f, Ts, name, nyquist))
 
 
 def expected_drift(a2, cross, X, Xy, phi, phiy):
@@ -72,7 +86,8 @@ def nominal_model(sensor_values, Ts):
 def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a0=0.0, a1=1.0,
                    a2=0.01, R=1e-4, process=harmonic.HARMONIC, Qh=None, A=0.0, Q=None, P0=None,
                    x0=0.0, estimator=1, preset=None, sensor=None, Xy=0.0, phiy=0.0,
-                   fmu_dir="build/fmus", progress=None, plot=True, backend="python"):
+                   fmu_dir="build/fmus", progress=None, plot=True, backend="python",
+                   **inputs):
     """Co-simulate the three FMUs under sinusoidal excitation; optionally write the results.
 
     Parameters
@@ -94,6 +109,13 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
         ``density``, ``axes``) over the preset.
     backend : str
         ``"python"`` (the pythonfmu FMUs) or ``"native"`` (their C twins, FMI 2.0).
+    inputs : optional
+        The known input ``u`` of eq. 1 (:data:`INPUT_OFF`): the Excitation's ``drive, Qu, Xu,
+        fu`` make ``u_k``, which does not move the sinusoid, and ``B != 0`` is the Gauss-Markov
+        filter's input gain, ``x-_k = A x+_{k-1} + B u_k``, with ``Excitation.u`` wired to
+        ``DriftEstimator.u`` (:func:`connections`).  E.g. a shaker's commanded motion
+        ``u = X sin(2 pi f t)`` (``drive = 2, Xu = X, fu = f``) with ``A = 0, B = 1``: the
+        filter predicts the commanded ``x`` and ``Q`` is the motion's deviation from it.
 
     Returns
     -------
@@ -107,6 +129,15 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     ValidationError
         An FMU output differs from models/ by more than ``TOLERANCE``; nothing is written.
     """
+    unknown = set(inputs) - set(INPUT_OFF)
+    if unknown:
+        raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
+    inputs = {k: v for k, v in inputs.items() if v != INPUT_OFF[k]}
+    B = inputs.get("B", 0.0)
+    if B != 0.0 and process != harmonic.GAUSS_MARKOV:
+        raise UsageError("B = %r is not allowed with process = %r (harmonic); allowed: B != 0 "
+                         "with process = %d (Gauss-Markov), whose prediction takes B u"
+                         % (B, process, harmonic.GAUSS_MARKOV))
     Qh = parameters.PARAMETERS["Qh"].default if Qh is None else Qh
     Q = X * X / 2.0 if Q is None else Q
     P0 = X * X / 2.0 if P0 is None else P0
@@ -119,22 +150,26 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     sp.update(sensor or {})
     sp.update(seed=seed, Ts=Ts, noise=1)
     params = dict(X=X, f=f, phi=phi, Xy=Xy, phiy=phiy, Ts=Ts, n=n, seed=seed, Qh=Qh, A=A, Q=Q,
-                  P0=P0, x0=x0, process=process)
+                  P0=P0, x0=x0, process=process, **inputs)
     problems = parameters.check(params) + adxl203.check(sp)
     if problems:
         raise UsageError("; ".join(problems))
     if estimator not in (1, 2, 3):
         raise UsageError("estimator = %r is not allowed; allowed: 1, 2 or 3" % (estimator,))
     check_frequency(f, Ts)
+    if inputs.get("drive") == excitation.SINUSOIDAL:
+        check_frequency(inputs.get("fu", 0.0), Ts, "fu")
     model = nominal_model(sp, Ts) if preset is not None else dict(a0=a0, a1=a1, a2=a2, R=R)
     start = {
         "Excitation": dict(kind=excitation.SINUSOIDAL, X=X, f=f, phi=phi, Xy=Xy, phiy=phiy,
-                           Ts=Ts, seed=seed),
+                           Ts=Ts, seed=seed,
+                           **{k: v for k, v in inputs.items() if k != "B"}),
         "Accelerometer": sp,
         "DriftEstimator": dict(model, process=process, f=f, Qh=Qh, A=A, Q=Q, x0=x0, P0=P0,
-                               Ts=Ts, estimator=estimator),
+                               Ts=Ts, estimator=estimator, **({"B": B} if B != 0.0 else {})),
     }
-    raw = master(backend)(fmu_paths(fmu_dir, backend), CONNECTIONS, n, Ts, start_values=start,
+    raw = master(backend)(fmu_paths(fmu_dir, backend), connections(B), n, Ts,
+                          start_values=start,
                           record=RECORD, progress=progress)
     cols = {"time": raw["time"]}
     for name, names in RECORD.items():
@@ -216,10 +251,12 @@ def add_cli(groups):
 
 
 def _cmd(args):
+    """``driftfmu run sinusoidal``: :func:`driftfmu.run_sinusoidal`."""
+    import driftfmu
     from driftfmu.simulations import budget, cli
     budget.check_run("sinusoidal", args.n, args.out, args.backend)
     with cli.progress(args.n, "co-simulation", "sample") as update:
-        res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
+        res = driftfmu.run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
                              P0=args.P0, estimator=args.estimator, preset=args.preset,

@@ -1,4 +1,6 @@
-"""The letter's Figs. 2 and 3: drift error over a grid of a2 and R, averaged over many runs.
+"""Internal (not a stable API; use driftfmu.sweep instead).
+
+The letter's Figs. 2 and 3: drift error over a grid of a2 and R, averaged over many runs.
 
 For every grid point ``(a2_i, R_j)`` and run ``r`` (FMU seed ``seed + r``, the same seeds at every
 grid point) the Gaussian chain runs ``n`` samples; the final-sample drift estimates of EKF1-3 are
@@ -360,6 +362,8 @@ GENERAL_CLI = ("a3", "B", "drive", "Qu", "Xu", "fu")
 
 
 def cmd_sweep(args):
+    """``driftfmu sweep``: :func:`driftfmu.sweep`."""
+    import driftfmu
     a2 = args.a2
     if a2 is None:
         a2 = list(DEFAULT_A2) if len(args.a4) == 1 else [parameters.PARAMETERS["a2"].default]
@@ -368,7 +372,7 @@ def cmd_sweep(args):
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine
     with cli.progress(total, desc, "run", monitor=False) as update:
-        res = sweep(a2=a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
+        res = driftfmu.sweep(a2=a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
                     runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, engine=args.engine,
                     scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
                     out=args.out, progress=update, a4=args.a4,

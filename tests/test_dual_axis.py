@@ -544,7 +544,7 @@ def test_new_parameters_are_appended_and_off_by_default():
     from driftfmu.fmu_src.Excitation import Excitation
     new = {Excitation: ("Qy", "rho"),
            Accelerometer: ("dual", "bx", "a0y", "a1y", "a2y", "by", "Ry")}
-    later = ("a4", "B", "drive", "Qu", "Xu", "fu", "u")  # appended after them (issue 16)
+    later = ("a4", "B", "drive", "Qu", "Xu", "fu", "u", "u_in")  # appended after them (issue 16)
     for cls, names in new.items():
         table = [s["name"] for s in cls.VARIABLES]
         while table[-1] in later:

@@ -22,7 +22,7 @@ INPUTS = {"gaussian": dict(drive=excitation.GAUSSIAN, Qu=0.3),
 
 
 def test_new_variables_are_appended_with_ranges_and_units():
-    tables = {Excitation: ("B", "drive", "Qu", "Xu", "fu", "u"), Accelerometer: ("a4",),
+    tables = {Excitation: ("B", "drive", "Qu", "Xu", "fu", "u", "u_in"), Accelerometer: ("a4",),
               DriftEstimator: ("a3", "a4", "B", "u")}
     for cls, names in tables.items():
         rows = {s["name"]: s for s in cls.VARIABLES}

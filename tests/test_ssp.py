@@ -115,3 +115,61 @@ def test_cli_build_writes_the_archive(tmp_path, monkeypatch, capsys):
     assert main(["build", "--out", "fmus", "--ssp", "chain.ssp"]) == 0
     assert (tmp_path / "chain.ssp").is_file()
     assert "SSP" in capsys.readouterr().out
+
+
+#: The general model with the known input (issue 16): B != 0 wires Excitation.u ->
+#: DriftEstimator.u in the archive.
+GENERAL = dict(a2=0.05, A=0.6, Q=0.05, R=1e-3, seed=3, a3=0.02, a4=0.03, B=0.8, drive=1, Qu=0.3)
+
+
+@pytest.fixture(scope="module")
+def general_archive(built_fmus, tmp_path_factory):
+    return ssp.build_ssp(built_fmus, tmp_path_factory.mktemp("ssp_u") / "DriftChain.ssp", n=N,
+                         start_values=ssp.chain_start_values(**GENERAL))
+
+
+def test_archive_with_B_has_the_input_connection_and_fmpy_gives_the_jacobi_reference(
+        general_archive, built_fmus, tmp_path, monkeypatch, report):
+    from fmpy.ssp.ssd import get_connections, read_ssd
+    ssd = read_ssd(str(general_archive))               # schema-valid
+    links = {(a.parent.name, a.name, b.parent.name, b.name)
+             for a, b in get_connections(ssd.system)}
+    assert links == set(ssp.CONNECTIONS) | {("Excitation", "u", "DriftEstimator", "u")}
+    res = ssp.simulate(general_archive, N)
+    ref = ssp.jacobi_reference(N, **GENERAL)
+    assert "DriftEstimator.u" in ref and any(v != 0.0 for v in ref["DriftEstimator.u"])
+    diffs = {c: _max_diff(res[c], ref[c]) for c in ref}
+    report("SSP fmpy.ssp simulate_ssp with B = 0.8 (Excitation.u -> DriftEstimator.u): %d "
+           "steps, max |diff| vs the Jacobi reference = %.3g" % (N, max(diffs.values())))
+    assert max(diffs.values()) == 0.0, diffs
+    # the same archive without the u connection: the filter predicts with u = 0
+    monkeypatch.setattr(ssp, "connections", lambda start_values: ssp.CONNECTIONS)
+    bare = ssp.build_ssp(built_fmus, tmp_path / "bare.ssp", n=N,
+                         start_values=ssp.chain_start_values(**GENERAL))
+    assert _max_diff(ssp.simulate(bare, N)["DriftEstimator.x_hat"],
+                     ref["DriftEstimator.x_hat"]) > 1e-3
+
+
+def test_archive_without_B_has_no_input_connection():
+    start = ssp.chain_start_values(**dict(GENERAL, B=0.0))
+    assert ssp.connections(start) == ssp.CONNECTIONS
+    assert ssp.connections(ssp.chain_start_values(**GENERAL))[-1] == \
+        ("Excitation", "u", "DriftEstimator", "u")
+    with pytest.raises(TypeError, match="Bu"):
+        ssp.jacobi_reference(5, Bu=1.0)
+
+
+def test_libcosim_runs_the_archive_with_the_input(general_archive, tmp_path, report):
+    try:
+        drivers.libcosim()
+    except drivers.ImporterMissing as exc:
+        pytest.skip(str(exc))
+    # outputs only: libcosim's observer shows an input before the connections copy into it
+    record = {"Excitation": ["x", "u"], "Accelerometer": ["z"],
+              "DriftEstimator": ssp.DRIFT_OUTPUTS}
+    cols = drivers.run_libcosim_ssp(general_archive, tmp_path, N, 1e-3, record)
+    ref = ssp.jacobi_reference(N, initial="outputs", **GENERAL)
+    diffs = {c: _max_diff(v, ref[c]) for c, v in cols.items()}
+    report("SSP libcosim with B = 0.8 (Excitation.u -> DriftEstimator.u): %d steps, max |diff| "
+           "vs the Jacobi reference = %.3g" % (N, max(diffs.values())))
+    assert max(diffs.values()) == 0.0, diffs

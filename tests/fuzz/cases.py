@@ -287,10 +287,15 @@ def sample_period_tiny(model, ctx):
 
 # -- values that overflow ---------------------------------------------------------------------
 
+#: Inputs that any finite value may take: the Excitation's u_in is passed to its output u (and
+#: into x by B u, B = 0 here), so a huge value is a valid input that the step accepts.
+PASS_THROUGH = {"Excitation": ("u_in",)}
+
+
 @case("step")
 def input_overflow(model, ctx):
     calls = []
-    for name in model.inputs:
+    for name in [n for n in model.inputs if n not in PASS_THROUGH.get(model.name, ())]:
         for value in ("1e200", "-1e300", "1.7976931348623157e308"):
             calls += [("setr %d 1 %d %s" % (ctx.slot, model.vr[name], value), None),
                       (_outputs(model, ctx.slot), None),

@@ -8,8 +8,8 @@
 #include <stdint.h>
 
 /* Excitation.HIDDEN (_x, _y: the excitation after the last sample processed, x0 and 0 before
- * sample 1) and the state after the pending sample (Python's _pending), computed when it became
- * pending. */
+ * sample 1) and the state after the pending sample (Python's _pending), computed by
+ * model_compute from the inputs set at its communication point (has_pending 0 until then). */
 typedef struct {
     double x, y;
     int32_t has_pending;
