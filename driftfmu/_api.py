@@ -194,7 +194,8 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
 
     The FMUs are stepped Gauss-Seidel in the order Excitation -> Accelerometer ->
     DriftEstimator -> DualDriftEstimator along :data:`CONNECTIONS` (no lag: row ``k`` holds
-    ``x_k``, its measurement ``z_k`` and the estimator's ``k``-th update).  Sample ``k`` of an
+    ``x_k``, its measurement ``z_k`` and the estimator's ``k``-th update; the Excitation's
+    known input ``u`` reaches the DriftEstimator, which uses it when ``B != 0``).  Sample ``k`` of an
     FMU sits at ``start_time + (k - 1) Ts``; any ``step_size > 0`` is allowed (several samples
     per step, or several steps per sample, with the inputs held between sample instants).
 
@@ -469,9 +470,12 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
         ``preset="adxl203"`` for the ADXL203 stand-in, ``sensor`` (a dict of further
         accelerometer parameters: ``a3``, ``cross``, ``fc``, ``Vs``, ``bits``, ``density``,
         ``axes``; the filter keeps its 2nd-order model), ``Xy, phiy`` for a second axis
-        (defaults: ``X = 1 g``, ``f = 150 Hz``, the letter's sensor).  The general model's
-        ``a4``, ``B`` and known input ``u`` are not parameters of this run (see
-        :func:`run_gaussian`).
+        (defaults: ``X = 1 g``, ``f = 150 Hz``, the letter's sensor).  The known input ``u``
+        of eq. 1, off by default: the Excitation's ``drive, Qu, Xu, fu`` make ``u_k`` (it
+        does not move the sinusoid) and ``B != 0`` (Gauss-Markov filter only, ``process=1``)
+        is the filter's input gain, ``x-_k = A x+_{k-1} + B u_k``, with the Excitation's
+        ``u`` wired to the DriftEstimator's; e.g. a shaker's commanded motion ``drive=2,
+        Xu=X, fu=f`` with ``A=0, B=1``.
 
     Returns
     -------

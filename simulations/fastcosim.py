@@ -241,7 +241,9 @@ def loop_library():
     try:
         if not os.path.exists(target):
             compiler = shlex.split(os.environ.get("CC", "cc"))
-            with tempfile.TemporaryDirectory(prefix="driftfmu_loop_") as work:
+            # registered where a worker told to stop (SIGTERM) removes it, as the FMUs' folders
+            work = new_extract_folder(prefix="driftfmu_loop_")
+            try:
                 source = os.path.join(work, "loop.c")
                 with open(source, "w") as fh:
                     fh.write(LOOP_SOURCE)
@@ -250,6 +252,8 @@ def loop_library():
                                check=True, capture_output=True)
                 shutil.move(partial, target + ".part%d" % os.getpid())
                 os.replace(target + ".part%d" % os.getpid(), target)
+            finally:
+                _remove(work)
         function = ctypes.CDLL(target).driftfmu_loop
         function.restype = c_int
         function.argtypes = [ctypes.c_long, ctypes.c_long, c_double, c_double, c_void_p,
