@@ -10,8 +10,10 @@ frequencies x 30 sets x 60,000 samples) against the way it ran before, in the sa
   Python), files and figures written.
 
 Both must give the same summary, bit for bit (checked here, times aside).  Prints where the time
-goes (from the summary's ``timing``) and the goals: at most 5 s (native FMUs), 60 s (Python
-FMUs).  Not a pytest test:
+goes (from the summary's ``timing``), the CPU seconds of this process and of the workers (CPU
+time grows much less with the load than wall time: CPU / cores is what the run needs of an
+idle machine), the start-up of the command (a new Python importing the CLI) and the goals: at
+most 5 s (native FMUs), 60 s (Python FMUs).  Not a pytest test:
 
     python benchmarks/bench_adxl203.py [--backend native|python] [--sets 30] [--n 60000]
                                        [--freqs 100,125,150,175,200] [--no-baseline]
@@ -20,6 +22,8 @@ import argparse
 import json
 import os
 import platform
+import resource
+import subprocess
 import sys
 import tempfile
 import time
@@ -36,7 +40,7 @@ GOALS = {"native": 5.0, "python": 60.0}
 
 def baseline_run_set(task):
     """The experiment's worker as it was before the speed-up (same results, slower)."""
-    paths, f, seed, n, Ts, model, validate, backend = task
+    paths, f, seed, n, Ts, model, validate, backend, order = task
     t0 = time.perf_counter()
     cosimulate = master(backend)
     ex = dict(experiment.set_drive(seed, f), Ts=Ts)
@@ -48,7 +52,7 @@ def baseline_run_set(task):
                                                           "Accelerometer": ["z"]})
         t1 = time.perf_counter()
         fit = identify.fit_set(raw["time"], raw["Excitation.x"], raw["Accelerometer.z"], f,
-                               skip=adxl203.settling_samples(sp["fc"], Ts))
+                               skip=adxl203.settling_samples(sp["fc"], Ts), order=order)
         return {"fit": fit._asdict(), "seconds": {"simulation": t1 - t0,
                                                   "identification": time.perf_counter() - t1}}
     es = experiment.estimator_values(model, f, Ts)
@@ -74,17 +78,27 @@ def baseline_run_set(task):
     return res
 
 
+def children_cpu():
+    """CPU seconds (user + system) of this process's finished child processes."""
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def run(args, worker):
-    """One experiment with ``worker`` as the set worker: (wall seconds, summary, JSON)."""
+    """One experiment with ``worker`` as the set worker: (wall seconds, summary, JSON, CPU
+    seconds {"parent", "workers"}); the workers are joined at its end, so their CPU time is
+    counted in this process's children's."""
     original = experiment._run_set
     experiment._run_set = worker  # workers are forked: they see this module as it is now
     try:
         with tempfile.TemporaryDirectory() as out:
+            c0, k0 = time.process_time(), children_cpu()
             t0 = time.perf_counter()
             s = experiment.run_adxl203(out=out, freqs=args.freqs, sets=args.sets,
                                        held_out=experiment.default_held_out(args.sets),
                                        n=args.n, fmu_dir=args.fmu_dir, backend=args.backend)
             wall = time.perf_counter() - t0
+            cpu = {"parent": time.process_time() - c0, "workers": children_cpu() - k0}
             with open(os.path.join(out, "adxl203.json")) as fh:
                 js = json.load(fh)
     finally:
@@ -92,7 +106,27 @@ def run(args, worker):
     for key in ("wall_time_s", "workers", "backend", "timing"):
         js.pop(key)
     js["validation"].pop("reference")
-    return wall, s, js
+    return wall, s, js, cpu
+
+
+def startup():
+    """Wall and CPU seconds of ``python -m driftfmu experiment adxl203 --help``: a new Python
+    importing and parsing the command line, what the command pays before its first set (the
+    median of three)."""
+    runs = []
+    for _ in range(3):
+        k0, t0 = children_cpu(), time.perf_counter()
+        subprocess.run([sys.executable, "-m", "driftfmu", "experiment", "adxl203", "--help"],
+                       check=True, stdout=subprocess.DEVNULL)
+        runs.append((time.perf_counter() - t0, children_cpu() - k0))
+    return sorted(runs)[1]
+
+
+def cpu_line(cpu, wall, workers):
+    total = cpu["parent"] + cpu["workers"]
+    return ("CPU: this process %.2f s, the workers %.2f s, together %.2f s: %.2f s on %d "
+            "cores of an idle machine (wall here %.2f s)"
+            % (cpu["parent"], cpu["workers"], total, total / workers, workers, wall))
 
 
 def main(argv=None):
@@ -109,7 +143,7 @@ def main(argv=None):
     from driftfmu.simulations import kernel
     kernel.library()
     load = os.getloadavg()
-    wall, s, now = run(args, experiment._run_set)
+    wall, s, now, used = run(args, experiment._run_set)
     print("machine: %s, %s, %d cores, Python %s; load average before %s"
           % (platform.machine(), cpu(), os.cpu_count() or 0, platform.python_version(),
              " ".join("%.2f" % v for v in load)))
@@ -120,12 +154,18 @@ def main(argv=None):
               "%.2f" % p["margin_db"] for p in s["per_frequency"]),
               s["validation"]["max_abs_diff"]))
     print("          " + experiment.timing_line(s["timing"]))
+    print("          " + cpu_line(used, wall, s["workers"]))
+    up_wall, up_cpu = startup()
+    print("start-up of the command (python -m driftfmu experiment adxl203 --help): %.2f s wall, "
+          "%.2f s CPU; the command: about %.2f s wall here"
+          % (up_wall, up_cpu, wall + up_wall))
     if not args.no_baseline:
-        old_wall, old, before = run(args, baseline_run_set)
+        old_wall, old, before, old_cpu = run(args, baseline_run_set)
         print("baseline: %.2f s wall (the worker of before: %s, pure-Python check)"
               % (old_wall, "fmpy's wrappers" if args.backend == "python"
                  else "fast master, FMUs loaded per set"))
         print("          " + experiment.timing_line(old["timing"]))
+        print("          " + cpu_line(old_cpu, old_wall, old["workers"]))
         print("baseline / now: %.1f x; summaries equal bit for bit (times aside): %s"
               % (old_wall / wall, now == before))
         if now != before:

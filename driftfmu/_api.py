@@ -52,37 +52,55 @@ def _quiet_log(line: str) -> None:
         warnings.warn(line, stacklevel=3)
 
 
-def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python", fmi_version: int = 2,
+def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
+               fmi_version: Union[int, Sequence[int]] = 2,
                names: Optional[Sequence[str]] = None,
-               log: Optional[Callable[[str], None]] = None) -> Dict[str, Path]:
+               log: Optional[Callable[[str], None]] = None, *,
+               cross_check: Optional[PathLike] = None,
+               ssp: Optional[PathLike] = None) -> Dict[str, Path]:
     """Build and validate the FMUs.
 
     Parameters
     ----------
     out_dir : str or pathlib.Path
         Folder of the Python FMUs (``<out_dir>/<Name>.fmu``); the native FMUs go to
-        ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where :func:`simulate` looks for them.
-        Created if missing; an FMU is moved into place only once it validates.
+        ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where :func:`simulate` looks for them
+        (and, with an ARM compiler, the FMI 2.0 FMUs for ARM to ``native/fmi2-aarch64/``).
+        Created if missing; an FMU is moved into place only once it validates, and a failed
+        build leaves no folder it created.
     backend : {"python", "native"}
         ``"python"``: pythonfmu FMUs (FMI 2.0, Linux x86-64; the model runs in the host's
-        CPython).  ``"native"``: the C twins, source FMUs with Linux and Windows binaries.
-    fmi_version : {2, 3}
-        FMI version of the native FMUs; the Python FMUs are FMI 2.0 only.
+        CPython).  ``"native"``: the C twins, source FMUs with a binary for every platform
+        whose compiler is installed (Linux, Windows, macOS; x86-64 and aarch64).
+    fmi_version : {2, 3} or sequence of them
+        FMI version of the native FMUs, or several (``(2, 3)``, as ``driftfmu build
+        --native``); the Python FMUs are FMI 2.0 only.
     names : sequence of str, optional
         Which FMUs (default: all four, :data:`FMU_NAMES`).
     log : callable, optional
-        Receives one progress line per FMU; by default progress is silent and build warnings
-        (e.g. no C compiler for the loader shim) become Python warnings.
+        Receives one progress line per FMU (and per cross-check folder and SSP archive); by
+        default progress is silent and build warnings (e.g. no C compiler for the loader
+        shim) become Python warnings.
+    cross_check : str or pathlib.Path, optional
+        Also write the FMI cross-check folders of the built FMUs there (FMU, input, reference
+        result, options, ReadMe; for native FMUs one folder per FMI version and platform), as
+        ``driftfmu build --cross-check``.
+    ssp : str or pathlib.Path, optional
+        Also write the wired chain Excitation -> Accelerometer -> DriftEstimator of the built
+        FMUs (FMI 2.0) as an SSP archive at this path (replaced if it exists), as ``driftfmu
+        build --ssp``.
 
     Returns
     -------
     dict of str to pathlib.Path
-        FMU name -> path of the built ``.fmu``.
+        FMU name -> path of the built ``.fmu``; with several ``fmi_version``, the key is the
+        FMU's path under ``native/``, e.g. ``"fmi3/Excitation"``.
 
     Raises
     ------
     ValueError
-        ``backend``, ``fmi_version`` or a name is not allowed (the message says what is).
+        ``backend``, ``fmi_version``, a name or an export is not allowed (the message says
+        what is).
     RuntimeError
         An FMU could not be built or does not validate.
 
@@ -93,19 +111,50 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python", fmi_ve
     >>> sorted(paths)                                                  # doctest: +SKIP
     ['Accelerometer', 'DriftEstimator', 'DualDriftEstimator', 'Excitation']
     """
+    from driftfmu.simulations.errors import UsageError
     _check_choice("backend", backend, BACKENDS)
-    _check_choice("fmi_version", fmi_version, (2,) if backend == "python" else (2, 3))
+    several = not isinstance(fmi_version, int)
+    versions = tuple(fmi_version) if several else (fmi_version,)
+    if not versions:
+        raise UsageError("fmi_version = () is not allowed; allowed: 2, 3 or a sequence of them")
+    for v in versions:
+        _check_choice("fmi_version", v, (2,) if backend == "python" else (2, 3))
     names = tuple(FMU_NAMES if names is None else names)
     for name in names:
         _check_choice("FMU name", name, FMU_NAMES)
+    if ssp is not None:
+        from driftfmu.fmu_src.ssp import FMU_NAMES as chain
+        if 2 not in versions or not set(chain) <= set(names):
+            raise UsageError("ssp needs the FMI 2.0 FMUs %s; allowed: names with them and "
+                             "fmi_version 2" % ", ".join(chain))
     log = _quiet_log if log is None else log
-    if backend == "python":
-        from driftfmu.fmu_src.builder import build_fmus as _build
-        return {Path(p).stem: Path(p) for p in _build(out_dir, names=names, log=log)}
-    from driftfmu.fmu_src.native_build import build_native_fmus
-    built = build_native_fmus(Path(out_dir) / "native", names=names, fmi_versions=(fmi_version,),
-                              log=log)
-    return {name: Path(p) for name, p in built[fmi_version].items()}
+    from driftfmu.simulations.output import removing_new_trees
+    trees = [out_dir, Path(out_dir) / "native" if backend == "native" else out_dir]
+    trees += [p for p in (cross_check, ssp is not None and Path(ssp).parent) if p]
+    # a failed or stopped build leaves no folder it created, half-filled or empty
+    with removing_new_trees(*trees):
+        if backend == "python":
+            from driftfmu.fmu_src import builder
+            built = {2: {Path(p).stem: Path(p)
+                         for p in builder.build_fmus(out_dir, names=names, log=log)}}
+        else:
+            from driftfmu.fmu_src import native_build
+            built = native_build.build_native_fmus(Path(out_dir) / "native", names=names,
+                                                   fmi_versions=versions, log=log)
+            built = {v: {n: Path(p) for n, p in built[v].items()} for v in built}
+        if cross_check is not None:
+            from driftfmu.fmu_src.crosscheck import write_cross_check
+            for v in sorted(built):
+                for d in write_cross_check(built[v], cross_check, fmi_version=v,
+                                           backend=backend):
+                    log("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
+        if ssp is not None:
+            from driftfmu.fmu_src.ssp import build_ssp
+            log("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
+                "Gaussian run)" % (build_ssp(built[2], ssp), backend))
+    if not several:
+        return built[versions[0]]
+    return {"fmi%d/%s" % (v, n): p for v in sorted(built) for n, p in built[v].items()}
 
 
 def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
@@ -145,7 +194,8 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
 
     The FMUs are stepped Gauss-Seidel in the order Excitation -> Accelerometer ->
     DriftEstimator -> DualDriftEstimator along :data:`CONNECTIONS` (no lag: row ``k`` holds
-    ``x_k``, its measurement ``z_k`` and the estimator's ``k``-th update).  Sample ``k`` of an
+    ``x_k``, its measurement ``z_k`` and the estimator's ``k``-th update; the Excitation's
+    known input ``u`` reaches the DriftEstimator, which uses it when ``B != 0``).  Sample ``k`` of an
     FMU sits at ``start_time + (k - 1) Ts``; any ``step_size > 0`` is allowed (several samples
     per step, or several steps per sample, with the inputs held between sample instants).
 
@@ -161,7 +211,10 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     start_values : dict of str to float, optional
         Parameter values by name.  A plain name (``"a2"``, ``"seed"``, ``"Ts"``) is set in
         every simulated FMU that has the variable; ``"Accelerometer.a2"`` sets it in one FMU.
-        Unset parameters keep the FMUs' defaults (the letter's settings).
+        Unset parameters keep the FMUs' defaults (the letter's settings).  The general sensor
+        (docs/method.md section 9) is set the same way: ``a3``, ``a4`` (Accelerometer and
+        DriftEstimator), ``B`` (Excitation and DriftEstimator) and the Excitation's known
+        input ``drive``, ``Qu``, ``Xu``, ``fu``; all off by default.
     input : numpy.ndarray, optional
         A structured array with a first field ``time`` and one field per input variable it
         drives (``"x"`` or ``"Accelerometer.x"``), like FMPy's ``input``.  At each
@@ -337,12 +390,15 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
 
 
 def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str = "python",
-                 fmu_dir: PathLike = "build/fmus", **parameters: float) -> Dict[str, Any]:
+                 fmu_dir: PathLike = "build/fmus",
+                 progress: Optional[Callable[[int], None]] = None,
+                 **parameters: float) -> Dict[str, Any]:
     """The letter's Sec. III simulation (Fig. 1): one Gaussian co-simulation, checked.
 
-    Excitation (Gauss-Markov ``x_k = A x_{k-1} + w_k``) -> Accelerometer
-    (``z = a0 + a1 x + a2 x^2 + v``) -> DriftEstimator, one row per sample; every FMU output
-    is checked against ``driftfmu.models`` run directly on the same seed.
+    Excitation (Gauss-Markov ``x_k = A x_{k-1} + B u_k + w_k``) -> Accelerometer
+    (``z = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 + v``) -> DriftEstimator, one row per sample;
+    every FMU output is checked against ``driftfmu.models`` run directly on the same seed.
+    With ``a3 = a4 = B = 0`` (the defaults) this is the letter's model and gives its bits.
 
     Parameters
     ----------
@@ -355,18 +411,28 @@ def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str 
         Which FMUs run (the same results bit for bit).
     fmu_dir : str or pathlib.Path
         Where the FMUs are; missing ones are built.
+    progress : callable, optional
+        Called as the run goes with the number of samples done so far (the ``driftfmu``
+        command draws its progress bar with it).
     **parameters : float
-        The letter's names: ``a0, a1, a2, A, Q, R, seed, Ts, x0, P0, estimator``
-        (defaults: the letter's settings, ``a1 = 1, a2 = 0.01, Q = 0.01, R = 1e-4, A = 0``,
-        seed 1).
+        The letter's names: ``a0, a1, a2, A, Q, R, seed, Ts, x0, P0`` (defaults: the letter's
+        settings ``a1 = 1, a2 = 0.01, Q = 0.01, R = 1e-4, A = 0``, seed 1, ``Ts = 1 ms``;
+        ``P0 = Q / (1 - A^2)``) and ``estimator`` (1, 2 or 3: whose drift ``z_comp``
+        subtracts).  The general sensor (docs/method.md section 9), off by default:
+        ``a3, a4`` (the sensor's cubic and quartic terms, also in the filter's model), ``B``
+        (the input gain, in the Excitation and the filter; with ``B != 0`` the Excitation's
+        known input ``u`` is wired to the DriftEstimator) and the known input ``u_k`` itself:
+        ``drive`` (0 none, 1 Gaussian white ``N(0, Qu)``, 2 the sinusoid
+        ``Xu sin(2 pi fu t)``), ``Qu``, ``Xu``, ``fu``.
 
     Returns
     -------
     dict
         ``"columns"``: the results table, column name -> list (``time``, ``x``, ``z``,
-        ``x_hat``, ``P``, ``dc_ekf1..3``, ``z_comp`` and the three drift references);
-        ``"summary"``: final drifts, the EKF1-EKF2 gap and from which sample each estimator
-        stays within 10 % of the realised drift.
+        ``x_hat``, ``P``, ``dc_ekf1..3``, ``z_comp`` and the three drift references
+        ``dc_empirical``, ``dc_realised``, ``dc_expected``, which count the ``a3``, ``a4``
+        terms); ``"summary"``: final drifts, the EKF1-EKF2 gap and from which sample each
+        estimator stays within 10 % of the realised drift.
 
     Raises
     ------
@@ -377,11 +443,13 @@ def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str 
     """
     from driftfmu.simulations.gaussian import run_gaussian as _run
     return _run(out=out, n=n, backend=backend, fmu_dir=fmu_dir, plot=out is not None,
-                **parameters)
+                progress=progress, **parameters)
 
 
 def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: str = "python",
-                   fmu_dir: PathLike = "build/fmus", **parameters: Any) -> Dict[str, Any]:
+                   fmu_dir: PathLike = "build/fmus",
+                   progress: Optional[Callable[[int], None]] = None,
+                   **parameters: Any) -> Dict[str, Any]:
     """One co-simulation under a sinusoidal drive ``x_k = X sin(2 pi f t_k + phi)``.
 
     Parameters
@@ -394,11 +462,20 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
         Which FMUs run.
     fmu_dir : str or pathlib.Path
         Where the FMUs are; missing ones are built.
+    progress : callable, optional
+        Called as the run goes with the number of samples done so far.
     **parameters
         ``X, f, phi, Ts, seed, a0, a1, a2, R``, the filter's ``process`` (1 Gauss-Markov,
-        2 harmonic at ``f``), ``Qh, A, Q, P0, x0, estimator``, ``preset="adxl203"`` for the
-        ADXL203 stand-in, ``Xy, phiy`` for a second axis (defaults: ``X = 1 g``,
-        ``f = 150 Hz``, the letter's sensor).
+        2 harmonic at ``f``, the default), ``Qh, A, Q, P0, x0, estimator``,
+        ``preset="adxl203"`` for the ADXL203 stand-in, ``sensor`` (a dict of further
+        accelerometer parameters: ``a3``, ``cross``, ``fc``, ``Vs``, ``bits``, ``density``,
+        ``axes``; the filter keeps its 2nd-order model), ``Xy, phiy`` for a second axis
+        (defaults: ``X = 1 g``, ``f = 150 Hz``, the letter's sensor).  The known input ``u``
+        of eq. 1, off by default: the Excitation's ``drive, Qu, Xu, fu`` make ``u_k`` (it
+        does not move the sinusoid) and ``B != 0`` (Gauss-Markov filter only, ``process=1``)
+        is the filter's input gain, ``x-_k = A x+_{k-1} + B u_k``, with the Excitation's
+        ``u`` wired to the DriftEstimator's; e.g. a shaker's commanded motion ``drive=2,
+        Xu=X, fu=f`` with ``A=0, B=1``.
 
     Returns
     -------
@@ -414,11 +491,12 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
     """
     from driftfmu.simulations.sinusoidal import run_sinusoidal as _run
     return _run(out=out, n=n, backend=backend, fmu_dir=fmu_dir, plot=out is not None,
-                **parameters)
+                progress=progress, **parameters)
 
 
 def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
                out: Optional[PathLike] = None, *, engine: str = "batch",
+               progress: Optional[Callable[[int], None]] = None,
                **parameters: Any) -> Dict[str, Any]:
     """Fig. 1 over a population: ``runs`` whole trajectories of ``n`` samples.
 
@@ -431,13 +509,23 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
     runs, n : int
         Number of runs and of samples per run.
     out : str or pathlib.Path, optional
-        If given, ``montecarlo.npz``, ``summary.json`` and the figure are written there.
+        If given, ``montecarlo.npz``, ``summary.json`` and the figure (``fig1.png``, or
+        ``sine.png`` for ``"sinusoidal"``) are written there.
     engine : {"batch", "fmu"}
-        The batch engine (NumPy, runs on the leading axis) or the FMUs.
+        The batch engine (runs on the leading axis of NumPy arrays, or the compiled kernel)
+        or the FMUs.
+    progress : callable, optional
+        Called as the runs go with the number of runs done so far.
     **parameters
-        The letter's names (``a0, a1, a2, A, Q, R, seed, Ts``; for ``"sinusoidal"`` also
-        ``X, f``) and the engine's options (``workers``, ``scheduler`` (a Dask address),
-        ``client``, ``backend``, ``fmu_dir``).
+        The letter's names ``a0, a1, a2, A, Q, R, seed, Ts`` (for ``"gaussian"`` also
+        ``P0``; for ``"sinusoidal"`` also ``X, f``, with the filter's ``Q`` defaulting to
+        ``X^2 / 2``), ``summary_only`` (keep per-run summaries and the figure's first runs,
+        not every trajectory) and the engine's options (``workers``, ``scheduler`` (a Dask
+        address), ``client``, ``backend``, ``fmu_dir``).  The general sensor (docs/method.md
+        section 9), off by default: for ``"gaussian"`` ``a3, a4, B, drive, Qu, Xu, fu`` as in
+        :func:`run_gaussian`; for ``"sinusoidal"`` ``a3, a4`` (batch engine only).  The
+        realised and expected drifts then count the ``a3``, ``a4`` terms; the batch engine
+        runs the general model in NumPy (the compiled kernel has the letter's sensor only).
 
     Returns
     -------
@@ -454,34 +542,43 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
     _check_choice("kind", kind, ("gaussian", "sinusoidal"))
     from driftfmu.simulations import montecarlo as _mc
     fn = _mc.montecarlo_gaussian if kind == "gaussian" else _mc.montecarlo_sinusoidal
-    return fn(runs=runs, n=n, out=out, engine=engine, plot=out is not None, **parameters)
+    return fn(runs=runs, n=n, out=out, engine=engine, plot=out is not None, progress=progress,
+              **parameters)
 
 
 def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = None,
-          runs: int = 1000, n: int = 1000, out: Optional[PathLike] = None,
-          **parameters: Any) -> Dict[str, Any]:
+          runs: int = 1000, n: int = 1000, out: Optional[PathLike] = None, *,
+          progress: Optional[Callable[[int], None]] = None, **parameters: Any) -> Dict[str, Any]:
     """Figs. 2-3: EKF1's and EKF3's mean error over a grid of ``a2`` and ``R``.
 
     Parameters
     ----------
     a2, R : sequence of float, optional
-        The grid; defaults ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)``.
+        The grid; defaults ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)`` (in a sweep
+        over ``a4``, ``a2`` is one value, default 0.01).
     runs, n : int
         Monte-Carlo runs per grid point and samples per run.
     out : str or pathlib.Path, optional
         If given, ``sweep.npz``, ``sweep.csv``, ``fig2.png`` and ``fig3.png`` are written.
+    progress : callable, optional
+        Called as the grid goes with the number of runs done so far (over all grid points).
     **parameters
-        ``a0, a1, Q, A, seed, Ts`` and the engine's options (``engine``, ``workers``,
-        ``scheduler`` (a Dask address), ``client``, ``chunk``, ``fmu_dir``).
+        ``a0, a1, Q, A, seed, Ts``, the engine's options (``engine``, ``workers``,
+        ``scheduler`` (a Dask address), ``client``, ``chunk``, ``fmu_dir``) and the general
+        sensor, off by default: ``a4``, one value for every grid point or several, which make
+        the grid ``(a4, R)`` at one ``a2`` (Fig. 2 over ``a4``), and ``a3, B, drive, Qu, Xu,
+        fu`` as in :func:`run_gaussian`, shared by every grid point.
 
     Returns
     -------
     dict
-        ``grid_a2``, ``grid_R`` and the final values of each run, ``grid_dc1``, ``grid_dc2``,
-        ``grid_dc3`` (EKF1-3), ``grid_zbar`` and ``grid_x2bar`` (the running means of ``z`` and
-        ``x^2``), each of shape ``(len(a2), len(R), runs)``; ``table``, the columns of
-        ``sweep.csv`` (mean errors per grid point against the realised, empirical and expected
-        drift); ``seconds``, the wall time of the runs.
+        ``grid_a2`` (``grid_a4`` in a sweep over ``a4``), ``grid_R`` and the final values of
+        each run, ``grid_dc1``, ``grid_dc2``, ``grid_dc3`` (EKF1-3), ``grid_zbar`` and
+        ``grid_x2bar`` (the running means of ``z`` and ``x^2``; with the general sensor also
+        ``grid_dc_realised``), each of shape ``(len(a2), len(R), runs)``; ``axis`` (``"a2"``
+        or ``"a4"``); ``table``, the columns of ``sweep.csv`` (mean errors per grid point
+        against the realised, empirical and expected drift); ``seconds``, the wall time of
+        the runs.
 
     Raises
     ------
@@ -493,29 +590,39 @@ def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = N
         parameters["a2"] = a2
     if R is not None:
         parameters["R"] = R
-    return _sweep.sweep(runs=runs, n=n, out=out, plot=out is not None, **parameters)
+    return _sweep.sweep(runs=runs, n=n, out=out, plot=out is not None, progress=progress,
+                        **parameters)
 
 
-def experiment_adxl203(out: Optional[PathLike] = None, **settings: Any) -> Dict[str, Any]:
+def experiment_adxl203(out: Optional[PathLike] = None, *,
+                       progress: Optional[Callable[[int], None]] = None,
+                       **settings: Any) -> Dict[str, Any]:
     """The letter's Sec. IV (Figs. 4-5) on the ADXL203 stand-in, through the FMUs.
 
-    Per drive frequency, ``sets`` recordings are co-simulated; one 2nd-order model is fitted
-    on all but the last ``held_out`` sets, and EKF1 runs on those.
+    Per drive frequency, ``sets`` recordings are co-simulated; one model (2nd order, the
+    letter's, or with ``order`` 3 or 4 also ``a3``, ``a4``) is fitted on all but the last
+    ``held_out`` sets, and EKF1 runs with it on those.
 
     Parameters
     ----------
     out : str or pathlib.Path, optional
         If given, ``adxl203.csv``, ``.json``, ``.npz``, ``fig4.png`` and ``fig5.png``.
+    progress : callable, optional
+        Called as the experiment goes with the number of sets done so far (of
+        ``len(freqs) * sets``).
     **settings
         ``freqs`` (Hz, default 100..200 by 25), ``sets`` (30), ``held_out`` (``sets // 6``),
         ``n`` (60,000 samples per set), ``Ts``, ``seed``, ``workers``, ``backend``,
-        ``fmu_dir``.  The full size takes minutes; ``sets=6, n=6000`` about ten seconds.
+        ``fmu_dir`` and ``order`` (2, 3 or 4: the order of the model fitted and run by the
+        filter; the stand-in has a cubic term).  The full size takes minutes; ``sets=6,
+        n=6000`` about ten seconds.
 
     Returns
     -------
     dict
         The summary: ``"per_frequency"`` holds each frequency's fitted model, drift, rms
-        difference of EKF1 and the margin in dB.
+        difference of EKF1 and the margin in dB; ``"settings"`` (with ``"order"``),
+        ``"claim_holds"``, ``"timing"``, ``"wall_time_s"``.
 
     Raises
     ------
@@ -523,19 +630,26 @@ def experiment_adxl203(out: Optional[PathLike] = None, **settings: Any) -> Dict[
         A setting is not allowed (e.g. more held-out sets than the fit can spare).
     """
     from driftfmu.simulations.adxl203 import run_adxl203
-    return run_adxl203(out=out, plot=out is not None, **settings)
+    return run_adxl203(out=out, plot=out is not None, progress=progress, **settings)
 
 
-def experiment_dual_axis(out: Optional[PathLike] = None, **settings: Any) -> Dict[str, Any]:
+def experiment_dual_axis(out: Optional[PathLike] = None, *,
+                         progress: Optional[Callable[[int], None]] = None,
+                         **settings: Any) -> Dict[str, Any]:
     """Drift from axis cross-correlation (the letter's conclusion): dual- vs single-axis EKF1.
 
     Parameters
     ----------
     out : str or pathlib.Path, optional
         If given, ``dual_axis.csv``, ``dual_axis.json`` and ``dual_axis.png``.
+    progress : callable, optional
+        Called as the sweeps go with the number of runs done so far (of
+        ``2 * points * runs``).
     **settings
         ``points`` per sweep, ``runs``, ``engine`` (``"fmu"`` or ``"batch"``), ``seed``,
-        ``backend``, ``workers``, ``scheduler``, ``fmu_dir`` and the model's settings.
+        ``backend``, ``workers``, ``scheduler``, ``fmu_dir`` and the model's settings
+        (``n, Ts, f, X, Xy, phi, A, Q, Qy``, the sensor's ``a0 a1 a2 bx R a0y a1y a2y by Ry``
+        and ``Qh``).
 
     Returns
     -------
@@ -549,15 +663,18 @@ def experiment_dual_axis(out: Optional[PathLike] = None, **settings: Any) -> Dic
         A setting is not allowed.
     """
     from driftfmu.simulations.dual_axis import run_dual_axis
-    return run_dual_axis(out=out, plot=out is not None, **settings)
+    return run_dual_axis(out=out, plot=out is not None, progress=progress, **settings)
 
 
 def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
-             out: Optional[PathLike] = None) -> Dict[str, Any]:
-    """Fit ``a0, a1, a2, R`` of the sensor from recordings driven by a sinusoid at ``f``.
+             out: Optional[PathLike] = None, *, order: int = 2) -> Dict[str, Any]:
+    """Fit the sensor ``a0, a1, ..., a_order`` and ``R`` from recordings driven by a sinusoid
+    at ``f``.
 
     Harmonic analysis over whole periods of the known drive, not a sample-by-sample
-    regression (an output filter's delay would count as noise); EKF1 then runs on the last
+    regression (an output filter's delay would count as noise): harmonics ``0..order`` of the
+    output give the coefficients of ``z = a0 + a1 x + ... + a_order x^order + v``.  EKF1
+    (harmonic process model at ``f``, with the fitted ``a3``, ``a4``) then runs on the last
     ``held_out`` recordings (their ``z`` only).
 
     Parameters
@@ -571,24 +688,30 @@ def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
         How many of the last files are not fitted but run EKF1.
     out : str or pathlib.Path, optional
         If given, ``identify.json`` (and with ``held_out``, ``identify.csv``).
+    order : {2, 3, 4}
+        Order of the characteristic to fit.  Harmonic ``order`` of ``f`` must lie below the
+        Nyquist rate ``1/(2 Ts)``: a higher order would alias and is refused.
 
     Returns
     -------
     dict
-        ``"model"``: the fitted ``a0, a1, a2, R`` averaged over the fitted files, with their
-        spread ``sd_a0 .. sd_R`` (None for one file) and ``sets``; ``"fits"``: one fit per
-        file (``a0, a1, a2, R``, the drive's ``X``, ``phi``, ``lag``, ``samples``, ``periods``); ``"warnings"``: doubts about the fit; with
-        ``held_out``, ``"held_out"`` (EKF1's drift against the empirical drift per file) and
+        ``"model"``: the fitted ``a0, a1, a2, R`` (and ``a3``, ``a4`` up to ``order``, then
+        also ``"order"``) averaged over the fitted files, with their spread
+        ``sd_a0 .. sd_R`` (None for one file) and ``sets``; ``"fits"``: one fit per file
+        (the coefficients, ``R``, the drive's ``X``, ``phi``, ``lag``, ``samples``,
+        ``periods``, ``order`` and ``se``, the closed-form standard errors of the
+        coefficients); ``"order"``; ``"warnings"``: doubts about the fit; with ``held_out``,
+        ``"held_out"`` (EKF1's drift against the empirical drift per file) and
         ``"margin_db"``.
 
     Raises
     ------
     ValueError
         The data cannot support the fit (fewer than 2 whole periods, a drive that is not a
-        sinusoid at ``f``), or a setting is not allowed.
+        sinusoid at ``f``, an order that aliases), or a setting is not allowed.
     """
     from driftfmu.simulations.adxl203 import run_identify
-    return run_identify([str(p) for p in files], f, held_out=held_out, out=out)
+    return run_identify([str(p) for p in files], f, held_out=held_out, out=out, order=order)
 
 
 __all__ = ["build_fmus", "simulate", "run_gaussian", "run_sinusoidal", "montecarlo", "sweep",

@@ -1,4 +1,6 @@
-"""Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 + v
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 + v
 (a3 = a4 = 0: the letter's specific case), and the richer
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
 noise density) of :mod:`driftfmu.models.adxl203`, every extra off by default; or (``dual = 1``) the

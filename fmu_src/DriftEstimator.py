@@ -1,4 +1,6 @@
-"""DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+DriftEstimator FMU: EKF with the letter's EKF1/EKF2/EKF3 drift estimators; process model
 Gauss-Markov (the letter's scalar filter, with the known input B u of eq. 1) or a harmonic
 oscillator at a known frequency; the sensor's characteristic up to 4th order (a3, a4)."""
 
@@ -63,6 +65,13 @@ class DriftEstimator(SlaveBase):
         C, S = harmonic.rotation(self.f, self.Ts)
         self._model = dict(process=self.process, A=self.A, Q=self.Q, C=C, S=S, Qh=self.Qh,
                            B=self.B)
+        # the same calls with the arguments laid out once (positional: no keyword matching on
+        # every sample); the parameters are fixed after initialisation, and prepare runs again
+        # whenever they may have changed (initialisation, Initialization Mode, a state restore)
+        m = self._model
+        self._step_args = (self.a0, self.a1, self.a2, self.R, m["process"], m["A"], m["Q"],
+                           m["C"], m["S"], m["Qh"], self.a3, self.a4, m["B"])
+        self._predict_args = (m["process"], m["A"], m["Q"], m["C"], m["S"], m["Qh"], m["B"])
 
     def initial_hidden(self):
         return {"_state": harmonic.estimator_init(self.process, self.x0, self.P0)}
@@ -76,18 +85,18 @@ class DriftEstimator(SlaveBase):
     def sample(self, hidden, k, first):
         state = hidden["_state"]
         if first:  # the measurement: the z set at (or held from) the start of the step
-            state = harmonic.estimator_step(state, self.z, self.a0, self.a1, self.a2, self.R,
-                                            a3=self.a3, a4=self.a4, u=self.u, **self._model)
+            state = harmonic.estimator_step(state, self.z, *self._step_args, self.u)
         else:      # samples between communication points carry no measurement (u held)
-            state = harmonic.estimator_predict(state, u=self.u, **self._model)
+            state = harmonic.estimator_predict(state, *self._predict_args, self.u)
         return {"_state": state}, self._outputs(state)
 
     def hold(self, hidden, k0, n, first):
         hidden, outputs = self.sample(hidden, k0, first)
         if n > 1:
             state = hidden["_state"]
+            args, u = self._predict_args, self.u
             for _ in range(n - 1):
-                state = harmonic.estimator_predict(state, u=self.u, **self._model)
+                state = harmonic.estimator_predict(state, *args, u)
             hidden, outputs = {"_state": state}, self._outputs(state)
         return hidden, outputs
 

@@ -1,4 +1,6 @@
-"""DualDriftEstimator FMU: the EKF over both axes of a dual-axis sensor with a bilinear cross
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+DualDriftEstimator FMU: the EKF over both axes of a dual-axis sensor with a bilinear cross
 term, and each axis's drift a2 E[x^2] + b E[x y] by EKF1, EKF2, EKF3 (:mod:`driftfmu.models.dualaxis`);
 process model Gauss-Markov over (x, y) or two harmonic oscillators at a known frequency.
 

@@ -1,4 +1,6 @@
-"""Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Excitation FMU: the true acceleration x, Gaussian (Gauss-Markov) or sinusoidal, and the
 second-axis acceleration y (sinusoidal at the same frequency, amplitude Xy; when Gaussian a
 second Gauss-Markov axis of process noise Qy correlated rho with x's, 0 while Qy = 0); the
 known input u_k (drive: Gaussian N(0, Qu) or Xu sin(2 pi fu t), or from the host through the
@@ -68,10 +70,10 @@ class Excitation(SlaveBase):
         return excitation.input_sample(self.drive, self.seed, k, self.Qu, self.Xu, self.fu,
                                        self.Ts)
 
-    def _sample(self, x_prev, y_prev, k):
+    def _sample(self, x_prev, y_prev, k, u):
         if self.kind == excitation.GAUSSIAN:
             return excitation.gaussian_pair(x_prev, y_prev, self.A, self.Q, self.Qy, self.rho,
-                                            self.seed, k, self.B, self._u(k))
+                                            self.seed, k, self.B, u)
         return (excitation.sine(k, self.X, self.f, self.Ts, self.phi),
                 excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy))
 
@@ -79,8 +81,9 @@ class Excitation(SlaveBase):
         return {"_x": self.x0, "_y": 0.0}
 
     def sample(self, hidden, k, first):
-        x, y = self._sample(hidden["_x"], hidden["_y"], k)
-        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": self._u(k)}
+        u = self._u(k)  # (once: x takes it as B u_k, and it is the output u)
+        x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
+        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": u}
 
     #: the hidden x is the output x, which the base class checks
     hidden_finite = None
@@ -89,7 +92,9 @@ class Excitation(SlaveBase):
         x, y = hidden["_x"], hidden["_y"]
         if self.kind == excitation.GAUSSIAN:
             for k in range(k0, k0 + n):
-                x, y = self._sample(x, y, k)
-        else:  # the sinusoid needs no history
-            x, y = self._sample(x, y, k0 + n - 1)
-        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": self._u(k0 + n - 1)}
+                u = self._u(k)
+                x, y = self._sample(x, y, k, u)
+        else:  # the sinusoid needs no history (nor the input)
+            u = self._u(k0 + n - 1)
+            x, y = self._sample(x, y, k0 + n - 1, u)
+        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": u}

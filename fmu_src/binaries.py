@@ -1,4 +1,6 @@
-"""Read what a shared library holds, for any platform, without the platform's tools.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Read what a shared library holds, for any platform, without the platform's tools.
 
 The native FMUs carry binaries for six platforms (ELF for Linux, PE32+ for Windows, Mach-O for
 macOS); only some of them can be run on the build machine.  The others are checked by reading

@@ -1,4 +1,6 @@
-"""Build the project's FMUs so that they validate clean and load in any host.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Build the project's FMUs so that they validate clean and load in any host.
 
 For each slave script ``fmu_src/<Name>.py`` :func:`build_fmus`
 

@@ -1,4 +1,6 @@
-"""FMI cross-check artifacts for the three FMUs, in the layout of the FMI cross-check rules.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+FMI cross-check artifacts for the three FMUs, in the layout of the FMI cross-check rules.
 
 For each FMU ``<Model>`` the folder ``fmus/2.0/cs/linux64/driftfmu/<version>/<Model>/`` holds
 (https://github.com/modelica/fmi-cross-check, README "Add FMUs"); the native (C) FMUs get a

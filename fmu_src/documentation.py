@@ -1,4 +1,6 @@
-"""The FMUs' documentation, generated from the slaves' ``VARIABLES`` tables (never by hand).
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+The FMUs' documentation, generated from the slaves' ``VARIABLES`` tables (never by hand).
 
 Two outputs from one source:
 

@@ -1,4 +1,6 @@
-"""Build the native (C) twins of the three FMUs, FMI 2.0 and FMI 3.0, from the slaves' tables.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Build the native (C) twins of the three FMUs, FMI 2.0 and FMI 3.0, from the slaves' tables.
 
 One source of truth: the slave classes' ``VARIABLES`` and ``DEPENDENCIES`` (fmu_src/<Name>.py),
 the same tables pythonfmu registers for the Python FMUs.  For each model and FMI version this
@@ -481,12 +483,24 @@ def _install_hint(platform):
 
 # -- one FMU ----------------------------------------------------------------------------------
 
-def _compile_all(name, fmi_version, sources, c_files, work, platforms):
-    """{platform: (library bytes, compiler label)} of ``platforms``, compiled side by side."""
+def _compile_all(name, fmi_version, sources, c_files, work, platforms, cache=None):
+    """{platform: (library bytes, compiler label)} of ``platforms``, compiled side by side;
+    with ``cache`` (a folder), a library compiled before from the same sources by the same
+    compiler command is taken from there (see :func:`build_native_fmus`)."""
     def one(platform):
         target = work / platform / (name + PLATFORMS[platform][0])
+        key = _cache_key(platform, sources, c_files) if cache is not None else None
+        hit = Path(cache) / key if key else None
+        if hit is not None and hit.exists():
+            return platform, (hit.read_bytes(), compiler(platform)[2])
         path, label = compile_library(platform, sources, c_files, target)
-        return platform, (path.read_bytes(), label)
+        data = path.read_bytes()
+        if hit is not None:
+            hit.parent.mkdir(parents=True, exist_ok=True)
+            part = hit.with_name("%s.%d.part" % (key, os.getpid()))
+            part.write_bytes(data)
+            os.replace(part, hit)  # whole or absent, also for a build running beside
+        return platform, (data, label)
 
     from concurrent.futures import ThreadPoolExecutor
     with ThreadPoolExecutor(max_workers=max(1, min(len(platforms), os.cpu_count() or 1))) \
@@ -540,7 +554,18 @@ def binaries_text(name, fmi_version, files, missing):
     return "\n".join(lines)
 
 
-def _build_one(name, fmi_version, out_dir, platforms, missing, log):
+def _cache_key(platform, sources, c_files):
+    """Hash of what a library's bytes depend on: the platform, the compiler command and flags,
+    the C files in order and every staged source's name and bytes (the build's folders are not
+    in the library, tests/test_platforms.py)."""
+    command, extra, _ = compiler(platform)
+    h = hashlib.sha256(repr((platform, command, tuple(extra), CFLAGS, list(c_files))).encode())
+    for p in sorted(Path(sources).iterdir()):
+        h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
+    return "%s-%s" % (platform, h.hexdigest())
+
+
+def _build_one(name, fmi_version, out_dir, platforms, missing, log, cache=None):
     slave = slave_class(name)
     tok = token(name, fmi_version)
     targets = []
@@ -549,7 +574,9 @@ def _build_one(name, fmi_version, out_dir, platforms, missing, log):
         sources = work / "sources"
         c_files = stage_sources(name, fmi_version, sources)
         base = {"sources/" + p.name: p.read_bytes() for p in sorted(sources.iterdir())}
-        built = _compile_all(name, fmi_version, sources, c_files, work, platforms)
+        log("compiling %s (native C, FMI %d.0) for %s ..."
+            % (name, fmi_version, ", ".join(platforms)))
+        built = _compile_all(name, fmi_version, sources, c_files, work, platforms, cache)
         if fmi_version == 2:
             base["modelDescription.xml"] = fmi2_model_description(slave, tok, c_files, log)
         else:
@@ -591,7 +618,7 @@ def available_platforms(log=print):
 
 
 def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSIONS,
-                      platforms=None, log=print):
+                      platforms=None, log=print, cache=None):
     """Build, validate and move into place ``<out_dir>/fmi<v>/<Name>.fmu`` (and, with the
     aarch64 Linux or Windows binary, the FMI 2.0 FMUs for ARM ``<out_dir>/fmi2-aarch64/``).
 
@@ -607,6 +634,10 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
         Keys of :data:`PLATFORMS`; default every platform whose compiler is installed.
     log : callable
         Receives one line per FMU (with its size) and warnings.
+    cache : path-like, optional
+        A folder of compiled libraries: one compiled before from the same staged sources with
+        the same compiler command is reused instead of compiled again (the test suite builds
+        the FMUs for its hosts first and then, reusing those, every platform's).  Default: none.
 
     Returns
     -------
@@ -626,7 +657,7 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
     # two FMUs at a time (each compiles its platforms side by side): compilers are processes
     with ThreadPoolExecutor(max_workers=2) as pool:
         paths = list(pool.map(lambda job: _build_one(job[0], job[1], out_dir, platforms,
-                                                      missing, log), jobs))
+                                                      missing, log, cache), jobs))
     result = {v: {} for v in fmi_versions}
     for (n, v), targets in zip(jobs, paths):
         result[v][n] = targets[0]

@@ -1,4 +1,6 @@
-"""What the three slaves share: variables from one table, checks, sampling and hidden state.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+What the three slaves share: variables from one table, checks, sampling and hidden state.
 
 A slave lists its variables once in ``VARIABLES`` (name, type, causality, variability, start,
 unit, min, max, description); this base registers them with pythonfmu, and the builder writes

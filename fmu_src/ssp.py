@@ -1,4 +1,6 @@
-"""The wired chain Excitation -> Accelerometer -> DriftEstimator as an SSP 1.0 archive.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+The wired chain Excitation -> Accelerometer -> DriftEstimator as an SSP 1.0 archive.
 
 ``DriftChain.ssp`` holds ``SystemStructure.ssd`` and the three FMUs under ``resources/``.  The
 SSD declares each FMU's outputs, its connected inputs and its bound parameters as connectors

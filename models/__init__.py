@@ -1,4 +1,6 @@
-"""The math of driftfmu, written once (Chorti et al., Sensor Letters 4(4):377-379, 2006).
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+The math of driftfmu, written once (Chorti et al., Sensor Letters 4(4):377-379, 2006).
 
 Plain arithmetic on Python floats (inside an FMU, standard library only) and on NumPy arrays (a
 batch of Monte-Carlo runs) alike, with the same bits on both paths.  Modules: ``noise``

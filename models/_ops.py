@@ -1,4 +1,6 @@
-"""Elementwise helpers that work unchanged on a Python float and on a NumPy array.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Elementwise helpers that work unchanged on a Python float and on a NumPy array.
 
 The model functions in this package are written with plain arithmetic (``+ - * /``) and the
 helpers below, so one instance inside an FMU runs them on floats with the standard library only,
@@ -15,7 +17,8 @@ import math
 
 def is_scalar(x):
     """True for a Python number (NumPy's ``float64`` scalar counts: it subclasses ``float``)."""
-    return isinstance(x, (int, float))
+    # (``type(x) is float`` first: one FMU instance asks this about floats on every sample)
+    return type(x) is float or isinstance(x, (int, float))
 
 
 def _np():
@@ -25,7 +28,7 @@ def _np():
 
 def sqrt(x):
     """Correctly rounded square root of a float or an array."""
-    if is_scalar(x):
+    if type(x) is float or is_scalar(x):
         return math.sqrt(x)
     return _np().sqrt(x)
 

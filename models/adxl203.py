@@ -1,4 +1,6 @@
-"""A richer accelerometer that can play the ADXL203, and the chain around it.
+"""Internal (not a stable API; use driftfmu.experiment_adxl203 instead).
+
+A richer accelerometer that can play the ADXL203, and the chain around it.
 
 Every extra effect is off by default, and then the output is the letter's sensor,
 ``z = a0 + a1 x + a2 x^2 + sqrt(R) v`` (:func:`driftfmu.models.sensor.measure`, same bits).  Switched on:
@@ -200,7 +202,9 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
 
     The seeds (and the sinusoid's ``X``, ``phi``, ``Xy``, ``phiy``) may be arrays of shape
     ``(runs,)``: every column is then an array ``(runs, n)``; otherwise lists of floats.
-    Returns the columns ``time, x, y, z, z_y, x_hat, P, dc_ekf1, dc_ekf2, dc_ekf3, z_comp``.
+    The filter's model may hold ``a3``, ``a4`` (the DriftEstimator's; 0 by default, the
+    letter's quadratic model, same bits).  Returns the columns ``time, x, y, z, z_y, x_hat, P,
+    dc_ekf1, dc_ekf2, dc_ekf3, z_comp``.
 
     The known input ``u_k`` (the Excitation's ``drive, Qu, Xu, fu``) drives a Gaussian ``x`` by
     the Excitation's ``B``, and reaches the filter's prediction by the DriftEstimator's ``B``
@@ -215,7 +219,7 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
     sp = sensor_parameters(**sensor_values)
     es = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=0.01, estimator=1,
               process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default,
-              B=0.0)
+              a3=0.0, a4=0.0, B=0.0)
     es.update(estimator_values)
     cfg = config(Ts=Ts, **{k: v for k, v in sp.items() if k != "Ts"})
     C, S = harmonic.rotation(es["f"], Ts)
@@ -246,8 +250,8 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
             vy = noise(sp["seed"], k, 2) if sp["noise"] else 0.0
             lpy, zy = measure(lpy, y, x, vy, cfg)
         state = harmonic.estimator_step(state, z, es["a0"], es["a1"], es["a2"], es["R"], u=u,
-                                        **model)
-        dcs = drift.estimates(state.drift, es["a2"])
+                                        a3=es["a3"], a4=es["a4"], **model)
+        dcs = drift.estimates(state.drift, es["a2"], es["a3"], es["a4"])
         dc = drift.select(dcs, es["estimator"])
         row = ((k - 1) * Ts, x, y, z, zy, state.x, state.P, dcs[0], dcs[1], dcs[2], z - dc)
         for c, value in zip(names, row):

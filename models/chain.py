@@ -1,4 +1,6 @@
-"""The whole measurement chain, excitation -> sensor -> EKF -> drift estimators.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+The whole measurement chain, excitation -> sensor -> EKF -> drift estimators.
 
 :func:`estimator_step` is what the DriftEstimator FMU runs on each sample; :func:`simulate` runs
 the chain sample by sample through the same functions as the three FMUs, on floats (one run, the
@@ -36,6 +38,25 @@ def compensate(z, dc):
     return z - dc
 
 
+def expected_drift(a2, kind=excitation.GAUSSIAN, A=0.0, Q=0.01, X=1.0, a4=0.0, B=0.0,
+                   drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0, Ts=1e-3):
+    """The stationary drift ``a2 E[x^2] + a4 E[x^4]`` of the chain's state (eqs. 4-5; the odd
+    ``a3`` term averages to zero).
+
+    Gauss-Markov ``x`` with the known input ``B u`` (``B != 0``, ``drive != 0``): the moments of
+    :func:`driftfmu.models.excitation.state_moments`; without it ``sigma_x^2 = Q / (1 - A^2)``
+    and ``E[x^4] = 3 sigma_x^4``, so ``a2 sigma_x^2 + 3 a4 sigma_x^4``; a sinusoid
+    ``X sin(.)``: ``E[x^2] = X^2 / 2``, ``E[x^4] = 3 X^4 / 8``.  ``a4 = 0`` gives
+    ``a2 sigma_x^2``, the letter's bits.  ``a2``, ``a4`` may be arrays.
+    """
+    if kind == excitation.GAUSSIAN and not (B == 0.0 or drive == excitation.DRIVE_OFF):
+        var_x, m4 = excitation.state_moments(A, Q, B, drive, Qu, Xu, fu, Ts)
+    else:
+        var_x = excitation.stationary_variance(kind, A=A, Q=Q, X=X)
+        m4 = 3.0 * var_x * var_x if kind == excitation.GAUSSIAN else 0.375 * X ** 4
+    return sensor.drift(a2, var_x, a4, m4)
+
+
 def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
              Ts=1e-3, estimator=1, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0,
              filter_A=None, filter_Q=None, measure_noise=True, a3=0.0, a4=0.0, B=0.0,
@@ -56,12 +77,7 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = fQ / (1.0 - fA * fA)
-    if kind == excitation.GAUSSIAN and not (B == 0.0 or drive == excitation.DRIVE_OFF):
-        var_x, m4 = excitation.state_moments(A, Q, B, drive, Qu, Xu, fu, Ts)
-    else:
-        var_x = excitation.stationary_variance(kind, A=A, Q=Q, X=X)
-        m4 = 3.0 * var_x * var_x if kind == excitation.GAUSSIAN else 0.375 * X ** 4
-    dc_expected = sensor.drift(a2, var_x, a4, m4)
+    dc_expected = expected_drift(a2, kind, A, Q, X, a4, B, drive, Qu, Xu, fu, Ts)
     fB = B if kind == excitation.GAUSSIAN else 0.0  # a sinusoidal x has no input term
     scalar = isinstance(seed, int)
     cols = {c: [] for c in COLUMNS}

@@ -1,4 +1,6 @@
-"""The letter's three EKF drift estimators (eqs. 7-12), for the sensor up to 4th order, and the
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+The letter's three EKF drift estimators (eqs. 7-12), for the sensor up to 4th order, and the
 drift references.
 
 The drift of ``h(x) = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4`` is

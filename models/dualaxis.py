@@ -1,4 +1,6 @@
-"""Drift from axis cross-correlation in a dual-axis accelerometer (the letter's conclusion, built).
+"""Internal (not a stable API; use driftfmu.experiment_dual_axis instead).
+
+Drift from axis cross-correlation in a dual-axis accelerometer (the letter's conclusion, built).
 
 Two true accelerations ``x, y`` and two outputs, each with its own polynomial and a bilinear
 cross term:

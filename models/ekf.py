@@ -1,4 +1,6 @@
-"""Scalar extended Kalman filter for the sensor model, in procedural form.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Scalar extended Kalman filter for the sensor model, in procedural form.
 
 .. math::
 
@@ -20,7 +22,7 @@ from .sensor import dh_dx, h
 
 def predict(x, P, A, Q, B=0.0, u=0.0):
     """Time update: ``(A x + B u, A^2 P + Q)``."""
-    if _ops.is_scalar(B) and B == 0.0:
+    if (type(B) is float or _ops.is_scalar(B)) and B == 0.0:
         return A * x, A * A * P + Q
     return A * x + B * u, A * A * P + Q
 

@@ -1,4 +1,6 @@
-"""Excitation: the true acceleration ``x_k`` that drives the sensor.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Excitation: the true acceleration ``x_k`` that drives the sensor.
 
 Sample ``k = 1, 2, ...`` sits at time ``t_k = t0 + (k - 1) Ts``.
 
@@ -32,7 +34,7 @@ DRIVES = {DRIVE_OFF: "off", GAUSSIAN: "gaussian", SINUSOIDAL: "sinusoidal"}
 def gauss_markov(x_prev, A, Q, w, B=0.0, u=0.0):
     """One step ``x_k = A x_{k-1} + B u_k + sqrt(Q) w`` with ``w`` a standard normal draw;
     ``B = 0`` is ``A x_{k-1} + sqrt(Q) w``, same bits."""
-    if _ops.is_scalar(B) and B == 0.0:
+    if (type(B) is float or _ops.is_scalar(B)) and B == 0.0:
         return A * x_prev + _ops.sqrt(Q) * w
     return A * x_prev + B * u + _ops.sqrt(Q) * w
 
@@ -98,7 +100,7 @@ def gaussian_pair(x_prev, y_prev, A, Q, Qy, rho, seed, k, B=0.0, u=0.0):
     """
     w1 = normal(seed, STREAM_PROCESS, k)
     x = gauss_markov(x_prev, A, Q, w1, B, u)
-    if _ops.is_scalar(Qy) and Qy == 0.0:
+    if (type(Qy) is float or _ops.is_scalar(Qy)) and Qy == 0.0:
         return x, 0.0
     w2 = normal(seed, STREAM_SENSOR_Y, k)
     y = A * y_prev + _ops.sqrt(Qy) * (rho * w1 + _ops.sqrt(1.0 - rho * rho) * w2)

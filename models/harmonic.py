@@ -1,4 +1,6 @@
-"""Harmonic process model: a 2-state EKF for a sinusoidal state at a known frequency.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Harmonic process model: a 2-state EKF for a sinusoidal state at a known frequency.
 
 The letter's filter models the state as Gauss-Markov, ``x_k = A x_{k-1} + w_k``.  A sinusoid
 ``x = X sin(2 pi f t + phi)`` is modelled exactly by an undamped oscillator: with the in-phase

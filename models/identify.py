@@ -1,4 +1,6 @@
-"""Identification of the filter's 2nd-order model ``a0, a1, a2, R`` from sets with a known drive.
+"""Internal (not a stable API; use driftfmu.identify instead).
+
+Identification of the filter's 2nd-order model ``a0, a1, a2, R`` from sets with a known drive.
 
 Method: harmonic analysis (linear least squares on the harmonics of the drive), not a least-squares
 fit of ``z`` on ``x`` sample by sample.  For each set of samples ``(t_k, x_k, z_k)`` over a whole

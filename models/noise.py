@@ -1,4 +1,6 @@
-"""Counter-based Gaussian noise: a pure function of (seed, stream, sample index).
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Counter-based Gaussian noise: a pure function of (seed, stream, sample index).
 
 Sample ``k`` of stream ``s`` under seed ``seed`` is computed from those three integers alone, so
 the same noise comes out of one FMU instance stepping sample by sample, out of a batch of
@@ -60,7 +62,8 @@ def _key_int(seed, stream):
 
 def bits(seed, stream, k):
     """64 random bits for sample ``k`` (``k >= 1``) of ``stream`` under ``seed``."""
-    if _ops.is_scalar(k) and _ops.is_scalar(seed):  # one FMU instance, every sample: the short way
+    if (type(k) is int and type(seed) is int) or (_ops.is_scalar(k) and _ops.is_scalar(seed)):
+        # one FMU instance, every sample: the short way
         return _mix((_key_int(int(seed) & MASK64, stream) + ((int(k) * GOLDEN) & MASK64))
                     & MASK64)
     k = _as_uint64(k)
@@ -101,7 +104,7 @@ def _lower_tail(p):
 
 def inverse_normal_cdf(p):
     """Standard normal quantile of ``p`` in (0, 1) (Acklam; relative error < 1.2e-9)."""
-    if _ops.is_scalar(p):
+    if type(p) is float or _ops.is_scalar(p):
         if p < P_LOW:
             return _lower_tail(p)
         if p > 1.0 - P_LOW:

@@ -1,4 +1,6 @@
-"""Every model parameter once: paper name, default, allowed range, unit and meaning.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+Every model parameter once: paper name, default, allowed range, unit and meaning.
 
 The FMUs take their start values, ``min``/``max`` and descriptions from here, the command line
 takes its options and checks from here, and :func:`check` words every range error the same way

@@ -1,4 +1,6 @@
-"""The weakly nonlinear sensor of the letter (eqs. 2 and 6), up to the 4th order (eqs. 3-5).
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+The weakly nonlinear sensor of the letter (eqs. 2 and 6), up to the 4th order (eqs. 3-5).
 
 .. math:: z_k = h(x_k) + v_k, \\qquad
           h(x) = a_0 + a_1 x + a_2 x^2 + a_3 x^3 + a_4 x^4, \\qquad v_k \\sim N(0, R)
@@ -16,6 +18,8 @@ from .noise import STREAM_MEASUREMENT, normal
 def higher(a3, a4):
     """True unless ``a3`` and ``a4`` are both the number 0 (the letter's quadratic sensor); an
     array of coefficients (a batch that sweeps them) counts as higher-order."""
+    if type(a3) is float and type(a4) is float:  # the per-sample case of one FMU instance
+        return a3 != 0.0 or a4 != 0.0
     return not (_ops.is_scalar(a3) and a3 == 0.0 and _ops.is_scalar(a4) and a4 == 0.0)
 
 

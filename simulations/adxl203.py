@@ -1,4 +1,6 @@
-"""The letter's accelerometer experiment (Sec. IV, Figs. 4-5) on the ADXL203 stand-in.
+"""Internal (not a stable API; use driftfmu.experiment_adxl203 or driftfmu.identify instead).
+
+The letter's accelerometer experiment (Sec. IV, Figs. 4-5) on the ADXL203 stand-in.
 
 For each drive frequency, ``sets`` recordings of ``n`` samples are co-simulated with the FMUs:
 Excitation (sinusoid, per-set amplitude and phase; small transverse motion ``y``) ->
@@ -116,7 +118,7 @@ def _run_set(task):
     stepping loop in C, the FMUs' libraries kept loaded from set to set in this worker) for both
     backends; ``"seconds"`` says where the worker's time went."""
     from driftfmu.simulations.fastcosim import cosimulate_fast
-    paths, f, seed, n, Ts, model, validate, backend = task
+    paths, f, seed, n, Ts, model, validate, backend, order = task
     t0 = time.perf_counter()
     ex = dict(set_drive(seed, f), Ts=Ts)
     sp = dict(adxl203.ADXL203, seed=seed, Ts=Ts, noise=1)
@@ -128,7 +130,7 @@ def _run_set(task):
             reuse=True, arrays=True)
         t1 = time.perf_counter()
         fit = identify.fit_set(raw["time"], raw["Excitation.x"], raw["Accelerometer.z"], f,
-                               skip=adxl203.settling_samples(sp["fc"], Ts))
+                               skip=adxl203.settling_samples(sp["fc"], Ts), order=order)
         return {"fit": fit._asdict(), "seconds": {"simulation": t1 - t0,
                                                   "identification": time.perf_counter() - t1}}
     es = estimator_values(model, f, Ts)
@@ -157,10 +159,13 @@ def _run_set(task):
 
 
 def estimator_values(model, f, Ts):
-    """DriftEstimator start values of a held-out set: EKF1 with the fitted ``model`` and the
-    harmonic process model at the drive frequency ``f``."""
+    """DriftEstimator start values of a held-out set: EKF1 with the fitted ``model`` (with its
+    ``a3``, ``a4`` when the fit's order is 3 or 4) and the harmonic process model at the drive
+    frequency ``f``."""
+    higher = {k: model[k] for k in ("a3", "a4") if k in model}
     return dict(a0=model["a0"], a1=model["a1"], a2=model["a2"], R=model["R"],
-                process=harmonic.HARMONIC, f=f, Qh=QH, x0=0.0, P0=P0, Ts=Ts, estimator=1)
+                process=harmonic.HARMONIC, f=f, Qh=QH, x0=0.0, P0=P0, Ts=Ts, estimator=1,
+                **higher)
 
 
 def _max_abs_diff(raw, ref):
@@ -193,8 +198,16 @@ def default_held_out(sets):
     return max(1, int(round(sets / 6.0)))
 
 
-def check_settings(freqs, sets, held_out, n, Ts):
+#: Orders of the model the filter runs with (``--order``): the letter's 2nd-order model, or with
+#: the identified cubic (and quartic) term of :func:`driftfmu.models.identify.fit_set`.
+ORDERS = identify.ORDERS
+
+
+def check_settings(freqs, sets, held_out, n, Ts, order=2):
     """ValueError (value and what is allowed) for bad experiment settings."""
+    if isinstance(order, bool) or order not in ORDERS:
+        raise UsageError("order = %r is not allowed; allowed: %s"
+                         % (order, ", ".join(map(str, ORDERS))))
     if not freqs:
         raise UsageError("freqs is empty; allowed: one or more frequencies")
     twice = sorted({f for f in freqs if list(freqs).count(f) > 1})
@@ -204,6 +217,10 @@ def check_settings(freqs, sets, held_out, n, Ts):
                                                                         for f in twice)))
     for f in freqs:
         check_frequency(f, Ts)
+        try:
+            identify.check_order(order, f, Ts)
+        except identify.IdentificationError as exc:
+            raise UsageError(str(exc)) from None
     if held_out < 1 or sets - held_out < 2:
         raise UsageError("sets = %r with %r held out is not allowed; allowed: held_out >= 1 and "
                          "at least 2 sets to fit (sets >= held_out + 2): %s"
@@ -220,9 +237,13 @@ def check_settings(freqs, sets, held_out, n, Ts):
 
 def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS, seed=SEED,
                 fmu_dir="build/fmus", workers=None, progress=None, validate=True, plot=True,
-                backend="python"):
+                backend="python", order=2):
     """Run the experiment; with ``out`` write adxl203.csv/.json/.npz, fig4.png and fig5.png
     (all or none).  Returns the summary dict (``per_frequency`` holds the margins).
+
+    ``order``: the order of the model fitted (:func:`driftfmu.models.identify.fit_set`) and
+    run by the filter: 2 (the letter's, default), 3 (with the identified cubic term ``a3``,
+    which the stand-in has) or 4; the summary's ``settings["order"]`` says which.
 
     Raises ValueError for bad settings (before anything runs), ValidationError when a held-out
     set's FMU outputs differ from models/ by more than ``TOLERANCE``.  ``backend`` picks the
@@ -230,7 +251,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
     """
     check_backend(backend)
     freqs = tuple(float(f) for f in freqs)
-    check_settings(freqs, sets, held_out, n, Ts)
+    check_settings(freqs, sets, held_out, n, Ts, order)
     t0 = time.perf_counter()
     paths = {k: str(v) for k, v in fmu_paths(fmu_dir, backend).items()}
     train = sets - held_out
@@ -259,7 +280,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         reference = REFERENCES["c" if kernel.library() is not None else "numpy"]
     with batch.process_pool(workers, "driftfmu.simulations.adxl203") as pool:
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False,
-                                       backend)): (f, s)
+                                       backend, order)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
         if out is not None and plot:
             _preload_matplotlib()  # while the workers (forked by now) run the sets
@@ -271,7 +292,7 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
             models[f] = identify.average(fits[f])
         t_fit = time.perf_counter()
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, train + s), n, Ts, models[f],
-                                       validate, backend)): (f, s)
+                                       validate, backend, order)): (f, s)
                 for i, f in enumerate(freqs) for s in range(held_out)}
         for fut in as_completed(futs):
             f, s = futs[fut]
@@ -294,15 +315,19 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
                     "difference": m["difference"], "dc_true": [r["dc_true"] for r in tests[f]],
                     "drift_mean": m["drift_mean"], "difference_rms": m["difference_rms"],
                     "margin_db": m["margin_db"]})
-    avg = {k: sum(p["model"][k] for p in per) / len(per) for k in ("a0", "a1", "a2", "R")}
+    avg = {k: sum(p["model"][k] for p in per) / len(per)
+           for k in ("a0", "a1", "a2", "R") + ("a3", "a4")[:order - 2]}
     summary = {
         "settings": {"freqs": list(freqs), "sets": sets, "held_out": held_out, "n": n, "Ts": Ts,
                      "fs": 1.0 / Ts, "X": X, "amplitude_sd": AMPLITUDE_SD,
                      "transverse": TRANSVERSE, "seed": seed, "sensor": adxl203.ADXL203,
                      "filter": {"process": "harmonic at the drive frequency", "Qh": QH,
-                                "P0": P0, "x0": 0.0}},
+                                "P0": P0, "x0": 0.0},
+                     "order": order},
         "identification": "harmonic analysis (models.identify), averaged over the fitting sets, "
-                          "one model per frequency",
+                          "one model per frequency" + ("" if order == 2 else
+                                                       ", of order %d: the filter runs with its "
+                                                       "a3%s" % (order, ", a4" * (order == 4))),
         "model": avg,
         "margin_definition": "10 log10(mean empirical drift / rms(EKF1 - empirical)) over the "
                              "held-out sets",
@@ -600,6 +625,10 @@ def add_cli(groups):
     cli.add_params(g, ("Ts", "seed"), Ts=TS, seed=SEED)
     g.add_argument("--workers", type=_positive_int("workers"), default=None,
                    help="parallel processes (default: the number of cores)")
+    g.add_argument("--order", type=int, choices=ORDERS, default=2,
+                   help="order of the model fitted on the training sets and run by the filter: "
+                        "2, the letter's a0 + a1 x + a2 x^2; 3, with the identified cubic "
+                        "term a3 (the stand-in has one); 4, also a4 (default: 2)")
     cli.add_out(g, "results/adxl203")
     cli.add_fmu_dir(g)
     cli.add_backend(g)
@@ -625,20 +654,25 @@ def add_cli(groups):
 
 
 def _cmd_experiment(args):
+    """``driftfmu experiment adxl203``: :func:`driftfmu.experiment_adxl203`."""
+    import driftfmu
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
     held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
     with cli.progress(total, "sets", "set") as update:
-        s = run_adxl203(out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
+        s = driftfmu.experiment_adxl203(
+                        out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
                         n=args.n, Ts=args.Ts, seed=args.seed, fmu_dir=args.fmu_dir,
-                        workers=args.workers, progress=update, backend=args.backend)
+                        workers=args.workers, progress=update, backend=args.backend,
+                        order=args.order)
     print("wrote %s/adxl203.csv, adxl203.json, adxl203.npz, fig4.png, fig5.png" % args.out)
     for p in s["per_frequency"]:
         m = p["model"]
-        print("%6g Hz: model a0 %.5f a1 %.5f a2 %.5f R %.3g | drift %.3f mV, rms difference "
-              "%.4f mV, margin %.1f dB" % (p["frequency"], m["a0"], m["a1"], m["a2"], m["R"],
-                                           1e3 * p["drift_mean"], 1e3 * p["difference_rms"],
-                                           p["margin_db"]))
+        more = "".join(" a%d %.5f" % (i, m["a%d" % i]) for i in (3, 4) if "a%d" % i in m)
+        print("%6g Hz: model a0 %.5f a1 %.5f a2 %.5f%s R %.3g | drift %.3f mV, rms difference "
+              "%.4f mV, margin %.1f dB" % (p["frequency"], m["a0"], m["a1"], m["a2"], more,
+                                           m["R"], 1e3 * p["drift_mean"],
+                                           1e3 * p["difference_rms"], p["margin_db"]))
     print("claim (difference at least %g dB below the drift at every frequency): %s"
           % (CLAIM_DB, "holds" if s["claim_holds"] else "FAILS"))
     print("wall time %.1f s on %d worker(s) (%d sets x %d samples x %d frequencies, %s FMUs)"
@@ -658,8 +692,10 @@ def timing_line(t):
 
 
 def _cmd_identify(args):
-    s = run_identify(args.files, args.f, held_out=args.held_out, out=args.out,
-                     order=args.order)
+    """``driftfmu identify``: :func:`driftfmu.identify`."""
+    import driftfmu
+    s = driftfmu.identify(args.files, args.f, held_out=args.held_out, out=args.out,
+                          order=args.order)
     m = s["model"]
     print("wrote %s/identify.json%s" % (args.out, ", identify.csv" if args.held_out else ""))
     print("model from %d set(s): a0 %.6g, a1 %.6g, a2 %.6g, R %.4g"

@@ -1,4 +1,6 @@
-"""Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
+"""Internal (not a stable API; use driftfmu.montecarlo or driftfmu.sweep instead).
+
+Batch engine: many Monte-Carlo runs at once, through the same models/ functions as the FMUs.
 
 Runs sit on the leading axis of NumPy arrays.  Sample ``k`` of every run is computed by calling
 :mod:`driftfmu.models.excitation`, :mod:`driftfmu.models.sensor`, :mod:`driftfmu.models.chain` (EKF and drift estimators)
@@ -32,9 +34,10 @@ SEED_MAX = parameters.PARAMETERS["seed"].high
 TRAJECTORIES = ("x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
                 "dc_realised")
 #: Final-sample values every run returns, each ``(runs,)``, under ``"final_<name>"``: the
-#: filter state, the three drift estimates, the empirical drift ``z̄ - a0`` and the mean square
-#: state ``mean(x^2)``.
-FINALS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "zbar", "x2bar")
+#: filter state, the three drift estimates, the empirical drift ``z̄ - a0``, the mean square
+#: state ``mean(x^2)`` and the realised drift ``mean(a2 x^2 + a3 x^3 + a4 x^4)`` (``a2
+#: mean(x^2)`` for the letter's sensor, those bits).
+FINALS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "zbar", "x2bar", "dc_realised")
 #: Samples of noise generated per block (rows of a ``(block, runs)`` array).
 BLOCK = 32
 #: Runs per task handed to a worker (large enough for NumPy to be efficient, small enough to
@@ -202,18 +205,31 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
             if not quadratic:
                 hbar = drift.running_mean(hbar, a2 * x2 + a3 * x2 * x + a4 * x2 * x2, k)
             if traj:
-                _record(traj, k - 1, x, z, est, zbar, a2 * x2bar if quadratic else hbar, a0,
-                        (a2, a3, a4))
+                _record(traj, k - 1, x, z, est, zbar,
+                        _realised(quadratic, a2, a3, a4, x2bar, hbar), a0, (a2, a3, a4))
         if progress is not None:
             progress(k0 - 1 + ks.shape[0])
     dc1, dc2, dc3 = drift.estimates(est.drift, a2, a3, a4)
     out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
-           "zbar": zbar - a0, "x2bar": x2bar}
+           "zbar": zbar - a0, "x2bar": x2bar,
+           "dc_realised": _realised(quadratic, a2, a3, a4, x2bar, hbar)}
     out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), shape).copy()
            for key, v in out.items()}
     for name, arr in traj.items():
         out[name] = np.ascontiguousarray(arr.T)
     return out
+
+
+def _realised(quadratic, a2, a3, a4, x2bar, hbar):
+    """The realised drift so far: ``a2 mean(x^2)`` for the letter's sensor, the running mean
+    ``hbar`` of ``a2 x^2 + a3 x^3 + a4 x^4`` otherwise; per run where ``a3``, ``a4`` are
+    arrays (a sweep over them), so that a run with ``a3 = a4 = 0`` has the bits of one run of
+    the letter's sensor (and of the FMU engine)."""
+    if quadratic:
+        return a2 * x2bar
+    if _ops.is_scalar(a3) and _ops.is_scalar(a4):
+        return hbar
+    return np.where((np.asarray(a3) == 0.0) & (np.asarray(a4) == 0.0), a2 * x2bar, hbar)
 
 
 def _kernel_library(kernel):
@@ -247,7 +263,7 @@ def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
     a2, a0 = params["a2"], params["a0"]
     dc1, dc2, dc3 = drift.estimates(est.drift, a2)
     out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
-           "zbar": zbar - a0, "x2bar": x2bar}
+           "zbar": zbar - a0, "x2bar": x2bar, "dc_realised": a2 * x2bar}
     out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), (runs,)).copy()
            for key, v in out.items()}
     out.update(state.traj)
@@ -310,17 +326,20 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
         raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
     on = sorted(k for k, v in general.items() if v != gaussian.GENERAL_OFF[k])
     if on and kind != excitation.GAUSSIAN:
-        raise UsageError("the FMU engine runs %s with the Gaussian excitation only; allowed "
-                         "with kind = %r: %s" % (", ".join(on), kind, ", ".join(
+        raise UsageError("the FMU engine runs %s with the Gaussian excitation only (its "
+                         "sinusoidal state has the letter's sensor); allowed with kind = %r: "
+                         "%s, or engine 'batch'" % (", ".join(on), kind, ", ".join(
                              "%s = %r" % (k, gaussian.GENERAL_OFF[k]) for k in on)))
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = default_P0(fA, fQ)
+    general = dict(gaussian.GENERAL_OFF, **general)
+    on = {k: v for k, v in general.items() if v != gaussian.GENERAL_OFF[k]}
     if kind == excitation.GAUSSIAN and (fA, fQ) == (A, Q):
         cols = gaussian.run_gaussian(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed,
                                      Ts=Ts, x0=x0, P0=P0, fmu_dir=fmu_dir, plot=False,
-                                     backend=backend, **general)["columns"]
+                                     backend=backend, **on)["columns"]
     elif kind == excitation.SINUSOIDAL:
         from driftfmu.simulations.sinusoidal import run_sinusoidal
         cols = run_sinusoidal(X=X, f=f, phi=phi, Ts=Ts, n=n, seed=seed, a0=a0, a1=a1, a2=a2,
@@ -330,14 +349,20 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
         raise UsageError("the FMU engine runs kind = %r with filter (A, Q) = (%r, %r); allowed: "
                          "the Gaussian excitation with the filter's A and Q equal to the "
                          "excitation's, or the sinusoidal one" % (kind, fA, fQ))
-    zbar, x2bar = 0.0, 0.0
+    zbar, x2bar, hbar = 0.0, 0.0, 0.0
+    a3, a4 = general["a3"], general["a4"]
+    quadratic = not sensor.higher(a3, a4)
     for k, (x, z) in enumerate(zip(cols["x"], cols["z"]), start=1):
         zbar = drift.running_mean(zbar, z, k)
-        x2bar = drift.running_mean(x2bar, x * x, k)
+        x2 = x * x
+        x2bar = drift.running_mean(x2bar, x2, k)
+        if not quadratic:  # as simulate() folds it
+            hbar = drift.running_mean(hbar, a2 * x2 + a3 * x2 * x + a4 * x2 * x2, k)
     out = {"final_" + name: cols[name][-1]
            for name in ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3")}
     out["final_zbar"] = zbar - a0
     out["final_x2bar"] = x2bar
+    out["final_dc_realised"] = a2 * x2bar if quadratic else hbar
     for name in record:
         out[name] = np.asarray(cols[name], dtype=float)
     return out

@@ -55,6 +55,91 @@ static double keyed_normal(uint64_t key, int64_t k)
     return noise_inverse_normal_cdf(((double)(bits >> 12) + 0.5) * 2.220446049250313e-16);
 }
 
+/* The Gaussian chain without recorded trajectories (the sweep's case), laid out so that the
+ * compiler can vectorise it across runs: every stage of a sample is a loop over VLANES runs
+ * (structure of arrays), and the only branch of the chain, the tails of the inverse normal CDF
+ * (p < NOISE_P_LOW or p > 1 - NOISE_P_LOW, about 5 % of the draws), is redone one draw at a
+ * time after the central branch was computed for all.  The operations are those of
+ * keyed_normal, excitation_gauss_markov, sensor_measure, chain_estimator_step and
+ * drift_running_mean in the same order (inlined from the same units; vector division, square
+ * root, multiplication and addition are the IEEE operations of the scalar code, and
+ * -ffp-contract=off forbids fusing them), so the bits are those of the scalar loop below.
+ * Needs every run's drift counter at k0 - 1 (as driftfmu_batch_init and earlier calls leave
+ * it); returns 0 without touching anything otherwise. */
+#define VLANES 16
+
+static int run_gaussian_vector(int64_t k0, int64_t k1, int64_t r0, int lanes,
+                               const uint64_t *seeds, const double *const *p, RunState *state)
+{
+    double x[VLANES], zbar[VLANES], x2bar[VLANES], ex[VLANES], eP[VLANES];
+    double s1[VLANES], dc2[VLANES], s3[VLANES], dc3[VLANES];
+    double a0[VLANES], a1[VLANES], a2[VLANES], A[VLANES], Q[VLANES], R[VLANES];
+    double fA[VLANES], fQ[VLANES], up[VLANES], um[VLANES], wp[VLANES], wm[VLANES];
+    uint64_t kp[VLANES], km[VLANES];
+    for (int i = 0; i < lanes; i++)
+        if (state[r0 + i].est.drift.k != k0 - 1) return 0;
+    for (int i = 0; i < VLANES; i++) {  /* lanes past the last run repeat run r0 (not stored) */
+        const int64_t r = r0 + (i < lanes ? i : 0);
+        const RunState *s = &state[r];
+        x[i] = s->x; zbar[i] = s->zbar; x2bar[i] = s->x2bar; ex[i] = s->est.x; eP[i] = s->est.P;
+        s1[i] = s->est.drift.s1; dc2[i] = s->est.drift.dc2; s3[i] = s->est.drift.s3;
+        dc3[i] = s->est.drift.dc3;
+        a0[i] = p[P_A0][r]; a1[i] = p[P_A1][r]; a2[i] = p[P_A2][r]; A[i] = p[P_A][r];
+        Q[i] = p[P_Q][r]; R[i] = p[P_R][r]; fA[i] = p[P_FA][r]; fQ[i] = p[P_FQ][r];
+        kp[i] = noise_key(seeds[r], NOISE_STREAM_PROCESS);
+        km[i] = noise_key(seeds[r], NOISE_STREAM_MEASUREMENT);
+    }
+    for (int64_t k = k0; k < k1; k++) {
+        const uint64_t step = (uint64_t)k * NOISE_GOLDEN;
+        for (int i = 0; i < VLANES; i++) {
+            /* keyed_normal's uniform; (double)(b >> 12) built from the bits of 2^52 + (b >> 12)
+             * minus 2^52, both exact (b >> 12 < 2^52), so that it vectorises without a
+             * 64-bit integer conversion instruction */
+            uint64_t bp = noise_mix(kp[i] + step) >> 12, bm = noise_mix(km[i] + step) >> 12;
+            union { uint64_t u; double d; } cp = {bp | 0x4330000000000000ULL},
+                                             cm = {bm | 0x4330000000000000ULL};
+            up[i] = ((cp.d - 4503599627370496.0) + 0.5) * 2.220446049250313e-16;
+            um[i] = ((cm.d - 4503599627370496.0) + 0.5) * 2.220446049250313e-16;
+        }
+        for (int i = 0; i < VLANES; i++) {
+            wp[i] = noise_central(up[i]);
+            wm[i] = noise_central(um[i]);
+        }
+        for (int i = 0; i < VLANES; i++) {  /* the tails, one draw at a time */
+            if (up[i] < NOISE_P_LOW || up[i] > 1.0 - NOISE_P_LOW)
+                wp[i] = noise_inverse_normal_cdf(up[i]);
+            if (um[i] < NOISE_P_LOW || um[i] > 1.0 - NOISE_P_LOW)
+                wm[i] = noise_inverse_normal_cdf(um[i]);
+        }
+        for (int i = 0; i < VLANES; i++) {
+            EstimatorState est;
+            double z;
+            x[i] = excitation_gauss_markov(x[i], A[i], Q[i], wp[i]);
+            z = sensor_measure(x[i], a0[i], a1[i], a2[i], R[i], wm[i]);
+            est.x = ex[i];
+            est.P = eP[i];
+            est.drift.k = k - 1;
+            est.drift.s1 = s1[i]; est.drift.dc2 = dc2[i]; est.drift.s3 = s3[i];
+            est.drift.dc3 = dc3[i];
+            est.drift.t1 = est.drift.q1 = est.drift.t3 = est.drift.q3 = 0.0;
+            est = chain_estimator_step(est, z, a0[i], a1[i], a2[i], fA[i], fQ[i], R[i]);
+            ex[i] = est.x; eP[i] = est.P;
+            s1[i] = est.drift.s1; dc2[i] = est.drift.dc2; s3[i] = est.drift.s3;
+            dc3[i] = est.drift.dc3;
+            zbar[i] = drift_running_mean(zbar[i], z, k);
+            x2bar[i] = drift_running_mean(x2bar[i], x[i] * x[i], k);
+        }
+    }
+    for (int i = 0; i < lanes; i++) {  /* (the quadratic chain keeps t1, q1, t3, q3 as they are) */
+        RunState *s = &state[r0 + i];
+        s->x = x[i]; s->zbar = zbar[i]; s->x2bar = x2bar[i]; s->est.x = ex[i]; s->est.P = eP[i];
+        s->est.drift.k = k1 - 1;
+        s->est.drift.s1 = s1[i]; s->est.drift.dc2 = dc2[i]; s->est.drift.s3 = s3[i];
+        s->est.drift.dc3 = dc3[i];
+    }
+    return 1;
+}
+
 /* Samples k = k0 .. k1 - 1 of every run (the loop body of batch.simulate); the recorded
  * trajectories are (runs, n) arrays, sample k in column k - 1. */
 void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const uint64_t *seeds,
@@ -62,7 +147,12 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                         double *const *traj)
 {
     const int gaussian = kind == EXCITATION_GAUSSIAN;
-    for (int64_t r0 = 0; r0 < runs; r0 += LANES) {
+    int64_t done = 0;  /* runs before this index ran in run_gaussian_vector */
+    if (gaussian && !traj)
+        while (done < runs && run_gaussian_vector(k0, k1, done, runs - done < VLANES ?
+                                                  (int)(runs - done) : VLANES, seeds, p, state))
+            done += VLANES;
+    for (int64_t r0 = done; r0 < runs; r0 += LANES) {
         const int lanes = runs - r0 < LANES ? (int)(runs - r0) : LANES;
         RunState s[LANES];
         double q[N_PARAMS][LANES];  /* this block's parameters, out of reach of the stores */
@@ -111,7 +201,7 @@ enum { E_KIND, E_A, E_Q, E_X0, E_X, E_F, E_PHI, E_XY, E_PHIY, E_SEED, N_EXCITATI
 enum { S_A0, S_A1, S_A2, S_R, S_A3, S_CROSS, S_FC, S_VS, S_BITS, S_DENSITY, S_SEED, S_NOISE,
        S_AXES, N_SENSOR };
 enum { D_A0, D_A1, D_A2, D_A, D_Q, D_R, D_X0, D_P0, D_ESTIMATOR, D_PROCESS, D_F, D_QH,
-       N_ESTIMATOR };
+       D_A3, D_A4, N_ESTIMATOR };
 /* Its columns, in this order (each n values; NULL: not wanted). */
 enum { C_TIME, C_X, C_Y, C_Z, C_ZY, C_XHAT, C_P, C_DC1, C_DC2, C_DC3, C_ZCOMP, N_COLUMNS };
 
@@ -124,6 +214,8 @@ int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
     const int64_t sp_seed = (int64_t)sp[S_SEED], estimator = (int64_t)es[D_ESTIMATOR],
                   process = (int64_t)es[D_PROCESS];
     const int noise_on = sp[S_NOISE] != 0.0, axes = (int)sp[S_AXES];
+    /* the filter's model with the identified 3rd/4th-order terms (the DriftEstimator's a3, a4) */
+    const int higher = es[D_A3] != 0.0 || es[D_A4] != 0.0;
     Config cfg = adxl203_config(sp[S_A0], sp[S_A1], sp[S_A2], sp[S_R], sp[S_A3], sp[S_CROSS],
                                 sp[S_FC], sp[S_VS], (int64_t)sp[S_BITS], sp[S_DENSITY], Ts);
     double C, S, x = ex[E_X0], y, zy = 0.0, lp = 0.0, lpy = 0.0;
@@ -149,9 +241,17 @@ int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
             vy = noise_on ? adxl203_noise(sp_seed, k, 2) : 0.0;
             adxl203_measure(lpy_set, lpy, y, x, vy, &cfg, &lpy_set, &lpy, &zy);
         }
-        state = harmonic_estimator_step(state, z, es[D_A0], es[D_A1], es[D_A2], es[D_R],
-                                        process, es[D_A], es[D_Q], C, S, es[D_QH]);
-        drift_estimates(state.drift, es[D_A2], &dcs[0], &dcs[1], &dcs[2]);
+        if (higher) {
+            state = harmonic_estimator_step_general(state, z, es[D_A0], es[D_A1], es[D_A2],
+                                                    es[D_R], process, es[D_A], es[D_Q], C, S,
+                                                    es[D_QH], es[D_A3], es[D_A4], 0.0, 0.0);
+            drift_estimates_general(state.drift, es[D_A2], es[D_A3], es[D_A4], &dcs[0],
+                                    &dcs[1], &dcs[2]);
+        } else {
+            state = harmonic_estimator_step(state, z, es[D_A0], es[D_A1], es[D_A2], es[D_R],
+                                            process, es[D_A], es[D_Q], C, S, es[D_QH]);
+            drift_estimates(state.drift, es[D_A2], &dcs[0], &dcs[1], &dcs[2]);
+        }
         dc = drift_select(dcs, estimator);
         row[C_TIME] = (double)(k - 1) * Ts;
         row[C_X] = x;

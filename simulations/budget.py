@@ -1,4 +1,6 @@
-"""Size checks before a run starts: memory, disk and time, estimated from the settings.
+"""Internal (not a stable API; use the driftfmu command instead).
+
+Size checks before a run starts: memory, disk and time, estimated from the settings.
 
 A run that cannot fit this machine is refused (a usage error, exit 2: one line with the
 estimate, what the machine has, and how to proceed) before anything runs; a long or large one

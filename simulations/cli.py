@@ -1,4 +1,6 @@
-"""The ``driftfmu`` command.
+"""Internal (not a stable API; use the driftfmu command or the functions of driftfmu instead).
+
+The ``driftfmu`` command.
 
 One convention for every sub-command: model parameters by their paper names (``--a2 0.01``,
 ``--R 1e-4``), ``--n`` samples, ``--runs`` Monte-Carlo runs, ``--seed``, ``--out DIR`` (created if
@@ -189,34 +191,23 @@ def start_phase(progress, desc, total, unit=None):
 
 
 def cmd_build(args):
-    from driftfmu.fmu_src.builder import build_fmus
+    """``driftfmu build``: :func:`driftfmu.build_fmus` for the Python FMUs, then (``--native``)
+    for the native FMUs of both FMI versions.  The cross-check folders hold the native FMUs when
+    they are built, else the Python ones; the SSP archive holds the ``--backend`` ones."""
+    import driftfmu
     from driftfmu.simulations.output import removing_new_trees
-    native_wanted = args.native or args.backend == "native"
+    native = args.native or args.backend == "native"
     trees = [args.out, Path(args.out) / "native"]
-    trees += [args.cross_check] if args.cross_check else []
-    trees += [Path(args.ssp).parent] if args.ssp else []
+    trees += [p for p in (args.cross_check, args.ssp and Path(args.ssp).parent) if p]
     # a failed or stopped build leaves no folder it created, half-filled or empty
     with removing_new_trees(*trees):
-        paths = build_fmus(args.out, log=build_log)  # logs one line per FMU
-        fmus = {p.stem: p for p in map(Path, paths)}
-        native = None
-        if native_wanted:
-            from driftfmu.fmu_src.native_build import build_native_fmus
-            native = build_native_fmus(Path(args.out) / "native", log=build_log)
-        if args.cross_check:
-            from driftfmu.fmu_src.crosscheck import write_cross_check
-            sets = ([(2, fmus, "python")] if native is None
-                    else [(v, native[v], "native") for v in sorted(native)])
-            for fmi_version, chosen, backend in sets:
-                for d in write_cross_check(chosen, args.cross_check, fmi_version=fmi_version,
-                                           backend=backend):
-                    print("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)"
-                          % d)
-        if args.ssp:
-            from driftfmu.fmu_src.ssp import build_ssp
-            chosen = fmus if args.backend == "python" else native[2]
-            print("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
-                  "Gaussian run)" % (build_ssp(chosen, args.ssp), args.backend))
+        driftfmu.build_fmus(args.out, log=build_log,  # logs one line per FMU
+                            cross_check=None if native else args.cross_check,
+                            ssp=args.ssp if args.backend == "python" else None)
+        if native:
+            driftfmu.build_fmus(args.out, backend="native", fmi_version=(2, 3), log=build_log,
+                                cross_check=args.cross_check,
+                                ssp=args.ssp if args.backend == "native" else None)
 
 
 def build_log(line):
@@ -250,11 +241,12 @@ GENERAL = ("a3", "a4", "B", "drive", "Qu", "Xu", "fu")
 
 
 def cmd_run_gaussian(args):
+    """``driftfmu run gaussian``: :func:`driftfmu.run_gaussian`."""
+    import driftfmu
     from driftfmu.simulations import budget
-    from driftfmu.simulations.gaussian import run_gaussian
     budget.check_run("gaussian", args.n, args.out, args.backend)
     with progress(args.n, "co-simulation", "sample") as update:
-        res = run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
+        res = driftfmu.run_gaussian(out=args.out, a0=args.a0, a1=args.a1, a2=args.a2, A=args.A,
                            Q=args.Q, R=args.R, n=args.n, seed=args.seed, Ts=args.Ts,
                            P0=args.P0, estimator=args.estimator, fmu_dir=args.fmu_dir,
                            progress=update, backend=args.backend,

@@ -1,4 +1,6 @@
-"""A fixed-step fmpy master for FMI 2.0 (and FMI 3.0) co-simulation FMUs wired by connections.
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+A fixed-step fmpy master for FMI 2.0 (and FMI 3.0) co-simulation FMUs wired by connections.
 
 The loop is written out in the open, as in FMPy's ``examples/custom_input.py``: the FMUs are
 stepped and their outputs copied along the connections in the order the connections are given

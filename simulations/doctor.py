@@ -1,4 +1,6 @@
-"""``driftfmu doctor FMU``: will this FMU run on this host, and if not, why.
+"""Internal (not a stable API; use the command driftfmu doctor instead).
+
+``driftfmu doctor FMU``: will this FMU run on this host, and if not, why.
 
 It reads the FMU (model description, the build record the driftfmu builder leaves in
 ``resources/driftfmu_build.json``, the binary for this platform, the bundled Python code) and

@@ -1,4 +1,6 @@
-"""Drift from axis cross-correlation: the dual-axis experiment (the letter's conclusion, built).
+"""Internal (not a stable API; use driftfmu.experiment_dual_axis instead).
+
+Drift from axis cross-correlation: the dual-axis experiment (the letter's conclusion, built).
 
 The chain Excitation (two axes) -> Accelerometer (``dual = 1``: ``z_x = a0 + a1 x + a2 x^2 +
 bx x y + v_x``, ``z_y`` likewise with ``by``) -> DualDriftEstimator (both outputs, EKF1), with a
@@ -458,13 +460,16 @@ def _int_at_least(low, name):
 
 
 def _cmd(args):
+    """``driftfmu experiment dual-axis``: :func:`driftfmu.experiment_dual_axis`."""
+    import driftfmu
     from driftfmu.simulations import cli
     runs = RUNS[args.engine] if args.runs is None else args.runs
     total = 2 * args.points * runs
     settings = {k: getattr(args, k) for k in ("n", "Ts", "f", "X", "Xy", "phi", "A", "Q", "Qy",
                                               "a2", "bx", "R", "a2y", "by", "Ry")}
     with cli.progress(total, "runs", "run", monitor=False) as update:
-        s = run_dual_axis(out=args.out, points=args.points, runs=runs, engine=args.engine,
+        s = driftfmu.experiment_dual_axis(
+                          out=args.out, points=args.points, runs=runs, engine=args.engine,
                           seed=args.seed, fmu_dir=args.fmu_dir, workers=args.workers,
                           backend=args.backend,
                           scheduler=args.scheduler, progress=update, **settings)

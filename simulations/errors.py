@@ -1,4 +1,6 @@
-"""The exceptions the ``driftfmu`` command maps to its exit statuses.
+"""Internal (not a stable API; use the ValueError that driftfmu's functions raise instead).
+
+The exceptions the ``driftfmu`` command maps to its exit statuses.
 
 - :class:`UsageError`: a setting the command cannot run with (an option out of range, a drive
   frequency at or above the Nyquist rate, more held-out sets than sets); exit status 2, like an

@@ -1,4 +1,6 @@
-"""A fast fixed-step master: the loop of :func:`driftfmu.simulations.cosim.cosimulate` with the FMI
+"""Internal (not a stable API; use driftfmu.simulate instead).
+
+A fast fixed-step master: the loop of :func:`driftfmu.simulations.cosim.cosimulate` with the FMI
 functions called directly through ctypes on preallocated arrays, for FMI 2.0 and FMI 3.0.
 
 fmpy's ``FMU2Slave`` wrappers build argument arrays and check statuses in Python on every call
@@ -239,7 +241,9 @@ def loop_library():
     try:
         if not os.path.exists(target):
             compiler = shlex.split(os.environ.get("CC", "cc"))
-            with tempfile.TemporaryDirectory(prefix="driftfmu_loop_") as work:
+            # registered where a worker told to stop (SIGTERM) removes it, as the FMUs' folders
+            work = new_extract_folder(prefix="driftfmu_loop_")
+            try:
                 source = os.path.join(work, "loop.c")
                 with open(source, "w") as fh:
                     fh.write(LOOP_SOURCE)
@@ -248,6 +252,8 @@ def loop_library():
                                check=True, capture_output=True)
                 shutil.move(partial, target + ".part%d" % os.getpid())
                 os.replace(target + ".part%d" % os.getpid(), target)
+            finally:
+                _remove(work)
         function = ctypes.CDLL(target).driftfmu_loop
         function.restype = c_int
         function.argtypes = [ctypes.c_long, ctypes.c_long, c_double, c_double, c_void_p,

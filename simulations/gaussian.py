@@ -1,4 +1,6 @@
-"""The letter's Gaussian simulation (Sec. III, Fig. 1) as an FMU co-simulation.
+"""Internal (not a stable API; use driftfmu.run_gaussian instead).
+
+The letter's Gaussian simulation (Sec. III, Fig. 1) as an FMU co-simulation.
 
 Excitation (Gaussian) -> Accelerometer -> DriftEstimator, fixed step ``Ts``, one row per sample.
 The master checks the FMUs against :func:`driftfmu.models.chain.simulate` on the same seed, sample by

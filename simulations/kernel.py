@@ -1,4 +1,6 @@
-"""The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
+"""Internal (not a stable API; use driftfmu.montecarlo or driftfmu.sweep instead).
+
+The compiled batch kernel: the third engine beside the NumPy batch engine and the FMUs.
 
 ``batch_kernel.c`` (next to this file) writes the chains of
 :func:`driftfmu.simulations.batch.simulate`, :func:`driftfmu.models.adxl203.simulate` and
@@ -39,7 +41,8 @@ STATE_FIELDS = 5 + 9
 EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
 SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",
           "axes")
-ESTIMATOR = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "estimator", "process", "f", "Qh")
+ESTIMATOR = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "estimator", "process", "f", "Qh",
+             "a3", "a4")
 COLUMNS = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
            "z_comp")
 #: models.dualaxis.simulate's start values and the single-axis estimators', in the kernel's
@@ -51,12 +54,19 @@ DUAL_ESTIMATOR = ("a0", "a1", "a2", "bx", "R", "a0y", "a1y", "a2y", "by", "Ry", 
 SINGLE = ("a0", "a1", "a2", "R", "Q", "x0", "P0", "A", "process", "f", "Qh")
 
 #: Added to the native FMUs' flags (which keep the bits: no FMA contraction, no fast math):
-#: inlining across the models/ units (link-time optimisation, -O3; the units' functions are
-#: not interposable from outside the library) and no errno for sqrt;
-#: from 110 to 58 ns per sample-run of the Gaussian chain on the development machine (52 ns
-#: with the per-run noise keys of batch_kernel.c), at a load average of about 20.
-SPEED_FLAGS = ("-O3", "-fno-math-errno", "-flto", "-fno-semantic-interposition")
-
+#: inlining across the models/ units (link-time optimisation, -O3, inlining limits high enough
+#: that the chain's step functions, struct results included, are inlined into the kernel's
+#: loops; the units' functions are not interposable from outside the library) and no errno
+#: for sqrt; from 110 to 58 ns per sample-run of the Gaussian chain on the development
+#: machine (52 ns with the per-run noise keys of batch_kernel.c), at a load average of about 20.
+SPEED_FLAGS = ("-O3", "-fno-math-errno", "-flto", "-fno-semantic-interposition",
+               "--param=max-inline-insns-auto=300", "--param=max-inline-insns-single=600")
+#: And, where the compiler takes them, the instructions of this machine's processor in
+#: 256-bit vectors: the vectorised Gaussian chain (run_gaussian_vector) then advances four
+#: runs per instruction (AVX2) instead of two (SSE2).  The library is compiled on the machine
+#: that runs it (named by its processor too, :func:`_build`); the vector instructions are the
+#: IEEE operations of the scalar ones and -ffp-contract=off still forbids fusing them.
+MACHINE_FLAGS = ("-march=native", "-mprefer-vector-width=256")
 _LIBRARY = []
 _P = ctypes.c_void_p
 
@@ -95,7 +105,8 @@ def _build():
     for path in sorted(sources + sorted(generate.HERE.glob("*.h"))):
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
     digest.update(table.encode())
-    digest.update(" ".join(generate.CFLAGS + SPEED_FLAGS).encode())
+    digest.update(" ".join(generate.CFLAGS + SPEED_FLAGS + MACHINE_FLAGS).encode())
+    digest.update(_processor().encode())
     target = Path(tempfile.gettempdir()) / ("driftfmu-kernel-%s-%d.so"
                                             % (digest.hexdigest()[:12], os.getuid()))
     if target.exists():
@@ -104,21 +115,41 @@ def _build():
     with tempfile.TemporaryDirectory(prefix="driftfmu_kernel_") as work:
         (Path(work) / "parameters_table.h").write_text(table)
         partial = Path(work) / "kernel.so"
-        command = compiler + list(generate.CFLAGS) + list(SPEED_FLAGS) + [
-            "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
-            str(s) for s in sources] + ["-o", str(partial), "-lm"]
         # the compiler's own temporary files (link-time optimisation writes several) go into
         # the work folder, so an interrupted compile leaves none behind in TMPDIR
         env = dict(os.environ, TMPDIR=work)
-        try:
-            subprocess.run(command, check=True, capture_output=True, env=env)
-        except subprocess.CalledProcessError:  # a compiler without link-time optimisation
-            command = [c for c in command if c not in SPEED_FLAGS]
-            subprocess.run(command, check=True, capture_output=True, env=env)
+        # a compiler without the machine flags, or without link-time optimisation, gets fewer
+        for extra in (SPEED_FLAGS + MACHINE_FLAGS, SPEED_FLAGS, ()):
+            command = compiler + list(generate.CFLAGS) + list(extra) + [
+                "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
+                str(s) for s in sources] + ["-o", str(partial), "-lm"]
+            try:
+                subprocess.run(command, check=True, capture_output=True, env=env)
+                break
+            except subprocess.CalledProcessError:
+                if not extra:
+                    raise
         staged = target.with_name(target.name + ".part%d" % os.getpid())
         shutil.move(str(partial), str(staged))
         os.replace(staged, target)
     return target
+
+
+def _processor():
+    """What names this machine's processor for :data:`MACHINE_FLAGS` (its model and
+    instruction-set flags where /proc/cpuinfo tells them)."""
+    import platform
+    text = platform.machine() + " " + platform.processor()
+    try:
+        with open("/proc/cpuinfo") as fh:
+            for line in fh:
+                if line.split(":")[0].strip() in ("model name", "flags", "Features"):
+                    text += "\n" + line.strip()
+                if line.strip() == "":
+                    break  # the first processor's block is enough
+    except OSError:
+        pass
+    return text
 
 
 def _load(path):
@@ -190,7 +221,8 @@ def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values,
     ex.update(excitation_values)
     sp = adxl203.sensor_parameters(**sensor_values)
     es = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=0.01, estimator=1,
-              process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default)
+              process=harmonic.GAUSS_MARKOV, f=150.0, Qh=parameters.PARAMETERS["Qh"].default,
+              a3=0.0, a4=0.0)
     es.update(estimator_values)
     vectors = [np.array([float(d[k]) for k in names])
                for d, names in ((ex, EXCITATION), (sp, SENSOR), (es, ESTIMATOR))]

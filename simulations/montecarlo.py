@@ -1,4 +1,6 @@
-"""Monte-Carlo populations of whole trajectories: the letter's Fig. 1 claims over many runs.
+"""Internal (not a stable API; use driftfmu.montecarlo instead).
+
+Monte-Carlo populations of whole trajectories: the letter's Fig. 1 claims over many runs.
 
 ``driftfmu montecarlo gaussian`` runs the Gaussian chain (Sec. III) ``runs`` times, run ``r`` with
 FMU seed ``seed + r``, and keeps every trajectory; ``driftfmu montecarlo sinusoidal`` does the
@@ -19,9 +21,9 @@ import time
 
 import numpy as np
 
-from driftfmu.models import drift, excitation
+from driftfmu.models import chain, drift, excitation
 from driftfmu.simulations import batch, output
-from driftfmu.simulations.gaussian import SETTLE_BAND, settle_hold
+from driftfmu.simulations.gaussian import GENERAL_OFF, SETTLE_BAND, settle_hold
 from driftfmu.simulations.errors import UsageError
 
 #: The letter's claim: EKF1 and EKF2 settle in under 250 samples.
@@ -110,6 +112,24 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
     return summary
 
 
+#: The general model's parameters of the sinusoidal population: the sensor's (a sinusoidal
+#: state has no input term).
+SINE_GENERAL = ("a3", "a4")
+
+
+def general_on(general, allowed=tuple(GENERAL_OFF)):
+    """The general model's parameters given and not off (``a3, a4, B, drive, Qu, Xu, fu``, as
+    ``driftfmu run gaussian`` takes them), checked; UsageError for an unknown name or a value
+    out of range."""
+    unknown = sorted(set(general) - set(allowed))
+    if unknown:
+        raise UsageError("unknown parameter(s) %s; allowed: %s"
+                         % (", ".join(unknown), ", ".join(allowed)))
+    on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
+    batch.check_parameters(on)
+    return on
+
+
 def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu_dir,
          progress, backend="python", summary_only=False):
     seeds = batch.run_seeds(seed, runs)
@@ -143,8 +163,15 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
 def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4,
                         seed=1, Ts=1e-3, x0=0.0, P0=None, engine="batch", scheduler=None,
                         client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
-                        progress=None, backend="python", summary_only=False):
+                        progress=None, backend="python", summary_only=False, **general):
     """``runs`` Gaussian runs of ``n`` samples (the letter's Fig. 1 as a population).
+
+    ``general``: the general model's ``a3, a4`` (sensor and filter), ``B`` and the known
+    input ``drive, Qu, Xu, fu`` (docs/method.md section 9), the names and checks of
+    ``driftfmu run gaussian``; off by default (the letter's runs, same bits).  The batch engine
+    runs them in NumPy (the compiled kernel has the letter's sensor only: same results, more
+    time); the realised and expected drift are then the general ones, ``mean(a2 x^2 + a3 x^3 +
+    a4 x^4)`` and ``a2 E[x^2] + a4 E[x^4]``.
 
     Returns the ``montecarlo.npz`` arrays (``fig1_x``, ``fig1_z``, ``fig1_dc1``, ``fig1_dc2``,
     ``fig1_dc3``, ``fig1_dc_empirical``, ``fig1_dc_realised``, each ``(runs, n)``), ``summary``
@@ -154,15 +181,19 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     batch.check_runs(runs)
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, x0=x0, P0=P0)
     batch.check_parameters(params)
-    common = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, Ts=Ts, x0=x0, P0=P0)
+    on = general_on(general)
+    common = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, Ts=Ts, x0=x0, P0=P0, **on)
     res, seconds = _run(n, runs, seed, {}, common, engine, scheduler, client, workers,
                         fmu_dir, progress, backend, summary_only)
     result = {key: res[name] for key, name in GAUSSIAN_KEYS.items()}
     result.update(_per_run(res))
-    summary = summarise(res, ("realised", "empirical"), a1=a1, Q=Q, R=R, A=A)
+    # the gap's closed form is the letter's quadratic sensor's
+    summary = summarise(res, ("realised", "empirical"), a1=a1, Q=Q, R=R,
+                        A=None if on else A)
     summary["parameters"] = dict(params, runs=runs, engine=engine,
-                                 P0=batch.default_P0(A, Q) if P0 is None else P0)
-    summary["dc_expected"] = a2 * excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q)
+                                 P0=batch.default_P0(A, Q) if P0 is None else P0, **on)
+    summary["dc_expected"] = chain.expected_drift(a2, excitation.GAUSSIAN, A=A, Q=Q, **{
+        k: v for k, v in on.items() if k != "a3"}, Ts=Ts)
     summary["seconds"] = seconds
     summary["trajectories_kept"] = int(result["fig1_dc1"].shape[0])
     result["summary"] = summary
@@ -177,8 +208,12 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
 def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=1.0, f=150.0,
                           Ts=1e-3, seed=1, A=0.0, Q=None, engine="batch", scheduler=None,
                           client=None, workers=None, fmu_dir="build/fmus", out=None, plot=True,
-                          progress=None, backend="python", summary_only=False):
+                          progress=None, backend="python", summary_only=False, **general):
     """``runs`` sinusoidal runs ``x_k = X sin(2 pi f (k-1) Ts + phi_r)`` of ``n`` samples.
+
+    ``general``: the sensor's ``a3, a4`` (sensor and filter; :data:`SINE_GENERAL`), batch
+    engine only (the FMU engine's sinusoidal run has the letter's sensor); the expected drift
+    is then ``a2 X^2 / 2 + 3 a4 X^4 / 8``.
 
     ``phi_r`` is :func:`driftfmu.simulations.batch.sine_phase` of the run's seed; the filter is the
     scalar Gauss-Markov EKF with ``A`` (default 0) and ``Q`` (default ``X^2 / 2``).  Returns
@@ -191,11 +226,12 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
         Q = excitation.stationary_variance(excitation.SINUSOIDAL, X=X)
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, X=X, f=f)
     batch.check_parameters(params)
+    on = general_on(general, SINE_GENERAL)
     if not f < 0.5 / Ts:
         raise UsageError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
                          "f < %r Hz" % (f, 0.5 / Ts, 0.5 / Ts))
     common = dict(a0=a0, a1=a1, a2=a2, R=R, Ts=Ts, X=X, f=f, kind=excitation.SINUSOIDAL,
-                  filter_A=A, filter_Q=Q)
+                  filter_A=A, filter_Q=Q, **on)
     res, seconds = _run(n, runs, seed, {"phi": batch.sine_phase}, common, engine, scheduler,
                         client, workers, fmu_dir, progress, backend, summary_only)
     result = {key: res[name] for key, name in SINE_KEYS.items()}
@@ -203,8 +239,9 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     result["sine_phi"] = batch.sine_phase(batch.run_seeds(seed, runs))
     summary = summarise(res, ("empirical", "realised"))
     summary["parameters"] = dict(params, runs=runs, engine=engine,
-                                 filter="Gauss-Markov EKF, A = %g, Q = %g" % (A, Q))
-    summary["dc_expected"] = a2 * excitation.stationary_variance(excitation.SINUSOIDAL, X=X)
+                                 filter="Gauss-Markov EKF, A = %g, Q = %g" % (A, Q), **on)
+    summary["dc_expected"] = chain.expected_drift(a2, excitation.SINUSOIDAL, X=X,
+                                                  a4=on.get("a4", 0.0))
     summary["seconds"] = seconds
     summary["trajectories_kept"] = int(result["sine_dc1"].shape[0])
     result["summary"] = summary
@@ -338,6 +375,7 @@ def add_cli(groups):
     g = sub.add_parser("gaussian", help="Gaussian excitation (Sec. III, Fig. 1)")
     cli.add_params(g, ("a0", "a1", "a2", "A", "Q", "R", "runs", "n", "seed", "Ts"), runs=1000,
                    n=1000)
+    cli.add_params(g, cli.GENERAL)
     g.add_argument("--P0", type=cli.param_type("P0"), default=None, metavar="P0",
                    help="initial error variance of the filter [g2] (default: Q / (1 - A^2))")
     batch.add_engine_options(g)
@@ -350,6 +388,7 @@ def add_cli(groups):
     s = sub.add_parser("sinusoidal", help="x = X sin(2 pi f t + phi), random phase per run")
     cli.add_params(s, ("a0", "a1", "a2", "R", "X", "f", "runs", "n", "seed", "Ts"), runs=1000,
                    n=1000)
+    cli.add_params(s, SINE_GENERAL)
     s.add_argument("--A", type=cli.param_type("A"), default=0.0, metavar="A",
                    help="the filter's state transition (default: 0, a white-state model)")
     s.add_argument("--Q", type=cli.param_type("Q"), default=None, metavar="Q",
@@ -370,27 +409,36 @@ def add_summary_only(p):
                         "--n" % FIGURE_RUNS)
 
 
-def _with_bar(args, fn, **kw):
+def _with_bar(args, **kw):
+    """Both sub-commands: :func:`driftfmu.montecarlo` of kind ``args.experiment``."""
+    import driftfmu
     from driftfmu.simulations import budget, cli
     budget.check_montecarlo(args.experiment, args.runs, args.n, args.workers, args.out,
                             summary_only=args.summary_only)
     desc = "montecarlo (%s engine)" % args.engine
     with cli.progress(args.runs, desc, "run", monitor=False) as update:
-        return fn(runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, a0=args.a0,
-                  a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q, engine=args.engine,
+        return driftfmu.montecarlo(
+                  args.experiment, runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts,
+                  a0=args.a0, a1=args.a1, a2=args.a2, R=args.R, A=args.A, Q=args.Q,
+                  engine=args.engine,
                   scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
                   out=args.out, progress=update, backend=args.backend,
                   summary_only=args.summary_only, **kw)
 
 
+def _general(args, names):
+    return {name: getattr(args, name) for name in names}
+
+
 def cmd_gaussian(args):
-    res = _with_bar(args, montecarlo_gaussian, P0=args.P0)
+    from driftfmu.simulations import cli
+    res = _with_bar(args, P0=args.P0, **_general(args, cli.GENERAL))
     print_summary(res["summary"], ("realised", "empirical"))
     print("wrote %s/montecarlo.npz, summary.json, fig1.png" % args.out)
 
 
 def cmd_sinusoidal(args):
-    res = _with_bar(args, montecarlo_sinusoidal, X=args.X, f=args.f)
+    res = _with_bar(args, X=args.X, f=args.f, **_general(args, SINE_GENERAL))
     print_summary(res["summary"], ("empirical", "realised"))
     print("wrote %s/montecarlo.npz, summary.json, sine.png" % args.out)
 

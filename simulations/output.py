@@ -1,4 +1,6 @@
-"""Writing results whole or not at all, and the plots.
+"""Internal (not a stable API; use the out= of the functions of driftfmu instead).
+
+Writing results whole or not at all, and the plots.
 
 Files are written into a staging folder beside the destination and moved into place only when
 every file of the set has been written; on any error or Ctrl-C the destination is left as it

@@ -1,4 +1,6 @@
-"""Sinusoidal excitation (the letter's Sec. IV drive) as an FMU co-simulation.
+"""Internal (not a stable API; use driftfmu.run_sinusoidal instead).
+
+Sinusoidal excitation (the letter's Sec. IV drive) as an FMU co-simulation.
 
 Excitation (``x = X sin(2 pi f t + phi)``, and ``y`` for the second axis) -> Accelerometer ->
 DriftEstimator, fixed step ``Ts``, one row per sample.  The filter's process model is the letter's
@@ -249,10 +251,12 @@ def add_cli(groups):
 
 
 def _cmd(args):
+    """``driftfmu run sinusoidal``: :func:`driftfmu.run_sinusoidal`."""
+    import driftfmu
     from driftfmu.simulations import budget, cli
     budget.check_run("sinusoidal", args.n, args.out, args.backend)
     with cli.progress(args.n, "co-simulation", "sample") as update:
-        res = run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
+        res = driftfmu.run_sinusoidal(out=args.out, X=args.X, f=args.f, phi=args.phi, Ts=args.Ts,
                              n=args.n, seed=args.seed, a0=args.a0, a1=args.a1, a2=args.a2,
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
                              P0=args.P0, estimator=args.estimator, preset=args.preset,

@@ -1,4 +1,6 @@
-"""The letter's Figs. 2 and 3: drift error over a grid of a2 and R, averaged over many runs.
+"""Internal (not a stable API; use driftfmu.sweep instead).
+
+The letter's Figs. 2 and 3: drift error over a grid of a2 and R, averaged over many runs.
 
 For every grid point ``(a2_i, R_j)`` and run ``r`` (FMU seed ``seed + r``, the same seeds at every
 grid point) the Gaussian chain runs ``n`` samples; the final-sample drift estimates of EKF1-3 are
@@ -10,12 +12,20 @@ compared with the three drift references (``docs/method.md``, section 4):
 
 The whole grid runs as one batch (``len(a2) * len(R) * runs`` runs on the leading axis, ``a2``
 and ``R`` per run), split over local worker processes or a Dask cluster.
+
+The general sensor (issue 16, docs/method.md section 9): ``a3, a4, B`` and the known input
+``drive, Qu, Xu, fu`` are shared by every grid point; the realised drift is then
+``mean(a2 x^2 + a3 x^3 + a4 x^4)`` and the expected ``a2 E[x^2] + a4 E[x^4]``
+(:func:`driftfmu.models.chain.expected_drift`).  Several values of ``a4`` make the sweep one
+over ``a4`` instead of ``a2`` (``a2`` then takes one value): the grid is ``(a4, R)``, the
+figures show the errors against ``a4`` beside the drift ``a2 sigma_x^2 + 3 a4 sigma_x^4``
+(eq. 5 for ``u = 0``).
 """
 import time
 
 import numpy as np
 
-from driftfmu.models import excitation, sensor
+from driftfmu.models import chain, excitation, parameters
 from driftfmu.simulations import batch, output
 from driftfmu.simulations.errors import UsageError
 
@@ -27,6 +37,11 @@ REFERENCES = ("empirical", "realised", "expected")
 CSV_COLUMNS = (("a2", "R", "dc_expected")
                + tuple("mean_dc_%s" % e for e in ESTIMATORS)
                + tuple("mae_%s_%s" % (e, ref) for e in ESTIMATORS for ref in REFERENCES))
+#: Columns of ``sweep.csv`` of a sweep over ``a4``.
+A4_CSV_COLUMNS = ("a4",) + CSV_COLUMNS[1:]
+#: The general model's parameters shared by all grid points, off by default (``a4`` may also
+#: be a grid).
+GENERAL_OFF = dict(a3=0.0, a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0)
 
 
 def check_grid(name, values):
@@ -39,15 +54,23 @@ def check_grid(name, values):
     return arr
 
 
-def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000,
+def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000,
           seed=1, Ts=1e-3, engine="batch", scheduler=None, client=None, workers=None,
-          chunk=None, fmu_dir="build/fmus", out=None, plot=True, progress=None):
+          chunk=None, fmu_dir="build/fmus", out=None, plot=True, progress=None, a4=0.0,
+          **general):
     """Run the grid; return the arrays of ``sweep.npz`` and the rows of ``sweep.csv``.
 
     Parameters
     ----------
     a2, R : sequence of float
-        The grid (defaults: ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)``).
+        The grid (defaults: ``logspace(-3, -0.5, 6)`` and ``logspace(-6, -2, 5)``; in a sweep
+        over ``a4``, ``a2`` is one value, default 0.01).
+    a4 : float or sequence of float
+        The sensor's 4th-order coefficient: one value for every grid point (default 0, the
+        letter's sensor), or several: a sweep over ``(a4, R)`` at one ``a2``.
+    **general
+        The general model's ``a3, B, drive, Qu, Xu, fu`` (the names and checks of
+        ``driftfmu run gaussian``), shared by every grid point; off by default.
     a0, a1, Q, A, Ts : float
         The other model parameters, shared by all grid points (the letter: a1 = 1, Q = 0.01).
     runs, n, seed : int
@@ -65,21 +88,43 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
     Returns
     -------
     dict
-        ``grid_a2``, ``grid_R``, ``grid_dc1``, ``grid_dc2``, ``grid_dc3``, ``grid_zbar``,
-        ``grid_x2bar`` (each ``(len(a2), len(R), runs)``), ``table`` (CSV columns -> arrays of
-        one value per grid point) and ``seconds`` (wall time of the runs).
+        ``grid_a2`` (``grid_a4`` in a sweep over ``a4``), ``grid_R``, ``grid_dc1``,
+        ``grid_dc2``, ``grid_dc3``, ``grid_zbar``, ``grid_x2bar`` (each ``(len(a2), len(R),
+        runs)``; with the general sensor also ``grid_dc_realised``), ``axis`` (``"a2"`` or
+        ``"a4"``), ``table`` (CSV columns -> arrays of one value per grid point) and
+        ``seconds`` (wall time of the runs).
     """
+    unknown = sorted(set(general) - set(GENERAL_OFF))
+    if unknown:
+        raise UsageError("unknown parameter(s) %s; allowed: %s"
+                         % (", ".join(unknown), ", ".join(GENERAL_OFF)))
+    a4s = check_grid("a4", a4)
+    axis = "a4" if a4s.size > 1 else "a2"
+    if a2 is None:
+        a2 = DEFAULT_A2 if axis == "a2" else parameters.PARAMETERS["a2"].default
     a2 = check_grid("a2", a2)
+    if axis == "a4" and a2.size > 1:
+        raise UsageError("a sweep over a4 (%d values) and a2 (%d values) at once is not "
+                         "allowed; allowed: several values of a2 with one of a4, or several "
+                         "of a4 with one of a2" % (a4s.size, a2.size))
     R = check_grid("R", R)
     batch.check_runs(runs)
     batch.check_parameters(dict(a0=a0, a1=a1, Q=Q, A=A, n=n, Ts=Ts))
+    on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
+    batch.check_parameters(on)
     if engine not in ("batch", "fmu"):
         raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+    xs = a4s if axis == "a4" else a2
     seeds1 = batch.run_seeds(seed, runs)
-    points = len(a2) * len(R)
+    points = len(xs) * len(R)
     seeds = np.tile(seeds1, points)
-    per_run = {"a2": np.repeat(a2, len(R) * runs), "R": np.tile(np.repeat(R, runs), len(a2))}
-    common = dict(a0=a0, a1=a1, Q=Q, A=A, Ts=Ts)
+    per_run = {axis: np.repeat(xs, len(R) * runs), "R": np.tile(np.repeat(R, runs), len(xs))}
+    common = dict(a0=a0, a1=a1, Q=Q, A=A, Ts=Ts, **on)
+    if axis == "a4":
+        common["a2"] = float(a2[0])
+    elif a4s[0] != 0.0:
+        common["a4"] = float(a4s[0])
+    higher = "a4" in common or axis == "a4" or on.get("a3", 0.0) != 0.0
     if engine == "fmu":
         from driftfmu.simulations.gaussian import fmu_paths
         fmu_paths(fmu_dir)  # build once here, not in every worker
@@ -94,17 +139,24 @@ def sweep(a2=DEFAULT_A2, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, 
                                        meanwhile=_import_matplotlib if out is not None and plot
                                        else None))
     seconds = time.perf_counter() - t0
-    shape = (len(a2), len(R), runs)
-    result = {"grid_a2": a2, "grid_R": R,
+    shape = (len(xs), len(R), runs)
+    result = {"grid_%s" % axis: xs, "grid_R": R,
               "grid_dc1": res["final_dc_ekf1"].reshape(shape),
               "grid_dc2": res["final_dc_ekf2"].reshape(shape),
               "grid_dc3": res["final_dc_ekf3"].reshape(shape),
               "grid_zbar": res["final_zbar"].reshape(shape),
               "grid_x2bar": res["final_x2bar"].reshape(shape)}
+    if higher:  # mean(a2 x^2 + a3 x^3 + a4 x^4), not a2 mean(x^2)
+        result["grid_dc_realised"] = res["final_dc_realised"].reshape(shape)
+    result["axis"] = axis
+    result["parameters"] = dict(a0=a0, a1=a1, Q=Q, A=A, runs=runs, n=n, seed=seed, Ts=Ts,
+                                engine=engine, **on)
+    if axis == "a4":
+        result["parameters"]["a2"] = common["a2"]
+    elif "a4" in common:
+        result["parameters"]["a4"] = common["a4"]
     result["table"] = table(result, Q=Q, A=A)
     result["seconds"] = seconds
-    result["parameters"] = dict(a0=a0, a1=a1, Q=Q, A=A, runs=runs, n=n, seed=seed, Ts=Ts,
-                                engine=engine)
     if out is not None:
         write(out, result, plot=plot)
     return result
@@ -126,20 +178,36 @@ def default_chunk(total, engine, workers=None):
 
 
 def references(result, Q, A):
-    """The three drift references per grid point and run, each ``(len(a2), len(R), runs)``."""
-    a2 = result["grid_a2"][:, None, None]
+    """The three drift references per grid point and run, each ``(len(a2), len(R), runs)``
+    (``len(a4)`` first in a sweep over ``a4``): the empirical ``z̄ - a0``, the realised
+    ``a2 mean(x^2)`` (``mean(a2 x^2 + a3 x^3 + a4 x^4)`` with the general sensor) and the
+    expected :func:`driftfmu.models.chain.expected_drift` (``a2 Q / (1 - A^2)`` for the
+    letter's sensor, ``+ 3 a4 sigma_x^4`` with ``a4``, the input's moments with ``B u``)."""
+    axis = result.get("axis", "a2")
+    p = dict(GENERAL_OFF, **{k: v for k, v in result.get("parameters", {}).items()
+                             if k in GENERAL_OFF or k == "a2"})
     shape = result["grid_dc1"].shape
-    expected = sensor.drift(a2, excitation.stationary_variance(excitation.GAUSSIAN, A=A, Q=Q))
+    if axis == "a4":
+        a2, a4 = p["a2"], result["grid_a4"][:, None, None]
+    else:
+        a2, a4 = result["grid_a2"][:, None, None], p["a4"]
+    expected = chain.expected_drift(a2, excitation.GAUSSIAN, A=A, Q=Q, a4=a4, B=p["B"],
+                                    drive=p["drive"], Qu=p["Qu"], Xu=p["Xu"], fu=p["fu"],
+                                    Ts=result.get("parameters", {}).get("Ts", 1e-3))
+    realised = (result["grid_dc_realised"] if "grid_dc_realised" in result
+                else a2 * result["grid_x2bar"])
     return {"empirical": result["grid_zbar"],
-            "realised": a2 * result["grid_x2bar"],
+            "realised": realised,
             "expected": np.broadcast_to(expected, shape)}
 
 
 def table(result, Q, A):
-    """``sweep.csv`` as columns: one row per grid point, ``a2`` slowest."""
+    """``sweep.csv`` as columns: one row per grid point, ``a2`` (``a4``) slowest."""
     refs = references(result, Q, A)
-    na2, nR = len(result["grid_a2"]), len(result["grid_R"])
-    cols = {"a2": np.repeat(result["grid_a2"], nR), "R": np.tile(result["grid_R"], na2),
+    axis = result.get("axis", "a2")
+    xs = result["grid_" + axis]
+    nx, nR = len(xs), len(result["grid_R"])
+    cols = {axis: np.repeat(xs, nR), "R": np.tile(result["grid_R"], nx),
             "dc_expected": refs["expected"][:, :, 0].ravel()}
     for e, key in zip(ESTIMATORS, ("grid_dc1", "grid_dc2", "grid_dc3")):
         dc = result[key]
@@ -154,11 +222,18 @@ def write(out, result, plot=True):
     arrays = {k: v for k, v in result.items() if k.startswith("grid_")}
     with output.staged(out) as stage:
         np.savez(stage / "sweep.npz", **arrays)
-        output.write_csv(stage / "sweep.csv", result["table"], CSV_COLUMNS)
+        axis = result.get("axis", "a2")
+        output.write_csv(stage / "sweep.csv", result["table"],
+                         A4_CSV_COLUMNS if axis == "a4" else CSV_COLUMNS)
         if plot:
             p = result["parameters"]
             subtitle = "a1 = %g, Q = %g, A = %g; %d runs of n = %d samples per point" % (
                 p["a1"], p["Q"], p["A"], p["runs"], p["n"])
+            fixed = [k for k in ("a2", "a3", "a4", "B", "drive", "Qu", "Xu", "fu")
+                     if k in p and k != axis]
+            if fixed:
+                subtitle = "%s, %s" % (", ".join("%s = %g" % (k, p[k]) for k in fixed),
+                                       subtitle)
             figures = [(stage / "fig2.png", "ekf1"), (stage / "fig3.png", "ekf3")]
             ylim = grid_limits(result)  # one scale for both: EKF1 against EKF3 at a glance
             if not _fork_is_cheap():
@@ -166,7 +241,7 @@ def write(out, result, plot=True):
                     plot_grid(path, result, est, subtitle, ylim=ylim)
                 return
             # two cores: Fig. 3 in a forked process while this one draws Fig. 2
-            drawn = {k: result[k] for k in ("table", "grid_a2", "grid_R")}
+            drawn = {k: result[k] for k in ("table", "grid_" + axis, "grid_R", "axis")}
             with batch.process_pool(1, "driftfmu.simulations.sweep") as pool:
                 later = pool.submit(plot_grid, figures[1][0], drawn, figures[1][1], subtitle,
                                     ylim)
@@ -215,7 +290,10 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
     t = result["table"]
-    a2, R = result["grid_a2"], result["grid_R"]
+    axis = result.get("axis", "a2")
+    a2, R = result["grid_" + axis], result["grid_R"]
+    # a sweep over a4 starts at the letter's a4 = 0: a linear a4 axis
+    xscale = "linear" if axis == "a4" else "log"
     markers = "osD^vPX*"
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharex=True)
     for ax, ref in zip(axes, ("realised", "empirical")):
@@ -227,20 +305,24 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
                       color=plt.cm.viridis(0.9 * j / max(1, len(R) - 1)),
                       label="R = %.0e V²" % r)
         ax.loglog(a2, t["dc_expected"].reshape(len(a2), len(R))[:, 0], color="k", ls=":",
-                  lw=1.2, label="the drift a2·Q/(1−A²)")
-        ax.set_xlabel("a2 [V/g²]")
+                  lw=1.2, label="the drift a2·Q/(1−A²)" if axis == "a2"
+                  else "drift a2σx²+3a4σx⁴")
+        ax.set_xscale(xscale)
+        ax.set_xlabel("a2 [V/g²]" if axis == "a2" else "a4 [V/g⁴]")
         ax.set_ylabel("mean |%s − %s drift| [V]" % (estimator.upper(), ref))
         ax.set_title("%s against the %s drift%s" % (
-            estimator.upper(), ref, " a2·mean(x²)" if ref == "realised"
-            else " z̄ − a0 (the letter's)"), fontsize=10)
+            estimator.upper(), ref, (" a2·mean(x²)" if axis == "a2" else " mean(h(x)−a0−a1x)")
+            if ref == "realised" else " z̄ − a0 (the letter's)"), fontsize=10)
         if ylim is not None:
             ax.set_ylim(*ylim)
         ax.grid(True, which="major", alpha=0.3)
         ax.minorticks_off()  # log-axis minor ticks are most of the drawing time
     axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
-    output.caption(fig, "Fig. %s of the letter: mean absolute error of %s over a grid of a2 "
+    output.caption(fig, "Fig. %s of the letter%s: mean absolute error of %s over a grid of %s "
                    "and R (%s); the y axes are those of Fig. %s, to compare EKF1 with EKF3"
-                   % ("2" if estimator == "ekf1" else "3", estimator.upper(), subtitle,
+                   % ("2" if estimator == "ekf1" else "3",
+                      "" if axis == "a2" else ", over the 4th-order term a4 instead of a2",
+                      estimator.upper(), axis, subtitle,
                       "3" if estimator == "ekf1" else "2"), width=130)
     fig.subplots_adjust(left=0.07, right=0.84, bottom=0.12, top=0.84, wspace=0.3)
     output.savefig(fig, path, dpi=110)
@@ -254,33 +336,50 @@ def add_cli(groups):
     p = groups["top"].add_parser(
         "sweep", help="drift error over a grid of a2 and R, many runs per point "
                       "(the letter's Figs. 2 and 3)")
-    p.add_argument("--a2", type=cli.param_type("a2"), nargs="+", default=list(DEFAULT_A2),
-                   metavar="A2", help="grid of a2 [V/g2] (default: logspace(-3, -0.5, 6))")
+    p.add_argument("--a2", type=cli.param_type("a2"), nargs="+", default=None,
+                   metavar="A2", help="grid of a2 [V/g2] (default: logspace(-3, -0.5, 6); "
+                                      "0.01 in a sweep over --a4)")
     p.add_argument("--R", type=cli.param_type("R"), nargs="+", default=list(DEFAULT_R),
                    metavar="R", help="grid of R [V2]; allowed: R > 0 "
                                      "(default: logspace(-6, -2, 5))")
+    p.add_argument("--a4", type=cli.param_type("a4"), nargs="+", default=[0.0], metavar="A4",
+                   help="the sensor's 4th-order coefficient [V/g4], one value for every grid "
+                        "point, or a grid of several: a sweep over a4 and R at one --a2 "
+                        "(default 0.01), the figures against a4 (default: 0)")
     cli.add_params(p, ("a0", "a1", "A", "Q", "runs", "n", "seed", "Ts"), runs=1000, n=1000)
+    cli.add_params(p, GENERAL_CLI)
     batch.add_engine_options(p)
     cli.add_out(p, "results/sweep")
     cli.add_fmu_dir(p)
     p.set_defaults(func=cmd_sweep)
 
 
+#: The general model's options of ``driftfmu sweep`` besides ``--a4``.
+GENERAL_CLI = ("a3", "B", "drive", "Qu", "Xu", "fu")
+
+
 def cmd_sweep(args):
-    total = len(args.a2) * len(args.R) * args.runs
+    """``driftfmu sweep``: :func:`driftfmu.sweep`."""
+    import driftfmu
+    a2 = args.a2
+    if a2 is None:
+        a2 = list(DEFAULT_A2) if len(args.a4) == 1 else [parameters.PARAMETERS["a2"].default]
+    total = max(len(a2), len(args.a4)) * len(args.R) * args.runs
     t0 = time.perf_counter()
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine
     with cli.progress(total, desc, "run", monitor=False) as update:
-        res = sweep(a2=args.a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
+        res = driftfmu.sweep(a2=a2, R=args.R, a0=args.a0, a1=args.a1, Q=args.Q, A=args.A,
                     runs=args.runs, n=args.n, seed=args.seed, Ts=args.Ts, engine=args.engine,
                     scheduler=args.scheduler, workers=args.workers, fmu_dir=args.fmu_dir,
-                    out=args.out, progress=update)
+                    out=args.out, progress=update, a4=args.a4,
+                    **{k: getattr(args, k) for k in GENERAL_CLI})
     wall = time.perf_counter() - t0
     print_table(res)
     sample_runs = total * args.n
     print("%d x %d grid, %d runs of n = %d: %.3g sample-runs in %.2f s (%.0f ns per "
-          "sample-run; %.2f s wall with writing)" % (len(args.a2), len(args.R), args.runs,
+          "sample-run; %.2f s wall with writing)" % (len(res["grid_" + res["axis"]]),
+                                                     len(args.R), args.runs,
                                                      args.n, sample_runs, res["seconds"],
                                                      1e9 * res["seconds"] / sample_runs, wall))
     print("wrote %s/sweep.npz, sweep.csv, fig2.png, fig3.png" % args.out)
@@ -289,11 +388,12 @@ def cmd_sweep(args):
 def print_table(res):
     """Mean absolute error of EKF1 and EKF3 per grid point against the three references."""
     t = res["table"]
-    print("%9s %9s %10s | %-30s | %-30s" % ("a2", "R", "drift", "EKF1 MAE vs real/emp/exp",
+    axis = res.get("axis", "a2")
+    print("%9s %9s %10s | %-30s | %-30s" % (axis, "R", "drift", "EKF1 MAE vs real/emp/exp",
                                             "EKF3 MAE vs real/emp/exp"))
-    for i in range(len(t["a2"])):
+    for i in range(len(t[axis])):
         print("%9.3g %9.3g %10.3g | %9.3g %9.3g %9.3g  | %9.3g %9.3g %9.3g"
-              % (t["a2"][i], t["R"][i], t["dc_expected"][i],
+              % (t[axis][i], t["R"][i], t["dc_expected"][i],
                  t["mae_ekf1_realised"][i], t["mae_ekf1_empirical"][i],
                  t["mae_ekf1_expected"][i], t["mae_ekf3_realised"][i],
                  t["mae_ekf3_empirical"][i], t["mae_ekf3_expected"][i]))

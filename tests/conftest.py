@@ -46,16 +46,42 @@ def python_fmus(tmp_path_factory):
     return dict(zip(NAMES, map(Path, paths)))
 
 
-@pytest.fixture(scope="session")
-def native_fmus(tmp_path_factory):
-    """The native (C) twins, built once per test run: {2: {name: path}, 3: {name: path}}."""
+#: The platforms of :func:`native_fmus`: those the tests run here (the C host, fmpy, wine).
+#: The cross-built ones (zig: aarch64, macOS), which only :func:`native_fmus_all`'s tests read
+#: or run under qemu, cost most of the build, so the other tests do not wait for them.
+HOST_PLATFORMS = ("x86_64-linux", "x86_64-windows")
+
+
+def _native_build(tmp_path_factory, name, platforms):
     from driftfmu.fmu_src.native_build import build_native_fmus
 
-    def build(out):  # the layout of build/fmus/native
+    def build(out):  # the layout of build/fmus/native; libraries shared by both builds
+        cache = out.parent / "native_libraries"
         return {v: {n: str(p) for n, p in fmus.items()}
-                for v, fmus in build_native_fmus(out / "native", log=lambda line: None).items()}
-    built = built_once(tmp_path_factory, "fmus_native", build)
+                for v, fmus in build_native_fmus(out / "native", platforms=platforms(),
+                                                 log=lambda line: None, cache=cache).items()}
+    built = built_once(tmp_path_factory, name, build)
     return {int(v): {n: Path(p) for n, p in fmus.items()} for v, fmus in built.items()}
+
+
+@pytest.fixture(scope="session")
+def native_fmus(tmp_path_factory):
+    """The native (C) twins for this machine's hosts (x86-64 Linux, and x86-64 Windows when a
+    compiler for it is installed), built once per test run: {2: {name: path}, 3: {name: path}}."""
+    from driftfmu.fmu_src import native_build
+    return _native_build(tmp_path_factory, "fmus_native", lambda: [
+        p for p in HOST_PLATFORMS if native_build.compiler(p) is not None])
+
+
+@pytest.fixture(scope="session")
+def native_fmus_all(native_fmus, tmp_path_factory):
+    """The native twins as ``build_native_fmus`` ships them (every platform whose compiler is
+    installed: the zig cross-builds for aarch64 and macOS too, and ``fmi2-aarch64/``), built
+    once per test run, and only when a test asks (the platform tests).  The libraries of
+    :func:`native_fmus` (built first) are reused, not compiled again."""
+    from driftfmu.fmu_src import native_build
+    return _native_build(tmp_path_factory, "fmus_native_all",
+                         lambda: native_build.available_platforms(log=lambda line: None))
 
 
 #: The FMUs a behaviour test runs on: the pythonfmu FMUs and their native twins, FMI 2.0 and

@@ -1,5 +1,6 @@
 """The public API (driftfmu.build_fmus, driftfmu.simulate, the experiments) against models/."""
 import inspect
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -119,7 +120,57 @@ def test_build_fmus_refuses_what_it_cannot_build(tmp_path):
                          (dict(names=["Nope"]), "Nope")]:
         with pytest.raises(ValueError, match=word):
             driftfmu.build_fmus(tmp_path / "out", **kwargs)
-    assert not (tmp_path / "out").exists()
+    for kwargs, word in [(dict(backend="native", fmi_version=()), "fmi_version"),
+                         (dict(backend="native", fmi_version=(2, 4)), "fmi_version = 4"),
+                         (dict(names=["Excitation"], ssp=tmp_path / "c.ssp"), "ssp needs"),
+                         (dict(backend="native", fmi_version=3, ssp=tmp_path / "c.ssp"),
+                          "fmi_version 2")]:
+        with pytest.raises(ValueError, match=word):
+            driftfmu.build_fmus(tmp_path / "out", **kwargs)
+    assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def _fake_native(out_dir, names, fmi_versions, log, **kw):
+    """Writes what build_native_fmus writes, without a compiler."""
+    built = {}
+    for v in fmi_versions:
+        (Path(out_dir) / ("fmi%d" % v)).mkdir(parents=True, exist_ok=True)
+        built[v] = {}
+        for n in names:
+            path = Path(out_dir) / ("fmi%d" % v) / ("%s.fmu" % n)
+            path.write_bytes(b"fmu")
+            log("built %s" % path)
+            built[v][n] = str(path)
+    return built
+
+
+def test_build_fmus_of_several_fmi_versions_keys_them_by_folder(tmp_path, monkeypatch):
+    from driftfmu.fmu_src import native_build
+    monkeypatch.setattr(native_build, "build_native_fmus", _fake_native)
+    lines = []
+    one = driftfmu.build_fmus(tmp_path, backend="native", fmi_version=3, names=["Excitation"],
+                              log=lines.append)
+    assert one == {"Excitation": tmp_path / "native" / "fmi3" / "Excitation.fmu"}
+    both = driftfmu.build_fmus(tmp_path, backend="native", fmi_version=(2, 3),
+                               names=["Excitation", "Accelerometer"], log=lines.append)
+    assert sorted(both) == ["fmi2/Accelerometer", "fmi2/Excitation", "fmi3/Accelerometer",
+                            "fmi3/Excitation"]
+    assert both["fmi2/Accelerometer"] == tmp_path / "native" / "fmi2" / "Accelerometer.fmu"
+    assert len(lines) == 5
+
+
+def test_a_failed_build_leaves_no_folder_it_created(tmp_path, monkeypatch):
+    from driftfmu.fmu_src import native_build
+
+    def half(out_dir, **kw):
+        _fake_native(out_dir, **kw)
+        raise RuntimeError("the compiler broke")
+    monkeypatch.setattr(native_build, "build_native_fmus", half)
+    (tmp_path / "mine.txt").write_text("keep")
+    with pytest.raises(RuntimeError, match="compiler broke"):
+        driftfmu.build_fmus(tmp_path, backend="native", fmi_version=(2, 3),
+                            cross_check=tmp_path / "cc" / "x")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mine.txt"]
 
 
 @pytest.mark.integration

@@ -193,13 +193,16 @@ def test_progress_bars_name_their_unit(monkeypatch):
 
 # -- Ctrl-C: 130 --------------------------------------------------------------------------------
 
-def _group(pgid):
-    """Live (not zombie) processes of process group ``pgid``."""
-    r = subprocess.run(["ps", "-e", "-o", "pid=,pgid=,stat="], capture_output=True, text=True)
+def _group(pgid, python_only=False):
+    """Live (not zombie) processes of process group ``pgid``; ``python_only``: the Python
+    processes only (the command and its workers, not a C compiler building the batch kernel)."""
+    r = subprocess.run(["ps", "-e", "-o", "pid=,pgid=,stat=,comm="], capture_output=True,
+                       text=True)
     live = []
     for line in r.stdout.splitlines():
-        pid, group, st = line.split()[:3]
-        if int(group) == pgid and not st.startswith("Z"):
+        pid, group, st, *comm = line.split()
+        if int(group) == pgid and not st.startswith("Z") and (
+                not python_only or "".join(comm).startswith("python")):
             live.append(int(pid))
     return live
 
@@ -222,13 +225,14 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
         assert p.poll() is None, p.communicate()
         time.sleep(0.002)
     if wait_for_workers:
-        while len(_group(p.pid)) < 1 + wait_for_workers and time.monotonic() - t0 < 120:
+        while (len(_group(p.pid, python_only=True)) < 1 + wait_for_workers
+               and time.monotonic() - t0 < 120):
             assert p.poll() is None, p.communicate()
             time.sleep(0.1)
         time.sleep(after)
     else:
         time.sleep(after)
-    workers = len(_group(p.pid)) - 1
+    workers = len(_group(p.pid, python_only=True)) - 1
     sent = time.monotonic()
     if send is None:
         os.killpg(p.pid, signal.SIGINT)
@@ -246,9 +250,11 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
             break
         time.sleep(0.1)
         left = _group(p.pid)
-    # the compiled batch kernel (simulations/kernel.py) is a cache kept in TMPDIR by design;
-    # anything else left there is a temporary file the interrupt should have removed
-    files = sorted(f for f in os.listdir(tmp) if not f.startswith("driftfmu-kernel-"))
+    # the compiled batch kernel (simulations/kernel.py) and the fast master's compiled loop
+    # (simulations/fastcosim.py) are caches kept in TMPDIR by design; anything else left there
+    # is a temporary file the interrupt should have removed
+    files = sorted(f for f in os.listdir(tmp) if not f.startswith("driftfmu-kernel-")
+                   and not (f.startswith("driftfmu-loop-") and f.endswith(".so")))
     return p.returncode, err, stopped, left, files, workers
 
 

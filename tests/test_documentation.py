@@ -39,7 +39,8 @@ def _fmus(python_fmus, native_fmus):
 
 
 @pytest.mark.integration
-def test_every_fmu_carries_its_generated_documentation(python_fmus, native_fmus):
+def test_every_fmu_carries_its_generated_documentation(python_fmus, native_fmus_all):
+    native_fmus = native_fmus_all  # as the build ships them: every platform's binaries
     from fmpy import read_model_description
     from fmpy.validation import validate_fmu
     seen = 0
@@ -109,3 +110,49 @@ def test_site_builds_in_strict_mode(tmp_path):
     api = (tmp_path / "site" / "api" / "index.html").read_text()
     for name in API:
         assert 'id="driftfmu.%s"' % name in api, name
+
+
+def _package_modules():
+    """Every module file of the installed or checked-out ``driftfmu`` package: its own folder
+    (``driftfmu/``, in a wheel also the subpackages) and the subpackages' folders."""
+    import driftfmu.fmu_src
+    import driftfmu.models
+    import driftfmu.simulations
+    folders = [Path(driftfmu.__file__).parent] + [
+        Path(p) for pkg in (driftfmu.models, driftfmu.fmu_src, driftfmu.simulations)
+        for p in pkg.__path__]
+    files = {f.resolve() for d in folders for f in d.rglob("*.py")}
+    return sorted(files)
+
+
+def _module_name(path):
+    return "/".join(path.parts[-3:])
+
+
+PUBLIC_MODULES = ("__init__.py", "_api.py")  # driftfmu's own: the API
+
+
+def test_every_module_but_the_api_says_it_is_internal():
+    import ast
+    files = _package_modules()
+    names = {_module_name(f) for f in files}
+    assert any(n.endswith("models/ekf.py") for n in names)
+    assert any(n.endswith("simulations/cli.py") for n in names)
+    assert any(n.endswith("fmu_src/builder.py") for n in names)
+    api = {f for f in files if f.parent == Path(driftfmu.__file__).resolve().parent
+           and f.name in PUBLIC_MODULES}
+    assert len(api) == 2
+    public = set(driftfmu.__all__)
+    for f in sorted(set(files) - api):
+        doc = ast.get_docstring(ast.parse(f.read_text(encoding="utf-8"))) or ""
+        first = doc.splitlines()[0] if doc else ""
+        m = re.fullmatch(r"Internal \(not a stable API; use (.+) instead\)\.", first)
+        assert m, "%s: the docstring's first line does not say it is internal: %r" % (
+            _module_name(f), first)
+        named = re.findall(r"driftfmu\.(\w+)", m.group(1))
+        assert all(n in public for n in named), "%s names %s, not public" % (
+            _module_name(f), named)
+        assert named or "driftfmu" in m.group(1), _module_name(f)
+    for f in api:  # the API says it is the API
+        doc = ast.get_docstring(ast.parse(f.read_text(encoding="utf-8"))) or ""
+        assert not doc.startswith("Internal"), f.name

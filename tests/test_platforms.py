@@ -10,6 +10,7 @@ and aarch64 Linux under qemu-user (tests/test_native.py).  The readers themselve
 With ``DRIFTFMU_REQUIRE_PLATFORMS=1`` (set by .ci/run) a missing cross-compiler or tool fails
 these tests instead of skipping them.
 """
+import io
 import os
 import re
 import shutil
@@ -49,10 +50,10 @@ def fmi_functions(version):
 
 
 @pytest.fixture(scope="module")
-def fmu_sets(native_fmus):
+def fmu_sets(native_fmus_all):
     """{"fmi2": {name: path}, "fmi2-aarch64": {...}, "fmi3": {...}} (the ARM set when built)."""
-    arm_dir = native_fmus[2][NAMES[0]].parent.parent / native_build.FMI2_ARM
-    sets = {"fmi2": native_fmus[2], "fmi3": native_fmus[3]}
+    arm_dir = native_fmus_all[2][NAMES[0]].parent.parent / native_build.FMI2_ARM
+    sets = {"fmi2": native_fmus_all[2], "fmi3": native_fmus_all[3]}
     if arm_dir.is_dir():
         sets[native_build.FMI2_ARM] = {n: arm_dir / ("%s.fmu" % n) for n in NAMES}
     return sets
@@ -170,7 +171,7 @@ def test_every_binary_is_a_library_for_its_platform_exporting_every_fmi_function
     assert checked >= len(NAMES) * (2 if kind == "fmi2" else 1)
 
 
-def test_binaries_are_reproducible_and_darwin64_is_universal_of_the_thin_builds(native_fmus,
+def test_binaries_are_reproducible_and_darwin64_is_universal_of_the_thin_builds(native_fmus_all,
                                                                                tmp_path):
     """Compiled again elsewhere, every binary of an FMU comes out byte for byte the same (no
     build path or time inside); the FMI 2.0 ``darwin64`` library is the universal binary of the
@@ -184,7 +185,7 @@ def test_binaries_are_reproducible_and_darwin64_is_universal_of_the_thin_builds(
             again = {p: native_build.compile_library(
                 p, sources, c_files, work / p / (name + PLATFORMS[p][0]))[0].read_bytes()
                 for p in built_platforms()}
-        with zipfile.ZipFile(native_fmus[version][name]) as archive:
+        with zipfile.ZipFile(native_fmus_all[version][name]) as archive:
             if version == 3:
                 for p, data in again.items():
                     assert archive.read("binaries/%s/%s%s" % (p, name, PLATFORMS[p][0])) \
@@ -228,9 +229,9 @@ class tempfile_dir:
 
 # -- the readers, checked against binutils where binutils reads the format ------------------------
 
-def test_elf_reader_agrees_with_nm_and_readelf(native_fmus, tmp_path):
+def test_elf_reader_agrees_with_nm_and_readelf(native_fmus_all, tmp_path):
     need(shutil.which("nm") and shutil.which("readelf"), "binutils is not installed")
-    with zipfile.ZipFile(native_fmus[3]["DriftEstimator"]) as archive:
+    with zipfile.ZipFile(native_fmus_all[3]["DriftEstimator"]) as archive:
         for platform in ("x86_64-linux", "aarch64-linux"):
             member = "binaries/%s/DriftEstimator.so" % platform
             if member not in archive.namelist():
@@ -247,11 +248,11 @@ def test_elf_reader_agrees_with_nm_and_readelf(native_fmus, tmp_path):
             assert lib.imports == re.findall(r"\(NEEDED\).*\[(.+)\]", dynamic)
 
 
-def test_pe_reader_agrees_with_objdump(native_fmus, tmp_path):
+def test_pe_reader_agrees_with_objdump(native_fmus_all, tmp_path):
     objdump = shutil.which("x86_64-w64-mingw32-objdump")
     need(objdump, "x86_64-w64-mingw32-objdump is not installed")
     dll = tmp_path / "DriftEstimator.dll"
-    with zipfile.ZipFile(native_fmus[2]["DriftEstimator"]) as archive:
+    with zipfile.ZipFile(native_fmus_all[2]["DriftEstimator"]) as archive:
         dll.write_bytes(archive.read("binaries/win64/DriftEstimator.dll"))
     lib, = binaries.inspect(dll.read_bytes())
     dump = subprocess.run([objdump, "-p", str(dll)], capture_output=True, text=True,
@@ -302,6 +303,42 @@ def test_without_zig_and_mingw_the_build_ships_what_it_can_and_names_the_rest(mo
         assert "Not built on this machine (no compiler for them): %s." % ", ".join(
             p for p in PLATFORMS if p != "x86_64-linux") in listed
     assert sum(" kB: " in line for line in lines) == 2   # each FMU's size is printed
+
+
+def test_the_build_cache_reuses_a_library_only_for_the_same_sources_and_compiler(tmp_path,
+                                                                                 monkeypatch):
+    """``build_native_fmus(cache=...)`` (the test suite's second build, every platform, reuses
+    the first's libraries): the same FMU bytes as without the cache; a library in the cache is
+    what goes into the FMU (a planted one shows it is not compiled again, whatever the build
+    folder); another source byte, compiler command or platform is another key."""
+    cache = tmp_path / "cache"
+
+    def build(folder, **kw):
+        fmu = native_build.build_native_fmus(tmp_path / folder, names=("Excitation",),
+                                             fmi_versions=(3,), platforms=("x86_64-linux",),
+                                             log=lambda line: None, **kw)[3]["Excitation"]
+        return fmu.read_bytes()
+
+    plain = build("plain")
+    assert build("first", cache=cache) == plain
+    entry, = cache.iterdir()
+    assert entry.name.startswith("x86_64-linux-")
+    assert build("second", cache=cache) == plain
+    entry.write_bytes(b"planted")
+    with zipfile.ZipFile(io.BytesIO(build("third", cache=cache))) as archive:
+        assert archive.read("binaries/x86_64-linux/Excitation.so") == b"planted"
+    keys = []
+    for i, change in enumerate((None, "source", None)):
+        sources = tmp_path / ("sources%d" % i)
+        c_files = native_build.stage_sources("Excitation", 3, sources)
+        if change == "source":
+            (sources / c_files[0]).write_bytes((sources / c_files[0]).read_bytes() + b"\n")
+        keys.append(native_build._cache_key("x86_64-linux", sources, c_files))
+    assert keys[0] == keys[2] != keys[1]   # the folder is not in the key, the bytes are
+    monkeypatch.setenv("CC", "gcc -DOTHER")
+    assert native_build._cache_key("x86_64-linux", sources, c_files) != keys[2]
+    monkeypatch.delenv("CC")
+    assert native_build._cache_key("x86_64-windows", sources, c_files) != keys[2]
 
 
 def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(monkeypatch,

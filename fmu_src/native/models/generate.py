@@ -1,4 +1,6 @@
-"""Generated C of the native models: the parameter table of :mod:`driftfmu.models.parameters`.
+"""Internal (not a stable API; use driftfmu.build_fmus instead).
+
+Generated C of the native models: the parameter table of :mod:`driftfmu.models.parameters`.
 
 ``parameters_table.h`` is written from :data:`driftfmu.models.parameters.PARAMETERS` (the one
 definition), so the C checks (``parameters.c``) use the same names, ranges and allowed-range

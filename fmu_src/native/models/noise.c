@@ -40,7 +40,7 @@ static const double C_[6] = {-7.784894002430293e-03, -3.223964580411365e-01,
 static const double D_[4] = {7.784695709041462e-03, 3.224671290700398e-01,
                              2.445134137142996e+00, 3.754408661907416e+00};
 
-static double central(double p)
+double noise_central(double p)
 {
     double q = p - 0.5;
     double r = q * q;
@@ -61,7 +61,7 @@ double noise_inverse_normal_cdf(double p)
 {
     if (p < NOISE_P_LOW) return lower_tail(p);
     if (p > 1.0 - NOISE_P_LOW) return -lower_tail(1.0 - p);
-    return central(p);
+    return noise_central(p);
 }
 
 double noise_normal(uint64_t seed, uint64_t stream, uint64_t k)

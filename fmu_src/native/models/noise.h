@@ -28,6 +28,9 @@ uint64_t noise_bits(uint64_t seed, uint64_t stream, uint64_t k);
 /* Uniform draw in (0, 1) on a grid of 2^-52. */
 double noise_uniform(uint64_t seed, uint64_t stream, uint64_t k);
 /* Acklam's inverse normal CDF of p in (0, 1). */
+/* The central branch of noise_inverse_normal_cdf (noise._central), for p_low <= p <= 1 - p_low:
+ * the batch kernel evaluates it for several runs at once and the tails one by one. */
+double noise_central(double p);
 double noise_inverse_normal_cdf(double p);
 /* Standard normal draw for sample k of stream under seed. */
 double noise_normal(uint64_t seed, uint64_t stream, uint64_t k);
