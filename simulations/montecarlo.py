@@ -227,6 +227,11 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, X=X, f=f)
     batch.check_parameters(params)
     on = general_on(general, SINE_GENERAL)
+    if on and engine == "fmu":  # before anything is built or run
+        raise UsageError("the FMU engine runs the sinusoidal state with the letter's sensor "
+                         "only, not with %s; allowed: engine 'batch' for these, or %s = 0"
+                         % (", ".join("%s = %r" % kv for kv in sorted(on.items())),
+                            " = ".join(sorted(on))))
     if not f < 0.5 / Ts:
         raise UsageError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
                          "f < %r Hz" % (f, 0.5 / Ts, 0.5 / Ts))

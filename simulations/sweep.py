@@ -241,7 +241,8 @@ def write(out, result, plot=True):
                     plot_grid(path, result, est, subtitle, ylim=ylim)
                 return
             # two cores: Fig. 3 in a forked process while this one draws Fig. 2
-            drawn = {k: result[k] for k in ("table", "grid_" + axis, "grid_R", "axis")}
+            drawn = {k: result[k] for k in ("table", "grid_" + axis, "grid_R", "axis",
+                                            "parameters")}
             with batch.process_pool(1, "driftfmu.simulations.sweep") as pool:
                 later = pool.submit(plot_grid, figures[1][0], drawn, figures[1][1], subtitle,
                                     ylim)
@@ -294,6 +295,9 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
     a2, R = result["grid_" + axis], result["grid_R"]
     # a sweep over a4 starts at the letter's a4 = 0: a linear a4 axis
     xscale = "linear" if axis == "a4" else "log"
+    general = any(k in result.get("parameters", {}) for k in GENERAL_OFF)
+    drift_label = ("drift a2σx²+3a4σx⁴" if axis == "a4" else "the expected drift"
+                   if general else "the drift a2·Q/(1−A²)")
     markers = "osD^vPX*"
     fig, axes = plt.subplots(1, 2, figsize=(12, 4.8), sharex=True)
     for ax, ref in zip(axes, ("realised", "empirical")):
@@ -305,8 +309,7 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
                       color=plt.cm.viridis(0.9 * j / max(1, len(R) - 1)),
                       label="R = %.0e V²" % r)
         ax.loglog(a2, t["dc_expected"].reshape(len(a2), len(R))[:, 0], color="k", ls=":",
-                  lw=1.2, label="the drift a2·Q/(1−A²)" if axis == "a2"
-                  else "drift a2σx²+3a4σx⁴")
+                  lw=1.2, label=drift_label)
         ax.set_xscale(xscale)
         ax.set_xlabel("a2 [V/g²]" if axis == "a2" else "a4 [V/g⁴]")
         ax.set_ylabel("mean |%s − %s drift| [V]" % (estimator.upper(), ref))

@@ -241,14 +241,27 @@ def _documented_points(engine="fmu"):
     """The rows of `driftfmu experiment dual-axis --engine ENGINE` at its defaults (4 runs per
     point with the FMU engine, 1000 with the batch engine; seed 1): the batch engine gives the
     FMU engine's numbers on the same seeds (test_dual_axis.py::test_batch_engine_gives_the_fmu_
-    engines_numbers), and here all points of a sweep run as one batch (the sweep parameter an
-    array over the runs: the same arithmetic element by element), then each point is
-    summarised as run_dual_axis does."""
+    engines_numbers); each point runs as one batch (in the compiled kernel when there is one,
+    bit for bit the NumPy engine, test_kernel.py) and is summarised as run_dual_axis does."""
     s, runs = dual_axis.DEFAULTS, dual_axis.RUNS[engine]
-    seeds = batch.run_seeds(1, runs)
-    rows = []
+    return _points(s, batch.run_seeds(1, runs))
+
+
+def _points(s, seeds, per_point=True):
+    """The summarised rows of every sweep point over ``seeds``; ``per_point=False`` runs all
+    points of a sweep as one NumPy batch, the sweep parameter an array over the runs (the same
+    arithmetic element by element)."""
+    runs, rows = len(seeds), []
     for sweep in dual_axis.SWEEPS:
         values = dual_axis.sweep_values(sweep, dual_axis.POINTS)
+        if per_point:
+            for v in values:
+                ex, sp, es = dual_axis.start_values(sweep, v, s)
+                if sweep == "dphi":
+                    ex["phiy"] = s["phi"] - v
+                out = batch.dual_simulate(s["n"], seeds, ex, sp, es, s["Ts"])
+                rows += dual_axis.summarise_point(sweep, v, s, out)
+            continue
         per_run = np.repeat(values, runs)
         ex, sp, es = dual_axis.start_values(sweep, per_run, s)
         if sweep == "dphi":
@@ -258,6 +271,15 @@ def _documented_points(engine="fmu"):
             part = {k: a[i * runs:(i + 1) * runs] for k, a in out.items()}
             rows += dual_axis.summarise_point(sweep, v, s, part)
     return rows
+
+
+def test_points_one_batch_per_point_equal_one_batch_per_sweep():
+    # the documented figures below run point by point (the compiled kernel takes start values
+    # shared by the runs); the per-sweep NumPy batch they were first computed with gives the
+    # same rows, bit for bit
+    s = dict(dual_axis.DEFAULTS, n=300)
+    seeds = batch.run_seeds(1, 6)
+    assert _points(s, seeds) == _points(s, seeds, per_point=False)
 
 
 #: docs/results.md's dual-axis tables (FMU engine, 4 runs per point): parameter, sweep, then per axis
@@ -313,7 +335,7 @@ def test_documented_dual_axis_table_and_its_worst_error():
     assert ["%.2f" % (1e3 * by[("rho", 0.0, a)]["scale"]) for a in "xy"] == ["0.20", "0.14"]
 
 
-@pytest.mark.slow  # 18 points x 1000 runs x 4000 samples: minutes
+@pytest.mark.slow  # 18 points x 1000 runs x 4000 samples: about 30 s in the compiled kernel
 def test_documented_dual_axis_figures_over_1000_runs_per_point():
     # docs/results.md: "Over 1000 runs per point (--engine batch) the dual-axis error is at most 0.008 %
     # of the scale; on the Gaussian sweep the single-axis error minus -b mean(xy) is within 0.25
