@@ -14,8 +14,9 @@ the native FMUs are cross-built and not run here, so no cross-check result is cl
 ``<Model>.fmu``
     the FMU as built;
 ``<Model>_in.csv``
-    the input signals (Accelerometer: ``x``, DriftEstimator: ``z``; Excitation has no inputs
-    and no input file), taken from the wired chain of our fmpy master, one row per sample;
+    the input signals (Accelerometer: ``x``, DriftEstimator: ``z``), taken from the wired chain
+    of our fmpy master, one row per sample, and the inputs the chain does not wire at their
+    start values (the Excitation's ``u_in``, the DriftEstimator's ``u``: 0);
 ``<Model>_ref.csv``
     the reference result: ``fmpy.simulate_fmu`` with the FMU's default parameters, the input
     file and the options below;
@@ -232,7 +233,8 @@ Comparison
 """
 
 TIMING = {
-    "Excitation": "Excitation has no inputs: row k is the Gauss-Markov sample x_(k+1).",
+    "Excitation": "Its one input, u_in (the host's known input, used when drive = 0), is 0 "
+                  "here:\n  row k is the Gauss-Markov sample x_(k+1).",
     "Accelerometer": "z depends on x directly, so row k > 0 is the measurement of sample k+1 "
                      "of the\n  input held from t_(k-1): z = a0 + a1 x + a2 x^2 + sqrt(R) "
                      "v_(k+1) with x from row k-1 of the input.",

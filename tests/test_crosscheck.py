@@ -32,7 +32,10 @@ def test_layout_follows_the_cross_check_rules(tree):
         f = _files(d, name)
         assert f["fmu"].is_file() and f["ref"].is_file() and f["opt"].is_file()
         assert f["readme"].is_file()
-        assert f["in"].is_file() == bool(crosscheck.INPUTS[name])
+        # an input file for the chain's inputs, or for inputs held at their start values
+        # (the Excitation's u_in, the DriftEstimator's u)
+        assert f["in"].is_file() == bool(crosscheck.INPUTS[name]
+                                         or crosscheck.other_inputs(f["fmu"], name))
         assert validate_test_fmu(str(d)) == []   # fmpy's validator of the cross-check repo
 
 
