@@ -227,6 +227,12 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     return {"columns": cols, "summary": summary}
 
 
+#: The known input's options of ``driftfmu run sinusoidal``: the filter's gain ``B`` and the
+#: Excitation's drive of ``u`` (it does not move the sinusoid; a filter that knows the commanded
+#: motion predicts with it).
+INPUT_OPTIONS = ("B", "drive", "Qu", "Xu", "fu")
+
+
 def add_cli(groups):
     """``driftfmu run sinusoidal``."""
     from driftfmu.simulations import cli
@@ -244,6 +250,7 @@ def add_cli(groups):
                    help="accelerometer preset (the filter then uses its nominal model; "
                         "a0, a1, a2, R are ignored)")
     cli.add_params(g, ("Xy", "phiy"))
+    cli.add_params(g, INPUT_OPTIONS)
     cli.add_out(g, "results/sinusoidal")
     cli.add_fmu_dir(g)
     cli.add_backend(g)
@@ -261,7 +268,8 @@ def _cmd(args):
                              R=args.R, process=args.process, Qh=args.Qh, A=args.A, Q=args.Q,
                              P0=args.P0, estimator=args.estimator, preset=args.preset,
                              Xy=args.Xy, phiy=args.phiy, fmu_dir=args.fmu_dir,
-                             progress=update, backend=args.backend)
+                             progress=update, backend=args.backend,
+                             **{name: getattr(args, name) for name in INPUT_OPTIONS})
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)

@@ -25,6 +25,10 @@ COMMANDS = [
     (["run", "sinusoidal", "--n", "9", "--f", "50", "--preset", "adxl203", "--out", "{tmp}/o"],
      "run_sinusoidal", {"out": "{tmp}/o", "n": 9, "parameters": {"f": 50.0,
                                                                  "preset": "adxl203"}}),
+    (["run", "sinusoidal", "--n", "9", "--process", "1", "--B", "1", "--drive", "2", "--Xu",
+      "0.5", "--fu", "150", "--out", "{tmp}/o"],
+     "run_sinusoidal", {"out": "{tmp}/o", "n": 9, "parameters": {
+         "process": 1, "B": 1.0, "drive": 2, "Xu": 0.5, "fu": 150.0, "Qu": 0.0}}),
     (["montecarlo", "gaussian", "--runs", "3", "--n", "5", "--summary-only", "--a3", "0.002",
       "--out", "{tmp}/o"],
      "montecarlo", {"kind": "gaussian", "runs": 3, "n": 5, "out": "{tmp}/o",
