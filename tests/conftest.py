@@ -74,6 +74,20 @@ def native_fmus(tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
+def fmus_in_build_layout(python_fmus, native_fmus, tmp_path_factory):
+    """The session's FMUs (linked) in the layout ``driftfmu build`` writes: ``<Name>.fmu`` and
+    ``native/fmi2|fmi3/<Name>.fmu``, for an ``fmu_dir`` argument."""
+    d = tmp_path_factory.mktemp("fmus_in_build_layout")
+    for path in python_fmus.values():
+        (d / path.name).symlink_to(path)
+    for v, paths in native_fmus.items():
+        (d / "native" / ("fmi%d" % v)).mkdir(parents=True)
+        for path in paths.values():
+            (d / "native" / ("fmi%d" % v) / path.name).symlink_to(path)
+    return d
+
+
+@pytest.fixture(scope="session")
 def native_fmus_all(native_fmus, tmp_path_factory):
     """The native twins as ``build_native_fmus`` ships them (every platform whose compiler is
     installed: the zig cross-builds for aarch64 and macOS too, and ``fmi2-aarch64/``), built

@@ -25,16 +25,9 @@ def _example(name):
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(python_fmus, native_fmus, tmp_path_factory):
+def fmu_dir(fmus_in_build_layout):
     """The session's FMUs in the layout of build/fmus."""
-    d = tmp_path_factory.mktemp("example_fmus")
-    for path in python_fmus.values():
-        (d / path.name).symlink_to(path)
-    for v, paths in native_fmus.items():
-        (d / "native" / ("fmi%d" % v)).mkdir(parents=True)
-        for path in paths.values():
-            (d / "native" / ("fmi%d" % v) / path.name).symlink_to(path)
-    return d
+    return fmus_in_build_layout
 
 
 def _custom_input_checks(result):

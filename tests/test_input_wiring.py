@@ -20,16 +20,9 @@ COLUMNS = ("x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
 
 
 @pytest.fixture(scope="module")
-def fmu_dir(python_fmus, native_fmus, tmp_path_factory):
+def fmu_dir(fmus_in_build_layout):
     """A folder in the layout build_fmus writes, linking the session's FMUs."""
-    d = tmp_path_factory.mktemp("wiring_fmus")
-    for path in python_fmus.values():
-        (d / path.name).symlink_to(path)
-    for v, paths in native_fmus.items():
-        (d / "native" / ("fmi%d" % v)).mkdir(parents=True)
-        for path in paths.values():
-            (d / "native" / ("fmi%d" % v) / path.name).symlink_to(path)
-    return d
+    return fmus_in_build_layout
 
 
 @pytest.fixture(scope="module")
