@@ -234,3 +234,31 @@ def test_fig5_png(figures, tmp_path):
     label = " ".join(ax.get_ylabel().split())
     assert "10·log10(v / 1 V)" in label and "20 log10" in label and "letter" in label
     assert len([t for t in ax.texts if t.get_text().endswith(" dB")]) == 3
+
+
+def test_a_laid_out_figure_is_drawn_once_to_the_same_pixels(tmp_path, monkeypatch):
+    """``output.savefig`` after ``tight_layout`` draws the figure once (matplotlib's savefig
+    draws it twice while the placeholder layout engine that tight_layout leaves is set), and
+    the PNG is the one of before, byte for byte."""
+    from matplotlib.figure import Figure
+
+    def laid_out():
+        fig, ax = plt.subplots(figsize=(5, 3))
+        ax.plot(np.arange(50), np.sin(np.arange(50) / 5.0), label="a curve")
+        ax.set_xscale("log")
+        ax.legend()
+        ax.set_title("title")
+        fig.tight_layout()
+        return fig
+
+    fig = laid_out()
+    fig.savefig(tmp_path / "before.png", dpi=100)   # as it was saved before
+    plt.close(fig)
+    draws = []
+    draw = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda self, r: (draws.append(1), draw(self, r))[1])
+    fig = laid_out()
+    output.savefig(fig, tmp_path / "now.png", dpi=100)
+    plt.close(fig)
+    assert len(draws) == 1
+    assert (tmp_path / "now.png").read_bytes() == (tmp_path / "before.png").read_bytes()
