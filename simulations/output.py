@@ -217,6 +217,34 @@ def savefig(fig, path, dpi=120):
     fig.savefig(path, dpi=dpi)
 
 
+def fork_is_cheap():
+    """More than one core, and a worker would be forked (this process is single-threaded)
+    with matplotlib already imported, so that drawing a figure beside costs no start-up."""
+    import os
+    import sys
+    import threading
+    return ((os.cpu_count() or 1) > 1 and threading.active_count() == 1
+            and "matplotlib.pyplot" in sys.modules and hasattr(os, "fork"))
+
+
+def draw_beside(first, *others):
+    """Call ``first()`` here and each of ``others`` (picklable: ``functools.partial`` of a
+    module-level plotting function) in a forked worker at the same time, when forking is cheap
+    (:func:`fork_is_cheap`); all in this process, in order, otherwise.  Returns when every one
+    is done; an exception in a worker is raised here."""
+    if not others or not fork_is_cheap():
+        first()
+        for other in others:
+            other()
+        return
+    from driftfmu.simulations import batch
+    with batch.process_pool(len(others), "driftfmu.simulations.output") as pool:
+        later = [pool.submit(other) for other in others]
+        first()
+        for future in later:
+            future.result()
+
+
 def skip_layout_draw(fig):
     """After ``fig.tight_layout()`` the figure keeps a placeholder layout engine, and with any
     engine ``savefig`` first draws the whole figure without rendering it, only to lay it out

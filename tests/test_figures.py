@@ -166,7 +166,7 @@ def test_fig1_and_sine_png(figures, tmp_path, which):
 
 
 def test_fig2_fig3_png(figures, tmp_path, monkeypatch):
-    monkeypatch.setattr(sweep, "_fork_is_cheap", lambda: False)  # both figures in this process
+    monkeypatch.setattr(output, "fork_is_cheap", lambda: False)  # both figures in this process
     sweep.sweep(a2=[1e-3, 1e-2, 1e-1], R=[1e-6, 1e-4, 1e-2], runs=16, n=200, workers=1,
                 out=tmp_path)
     assert len(figures) == 2
@@ -262,3 +262,21 @@ def test_a_laid_out_figure_is_drawn_once_to_the_same_pixels(tmp_path, monkeypatc
     plt.close(fig)
     assert len(draws) == 1
     assert (tmp_path / "now.png").read_bytes() == (tmp_path / "before.png").read_bytes()
+
+
+def test_figures_drawn_beside_each_run_once_and_a_failure_is_raised_here(tmp_path, monkeypatch):
+    """``output.draw_beside``: the first job here, the others in a worker; each once; an
+    exception in the worker reaches the caller (no figure silently missing)."""
+    import functools
+    import operator
+    from pathlib import Path
+    for cheap in (True, False):
+        monkeypatch.setattr(output, "fork_is_cheap", lambda: cheap)
+        folder = tmp_path / str(cheap)
+        folder.mkdir()
+        output.draw_beside(*[functools.partial(Path.write_text, folder / name, name)
+                             for name in ("a", "b", "c")])
+        assert sorted(p.read_text() for p in folder.iterdir()) == ["a", "b", "c"]
+        with pytest.raises(ZeroDivisionError):
+            output.draw_beside(functools.partial(int, "1"),
+                               functools.partial(operator.truediv, 1, 0))
