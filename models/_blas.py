@@ -1,4 +1,4 @@
-"""Internal (not a stable API).
+"""Internal (not a stable API; use driftfmu.identify instead).
 
 The number of threads of the BLAS library NumPy calls (OpenBLAS), for a computation whose bits
 must not depend on the machine.

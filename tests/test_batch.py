@@ -178,4 +178,6 @@ def test_pool_workers_run_one_blas_thread():
     with _blas.threads(2):   # what a 2-core machine starts with, whatever this one has
         with batch.process_pool(2) as pool:
             counts = [pool.submit(_blas.counts).result() for _ in range(2)]
-    assert counts == [[1] * len(_blas.libraries())] * 2
+    # each worker's every OpenBLAS at one thread (a worker started by a fork server may have
+    # loaded fewer BLAS libraries than this process: only NumPy's)
+    assert len(counts) == 2 and all(c and set(c) == {1} for c in counts), counts
