@@ -402,3 +402,59 @@ def test_a_state_pointer_from_another_copy_of_the_same_fmu(dirs, backend, tmp_pa
     finally:
         b.free()
         a.free()
+
+
+# -- deserialising into a state the host holds ----------------------------------------------------
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_deserialise_into_a_live_state_reuses_it(dirs, backend):
+    """fmi2DeSerializeFMUstate / fmi3DeserializeFMUState with ``*FMUstate`` a live state of the
+    FMU write into that state, as fmi2GetFMUstate does (a host that deserialises into one
+    pointer again and again allocates nothing: tests/test_memory.py measures it; the native
+    FMUs allocated a new state each time); a refused one leaves it as it was; a pointer that is
+    not a live state is said in a warning, left alone, and a new state is returned."""
+    outs = info(dirs, "DriftEstimator")["outputs"]
+    drv = driver(dirs, "DriftEstimator", backend)
+    name = "fmi2DeSerializeFMUstate" if drv.fmi == 2 else "fmi3DeserializeFMUState"
+
+    def des_into(data, pointer):
+        p = ctypes.c_void_p(pointer)
+        drv.logged = []
+        status = drv.raw(name, [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p], data,
+                         len(data), ctypes.byref(p))
+        return status, p.value
+
+    try:
+        t = initialised(drv)
+        assert call(drv, "gst", 0) == OK
+        saved = drv.ser(0)[1]
+        assert call(drv, "step", t, 1e-3) == OK
+        expected = drv.getr(outs)
+        assert call(drv, "step", t + 1e-3, 1e-3) == OK
+        assert call(drv, "gst", 1) == OK
+        held = drv.states[1]
+        status, p = des_into(saved, held)
+        assert (status, p) == (OK, held), messages(drv)
+        assert drv.ser(1)[1] == saved
+        corrupted = bytearray(drv.ser(1)[1])
+        corrupted[len(corrupted) // 2] ^= 0x5A
+        status, p = des_into(bytes(corrupted), held)
+        if backend != "python":  # the Python FMU refuses such bytes at fmi2SetFMUstate
+            assert status == ERROR and p == held, messages(drv)
+        if status >= ERROR:
+            assert drv.ser(1)[1] == saved
+        else:
+            assert call(drv, "sst", 1) == ERROR
+            assert des_into(saved, held) == (OK, held)
+        junk = ctypes.create_string_buffer(b"\x5a" * 64, 64)
+        status, p = des_into(saved, ctypes.addressof(junk))
+        assert status == WARNING and p not in (None, ctypes.addressof(junk)), messages(drv)
+        assert "not a live FMU state" in messages(drv)[0], messages(drv)
+        assert junk.raw == b"\x5a" * 64
+        drv.states[2] = p  # freed with the driver
+        for slot in (1, 2):  # both restore the saved state
+            assert call(drv, "sst", slot) == OK
+            assert call(drv, "step", t, 1e-3) == OK
+            assert drv.getr(outs) == expected
+    finally:
+        drv.free()
