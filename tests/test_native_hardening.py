@@ -363,6 +363,89 @@ def test_sizes_from_the_host_are_not_trusted(dirs):
         assert logged and str(size) in logged[0] and "allowed" in logged[0], (where, logged)
 
 
+COUNTS_CHILD = r"""
+import ctypes, json, sys
+sys.path.insert(0, sys.argv[1])
+from fuzz import differential as diff
+from ctypes import byref, c_char_p, c_double, c_int, c_int32, c_size_t, c_uint, c_void_p
+HUGE = (2 ** 64 - 1, 2 ** 63, 2 ** 61 + 1)
+out = []
+for unzipped, fmi in json.loads(sys.argv[2]):
+    drv = diff.Driver(unzipped, fmi)
+    def row(what, status):
+        out.append([unzipped, what, status, [m for _, m in drv.logged][-1:]])
+        drv.logged = []
+    drv.setup(0.0), drv.enter(), drv.exit()
+    drv.logged = []
+    # a category list of a length no array has: refused (the shim, which keeps the list: its
+    # calloc checks the count * size for overflow), or not read (the native FMUs ignore it)
+    one = (c_char_p * 1)(b"logAll")
+    for n in HUGE:
+        row("categories %d" % n, drv.raw("fmi%dSetDebugLogging" % fmi,
+                                         [c_int, c_size_t, c_void_p], 0, n, one))
+    if fmi == 3:
+        # value counts that do not match the value references: refused before any value is
+        # read or written (the array holds 2 values; the counts say 0, 2 or more)
+        vr = (c_uint * 1)(drv.vr["Ts"])
+        before = drv.getr(["Ts"])
+        for n in (0, 2) + HUGE:
+            for call, kind in (("fmi3GetFloat64", c_double), ("fmi3SetFloat64", c_double),
+                               ("fmi3GetInt32", c_int32), ("fmi3SetInt32", c_int32)):
+                values = (kind * 2)(1, 1)
+                row("%s nValues %d" % (call, n), drv.raw(call, [c_void_p, c_size_t, c_void_p,
+                                                                c_size_t], vr, 1, values, n))
+        out.append([unzipped, "unchanged", int(drv.getr(["Ts"]) == before), []])
+        # intermediate variables: a count with no array, refused without reading it
+        logged = []
+        Log = ctypes.CFUNCTYPE(None, c_void_p, c_int, c_char_p, c_char_p)
+        inst = ctypes.CFUNCTYPE(c_void_p, c_char_p, c_char_p, c_char_p, c_int, c_int, c_int,
+                                c_int, c_void_p, c_size_t, c_void_p, Log, c_void_p)(
+            ctypes.cast(drv.dll.fmi3InstantiateCoSimulation, c_void_p).value)
+        log = Log(lambda env, status, cat, msg: logged.append(msg.decode()))
+        for n in HUGE:
+            c = inst(b"counts", drv.md.guid.encode(), None, 0, 0, 0, 0, None, c_size_t(n),
+                     None, log, None)
+            out.append([unzipped, "intermediate %d" % n, 3 if c is None else 0, logged[-1:]])
+    drv.free()
+print(json.dumps(out))
+"""
+
+
+def test_counts_from_the_host_are_not_trusted(dirs, report):
+    """Array counts no array can have (SIZE_MAX, 2**63, 2**61 + 1: count * size overflows or
+    exceeds the address space), in a child process (a crash is a failure): a category list
+    (fmi2SetDebugLogging / fmi3SetDebugLogging), FMI 3.0 value counts that do not match the
+    value references (0, 2 and the huge ones; nothing read or written), FMI 3.0 intermediate
+    variables.  The Python FMU refuses the category count (its shim keeps the list); the native
+    FMUs ignore categories and read none.  A plausible count larger than the array cannot be
+    told from a real one by any FMU: the standard makes the host answer for it."""
+    targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
+               for b in BACKENDS]
+    done = subprocess.run([sys.executable, "-c", COUNTS_CHILD, str(Path(__file__).parent),
+                           json.dumps(targets)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(done.stdout.splitlines()[-1])
+    seen = {}
+    for where, what, status, logged in rows:
+        python = Path(where).name == "python"  # dirs: <folder>/<model>/<backend>
+        kind = what.split()[0]
+        seen[kind] = seen.get(kind, 0) + 1
+        if what == "unchanged":
+            assert status == 1, where
+        elif kind == "categories":
+            assert status == (ERROR if python else OK), (where, what, logged)
+            if python:
+                assert what.split()[1] in logged[0] and "nothing was changed" in logged[0]
+        else:  # FMI 3.0 value counts and intermediate variables
+            assert status == ERROR and logged, (where, what)
+            if kind.startswith("fmi3"):
+                assert "%s values" % what.split()[-1] in logged[0] and "allowed" in logged[0], \
+                    logged
+    assert seen["categories"] == 3 * len(targets)
+    assert seen["unchanged"] == len(NAMES)
+    report("HARDENING counts: %s" % ", ".join("%d %s" % (n, k) for k, n in sorted(seen.items())))
+
+
 # -- messages true to what the code does ----------------------------------------------------------
 
 @pytest.mark.parametrize("backend", BACKENDS)
