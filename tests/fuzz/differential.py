@@ -199,7 +199,9 @@ class Driver:
         return max(s, s2), (buf.raw if s2 <= WARNING else None)
 
     def des(self, data, slot):
-        p = c_void_p(None)
+        """Deserialise into the state the slot holds (NULL when it holds none): the FMU writes
+        into that live state or returns a new one."""
+        p = c_void_p(self.states.get(slot))
         name = "fmi2DeSerializeFMUstate" if self.fmi == 2 else "fmi3DeserializeFMUState"
         s = self.raw(name, [c_void_p, c_size_t, c_void_p], data, len(data), byref(p))
         if s <= WARNING:
