@@ -5,7 +5,10 @@ FMI 2.0 FMU and the native FMI 3.0 FMU, through raw calls (tests/fuzz/differenti
 - every field of a native serialised state is checked (NaN, inf, out of range, inconsistent),
   the state is refused as a whole naming the field, and the instance is left unchanged; the
   Python FMU's JSON state likewise;
-- sizes from the host are not trusted (SIZE_MAX, in a child process: a crash is a failure);
+- the tampered states the issue found (x = NaN, A = 5, R = 0, k = -5, Ts = 0) are refused;
+- sizes, counts and lengths from the host are not trusted (SIZE_MAX, in a child process: a
+  crash is a failure);
+- a state deserialised into a state the host holds is written into it (no new allocation);
 - messages say what was given and what is allowed, true to what the code does.
 """
 import ctypes
@@ -406,19 +409,35 @@ for unzipped, fmi in json.loads(sys.argv[2]):
             c = inst(b"counts", drv.md.guid.encode(), None, 0, 0, 0, 0, None, c_size_t(n),
                      None, log, None)
             out.append([unzipped, "intermediate %d" % n, 3 if c is None else 0, logged[-1:]])
+        # strings of any length (an instance name and a resource path of 100,000 characters,
+        # as the case fuzz gives the FMI 2.0 FMUs), and no logger: the instance works
+        free = ctypes.CFUNCTYPE(None, c_void_p)(
+            ctypes.cast(drv.dll.fmi3FreeInstance, c_void_p).value)
+        enter = ctypes.CFUNCTYPE(c_int, c_void_p, c_int, c_double, c_double, c_int, c_double)(
+            ctypes.cast(drv.dll.fmi3EnterInitializationMode, c_void_p).value)
+        for what, name, path, logger in (
+                ("strings", b"n" * 100000, b"/" + b"a/" * 50000, log),
+                ("nologger", b"quiet", None, Log())):
+            c = inst(name, drv.md.guid.encode(), path, 0, 0, 0, 0, None, 0, None, logger,
+                     None)
+            status = 3 if c is None else enter(c, 0, 0.0, 0.0, 0, 0.0)
+            if c is not None:
+                free(c)
+            out.append([unzipped, what, status, logged[-1:]])
     drv.free()
 print(json.dumps(out))
 """
 
 
-def test_counts_from_the_host_are_not_trusted(dirs, report):
+def test_counts_and_lengths_from_the_host_are_not_trusted(dirs, report):
     """Array counts no array can have (SIZE_MAX, 2**63, 2**61 + 1: count * size overflows or
     exceeds the address space), in a child process (a crash is a failure): a category list
     (fmi2SetDebugLogging / fmi3SetDebugLogging), FMI 3.0 value counts that do not match the
     value references (0, 2 and the huge ones; nothing read or written), FMI 3.0 intermediate
     variables.  The Python FMU refuses the category count (its shim keeps the list); the native
     FMUs ignore categories and read none.  A plausible count larger than the array cannot be
-    told from a real one by any FMU: the standard makes the host answer for it."""
+    told from a real one by any FMU: the standard makes the host answer for it.  And FMI 3.0
+    strings of any length (instance name, resource path) and no logger: the instance works."""
     targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
                for b in BACKENDS]
     done = subprocess.run([sys.executable, "-c", COUNTS_CHILD, str(Path(__file__).parent),
@@ -436,13 +455,15 @@ def test_counts_from_the_host_are_not_trusted(dirs, report):
             assert status == (ERROR if python else OK), (where, what, logged)
             if python:
                 assert what.split()[1] in logged[0] and "nothing was changed" in logged[0]
+        elif kind in ("strings", "nologger"):
+            assert status == OK, (where, what, logged)
         else:  # FMI 3.0 value counts and intermediate variables
             assert status == ERROR and logged, (where, what)
             if kind.startswith("fmi3"):
                 assert "%s values" % what.split()[-1] in logged[0] and "allowed" in logged[0], \
                     logged
     assert seen["categories"] == 3 * len(targets)
-    assert seen["unchanged"] == len(NAMES)
+    assert seen["unchanged"] == seen["strings"] == seen["nologger"] == len(NAMES)
     report("HARDENING counts: %s" % ", ".join("%d %s" % (n, k) for k, n in sorted(seen.items())))
 
 
