@@ -20,7 +20,7 @@
 
 static int host_quiet;
 
-static void *host_lookup(void *lib, const char *name)
+static inline void *host_lookup(void *lib, const char *name)
 {
     void *f = dlsym(lib, name);
     if (!f) {
@@ -31,7 +31,7 @@ static void *host_lookup(void *lib, const char *name)
 }
 
 /* The FMU's library for FMI version `fmi` (2 or 3) unzipped in `dir`. */
-static void *host_open(const char *dir, int fmi, const char *id)
+static inline void *host_open(const char *dir, int fmi, const char *id)
 {
     char path[8192];
     snprintf(path, sizeof path, "%s/binaries/%s/%s.so", dir,
@@ -44,7 +44,8 @@ static void *host_open(const char *dir, int fmi, const char *id)
     return lib;
 }
 
-static void host_vlog(int status, const char *category, const char *message, va_list args)
+static inline void host_vlog(int status, const char *category, const char *message,
+                             va_list args)
 {
     if (host_quiet)
         return;
@@ -55,8 +56,9 @@ static void host_vlog(int status, const char *category, const char *message, va_
 }
 
 #ifdef fmi2Functions_h
-static void host_logger2(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
-                         fmi2String category, fmi2String message, ...)
+static inline void host_logger2(fmi2ComponentEnvironment env, fmi2String name,
+                                fmi2Status status, fmi2String category, fmi2String message,
+                                ...)
 {
     (void)env;
     (void)name;
@@ -68,7 +70,8 @@ static void host_logger2(fmi2ComponentEnvironment env, fmi2String name, fmi2Stat
 #endif
 
 #ifdef fmi3Functions_h
-static void host_logger3_(int status, const char *category, const char *message, ...)
+static inline void host_logger3_(int status, const char *category, const char *message,
+                                 ...)
 {
     va_list args;
     va_start(args, message);
@@ -76,15 +79,15 @@ static void host_logger3_(int status, const char *category, const char *message,
     va_end(args);
 }
 
-static void host_logger3(fmi3InstanceEnvironment env, fmi3Status status, fmi3String category,
-                         fmi3String message)
+static inline void host_logger3(fmi3InstanceEnvironment env, fmi3Status status,
+                                fmi3String category, fmi3String message)
 {
     (void)env;
     host_logger3_((int)status, category, "%s", message ? message : "");
 }
 #endif
 
-static long host_rss_bytes(void)
+static inline long host_rss_bytes(void)
 {
     long pages = 0, resident = 0;
     FILE *f = fopen("/proc/self/statm", "r");
@@ -96,7 +99,7 @@ static long host_rss_bytes(void)
     return resident * 4096;
 }
 
-static void host_measure(const char *what, long i, long every)
+static inline void host_measure(const char *what, long i, long every)
 {
     if (every > 0 && (i + 1) % every == 0) {
         printf("RSS %s %ld %ld\n", what, i + 1, host_rss_bytes());
