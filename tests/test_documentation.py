@@ -156,3 +156,21 @@ def test_every_module_but_the_api_says_it_is_internal():
     for f in api:  # the API says it is the API
         doc = ast.get_docstring(ast.parse(f.read_text(encoding="utf-8"))) or ""
         assert not doc.startswith("Internal"), f.name
+
+
+@docs_only
+def test_the_issue_20_audit_names_tests_that_exist():
+    """docs/native-hardening.md's audit table names its tests as ABBREVIATION::test_name (and
+    "F cases `name`" for a case of tests/fuzz/cases.py): each must be defined where it says."""
+    text = (DOCS / "native-hardening.md").read_text(encoding="utf-8")
+    audit = text[text.index("## Audit"):]
+    files = {"NH": "test_native_hardening.py", "F": "test_fuzz.py", "M": "test_memory.py",
+             "H": "test_hardening.py", "N": "test_native.py"}
+    named = re.findall(r"\b(NH|F|M|H|N)::(test_\w+)", audit)
+    assert len(named) > 30
+    for short, test in named:
+        source = (ROOT / "tests" / files[short]).read_text(encoding="utf-8")
+        assert re.search(r"^def %s\(" % test, source, re.M), "%s::%s" % (short, test)
+    cases = (ROOT / "tests" / "fuzz" / "cases.py").read_text(encoding="utf-8")
+    for case in re.findall(r"F cases? `(\w+?)\*?`", audit):
+        assert re.search(r"^def %s" % case, cases, re.M), case

@@ -1,15 +1,26 @@
-"""Memory over many calls from a C host (tests/fuzz/fuzz_host.c): the growth per call is the
-slope of the resident memory over the second half of the calls (least squares), so a leak of a
-few bytes a call shows, and allocator warm-up does not."""
+"""Memory over many calls from a C host (tests/fuzz/fuzz_host.c for FMI 2.0, and
+tests/hosts/memory_host.c for FMI 2.0 and 3.0): the growth per call is the slope of the resident
+memory over the second half of the calls (least squares), so a leak of a few bytes a call shows,
+and allocator warm-up does not."""
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import fmpy
 import pytest
 
 import fuzz
 from driftfmu.simulations.gaussian import FMU_NAMES
+from fuzz.differential import MODELS as NATIVE_MODELS  # the models with native twins
 
 pytestmark = pytest.mark.integration
 CYCLES = 20_000
 STATE_GETS = 100_000
 ERRORS = 20_000
+#: serialise + deserialise round trips through the Python FMU (about 0.3 ms each)
+PYTHON_ROUND_TRIPS = 20_000
+MEMORY_HOST = Path(__file__).resolve().parent / "hosts" / "memory_host.c"
 
 
 @pytest.fixture(scope="module")
@@ -101,7 +112,7 @@ def test_logged_errors(host, models, report):
     assert slope < bound
 
 
-@pytest.mark.parametrize("name", FMU_NAMES)
+@pytest.mark.parametrize("name", NATIVE_MODELS)
 def test_native_instantiate_free_cycles_do_not_grow(host, native_models, name, report):
     m = native_models[name]
     lines = ["load 0 %s %s" % (m.dir, m.identifier),
@@ -126,3 +137,143 @@ def test_native_state_gets_into_one_pointer_do_not_grow(host, native_models, nam
     report("MEMORY native %s: %d fmi2GetFMUstate into one pointer: resident memory grows "
            "%.2f B per call" % (name, STATE_GETS, slope))
     assert slope < 0.5  # a state that is not reused is 560 B or more
+
+
+# -- tests/hosts/memory_host.c: native FMI 3.0, and serialise/deserialise (FMI 2.0 and 3.0) ------
+
+@pytest.fixture(scope="module")
+def memory_host(tmp_path_factory):
+    cc = shutil.which(os.environ.get("CC", "cc"))
+    if not cc:
+        pytest.skip("no C compiler to build the host")
+    exe = tmp_path_factory.mktemp("memory_host") / "memory_host"
+    headers = Path(fmpy.__file__).parent / "c-code"
+    subprocess.run([cc, "-std=c99", "-O1", "-g", "-o", str(exe), str(MEMORY_HOST),
+                    "-I%s" % headers, "-ldl"], check=True)
+    return str(exe)
+
+
+@pytest.fixture(scope="module")
+def native3_models(native_fmus, tmp_path_factory):
+    """The native FMI 3.0 twins."""
+    root = tmp_path_factory.mktemp("memory_native3_models")
+    return {name: fuzz.unzip(fmu, root / name) for name, fmu in native_fmus[3].items()}
+
+
+def run_memory_host(host, version, m, what, n, leak=0):
+    """``what`` (cycles, states, serdes) ``n`` times on the FMU ``m``; the host's
+    :class:`fuzz.Result`, checked to have run to its end."""
+    command = [host, str(version), m.dir, m.identifier, m.guid, what, str(n), str(n // 40)]
+    done = subprocess.run(command + ([str(leak)] if leak else []), capture_output=True,
+                          text=True, timeout=600, errors="replace")
+    result = fuzz.Result(done.returncode, done.stdout + done.stderr)
+    assert result.problems() == [], result.output[-2000:]
+    return result
+
+
+@pytest.mark.parametrize("name", NATIVE_MODELS)
+def test_native_fmi3_instantiate_free_cycles_do_not_grow(memory_host, native3_models, name,
+                                                         report):
+    result = run_memory_host(memory_host, 3, native3_models[name], "cycles", CYCLES)
+    slope = growth_per_call(result, "cycles")
+    report("MEMORY native FMI 3.0 %s: %d instantiate/free cycles (initialise, one step, "
+           "terminate): resident memory grows %.2f B per cycle" % (name, CYCLES, slope))
+    assert slope < 1.0  # 0 B: nothing the native FMU allocates outlives its instance
+
+
+@pytest.mark.parametrize("name", ["Accelerometer", "DriftEstimator"])
+def test_native_fmi3_state_gets_into_one_pointer_do_not_grow(memory_host, native3_models, name,
+                                                             report):
+    result = run_memory_host(memory_host, 3, native3_models[name], "states", STATE_GETS)
+    slope = growth_per_call(result, "states")
+    report("MEMORY native FMI 3.0 %s: %d fmi3GetFMUState into one pointer: resident memory "
+           "grows %.2f B per call" % (name, STATE_GETS, slope))
+    assert slope < 0.5  # a state that is not reused is 560 B or more
+
+
+@pytest.mark.parametrize("version", [2, 3])
+@pytest.mark.parametrize("name", ["Accelerometer", "DriftEstimator"])
+def test_native_serialise_deserialise_into_one_state_does_not_grow(
+        memory_host, native_models, native3_models, version, name, report):
+    """Serialise a state, deserialise the bytes into the same state pointer, again and again:
+    the native FMU deserialises into the live state it is given (as the loader shim does);
+    it allocated a new state every time before (about 670 B a call)."""
+    m = (native_models if version == 2 else native3_models)[name]
+    result = run_memory_host(memory_host, version, m, "serdes", STATE_GETS)
+    slope = growth_per_call(result, "serdes")
+    report("MEMORY native FMI %d.0 %s: %d serialise + deserialise into one state: resident "
+           "memory grows %.2f B per round trip" % (version, name, STATE_GETS, slope))
+    assert slope < 0.5
+
+
+@pytest.mark.parametrize("name", ["Accelerometer", "DriftEstimator"])
+def test_serialise_deserialise_into_one_state_does_not_grow(memory_host, models, name, report):
+    """The Python FMU (pythonfmu's JSON state behind the loader shim's state record)."""
+    result = run_memory_host(memory_host, 2, models[name], "serdes", PYTHON_ROUND_TRIPS)
+    slope = growth_per_call(result, "serdes")
+    bound = 8.0  # a state that is not freed is about 800 B
+    report("MEMORY %s: %d fmi2SerializeFMUstate + fmi2DeSerializeFMUstate into one state: "
+           "resident memory grows %.2f B per round trip (bound %g B)"
+           % (name, PYTHON_ROUND_TRIPS, slope, bound))
+    assert slope < bound
+
+
+@pytest.mark.parametrize("what", ["cycles", "states", "serdes"])
+def test_the_memory_host_sees_a_planted_leak(memory_host, native3_models, what):
+    """The measurement can fail: the same runs (a quarter as long) with the host leaking 16 B
+    per call (a 32 B heap chunk) give a slope far above every bound above."""
+    n = {"cycles": CYCLES, "states": STATE_GETS, "serdes": STATE_GETS}[what] // 4
+    result = run_memory_host(memory_host, 3, native3_models["DriftEstimator"], what, n,
+                             leak=16)
+    assert growth_per_call(result, what) > 16
+
+
+@pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
+@pytest.mark.parametrize("version", [2, 3])
+def test_native_memory_host_runs_under_valgrind(memory_host, native_models, native3_models,
+                                                version, report):
+    """The runs above, short, under valgrind, for every native model: no invalid read, write or
+    free, and nothing definitely or indirectly lost at exit (a state or an instance the FMU
+    forgot to free)."""
+    ms = native_models if version == 2 else native3_models
+    runs = 0
+    for name in NATIVE_MODELS:
+        m = ms[name]
+        for what in ("cycles", "states", "serdes"):
+            done = subprocess.run(
+                ["valgrind", "-q", "--error-exitcode=9", "--leak-check=full",
+                 "--errors-for-leak-kinds=definite,indirect", memory_host, str(version), m.dir,
+                 m.identifier, m.guid, what, "40", "10"],
+                capture_output=True, text=True, timeout=600, errors="replace")
+            assert done.returncode == 0 and "END" in done.stdout.splitlines(), \
+                (name, what, done.stdout[-1500:], done.stderr[-3000:])
+            runs += 1
+    report("MEMORY valgrind: %d memory-host runs on the native FMI %d.0 FMUs, no invalid "
+           "access, nothing lost" % (runs, version))
+
+
+def test_a_leak_planted_in_the_fmu_is_seen(memory_host, native3_models, tmp_path):
+    """The measurement can fail on a leak of the FMU itself: a copy of the native FMI 3.0
+    DriftEstimator rebuilt from its sources with free() made a no-op leaks its instance (about
+    640 B a cycle); the cycle slope shows it, and so does valgrind."""
+    from driftfmu.fmu_src import native_build
+    m = native3_models["DriftEstimator"]
+    copy = tmp_path / "leaky"
+    shutil.copytree(m.dir, copy)
+    (tmp_path / "no_free.h").write_text("#include <stdlib.h>\n#define free(p) ((void)(p))\n")
+    command = native_build.PLAIN_COMPILE.format(identifier=m.identifier)
+    assert "-Isources" in command, command
+    subprocess.run(command.replace("-Isources", "-include %s -Isources"
+                                   % (tmp_path / "no_free.h")),
+                   shell=True, cwd=str(copy), check=True, capture_output=True)
+    shutil.copyfile(copy / (m.identifier + ".so"),
+                    copy / "binaries" / "x86_64-linux" / (m.identifier + ".so"))
+    leaky = fuzz.Model.read(copy)
+    result = run_memory_host(memory_host, 3, leaky, "cycles", CYCLES // 4)
+    assert growth_per_call(result, "cycles") > 100
+    done = subprocess.run(["valgrind", "-q", "--error-exitcode=9", "--leak-check=full",
+                           "--errors-for-leak-kinds=definite,indirect", memory_host, "3",
+                           str(copy), m.identifier, m.guid, "cycles", "40", "10"],
+                          capture_output=True, text=True, timeout=600) \
+        if shutil.which("valgrind") else None
+    assert done is None or (done.returncode == 9 and "definitely lost" in done.stderr)

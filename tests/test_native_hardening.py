@@ -5,7 +5,10 @@ FMI 2.0 FMU and the native FMI 3.0 FMU, through raw calls (tests/fuzz/differenti
 - every field of a native serialised state is checked (NaN, inf, out of range, inconsistent),
   the state is refused as a whole naming the field, and the instance is left unchanged; the
   Python FMU's JSON state likewise;
-- sizes from the host are not trusted (SIZE_MAX, in a child process: a crash is a failure);
+- the tampered states the issue found (x = NaN, A = 5, R = 0, k = -5, Ts = 0) are refused;
+- sizes, counts and lengths from the host are not trusted (SIZE_MAX, in a child process: a
+  crash is a failure);
+- a state deserialised into a state the host holds is written into it (no new allocation);
 - messages say what was given and what is allowed, true to what the code does.
 """
 import ctypes
@@ -236,6 +239,52 @@ def test_every_field_of_a_native_state_is_checked(dirs, name, backend, version, 
         drv.free()
 
 
+#: The tampered states issue 20 found restored without a word (the class is the field-by-field
+#: tests around this one): (model, field, value, what the refusal names).  The native field is
+#: v.<name> (a variable) or the snapshot's own sample index k.
+ISSUE_SAMPLES = [("Accelerometer", "x", math.nan, "x"),
+                 ("DriftEstimator", "x_hat", math.nan, "x_hat"),
+                 ("DriftEstimator", "A", 5.0, "A"),
+                 ("DriftEstimator", "R", 0.0, "R"),
+                 ("DriftEstimator", "k", -5, "k"),
+                 ("DriftEstimator", "Ts", 0.0, "Ts")]
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("name, field, value, named", ISSUE_SAMPLES,
+                         ids=["%s-%s" % (s[0], s[1]) for s in ISSUE_SAMPLES])
+def test_the_issues_tampered_states_are_refused(dirs, name, field, value, named, backend):
+    """x = NaN, A = 5, R = 0, k = -5, Ts = 0 written into a serialised state (the native one
+    with its checksum put right, the Python one's JSON): refused at deserialisation or at
+    the restore that follows, naming the field, and the instance is unchanged."""
+    outs = info(dirs, name)["outputs"]
+    drv = driver(dirs, name, backend)
+    try:
+        t = initialised(drv)
+        assert call(drv, "gst", 0) == OK
+        data = drv.ser(0)[1]
+        if backend == "python":
+            state = json.loads(data)
+            assert field in state, sorted(state)
+            blob = json.dumps(dict(state, **{field: value})).encode()
+        else:
+            S = ns.snapshot_type(dirs[name][backend])
+            blob = ns.crafted(S, data, field if field == "k" else "v." + field, value)
+        assert call(drv, "step", t, 1e-3) == OK
+        call(drv, "gst", 1)
+        before = (drv.ser(1)[1], drv.getr(outs))
+        status = call(drv, "des", blob, 2)
+        if status <= WARNING:  # the Python FMU takes the bytes and refuses them when set
+            status = call(drv, "sst", 2)
+        assert status == ERROR, messages(drv)
+        text = " ".join(messages(drv))
+        assert named in text and ("refused" in text or "nothing was changed" in text), text
+        call(drv, "gst", 1)
+        assert (drv.ser(1)[1], drv.getr(outs)) == before
+    finally:
+        drv.free()
+
+
 def _json_edits(state):
     for key, value in state.items():
         if key in ("model", "guid", "version"):
@@ -315,6 +364,107 @@ def test_sizes_from_the_host_are_not_trusted(dirs):
     for where, size, status, logged in rows:
         assert status == ERROR, (where, size)
         assert logged and str(size) in logged[0] and "allowed" in logged[0], (where, logged)
+
+
+COUNTS_CHILD = r"""
+import ctypes, json, sys
+sys.path.insert(0, sys.argv[1])
+from fuzz import differential as diff
+from ctypes import byref, c_char_p, c_double, c_int, c_int32, c_size_t, c_uint, c_void_p
+HUGE = (2 ** 64 - 1, 2 ** 63, 2 ** 61 + 1)
+out = []
+for unzipped, fmi in json.loads(sys.argv[2]):
+    drv = diff.Driver(unzipped, fmi)
+    def row(what, status):
+        out.append([unzipped, what, status, [m for _, m in drv.logged][-1:]])
+        drv.logged = []
+    drv.setup(0.0), drv.enter(), drv.exit()
+    drv.logged = []
+    # a category list of a length no array has: refused (the shim, which keeps the list: its
+    # calloc checks the count * size for overflow), or not read (the native FMUs ignore it)
+    one = (c_char_p * 1)(b"logAll")
+    for n in HUGE:
+        row("categories %d" % n, drv.raw("fmi%dSetDebugLogging" % fmi,
+                                         [c_int, c_size_t, c_void_p], 0, n, one))
+    if fmi == 3:
+        # value counts that do not match the value references: refused before any value is
+        # read or written (the array holds 2 values; the counts say 0, 2 or more)
+        vr = (c_uint * 1)(drv.vr["Ts"])
+        before = drv.getr(["Ts"])
+        for n in (0, 2) + HUGE:
+            for call, kind in (("fmi3GetFloat64", c_double), ("fmi3SetFloat64", c_double),
+                               ("fmi3GetInt32", c_int32), ("fmi3SetInt32", c_int32)):
+                values = (kind * 2)(1, 1)
+                row("%s nValues %d" % (call, n), drv.raw(call, [c_void_p, c_size_t, c_void_p,
+                                                                c_size_t], vr, 1, values, n))
+        out.append([unzipped, "unchanged", int(drv.getr(["Ts"]) == before), []])
+        # intermediate variables: a count with no array, refused without reading it
+        logged = []
+        Log = ctypes.CFUNCTYPE(None, c_void_p, c_int, c_char_p, c_char_p)
+        inst = ctypes.CFUNCTYPE(c_void_p, c_char_p, c_char_p, c_char_p, c_int, c_int, c_int,
+                                c_int, c_void_p, c_size_t, c_void_p, Log, c_void_p)(
+            ctypes.cast(drv.dll.fmi3InstantiateCoSimulation, c_void_p).value)
+        log = Log(lambda env, status, cat, msg: logged.append(msg.decode()))
+        for n in HUGE:
+            c = inst(b"counts", drv.md.guid.encode(), None, 0, 0, 0, 0, None, c_size_t(n),
+                     None, log, None)
+            out.append([unzipped, "intermediate %d" % n, 3 if c is None else 0, logged[-1:]])
+        # strings of any length (an instance name and a resource path of 100,000 characters,
+        # as the case fuzz gives the FMI 2.0 FMUs), and no logger: the instance works
+        free = ctypes.CFUNCTYPE(None, c_void_p)(
+            ctypes.cast(drv.dll.fmi3FreeInstance, c_void_p).value)
+        enter = ctypes.CFUNCTYPE(c_int, c_void_p, c_int, c_double, c_double, c_int, c_double)(
+            ctypes.cast(drv.dll.fmi3EnterInitializationMode, c_void_p).value)
+        for what, name, path, logger in (
+                ("strings", b"n" * 100000, b"/" + b"a/" * 50000, log),
+                ("nologger", b"quiet", None, Log())):
+            c = inst(name, drv.md.guid.encode(), path, 0, 0, 0, 0, None, 0, None, logger,
+                     None)
+            status = 3 if c is None else enter(c, 0, 0.0, 0.0, 0, 0.0)
+            if c is not None:
+                free(c)
+            out.append([unzipped, what, status, logged[-1:]])
+    drv.free()
+print(json.dumps(out))
+"""
+
+
+def test_counts_and_lengths_from_the_host_are_not_trusted(dirs, report):
+    """Array counts no array can have (SIZE_MAX, 2**63, 2**61 + 1: count * size overflows or
+    exceeds the address space), in a child process (a crash is a failure): a category list
+    (fmi2SetDebugLogging / fmi3SetDebugLogging), FMI 3.0 value counts that do not match the
+    value references (0, 2 and the huge ones; nothing read or written), FMI 3.0 intermediate
+    variables.  The Python FMU refuses the category count (its shim keeps the list); the native
+    FMUs ignore categories and read none.  A plausible count larger than the array cannot be
+    told from a real one by any FMU: the standard makes the host answer for it.  And FMI 3.0
+    strings of any length (instance name, resource path) and no logger: the instance works."""
+    targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
+               for b in BACKENDS]
+    done = subprocess.run([sys.executable, "-c", COUNTS_CHILD, str(Path(__file__).parent),
+                           json.dumps(targets)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    rows = json.loads(done.stdout.splitlines()[-1])
+    seen = {}
+    for where, what, status, logged in rows:
+        python = Path(where).name == "python"  # dirs: <folder>/<model>/<backend>
+        kind = what.split()[0]
+        seen[kind] = seen.get(kind, 0) + 1
+        if what == "unchanged":
+            assert status == 1, where
+        elif kind == "categories":
+            assert status == (ERROR if python else OK), (where, what, logged)
+            if python:
+                assert what.split()[1] in logged[0] and "nothing was changed" in logged[0]
+        elif kind in ("strings", "nologger"):
+            assert status == OK, (where, what, logged)
+        else:  # FMI 3.0 value counts and intermediate variables
+            assert status == ERROR and logged, (where, what)
+            if kind.startswith("fmi3"):
+                assert "%s values" % what.split()[-1] in logged[0] and "allowed" in logged[0], \
+                    logged
+    assert seen["categories"] == 3 * len(targets)
+    assert seen["unchanged"] == seen["strings"] == seen["nologger"] == len(NAMES)
+    report("HARDENING counts: %s" % ", ".join("%d %s" % (n, k) for k, n in sorted(seen.items())))
 
 
 # -- messages true to what the code does ----------------------------------------------------------
@@ -402,3 +552,59 @@ def test_a_state_pointer_from_another_copy_of_the_same_fmu(dirs, backend, tmp_pa
     finally:
         b.free()
         a.free()
+
+
+# -- deserialising into a state the host holds ----------------------------------------------------
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_deserialise_into_a_live_state_reuses_it(dirs, backend):
+    """fmi2DeSerializeFMUstate / fmi3DeserializeFMUState with ``*FMUstate`` a live state of the
+    FMU write into that state, as fmi2GetFMUstate does (a host that deserialises into one
+    pointer again and again allocates nothing: tests/test_memory.py measures it; the native
+    FMUs allocated a new state each time); a refused one leaves it as it was; a pointer that is
+    not a live state is said in a warning, left alone, and a new state is returned."""
+    outs = info(dirs, "DriftEstimator")["outputs"]
+    drv = driver(dirs, "DriftEstimator", backend)
+    name = "fmi2DeSerializeFMUstate" if drv.fmi == 2 else "fmi3DeserializeFMUState"
+
+    def des_into(data, pointer):
+        p = ctypes.c_void_p(pointer)
+        drv.logged = []
+        status = drv.raw(name, [ctypes.c_void_p, ctypes.c_size_t, ctypes.c_void_p], data,
+                         len(data), ctypes.byref(p))
+        return status, p.value
+
+    try:
+        t = initialised(drv)
+        assert call(drv, "gst", 0) == OK
+        saved = drv.ser(0)[1]
+        assert call(drv, "step", t, 1e-3) == OK
+        expected = drv.getr(outs)
+        assert call(drv, "step", t + 1e-3, 1e-3) == OK
+        assert call(drv, "gst", 1) == OK
+        held = drv.states[1]
+        status, p = des_into(saved, held)
+        assert (status, p) == (OK, held), messages(drv)
+        assert drv.ser(1)[1] == saved
+        corrupted = bytearray(drv.ser(1)[1])
+        corrupted[len(corrupted) // 2] ^= 0x5A
+        status, p = des_into(bytes(corrupted), held)
+        if backend != "python":  # the Python FMU refuses such bytes at fmi2SetFMUstate
+            assert status == ERROR and p == held, messages(drv)
+        if status >= ERROR:
+            assert drv.ser(1)[1] == saved
+        else:
+            assert call(drv, "sst", 1) == ERROR
+            assert des_into(saved, held) == (OK, held)
+        junk = ctypes.create_string_buffer(b"\x5a" * 64, 64)
+        status, p = des_into(saved, ctypes.addressof(junk))
+        assert status == WARNING and p not in (None, ctypes.addressof(junk)), messages(drv)
+        assert "not a live FMU state" in messages(drv)[0], messages(drv)
+        assert junk.raw == b"\x5a" * 64
+        drv.states[2] = p  # freed with the driver
+        for slot in (1, 2):  # both restore the saved state
+            assert call(drv, "sst", slot) == OK
+            assert call(drv, "step", t, 1e-3) == OK
+            assert drv.getr(outs) == expected
+    finally:
+        drv.free()

@@ -1105,18 +1105,33 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
                (unsigned long)sizeof(Snapshot));
         return STATUS_ERROR;
     }
-    StateNode *node = malloc(sizeof *node);
+    /* into the live state *state points to (as the loader shim does), else into a new one:
+     * a host that deserialises into one state pointer again and again allocates nothing */
+    StateNode *node = *state;
+    Status status = STATUS_OK;
+    if (node && !is_live(node)) {
+        cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
+               "a new state is returned and the old pointer is left alone", function,
+               (void *)node);
+        node = NULL;
+        status = STATUS_WARNING;
+    }
+    Snapshot s;   /* checked as a whole before it replaces anything */
+    memcpy(&s, bytes, sizeof s);
+    if (snapshot_problems(comp, function, &s))
+        return STATUS_ERROR;
     if (!node) {
-        cs_log(comp, STATUS_ERROR, "%s: out of memory (%lu bytes for an FMU state)", function,
-               (unsigned long)sizeof *node);
-        return STATUS_ERROR;
+        node = malloc(sizeof *node);
+        if (!node) {
+            cs_log(comp, STATUS_ERROR, "%s: out of memory (%lu bytes for an FMU state)",
+                   function, (unsigned long)sizeof *node);
+            return STATUS_ERROR;
+        }
+        node->s = s;
+        add_live(node);
+    } else {
+        node->s = s;
     }
-    memcpy(&node->s, bytes, sizeof node->s);
-    if (snapshot_problems(comp, function, &node->s)) {
-        free(node);
-        return STATUS_ERROR;
-    }
-    add_live(node);
     *state = node;
-    return STATUS_OK;
+    return status;
 }

@@ -19,6 +19,8 @@ compared as one (the worse status of the two).
 
 ``python3 -m tests.fuzz.differential --seconds 1200`` runs random scripts for twenty minutes
 (the FMUs are built first); the test suite runs a fixed-seed portion (tests/test_fuzz.py).
+With ``--check`` each instance is also compared around every call (:func:`snapshot`): a call
+that any of the three refuses must leave that instance as it was.
 Each script runs in a child process (``--child``), so that a crash is a reported failure too.
 """
 import argparse
@@ -199,7 +201,9 @@ class Driver:
         return max(s, s2), (buf.raw if s2 <= WARNING else None)
 
     def des(self, data, slot):
-        p = c_void_p(None)
+        """Deserialise into the state the slot holds (NULL when it holds none): the FMU writes
+        into that live state or returns a new one."""
+        p = c_void_p(self.states.get(slot))
         name = "fmi2DeSerializeFMUstate" if self.fmi == 2 else "fmi3DeserializeFMUState"
         s = self.raw(name, [c_void_p, c_size_t, c_void_p], data, len(data), byref(p))
         if s <= WARNING:
@@ -310,11 +314,29 @@ def random_script(info, rng, n_calls=60):
     return calls
 
 
-def run_script(driver, script):
-    """Run ``script`` on ``driver``; per call ``[status, values, logged an error]``."""
+def snapshot(driver, reals):
+    """What a refused call must leave as it was: the statuses and values of every Real, and of
+    a state got and serialised now (the mode, the hidden state, the time)."""
+    driver.logged = []
+    got_reals = driver.getr(reals)
+    driver.states.pop("snapshot", None)
+    got = driver.gst("snapshot")[0]
+    data = driver.ser("snapshot") if got <= WARNING else None
+    if got <= WARNING:
+        driver.fst("snapshot")
+    driver.logged = []
+    return got_reals, got, data
+
+
+def run_script(driver, script, reals=None):
+    """Run ``script`` on ``driver``; per call ``[status, values, logged an error, last message,
+    changed]``.  With ``reals`` (the names of every Real variable), the instance is compared
+    around each call (:func:`snapshot`): ``changed`` says that a call refused with an error or
+    worse changed it."""
     out = []
     for call in script:
         op, args = call[0], call[1:]
+        before = snapshot(driver, reals) if reals else None
         driver.logged = []
         if op == "serdes":
             s1, data = driver.ser(args[0])
@@ -328,7 +350,9 @@ def run_script(driver, script):
         else:
             status, values = getattr(driver, op)(*args)
         errors = any(s >= ERROR for s, _ in driver.logged)
-        out.append([int(status), values, errors, [m for _, m in driver.logged][-1:]])
+        last = [m for _, m in driver.logged][-1:]
+        changed = bool(reals) and status >= ERROR and snapshot(driver, reals) != before
+        out.append([int(status), values, errors, last, changed])
     return out
 
 
@@ -338,6 +362,8 @@ def compare(script, results, plant=None):
     names = list(results)
     for i, call in enumerate(script):
         rows = {name: results[name][i] for name in names}
+        found += ["call %d %s: a refused call changed the %s instance (%s)" % (
+            i, json.dumps(call), name, rows[name][3]) for name in names if rows[name][4]]
         for name in names[1:]:
             if name == "native-fmi3" and call[0] in FMI3_DIFFERS:
                 continue
@@ -360,8 +386,9 @@ def compare(script, results, plant=None):
 
 # -- the child process: one model, many scripts ------------------------------------------------
 
-def child(dirs, seeds, n_calls, plant):
-    """Run each seed's script on the three backends; print one JSON line per script."""
+def child(dirs, seeds, n_calls, plant, check=False):
+    """Run each seed's script on the three backends (``check``: with :func:`snapshot` around
+    every call); print one JSON line per script."""
     info = model_info(dirs["native-fmi2"])
     drivers = {"python": Driver(dirs["python"], 2), "native-fmi2": Driver(dirs["native-fmi2"], 2),
                "native-fmi3": Driver(dirs["native-fmi3"], 3)}
@@ -372,7 +399,7 @@ def child(dirs, seeds, n_calls, plant):
             driver.reset()
             for slot in list(driver.states):
                 driver.fst(slot)
-            results[name] = run_script(driver, script)
+            results[name] = run_script(driver, script, info["reals"] if check else None)
             if plant == name:  # a planted difference: the twin answers one call differently
                 for row in results[name]:
                     if row[1] is not None:
@@ -390,15 +417,18 @@ VALGRIND = ["valgrind", "-q", "--undef-value-errors=no", "--error-exitcode=99",
             "--suppressions=%s" % (Path(__file__).resolve().parent / "valgrind.supp")]
 
 
-def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False):
-    """Run the scripts of ``seeds`` in a child process (under valgrind if asked): a list of
-    problem lines (a crash, a hang or a valgrind error of the child is one)."""
+def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False, check=False):
+    """Run the scripts of ``seeds`` in a child process (under valgrind if asked; ``check``:
+    every refused call must leave its instance unchanged): a list of problem lines (a crash, a
+    hang or a valgrind error of the child is one)."""
     command = (VALGRIND if valgrind else []) + [
         sys.executable, str(Path(__file__).resolve()), "--child",
                json.dumps({k: str(v) for k, v in dirs.items()}), "--seeds",
                ",".join(map(str, seeds)), "--calls", str(n_calls)]
     if plant:
         command += ["--plant", plant]
+    if check:
+        command.append("--check")
     env = dict(os.environ, PYTHONMALLOC="malloc") if valgrind else None
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=time_limit,
@@ -485,10 +515,13 @@ def main(argv=None):
     parser.add_argument("--child", default=None, help=argparse.SUPPRESS)
     parser.add_argument("--seeds", default="", help=argparse.SUPPRESS)
     parser.add_argument("--plant", default=None, help=argparse.SUPPRESS)
+    parser.add_argument("--check", action="store_true",
+                        help="also compare each instance around every call: a refused call "
+                             "must change nothing (about three times slower)")
     args = parser.parse_args(argv)
     if args.child:
         child(json.loads(args.child), [int(s) for s in args.seeds.split(",") if s],
-              args.calls, args.plant)
+              args.calls, args.plant, args.check)
         return 0
     seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2 ** 31)
     rng = random.Random(seed)
@@ -499,7 +532,7 @@ def main(argv=None):
         while time.monotonic() < end:
             model = rng.choice(sorted(dirs))
             seeds = [rng.randrange(2 ** 31) for _ in range(args.batch)]
-            problems = run(dirs[model], seeds, args.calls)
+            problems = run(dirs[model], seeds, args.calls, check=args.check)
             scripts += len(seeds)
             failures += len(problems)
             for p in problems:

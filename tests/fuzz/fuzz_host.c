@@ -43,15 +43,12 @@
  * non-finite one prints "NONFINITE line vr value".  Log messages print as "LOG status
  * category: message".  The exit code is 0 when the script ran to its end.
  */
-#include <dlfcn.h>
 #include <math.h>
-#include <stdarg.h>
 #include <stdint.h>
-#include <stdio.h>
-#include <stdlib.h>
 #include <string.h>
 
 #include "fmi2Functions.h"
+#include "../hosts/host_common.h"
 
 #define SLOTS 64
 #define MAX_WORDS 4096
@@ -82,26 +79,10 @@ static Slot insts[SLOTS];
 static fmi2FMUstate states[SLOTS];
 static char *buffers[SLOTS];
 static size_t buffer_sizes[SLOTS];
-static int line_no, checking, quiet;
+static int line_no, checking;
 static char junk[SLOTS][64];
 
-static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
-                   fmi2String category, fmi2String message, ...)
-{
-    (void)env;
-    (void)name;
-    if (quiet)
-        return;
-    va_list args;
-    va_start(args, message);
-    printf("LOG %d %s: ", (int)status, category ? category : "");
-    vprintf(message, args);
-    printf("\n");
-    va_end(args);
-    fflush(stdout);
-}
-
-static fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+static fmi2CallbackFunctions callbacks = {host_logger2, calloc, free, NULL, NULL};
 
 static void fail(const char *what)
 {
@@ -146,40 +127,12 @@ static const char *string_or_null(const char *word)
     return word && strcmp(word, "NULL") ? word : NULL;
 }
 
-static long rss_bytes(void)
-{
-    long pages = 0, resident = 0;
-    FILE *f = fopen("/proc/self/statm", "r");
-    if (f) {
-        if (fscanf(f, "%ld %ld", &pages, &resident) != 2)
-            resident = 0;
-        fclose(f);
-    }
-    return resident * 4096;
-}
-
-static void *lookup(void *handle, const char *name)
-{
-    void *f = dlsym(handle, name);
-    if (!f) {
-        printf("MISSING %s\n", name);
-        exit(4);
-    }
-    return f;
-}
-
 static void load(int l, const char *dir, const char *id)
 {
     Library *lib = &libs[l];
-    char path[8192];
     snprintf(lib->dir, sizeof lib->dir, "%s", dir);
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, id);
-    lib->handle = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!lib->handle) {
-        printf("DLOPEN %s\n", dlerror());
-        exit(4);
-    }
-#define LOOK(name) lib->name = (fmi2##name##TYPE *)lookup(lib->handle, "fmi2" #name);
+    lib->handle = host_open(dir, 2, id);
+#define LOOK(name) lib->name = (fmi2##name##TYPE *)host_lookup(lib->handle, "fmi2" #name);
     LOOK(Instantiate) LOOK(FreeInstance) LOOK(SetupExperiment) LOOK(EnterInitializationMode)
     LOOK(ExitInitializationMode) LOOK(Terminate) LOOK(Reset) LOOK(GetReal) LOOK(GetInteger)
     LOOK(GetBoolean) LOOK(SetReal) LOOK(SetInteger) LOOK(SetBoolean) LOOK(GetFMUstate)
@@ -200,8 +153,8 @@ typedef struct {
 
 static void snapshot(Slot *s, Snapshot *snap)
 {
-    int was_quiet = quiet;
-    quiet = 1;
+    int was_quiet = host_quiet;
+    host_quiet = 1;
     memset(snap, 0, sizeof *snap);
     snap->real_status = s->n_reals ? s->lib->GetReal(s->c, s->reals, s->n_reals, snap->reals)
                                    : fmi2OK;
@@ -216,7 +169,7 @@ static void snapshot(Slot *s, Snapshot *snap)
     }
     if (state)
         s->lib->FreeFMUstate(s->c, &state);
-    quiet = was_quiet;
+    host_quiet = was_quiet;
 }
 
 static int same(const Snapshot *a, const Snapshot *b, size_t n_reals)
@@ -234,10 +187,10 @@ static int same(const Snapshot *a, const Snapshot *b, size_t n_reals)
 static void check_finite(Slot *s)
 {
     double values[256];
-    int was_quiet = quiet;
-    quiet = 1;
+    int was_quiet = host_quiet;
+    host_quiet = 1;
     fmi2Status status = s->lib->GetReal(s->c, s->reals, s->n_reals, values);
-    quiet = was_quiet;
+    host_quiet = was_quiet;
     if (status > fmi2Warning)
         return;
     for (size_t i = 0; i < s->n_reals; i++)
@@ -383,14 +336,6 @@ static fmi2Status get_values(Slot *s, char **w, int n_words, int kind)
     return status;
 }
 
-static void measure(const char *what, long i, long every)
-{
-    if (every > 0 && (i + 1) % every == 0) {
-        printf("RSS %s %ld %ld\n", what, i + 1, rss_bytes());
-        fflush(stdout);
-    }
-}
-
 /* Run one call; returns its status (fmi2OK for calls without one). */
 static fmi2Status run(char **w, int n)
 {
@@ -408,7 +353,7 @@ static fmi2Status run(char **w, int n)
         char uri[8192];
         snprintf(uri, sizeof uri, "file://%s/resources", lib->dir);
         static fmi2CallbackFunctions nolog = {NULL, calloc, free, NULL, NULL};
-        static fmi2CallbackFunctions noalloc = {logger, NULL, NULL, NULL, NULL};
+        static fmi2CallbackFunctions noalloc = {host_logger2, NULL, NULL, NULL, NULL};
         const fmi2CallbackFunctions *cb = !strcmp(w[5], "nolog") ? &nolog
                                           : !strcmp(w[5], "noalloc") ? &noalloc : NULL;
         s->lib = lib;
@@ -498,7 +443,7 @@ static fmi2Status run(char **w, int n)
             lib->DoStep(c, 0.0, 1e-3, fmi2True);
             lib->Terminate(c);
             lib->FreeInstance(c);
-            measure("cycles", i, every);
+            host_measure("cycles", i, every);
         }
         return fmi2OK;
     }
@@ -508,7 +453,7 @@ static fmi2Status run(char **w, int n)
         long count = (long)number(w[3]), every = (long)number(w[4]);
         for (long i = 0; i < count; i++) {
             if (s->lib->GetFMUstate(s->c, &states[k]) > fmi2Warning) fail("get state failed");
-            measure("states", i, every);
+            host_measure("states", i, every);
         }
         return fmi2OK;
     }
@@ -517,12 +462,12 @@ static fmi2Status run(char **w, int n)
         long count = (long)number(w[2]), every = (long)number(w[3]);
         fmi2ValueReference vr = s->n_reals ? s->reals[s->n_reals - 1] : 0;
         double v = NAN;
-        quiet = 1;
+        host_quiet = 1;
         for (long i = 0; i < count; i++) {
             s->lib->SetReal(s->c, &vr, 1, &v);
-            measure("errors", i, every);
+            host_measure("errors", i, every);
         }
-        quiet = 0;
+        host_quiet = 0;
         return fmi2OK;
     }
     if (!strcmp(op, "reals")) {

@@ -9,36 +9,8 @@
  * <message>".  Exit codes: 0 ok, 2 fmi2Instantiate returned NULL, 3 a call failed, 4 the
  * library or a function could not be loaded.
  */
-#include <dlfcn.h>
-#include <stdarg.h>
-#include <stdio.h>
-#include <stdlib.h>
-
 #include "fmi2Functions.h"
-
-static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
-                   fmi2String category, fmi2String message, ...)
-{
-    (void)env;
-    (void)name;
-    va_list args;
-    va_start(args, message);
-    printf("LOG %d %s: ", (int)status, category ? category : "");
-    vprintf(message, args);
-    printf("\n");
-    va_end(args);
-    fflush(stdout);
-}
-
-static void *lookup(void *lib, const char *name)
-{
-    void *f = dlsym(lib, name);
-    if (!f) {
-        printf("MISSING %s\n", name);
-        exit(4);
-    }
-    return f;
-}
+#include "host_common.h"
 
 static void check(const char *call, fmi2Status status)
 {
@@ -59,24 +31,19 @@ int main(int argc, char **argv)
     int steps = atoi(argv[5]);
     double h = strtod(argv[6], NULL);
 
-    char path[4096], resources[4096];
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, id);
+    char resources[4096];
     snprintf(resources, sizeof resources, "file://%s/resources", dir);
-    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!lib) {
-        printf("DLOPEN %s\n", dlerror());
-        return 4;
-    }
-    fmi2InstantiateTYPE *instantiate = lookup(lib, "fmi2Instantiate");
-    fmi2SetupExperimentTYPE *setup = lookup(lib, "fmi2SetupExperiment");
-    fmi2EnterInitializationModeTYPE *enter = lookup(lib, "fmi2EnterInitializationMode");
-    fmi2ExitInitializationModeTYPE *exit_init = lookup(lib, "fmi2ExitInitializationMode");
-    fmi2DoStepTYPE *do_step = lookup(lib, "fmi2DoStep");
-    fmi2GetRealTYPE *get_real = lookup(lib, "fmi2GetReal");
-    fmi2TerminateTYPE *terminate = lookup(lib, "fmi2Terminate");
-    fmi2FreeInstanceTYPE *free_instance = lookup(lib, "fmi2FreeInstance");
+    void *lib = host_open(dir, 2, id);
+    fmi2InstantiateTYPE *instantiate = host_lookup(lib, "fmi2Instantiate");
+    fmi2SetupExperimentTYPE *setup = host_lookup(lib, "fmi2SetupExperiment");
+    fmi2EnterInitializationModeTYPE *enter = host_lookup(lib, "fmi2EnterInitializationMode");
+    fmi2ExitInitializationModeTYPE *exit_init = host_lookup(lib, "fmi2ExitInitializationMode");
+    fmi2DoStepTYPE *do_step = host_lookup(lib, "fmi2DoStep");
+    fmi2GetRealTYPE *get_real = host_lookup(lib, "fmi2GetReal");
+    fmi2TerminateTYPE *terminate = host_lookup(lib, "fmi2Terminate");
+    fmi2FreeInstanceTYPE *free_instance = host_lookup(lib, "fmi2FreeInstance");
 
-    fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+    fmi2CallbackFunctions callbacks = {host_logger2, calloc, free, NULL, NULL};
     fmi2Component c = instantiate("c_host", fmi2CoSimulation, guid, resources, &callbacks,
                                   fmi2False, fmi2False);
     if (!c) {

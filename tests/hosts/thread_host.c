@@ -19,37 +19,10 @@
  * Exit codes: 0 ok, 2 fmi2Instantiate returned NULL, 3 a call failed, 4 a library or function
  * could not be loaded.  Log messages are printed as "LOG <status> <category>: <message>".
  */
-#include <dlfcn.h>
 #include <pthread.h>
-#include <stdarg.h>
-#include <stdio.h>
-#include <stdlib.h>
 
 #include "fmi2Functions.h"
-
-static void logger(fmi2ComponentEnvironment env, fmi2String name, fmi2Status status,
-                   fmi2String category, fmi2String message, ...)
-{
-    (void)env;
-    (void)name;
-    va_list args;
-    va_start(args, message);
-    printf("LOG %d %s: ", (int)status, category ? category : "");
-    vprintf(message, args);
-    printf("\n");
-    va_end(args);
-    fflush(stdout);
-}
-
-static void *lookup(void *lib, const char *name)
-{
-    void *f = dlsym(lib, name);
-    if (!f) {
-        printf("MISSING %s\n", name);
-        exit(4);
-    }
-    return f;
-}
+#include "host_common.h"
 
 static void check(const char *call, fmi2Status status)
 {
@@ -128,36 +101,31 @@ int main(int argc, char **argv)
     steps = atoi(argv[5]);
     h = strtod(argv[6], NULL);
 
-    char path[4096], resources[4096];
-    snprintf(path, sizeof path, "%s/binaries/linux64/%s.so", dir, id);
+    char resources[4096];
     snprintf(resources, sizeof resources, "file://%s/resources", dir);
-    void *lib = dlopen(path, RTLD_NOW | RTLD_LOCAL);
-    if (!lib) {
-        printf("DLOPEN %s\n", dlerror());
-        return 4;
-    }
-    fmi2InstantiateTYPE *instantiate = lookup(lib, "fmi2Instantiate");
-    fmi2SetupExperimentTYPE *setup = lookup(lib, "fmi2SetupExperiment");
-    fmi2EnterInitializationModeTYPE *enter = lookup(lib, "fmi2EnterInitializationMode");
-    fmi2ExitInitializationModeTYPE *exit_init = lookup(lib, "fmi2ExitInitializationMode");
-    fmi2TerminateTYPE *terminate = lookup(lib, "fmi2Terminate");
-    fmi2FreeInstanceTYPE *free_instance = lookup(lib, "fmi2FreeInstance");
-    do_step = lookup(lib, "fmi2DoStep");
-    get_real = lookup(lib, "fmi2GetReal");
+    void *lib = host_open(dir, 2, id);
+    fmi2InstantiateTYPE *instantiate = host_lookup(lib, "fmi2Instantiate");
+    fmi2SetupExperimentTYPE *setup = host_lookup(lib, "fmi2SetupExperiment");
+    fmi2EnterInitializationModeTYPE *enter = host_lookup(lib, "fmi2EnterInitializationMode");
+    fmi2ExitInitializationModeTYPE *exit_init = host_lookup(lib, "fmi2ExitInitializationMode");
+    fmi2TerminateTYPE *terminate = host_lookup(lib, "fmi2Terminate");
+    fmi2FreeInstanceTYPE *free_instance = host_lookup(lib, "fmi2FreeInstance");
+    do_step = host_lookup(lib, "fmi2DoStep");
+    get_real = host_lookup(lib, "fmi2GetReal");
 
-    fmi2CallbackFunctions callbacks = {logger, calloc, free, NULL, NULL};
+    fmi2CallbackFunctions callbacks = {host_logger2, calloc, free, NULL, NULL};
     component = instantiate("thread_host", fmi2CoSimulation, guid, resources, &callbacks,
                             fmi2False, fmi2False);
     if (!component) {
         printf("INSTANTIATE FAILED\n");
         return 2;
     }
-    this_thread_state = lookup(RTLD_DEFAULT, "PyGILState_GetThisThreadState");
-    gil_ensure = (int (*)(void))lookup(RTLD_DEFAULT, "PyGILState_Ensure");
-    gil_release = (void (*)(int))lookup(RTLD_DEFAULT, "PyGILState_Release");
-    main_interpreter = lookup(RTLD_DEFAULT, "PyInterpreterState_Main");
-    thread_head = (void *(*)(void *))lookup(RTLD_DEFAULT, "PyInterpreterState_ThreadHead");
-    thread_next = (void *(*)(void *))lookup(RTLD_DEFAULT, "PyThreadState_Next");
+    this_thread_state = host_lookup(RTLD_DEFAULT, "PyGILState_GetThisThreadState");
+    gil_ensure = (int (*)(void))host_lookup(RTLD_DEFAULT, "PyGILState_Ensure");
+    gil_release = (void (*)(int))host_lookup(RTLD_DEFAULT, "PyGILState_Release");
+    main_interpreter = host_lookup(RTLD_DEFAULT, "PyInterpreterState_Main");
+    thread_head = (void *(*)(void *))host_lookup(RTLD_DEFAULT, "PyInterpreterState_ThreadHead");
+    thread_next = (void *(*)(void *))host_lookup(RTLD_DEFAULT, "PyThreadState_Next");
 
     check("fmi2SetupExperiment", setup(component, fmi2False, 0.0, 0.0, fmi2False, 0.0));
     check("fmi2EnterInitializationMode", enter(component));
