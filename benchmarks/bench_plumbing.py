@@ -13,7 +13,9 @@ fmi2SetReal / fmi2GetReal directly):
 2. the letter's Gaussian chain (simulations/gaussian.py's start values, 60,000 samples).
 
 A figure is the wall time of the stepping loop (loading excluded: from the master's first
-progress call to its last) divided by the samples, the median of ``--repeats`` runs.  The two
+progress call to its last) divided by the samples, the median of ``--repeats`` runs; beside it
+the best run and the median of the process's CPU time over the same stretch (which the load of
+a shared machine changes less).  The two
 builds must give the same bits (checked on every recorded column): a speed-up that changed a
 result would be refused here.
 
@@ -28,6 +30,7 @@ import subprocess
 import sys
 import tempfile
 import time
+import zipfile
 from pathlib import Path
 
 import numpy as np
@@ -58,15 +61,24 @@ def baseline_plumbing(revision, folder):
 
 
 def build(native_dir, out, fmi_version):
-    """The three native FMUs of ``fmi_version`` with the plumbing of ``native_dir``."""
+    """The three native FMUs of ``fmi_version`` with the plumbing of ``native_dir`` (checked:
+    each FMU's sources/ hold exactly those files)."""
     saved = native_build.NATIVE_DIR
     native_build.NATIVE_DIR = Path(native_dir)
     try:
-        return native_build.build_native_fmus(out, fmi_versions=(fmi_version,),
-                                              platforms=["x86_64-linux"],
-                                              log=lambda *a: None)[fmi_version]
+        paths = native_build.build_native_fmus(out, fmi_versions=(fmi_version,),
+                                               platforms=["x86_64-linux"],
+                                               log=lambda *a: None)[fmi_version]
     finally:
         native_build.NATIVE_DIR = saved
+    for path in paths.values():
+        with zipfile.ZipFile(path) as z:
+            for name in PLUMBING:
+                if name.startswith("fmi") and name != "fmi%dFunctions.c" % fmi_version:
+                    continue
+                if z.read("sources/" + name) != (Path(native_dir) / name).read_bytes():
+                    raise SystemExit("%s: sources/%s is not %s's" % (path, name, native_dir))
+    return paths
 
 
 def chains(samples):
@@ -86,14 +98,15 @@ def chains(samples):
 
 
 def run(fmus, chain, samples):
-    """(ns per sample of the stepping loop, the recorded columns)."""
+    """(wall ns, CPU ns per sample of the stepping loop, the recorded columns)."""
     _, connections, values, record, Ts = chain
     stamps = []
     out = cosimulate_fast({k: str(v) for k, v in fmus.items()}, connections, samples, Ts,
                           start_values=values, record=record, arrays=True,
-                          progress=lambda done: stamps.append((done, time.perf_counter())))
-    (k0, t0), (k1, t1) = stamps[0], stamps[-1]
-    return 1e9 * (t1 - t0) / (k1 - k0), out
+                          progress=lambda done: stamps.append(
+                              (done, time.perf_counter(), time.process_time())))
+    (k0, t0, c0), (k1, t1, c1) = stamps[0], stamps[-1]
+    return 1e9 * (t1 - t0) / (k1 - k0), 1e9 * (c1 - c0) / (k1 - k0), out
 
 
 def main(argv=None):
@@ -114,8 +127,8 @@ def main(argv=None):
             for r in range(args.repeats):
                 outs = {}
                 for label, fmus in builds.items():
-                    ns, outs[label] = run(fmus, chain, args.samples)
-                    figures.setdefault((chain[0], label), []).append(ns)
+                    wall, cpu_ns, outs[label] = run(fmus, chain, args.samples)
+                    figures.setdefault((chain[0], label), []).append((wall, cpu_ns))
                 a, b = outs.values()
                 for key in a:
                     if not np.array_equal(a[key], b[key], equal_nan=True) or \
@@ -128,16 +141,17 @@ def main(argv=None):
           "builds' recorded columns equal bit for bit" % (args.fmi, args.samples, args.repeats))
     labels = list(builds)
     for chain in chains(args.samples):
-        median = {}
+        stats = {}
         for label in labels:
             runs = figures[(chain[0], label)]
-            median[label] = statistics.median(runs)
-            print("  %-24s %-16s %7.3f us per sample of all three   (runs: %s)"
-                  % (chain[0], label, median[label] / 1e3,
-                     ", ".join("%.0f" % x for x in runs)))
-        print("  %-24s ratio baseline / this tree: %.2f"
-              % (chain[0], median[labels[0]] / median[labels[1]]))
-
+            walls, cpus = [w for w, _ in runs], [c for _, c in runs]
+            stats[label] = (statistics.median(walls), min(walls), statistics.median(cpus))
+            print("  %-24s %-16s %7.3f us per sample of all three (best %.3f; CPU %.3f)   "
+                  "(runs: %s)" % (chain[0], label, stats[label][0] / 1e3, stats[label][1] / 1e3,
+                                  stats[label][2] / 1e3, ", ".join("%.0f" % w for w in walls)))
+        (m0, b0, c0), (m1, b1, c1) = stats[labels[0]], stats[labels[1]]
+        print("  %-24s ratio baseline / this tree: %.2f (best %.2f, CPU %.2f)"
+              % (chain[0], m0 / m1, b0 / b1, c0 / c1))
 
 if __name__ == "__main__":
     main()

@@ -502,50 +502,49 @@ static void bad_references(char *out, size_t size, const unsigned int vr[], size
 #undef PUT
 }
 
+static NOINLINE Status refused_null(ModelInstance *comp, const char *function, size_t n)
+{
+    cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function, (unsigned long)n);
+    return STATUS_ERROR;
+}
+
+static NOINLINE Status refused_references(ModelInstance *comp, const char *function,
+                                          VariableType type, const unsigned int vr[], size_t n)
+{
+    char text[MESSAGE_SIZE];
+    bad_references(text, sizeof text, vr, n, TYPE_NAME[type], type, 1);
+    cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
+    return STATUS_ERROR;
+}
+
 Status cs_get(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, double reals[], int ints[])
 {
     /* FMI 2.0 and 3.0 alike: no getter before Initialization Mode (as the Python FMUs) */
     if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP | STATE_TERMINATED))
         return STATUS_ERROR;
-    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
-               (unsigned long)n);
-        return STATUS_ERROR;
-    }
+    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
+        return refused_null(comp, function, n);
     for (size_t i = 0; i < n; i++)
-        if (bad_reference(vr[i], type, 1)) {
-            char text[MESSAGE_SIZE];
-            bad_references(text, sizeof text, vr, n, TYPE_NAME[type], type, 1);
-            cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
-            return STATUS_ERROR;
-        }
+        if (bad_reference(vr[i], type, 1))
+            return refused_references(comp, function, type, vr, n);
     if (refresh(comp, function) != STATUS_OK)
         return STATUS_ERROR;
-    for (size_t i = 0; i < n; i++) {
-        if (IS_TIME(vr[i]))
-            reals[i] = comp->time;
-        else if (type == TYPE_REAL)
-            reals[i] = *REAL_AT(comp, vr[i]);
-        else
+    if (type == TYPE_REAL) {
+        for (size_t i = 0; i < n; i++)
+            reals[i] = IS_TIME(vr[i]) ? comp->time : *REAL_AT(comp, vr[i]);
+    } else {
+        for (size_t i = 0; i < n; i++)
             ints[i] = *INT_AT(comp, vr[i]);
     }
     return STATUS_OK;
 }
 
-Status cs_set(ModelInstance *comp, const char *function, VariableType type,
-              const unsigned int vr[], size_t n, const double reals[], const int ints[])
+/* A set with at least one problem: every problem of the call (all but the last logged, the
+ * last with the error); nothing is set. */
+static NOINLINE Status refused_set(ModelInstance *comp, const char *function, VariableType type,
+                                   const unsigned int vr[], size_t n, const double reals[])
 {
-    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
-                    STATE_TERMINATED))
-        return STATUS_ERROR;
-    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
-               (unsigned long)n);
-        return STATUS_ERROR;
-    }
-    /* every problem of the call first (all but the last logged, the last with the error):
-     * a rejected call changes nothing */
     char problems[8][MESSAGE_SIZE];
     int np = 0;
     if (comp->state == STATE_TERMINATED)
@@ -577,17 +576,36 @@ Status cs_set(ModelInstance *comp, const char *function, VariableType type,
                      info->type == TYPE_REAL ? repr_double(*REAL_AT(comp, vr[i]), b)
                      : (snprintf(b, sizeof b, "%d", *INT_AT(comp, vr[i])), b));
     }
-    if (np) {
-        for (int i = 0; i < np - 1; i++)
-            cs_log(comp, STATUS_ERROR, "%s: %s", function, problems[i]);
-        cs_log(comp, STATUS_ERROR, "%s: %s%s", function, problems[np - 1],
-               n > 1 ? "; nothing was set" : "");
+    for (int i = 0; i < np - 1; i++)
+        cs_log(comp, STATUS_ERROR, "%s: %s", function, problems[i]);
+    cs_log(comp, STATUS_ERROR, "%s: %s%s", function, problems[np - 1],
+           n > 1 ? "; nothing was set" : "");
+    return STATUS_ERROR;
+}
+
+Status cs_set(ModelInstance *comp, const char *function, VariableType type,
+              const unsigned int vr[], size_t n, const double reals[], const int ints[])
+{
+    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
+                    STATE_TERMINATED))
         return STATUS_ERROR;
+    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
+        return refused_null(comp, function, n);
+    /* every check of refused_set first, without words: a rejected call changes nothing */
+    int ok = comp->state != STATE_TERMINATED;
+    for (size_t i = 0; ok && i < n; i++) {
+        const unsigned int r = vr[i];
+        ok = !bad_reference(r, type, 0) && MODEL_VARIABLES[r].causality != CAUSALITY_OUTPUT &&
+             (type != TYPE_REAL || isfinite(reals[i])) &&
+             !(MODEL_VARIABLES[r].causality == CAUSALITY_PARAMETER && comp->initialised);
     }
-    for (size_t i = 0; i < n; i++) {
-        if (type == TYPE_REAL)
+    if (!LIKELY(ok))
+        return refused_set(comp, function, type, vr, n, reals);
+    if (type == TYPE_REAL) {
+        for (size_t i = 0; i < n; i++)
             *REAL_AT(comp, vr[i]) = reals[i];
-        else
+    } else {
+        for (size_t i = 0; i < n; i++)
             *INT_AT(comp, vr[i]) = ints[i];
     }
     if (n)
@@ -688,6 +706,15 @@ static NOINLINE Status refused_result(ModelInstance *comp, const char *bad, doub
     return STATUS_ERROR;
 }
 
+/* (int64_t)ceil(x) for the x of a planned step (finite, and below MAX_SAMPLES_PER_STEP plus the
+ * sample index, far inside the range of int64_t) without a call into libm: the truncation
+ * toward zero, plus one when it lies below x. */
+static inline int64_t ceil_int(double x)
+{
+    const int64_t i = (int64_t)x;
+    return (double)i < x ? i + 1 : i;
+}
+
 Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h)
 {
     /* the checks of refused_step, at once: any finite currentTime (the FMU keeps its own time),
@@ -703,7 +730,7 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
     const double limit = (double)MAX_SAMPLES_PER_STEP;
     if (!LIKELY(position - tol <= limit + (double)k - 1.0))
         return refused_span(comp, h, position);
-    const int64_t last = (int64_t)ceil(position - tol);   /* first instant at or after t + h */
+    const int64_t last = ceil_int(position - tol);   /* first instant at or after t + h */
     const int64_t m = last + 1 - k > 0 ? last + 1 - k : 0;   /* instants in [t, t + h) */
     StepPlan plan;
     plan.k_first = k;
