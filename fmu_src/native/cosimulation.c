@@ -17,6 +17,21 @@
 
 #define MESSAGE_SIZE 1024
 
+/* The per-step path (cs_set, cs_get, cs_do_step) keeps its checks inline and cheap; what it
+ * says when a check fails is written out of line (NOINLINE), so that the common case carries no
+ * message buffers and no formatting.  ALL_VARIABLES unrolls a loop over the constant table
+ * MODEL_VARIABLES completely: the compiler then folds each row's type and causality, and a loop
+ * "for every real output" becomes one statement per real output. */
+#if defined(__GNUC__)
+#define NOINLINE __attribute__((noinline))
+#define LIKELY(x) __builtin_expect(!!(x), 1)
+#define ALL_VARIABLES _Pragma("GCC unroll 4096")
+#else
+#define NOINLINE
+#define LIKELY(x) (x)
+#define ALL_VARIABLES
+#endif
+
 static const char *CATEGORY[] = {"logStatusOK", "logStatusWarning", "logStatusDiscard",
                                  "logStatusError", "logStatusFatal"};
 
@@ -147,10 +162,8 @@ static const char *mode_name(ModelState state)
     }
 }
 
-int cs_allowed(ModelInstance *comp, const char *function, int allowed)
+int cs_refuse_mode(ModelInstance *comp, const char *function, int allowed)
 {
-    if (comp->state & allowed)
-        return 1;
     char modes[256] = "";
     const ModelState all[] = {STATE_INSTANTIATED, STATE_INITIALIZATION, STATE_STEP,
                               STATE_TERMINATED};
@@ -315,6 +328,41 @@ typedef struct {
     ModelHidden h;
 } Backup;
 
+#define IS_REAL_OUTPUT(i) \
+    (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT && MODEL_VARIABLES[i].type == TYPE_REAL)
+#define VALUE_AT(v, i) ((char *)&(v) + MODEL_VARIABLES[i].offset)
+#define VALUE_SIZE(i) (MODEL_VARIABLES[i].type == TYPE_REAL ? sizeof(double) : sizeof(int))
+
+/* What a model hook may change (model.h: the outputs and the hidden state), saved before it
+ * runs so that a failed step or refresh can be undone: the outputs one by one (the unrolled
+ * loop copies exactly them) and the hidden state whole. */
+static inline void save_changeable(Backup *b, const ModelInstance *comp)
+{
+    ALL_VARIABLES
+    for (int i = 0; i < N_VARIABLES; i++)
+        if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT)
+            memcpy(VALUE_AT(b->v, i), VALUE_AT(comp->v, i), VALUE_SIZE(i));
+    b->h = comp->h;
+}
+
+static NOINLINE void restore_changeable(ModelInstance *comp, const Backup *b)
+{
+    for (int i = 0; i < N_VARIABLES; i++)
+        if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT)
+            memcpy(VALUE_AT(comp->v, i), VALUE_AT(b->v, i), VALUE_SIZE(i));
+    comp->h = b->h;
+}
+
+/* The output guard: the name of the first real output of `v` that is not finite, or NULL. */
+static inline const char *nonfinite_output(const ModelVariables *v)
+{
+    ALL_VARIABLES
+    for (int i = 0; i < N_VARIABLES; i++)
+        if (IS_REAL_OUTPUT(i) && !isfinite(*(const double *)VALUE_AT(*v, i)))
+            return MODEL_VARIABLES[i].name;
+    return NULL;
+}
+
 /* The outputs of sample 1 read in Initialization Mode, from the start values and inputs set so
  * far (as the Python FMUs and the InitialUnknowns say): checked, computed on a copy, and only
  * the outputs kept. */
@@ -355,31 +403,43 @@ static Status initialisation_outputs(ModelInstance *comp, const char *function)
     return STATUS_OK;
 }
 
+static NOINLINE Status refused_refresh(ModelInstance *comp, const char *function,
+                                       const char *bad)
+{
+    char b[32];
+    cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample %lld (t = %s s): the "
+           "inputs and parameters overflow the model; allowed: values whose outputs and "
+           "state stay finite (nothing was changed)", function, bad, (long long)comp->k,
+           repr_double(comp->startTime + (double)(comp->k - 1) * comp->v.Ts, b));
+    return STATUS_ERROR;
+}
+
 /* The feedthrough outputs of the pending sample, computed when inputs changed. The state is
  * restored and an error returned when a value comes out non-finite. */
-static Status refresh(ModelInstance *comp, const char *function)
+static NOINLINE Status compute_dirty(ModelInstance *comp, const char *function)
 {
     /* not initialised (Initialization Mode, or terminated from there): the outputs of sample 1
      * from the start values and inputs, as the Python FMUs compute them */
-    if (comp->dirty && !comp->initialised &&
+    if (!comp->initialised &&
         (comp->state == STATE_INITIALIZATION || comp->state == STATE_TERMINATED))
         return initialisation_outputs(comp, function);
-    if (!(MODEL_HAS_FEEDTHROUGH && comp->dirty && comp->initialised && comp->pending))
+    if (!(MODEL_HAS_FEEDTHROUGH && comp->initialised && comp->pending))
         return STATUS_OK;
-    Backup backup = {comp->v, comp->h};
+    Backup backup;
+    save_changeable(&backup, comp);
     const char *bad = model_compute(comp);
     if (bad) {
-        comp->v = backup.v;
-        comp->h = backup.h;
-        char b[32];
-        cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample %lld (t = %s s): the "
-               "inputs and parameters overflow the model; allowed: values whose outputs and "
-               "state stay finite (nothing was changed)", function, bad, (long long)comp->k,
-               repr_double(comp->startTime + (double)(comp->k - 1) * comp->v.Ts, b));
-        return STATUS_ERROR;
+        restore_changeable(comp, &backup);
+        return refused_refresh(comp, function, bad);
     }
     comp->dirty = 0;
     return STATUS_OK;
+}
+
+/* Nothing to do unless inputs or parameters changed since the outputs were computed. */
+static inline Status refresh(ModelInstance *comp, const char *function)
+{
+    return comp->dirty ? compute_dirty(comp, function) : STATUS_OK;
 }
 
 /* FMI 3.0: the independent variable time has the value reference after the table's. */
@@ -442,50 +502,49 @@ static void bad_references(char *out, size_t size, const unsigned int vr[], size
 #undef PUT
 }
 
+static NOINLINE Status refused_null(ModelInstance *comp, const char *function, size_t n)
+{
+    cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function, (unsigned long)n);
+    return STATUS_ERROR;
+}
+
+static NOINLINE Status refused_references(ModelInstance *comp, const char *function,
+                                          VariableType type, const unsigned int vr[], size_t n)
+{
+    char text[MESSAGE_SIZE];
+    bad_references(text, sizeof text, vr, n, TYPE_NAME[type], type, 1);
+    cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
+    return STATUS_ERROR;
+}
+
 Status cs_get(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, double reals[], int ints[])
 {
     /* FMI 2.0 and 3.0 alike: no getter before Initialization Mode (as the Python FMUs) */
     if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP | STATE_TERMINATED))
         return STATUS_ERROR;
-    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
-               (unsigned long)n);
-        return STATUS_ERROR;
-    }
+    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
+        return refused_null(comp, function, n);
     for (size_t i = 0; i < n; i++)
-        if (bad_reference(vr[i], type, 1)) {
-            char text[MESSAGE_SIZE];
-            bad_references(text, sizeof text, vr, n, TYPE_NAME[type], type, 1);
-            cs_log(comp, STATUS_ERROR, "%s: %s", function, text);
-            return STATUS_ERROR;
-        }
+        if (bad_reference(vr[i], type, 1))
+            return refused_references(comp, function, type, vr, n);
     if (refresh(comp, function) != STATUS_OK)
         return STATUS_ERROR;
-    for (size_t i = 0; i < n; i++) {
-        if (IS_TIME(vr[i]))
-            reals[i] = comp->time;
-        else if (type == TYPE_REAL)
-            reals[i] = *REAL_AT(comp, vr[i]);
-        else
+    if (type == TYPE_REAL) {
+        for (size_t i = 0; i < n; i++)
+            reals[i] = IS_TIME(vr[i]) ? comp->time : *REAL_AT(comp, vr[i]);
+    } else {
+        for (size_t i = 0; i < n; i++)
             ints[i] = *INT_AT(comp, vr[i]);
     }
     return STATUS_OK;
 }
 
-Status cs_set(ModelInstance *comp, const char *function, VariableType type,
-              const unsigned int vr[], size_t n, const double reals[], const int ints[])
+/* A set with at least one problem: every problem of the call (all but the last logged, the
+ * last with the error); nothing is set. */
+static NOINLINE Status refused_set(ModelInstance *comp, const char *function, VariableType type,
+                                   const unsigned int vr[], size_t n, const double reals[])
 {
-    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
-                    STATE_TERMINATED))
-        return STATUS_ERROR;
-    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints))) {
-        cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
-               (unsigned long)n);
-        return STATUS_ERROR;
-    }
-    /* every problem of the call first (all but the last logged, the last with the error):
-     * a rejected call changes nothing */
     char problems[8][MESSAGE_SIZE];
     int np = 0;
     if (comp->state == STATE_TERMINATED)
@@ -517,17 +576,36 @@ Status cs_set(ModelInstance *comp, const char *function, VariableType type,
                      info->type == TYPE_REAL ? repr_double(*REAL_AT(comp, vr[i]), b)
                      : (snprintf(b, sizeof b, "%d", *INT_AT(comp, vr[i])), b));
     }
-    if (np) {
-        for (int i = 0; i < np - 1; i++)
-            cs_log(comp, STATUS_ERROR, "%s: %s", function, problems[i]);
-        cs_log(comp, STATUS_ERROR, "%s: %s%s", function, problems[np - 1],
-               n > 1 ? "; nothing was set" : "");
+    for (int i = 0; i < np - 1; i++)
+        cs_log(comp, STATUS_ERROR, "%s: %s", function, problems[i]);
+    cs_log(comp, STATUS_ERROR, "%s: %s%s", function, problems[np - 1],
+           n > 1 ? "; nothing was set" : "");
+    return STATUS_ERROR;
+}
+
+Status cs_set(ModelInstance *comp, const char *function, VariableType type,
+              const unsigned int vr[], size_t n, const double reals[], const int ints[])
+{
+    if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
+                    STATE_TERMINATED))
         return STATUS_ERROR;
+    if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
+        return refused_null(comp, function, n);
+    /* every check of refused_set first, without words: a rejected call changes nothing */
+    int ok = comp->state != STATE_TERMINATED;
+    for (size_t i = 0; ok && i < n; i++) {
+        const unsigned int r = vr[i];
+        ok = !bad_reference(r, type, 0) && MODEL_VARIABLES[r].causality != CAUSALITY_OUTPUT &&
+             (type != TYPE_REAL || isfinite(reals[i])) &&
+             !(MODEL_VARIABLES[r].causality == CAUSALITY_PARAMETER && comp->initialised);
     }
-    for (size_t i = 0; i < n; i++) {
-        if (type == TYPE_REAL)
+    if (!LIKELY(ok))
+        return refused_set(comp, function, type, vr, n, reals);
+    if (type == TYPE_REAL) {
+        for (size_t i = 0; i < n; i++)
             *REAL_AT(comp, vr[i]) = reals[i];
-        else
+    } else {
+        for (size_t i = 0; i < n; i++)
             *INT_AT(comp, vr[i]) = ints[i];
     }
     if (n)
@@ -564,7 +642,10 @@ static void add_step(double *s, double *c, double x)
     *s = t;
 }
 
-Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h)
+/* A step refused before it is planned: the checks of cs_do_step in their order, each with
+ * its message (called only when one of them fails). */
+static NOINLINE Status refused_step(ModelInstance *comp, const char *function,
+                                    double currentTime, double h)
 {
     char bh[32], bt[32], bl[32];
     if (comp->state == STATE_TERMINATED) {
@@ -586,36 +667,70 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
                "step)", function, repr_double(currentTime, bt), repr_double(comp->time, bl));
         return STATUS_ERROR;
     }
-    if (!(isfinite(h) && h > 0.0)) {
-        cs_log(comp, STATUS_ERROR, "communication step h = %s s; allowed: a finite h > 0",
-               repr_double(h, bh));
-        return STATUS_ERROR;
-    }
+    cs_log(comp, STATUS_ERROR, "communication step h = %s s; allowed: a finite h > 0",
+           repr_double(h, bh));
+    return STATUS_ERROR;
+}
+
+/* A step that spans too many sample instants, or whose end is no finite number of them. */
+static NOINLINE Status refused_span(ModelInstance *comp, double h, double position)
+{
+    char bh[32], bt[32], bl[32];
+    const double Ts = comp->v.Ts, limit = (double)MAX_SAMPLES_PER_STEP;
+    /* the room left before the limit, in seconds: finite whenever Ts is (an overflow of
+     * limit * Ts or of the time itself is said as such) */
+    const double room = (limit + (double)comp->k - 1.0) * Ts - (comp->elapsed + comp->elapsed_c);
+    if (!isfinite(position) || !isfinite(room))
+        cs_log(comp, STATUS_ERROR, "communication step h = %s s from t = %s s with Ts = %s "
+               "s: the time in sample periods, (t + h - startTime)/Ts, is not a finite "
+               "number; allowed: steps whose end is a finite number of sample periods "
+               "after the start", repr_double(h, bh), repr_double(comp->time, bt),
+               repr_double(Ts, bl));
+    else
+        cs_log(comp, STATUS_ERROR, "communication step h = %s s spans more than %lld "
+               "sample instants of Ts = %s s; allowed: at most MAX_SAMPLES_PER_STEP = %lld "
+               "sample instants per step, h <= about %s s", repr_double(h, bh),
+               (long long)MAX_SAMPLES_PER_STEP, repr_double(Ts, bt),
+               (long long)MAX_SAMPLES_PER_STEP, repr_double(room, bl));
+    return STATUS_ERROR;
+}
+
+/* A step whose outputs or state came out non-finite (the instance is restored already). */
+static NOINLINE Status refused_result(ModelInstance *comp, const char *bad, double h)
+{
+    char bh[32], bt[32];
+    cs_log(comp, STATUS_ERROR, "%s would not be finite in the step from t = %s s by h = %s "
+           "s: the inputs and parameters overflow the model; allowed: values whose outputs "
+           "and state stay finite (nothing was changed)", bad, repr_double(comp->time, bt),
+           repr_double(h, bh));
+    return STATUS_ERROR;
+}
+
+/* (int64_t)ceil(x) for the x of a planned step (finite, and below MAX_SAMPLES_PER_STEP plus the
+ * sample index, far inside the range of int64_t) without a call into libm: the truncation
+ * toward zero, plus one when it lies below x. */
+static inline int64_t ceil_int(double x)
+{
+    const int64_t i = (int64_t)x;
+    return (double)i < x ? i + 1 : i;
+}
+
+Status cs_do_step(ModelInstance *comp, const char *function, double currentTime, double h)
+{
+    /* the checks of refused_step, at once: any finite currentTime (the FMU keeps its own time),
+     * a finite h > 0, in step mode after a completed initialisation */
+    if (!LIKELY(comp->state == STATE_STEP && comp->initialised && isfinite(currentTime) &&
+                isfinite(h) && h > 0.0))
+        return refused_step(comp, function, currentTime, h);
     const double Ts = comp->v.Ts, tol = SAMPLE_TOLERANCE;
     const int64_t k = comp->k;
     double elapsed = comp->elapsed, elapsed_c = comp->elapsed_c;
     add_step(&elapsed, &elapsed_c, h);
     const double position = (elapsed + elapsed_c) / Ts;   /* t + h in sample periods */
     const double limit = (double)MAX_SAMPLES_PER_STEP;
-    if (!(position - tol <= limit + (double)k - 1.0)) {
-        /* the room left before the limit, in seconds: finite whenever Ts is (an overflow of
-         * limit * Ts or of the time itself is said as such) */
-        const double room = (limit + (double)k - 1.0) * Ts - (comp->elapsed + comp->elapsed_c);
-        if (!isfinite(position) || !isfinite(room))
-            cs_log(comp, STATUS_ERROR, "communication step h = %s s from t = %s s with Ts = %s "
-                   "s: the time in sample periods, (t + h - startTime)/Ts, is not a finite "
-                   "number; allowed: steps whose end is a finite number of sample periods "
-                   "after the start", repr_double(h, bh), repr_double(comp->time, bt),
-                   repr_double(Ts, bl));
-        else
-            cs_log(comp, STATUS_ERROR, "communication step h = %s s spans more than %lld "
-                   "sample instants of Ts = %s s; allowed: at most MAX_SAMPLES_PER_STEP = %lld "
-                   "sample instants per step, h <= about %s s", repr_double(h, bh),
-                   (long long)MAX_SAMPLES_PER_STEP, repr_double(Ts, bt),
-                   (long long)MAX_SAMPLES_PER_STEP, repr_double(room, bl));
-        return STATUS_ERROR;
-    }
-    const int64_t last = (int64_t)ceil(position - tol);   /* first instant at or after t + h */
+    if (!LIKELY(position - tol <= limit + (double)k - 1.0))
+        return refused_span(comp, h, position);
+    const int64_t last = ceil_int(position - tol);   /* first instant at or after t + h */
     const int64_t m = last + 1 - k > 0 ? last + 1 - k : 0;   /* instants in [t, t + h) */
     StepPlan plan;
     plan.k_first = k;
@@ -624,26 +739,16 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
     plan.end_pending = (double)last <= position + tol;
     plan.k_end = k + m;
 
-    Backup backup = {comp->v, comp->h};
+    Backup backup;
+    save_changeable(&backup, comp);
     if (plan.first_pending && refresh(comp, function) != STATUS_OK)
         return STATUS_ERROR;
     const char *bad = model_advance(comp, &plan);
-    if (!bad) {   /* the output guard */
-        for (int i = 0; i < N_VARIABLES; i++)
-            if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT &&
-                MODEL_VARIABLES[i].type == TYPE_REAL && !isfinite(*REAL_AT(comp, i))) {
-                bad = MODEL_VARIABLES[i].name;
-                break;
-            }
-    }
+    if (!bad)
+        bad = nonfinite_output(&comp->v);   /* the output guard */
     if (bad) {
-        comp->v = backup.v;
-        comp->h = backup.h;
-        cs_log(comp, STATUS_ERROR, "%s would not be finite in the step from t = %s s by h = %s "
-               "s: the inputs and parameters overflow the model; allowed: values whose outputs "
-               "and state stay finite (nothing was changed)", bad, repr_double(comp->time, bt),
-               repr_double(h, bh));
-        return STATUS_ERROR;
+        restore_changeable(comp, &backup);
+        return refused_result(comp, bad, h);
     }
     comp->elapsed = elapsed;
     comp->elapsed_c = elapsed_c;

@@ -45,9 +45,16 @@ Status cs_serialize(ModelInstance *comp, const char *function, const void *state
 Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned char *bytes,
                       size_t size, void **state);
 
-/* "<function>: <call> is not allowed in <mode>; allowed in: ..." when the mode is not in
- * `allowed` (a mask of ModelState); returns nonzero when the call may go on. */
-int cs_allowed(ModelInstance *comp, const char *function, int allowed);
+/* Logs "<function> is not allowed in <mode>; allowed in: ..." and returns 0 (the slow path of
+ * cs_allowed, out of line). */
+int cs_refuse_mode(ModelInstance *comp, const char *function, int allowed);
+/* "<function> is not allowed in <mode>; allowed in: ..." when the mode is not in `allowed` (a
+ * mask of ModelState); returns nonzero when the call may go on.  Inline: every call of the
+ * per-step path asks it, and the answer is one AND. */
+static inline int cs_allowed(ModelInstance *comp, const char *function, int allowed)
+{
+    return (comp->state & allowed) ? 1 : cs_refuse_mode(comp, function, allowed);
+}
 /* A function the FMU does not support (Model Exchange, clocks, ...). */
 Status cs_unsupported(ModelInstance *comp, const char *function);
 void cs_log(ModelInstance *comp, Status status, const char *format, ...)

@@ -95,6 +95,9 @@ typedef struct {
 
 /* ---- MODEL HOOKS (one set per model, provided by fmu_src/native/models/) ------------------ */
 
+/* model_compute and model_advance change the outputs of comp->v and comp->h, nothing else: the
+ * plumbing saves exactly those before it calls them, and puts them back when one fails. */
+
 /* Check the parameters at the end of initialisation: log every problem with model_log_error
  * (the same words as the Python FMU) and return their number (0: all good). */
 int model_check(ModelInstance *comp);
