@@ -69,6 +69,9 @@ DESELECT = ("tests/test_native_models.py::test_windows_build_under_wine_prints_t
 #: Left out of every run unless a fault sets ``twin_evidence``: the C twins against models/ bit
 #: for bit.  They catch a fault applied to the Python twin alone by plumbing, not by evidence.
 TWIN_TESTS = ("tests/test_native_models.py",)
+#: Left out of every run: the mutation check's own tests (they run mutate.py on a tree of their
+#: own; no fault on the list is in tools/).
+SELF_TESTS = ("tests/test_mutate.py",)
 #: A fault's run may take this many times the unmutated run of its tests ...
 TIMEOUT_FACTOR = 3.0
 #: ... and at least this many seconds (a fault may slow the tests without failing them).
@@ -168,7 +171,7 @@ _FAILED = re.compile(r"^(FAILED|ERROR) (.+?)(?: - .*)?$")  # ids may hold spaces
 def run_tests(copy, tests, timeout, ignore=(), twins=False):
     """Run pytest on the copy, without :data:`TWIN_TESTS` unless ``twins``; return (status,
     first failing test or None, seconds)."""
-    ignore = tuple(ignore) + (() if twins else TWIN_TESTS)
+    ignore = tuple(ignore) + SELF_TESTS + (() if twins else TWIN_TESTS)
     # DRIFTFMU_KERNEL=numpy: the batch engine runs models/ (the faults' target) instead of the
     # compiled kernel, the C port that a fault in models/ leaves as it is
     env = dict(os.environ, PYTHONPATH=copy, PYTHONDONTWRITEBYTECODE="1", DRIFTFMU_KERNEL="numpy")
