@@ -50,23 +50,26 @@ class Staging:
 
     def __init__(self):
         self._pairs = []  # (hidden folder, staged path, destination)
+        self._shown = []  # (staged path, destination as given): for the log's lines
 
     def path(self, target, folder=True):
         """The staged stand-in for ``target`` (a folder, or with ``folder=False`` a file)."""
-        target = Path(target).absolute()
+        shown = Path(target)
+        target = shown.absolute()
         anchor = target if folder else target.parent
         while not anchor.is_dir() and anchor != anchor.parent:
             anchor = anchor.parent
         stage = Path(tempfile.mkdtemp(prefix=".driftfmu-stage-", dir=anchor))
         staged = stage / target.name
         self._pairs.append((stage, staged, target))
+        self._shown.append((staged, shown))
         return staged
 
     def log(self, log):
         """``log`` with the staged paths in its lines named by their destinations."""
         def staged_log(line):
-            for _, staged, target in self._pairs:
-                line = line.replace(str(staged), str(target))
+            for staged, shown in self._shown:
+                line = line.replace(str(staged), str(shown))
             log(line)
         return staged_log
 

@@ -365,6 +365,16 @@ def test_a_build_that_succeeds_moves_every_output_into_place(existing, tmp_path,
     assert str(chain) in captured.out
 
 
+def test_the_build_lines_name_the_paths_as_given(tmp_path, capsys, monkeypatch):
+    from driftfmu.fmu_src import builder
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.chdir(tmp_path)
+    assert _status(["build", "--out", "fmus"]) == 0
+    out = capsys.readouterr().out
+    assert "built %s\n" % os.path.join("fmus", "Excitation.fmu") in out, out
+    assert sorted(os.listdir(tmp_path)) == ["fmus"]
+
+
 def test_the_api_build_is_all_or_nothing_too(tmp_path, monkeypatch):
     """driftfmu.build_fmus: an SSP step that fails after the FMUs are built leaves the
     existing folder and file as they were."""
