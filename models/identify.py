@@ -73,6 +73,8 @@ import math
 import warnings
 from collections import namedtuple
 
+from . import _blas
+
 Fit = namedtuple("Fit", "a0 a1 a2 R X phi lag samples periods explained a3 a4 order se",
                  defaults=(0.0, 0.0, 2, None))
 
@@ -163,6 +165,7 @@ def check_order(order, f, Ts):
             % (order, order, f, order * f, 0.5 / Ts, top, 0.5 / (order * Ts), order))
 
 
+@_blas.threads(1)  # the same bits on every machine (see models/_blas.py)
 def fit_set(t, x, z, f, skip=0, order=2):
     """Harmonic analysis of one set: a :class:`Fit` of ``z = a0 + a1 x + ... + a_order x^order
     + v`` (``order`` 2, 3 or 4).
@@ -205,7 +208,7 @@ def fit_set(t, x, z, f, skip=0, order=2):
     if m * f * Ts < FEW_PERIODS - 1e-9:
         warnings.warn("only %d whole periods of f = %g Hz: the closed-form standard errors "
                       "hold for many periods; the fit is rough"
-                      % (round(m * f * Ts), f), IdentificationWarning, stacklevel=2)
+                      % (round(m * f * Ts), f), IdentificationWarning, stacklevel=3)
     phi = math.atan2(c, s)
     B = _basis(w + phi, order)
     coef, *_ = np.linalg.lstsq(B, z, rcond=None)
@@ -231,7 +234,7 @@ def fit_set(t, x, z, f, skip=0, order=2):
         leak = a1 * a1 * (1.0 - explained) * var_x / R if R > 0 else math.inf
         warnings.warn("%s: the fit is doubtful (a wrong f, a distorted or noisy drive); if that "
                       "part of x is motion, it makes up to %.0f %% of the fitted R"
-                      % (text, 100 * min(1.0, leak)), IdentificationWarning, stacklevel=2)
+                      % (text, 100 * min(1.0, leak)), IdentificationWarning, stacklevel=3)
     return Fit(float(a0), float(a1), float(a2), R, X, phi, lag, m,
                int(round(m * f * Ts)), explained, a3, a4, order, se)
 

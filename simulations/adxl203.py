@@ -28,6 +28,7 @@ with the same seeds, computed by its C port in the compiled batch kernel
 (:mod:`driftfmu.simulations.kernel`), or by models/ itself without a C compiler.  Where the time
 goes is in the summary's ``timing`` and on the command line (docs/performance-jobs.md).
 """
+import functools
 import math
 import os
 import time
@@ -346,10 +347,12 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         import numpy as np
         t_out = time.perf_counter()
         with output.staged(out) as stage:
-            if plot:  # first, so that the JSON can say how long they took
-                plot_fig4(stage / "fig4.png", per, [[r["trace"] for r in tests[f]]
-                                                    for f in freqs], train, n, Ts)
-                plot_fig5(stage / "fig5.png", per)
+            if plot:  # first, so that the JSON can say how long they took; side by side
+                output.draw_beside(
+                    functools.partial(plot_fig4, stage / "fig4.png", per,
+                                      [[r["trace"] for r in tests[f]] for f in freqs], train,
+                                      n, Ts),
+                    functools.partial(plot_fig5, stage / "fig5.png", per))
             rows = {"frequency": [], "set": [], "dc_empirical": [], "dc_ekf1": [],
                     "difference": []}
             for p in per:

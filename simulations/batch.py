@@ -584,6 +584,11 @@ def _worker_init():
     if hasattr(signal, "pthread_sigmask"):  # forked with both blocked (see process_pool)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     warnings.showwarning = _worker_warning  # one line each, as the command's own
+    # one BLAS thread: the pool runs one worker per core already, and OpenBLAS's own thread per
+    # core in every worker would oversubscribe them (its threads spin while they wait: the
+    # ADXL203 experiment took 1.6 times as long)
+    from driftfmu.models import _blas
+    _blas.set_threads(1)
 
 
 def _worker_warning(message, category, filename, lineno, file=None, line=None):

@@ -21,6 +21,7 @@ over ``a4`` instead of ``a2`` (``a2`` then takes one value): the grid is ``(a4, 
 figures show the errors against ``a4`` beside the drift ``a2 sigma_x^2 + 3 a4 sigma_x^4``
 (eq. 5 for ``u = 0``).
 """
+import functools
 import time
 
 import numpy as np
@@ -235,29 +236,12 @@ def write(out, result, plot=True):
                 subtitle = "%s, %s" % (", ".join("%s = %g" % (k, p[k]) for k in fixed),
                                        subtitle)
             figures = [(stage / "fig2.png", "ekf1"), (stage / "fig3.png", "ekf3")]
-            ylim = grid_limits(result)  # one scale for both: EKF1 against EKF3 at a glance
-            if not _fork_is_cheap():
-                for path, est in figures:
-                    plot_grid(path, result, est, subtitle, ylim=ylim)
-                return
-            # two cores: Fig. 3 in a forked process while this one draws Fig. 2
+            # one scale for both figures: EKF1 against EKF3 at a glance
+            ylim = grid_limits(result)
             drawn = {k: result[k] for k in ("table", "grid_" + axis, "grid_R", "axis",
                                             "parameters")}
-            with batch.process_pool(1, "driftfmu.simulations.sweep") as pool:
-                later = pool.submit(plot_grid, figures[1][0], drawn, figures[1][1], subtitle,
-                                    ylim)
-                plot_grid(figures[0][0], drawn, figures[0][1], subtitle, ylim)
-                later.result()
-
-
-def _fork_is_cheap():
-    """More than one core, and a worker would be forked (this process is single-threaded)
-    with matplotlib already imported, so that drawing a figure beside costs no start-up."""
-    import os
-    import sys
-    import threading
-    return ((os.cpu_count() or 1) > 1 and threading.active_count() == 1
-            and "matplotlib.pyplot" in sys.modules and hasattr(os, "fork"))
+            output.draw_beside(*[functools.partial(plot_grid, path, drawn, est, subtitle, ylim)
+                                 for path, est in figures])
 
 
 def grid_limits(result, estimators=("ekf1", "ekf3")):

@@ -167,3 +167,15 @@ def test_fmu_engine_tasks_on_workers_equal_the_batch_engine(built_fmus):
     got = batch.gather(batch.run_tasks(tasks, workers=2))
     for key in want:
         assert np.array_equal(got[key], want[key]), key
+
+
+def test_pool_workers_run_one_blas_thread():
+    """One worker per core, each with one BLAS thread: OpenBLAS's default, a thread per core in
+    every worker, oversubscribes the cores (the ADXL203 experiment took 1.6 times as long)."""
+    from driftfmu.models import _blas
+    if not _blas.libraries():
+        pytest.skip("no OpenBLAS found in this process (another BLAS, or not Linux)")
+    with _blas.threads(2):   # what a 2-core machine starts with, whatever this one has
+        with batch.process_pool(2) as pool:
+            counts = [pool.submit(_blas.counts).result() for _ in range(2)]
+    assert counts == [[1] * len(_blas.libraries())] * 2

@@ -166,7 +166,7 @@ def test_fig1_and_sine_png(figures, tmp_path, which):
 
 
 def test_fig2_fig3_png(figures, tmp_path, monkeypatch):
-    monkeypatch.setattr(sweep, "_fork_is_cheap", lambda: False)  # both figures in this process
+    monkeypatch.setattr(output, "fork_is_cheap", lambda: False)  # both figures in this process
     sweep.sweep(a2=[1e-3, 1e-2, 1e-1], R=[1e-6, 1e-4, 1e-2], runs=16, n=200, workers=1,
                 out=tmp_path)
     assert len(figures) == 2
@@ -234,3 +234,49 @@ def test_fig5_png(figures, tmp_path):
     label = " ".join(ax.get_ylabel().split())
     assert "10·log10(v / 1 V)" in label and "20 log10" in label and "letter" in label
     assert len([t for t in ax.texts if t.get_text().endswith(" dB")]) == 3
+
+
+def test_a_laid_out_figure_is_drawn_once_to_the_same_pixels(tmp_path, monkeypatch):
+    """``output.savefig`` after ``tight_layout`` draws the figure once (matplotlib's savefig
+    draws it twice while the placeholder layout engine that tight_layout leaves is set), and
+    the PNG is the one of before, byte for byte."""
+    from matplotlib.figure import Figure
+
+    def laid_out():
+        fig, ax = plt.subplots(figsize=(5, 3))
+        ax.plot(np.arange(50), np.sin(np.arange(50) / 5.0), label="a curve")
+        ax.set_xscale("log")
+        ax.legend()
+        ax.set_title("title")
+        fig.tight_layout()
+        return fig
+
+    fig = laid_out()
+    fig.savefig(tmp_path / "before.png", dpi=100)   # as it was saved before
+    plt.close(fig)
+    draws = []
+    draw = Figure.draw
+    monkeypatch.setattr(Figure, "draw", lambda self, r: (draws.append(1), draw(self, r))[1])
+    fig = laid_out()
+    output.savefig(fig, tmp_path / "now.png", dpi=100)
+    plt.close(fig)
+    assert len(draws) == 1
+    assert (tmp_path / "now.png").read_bytes() == (tmp_path / "before.png").read_bytes()
+
+
+def test_figures_drawn_beside_each_run_once_and_a_failure_is_raised_here(tmp_path, monkeypatch):
+    """``output.draw_beside``: the first job here, the others in a worker; each once; an
+    exception in the worker reaches the caller (no figure silently missing)."""
+    import functools
+    import operator
+    from pathlib import Path
+    for cheap in (True, False):
+        monkeypatch.setattr(output, "fork_is_cheap", lambda: cheap)
+        folder = tmp_path / str(cheap)
+        folder.mkdir()
+        output.draw_beside(*[functools.partial(Path.write_text, folder / name, name)
+                             for name in ("a", "b", "c")])
+        assert sorted(p.read_text() for p in folder.iterdir()) == ["a", "b", "c"]
+        with pytest.raises(ZeroDivisionError):
+            output.draw_beside(functools.partial(int, "1"),
+                               functools.partial(operator.truediv, 1, 0))

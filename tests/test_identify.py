@@ -186,3 +186,26 @@ def test_cli_exit_1_for_a_contradicted_frequency_and_a_warning_line_for_a_doubtf
     assert len(lines) == 2 and all(line.startswith("driftfmu: warning: ") for line in lines)
     assert "2 warning(s)" in cap.out
     assert len(json.loads((tmp_path / "b" / "identify.json").read_text())["warnings"]) == 2
+
+
+# -- the same bits on every machine: the fit does not depend on the BLAS's thread count ----------
+def test_a_fit_has_the_same_bits_whatever_the_blas_thread_count():
+    """OpenBLAS splits the residual's long dot product between its threads (one per core by
+    default), so ``R`` came out with other last bits on a 2-core machine than on a 1-core one;
+    the fit runs with one thread (models/_blas.py) and gives the same bits under any count."""
+    from driftfmu.models import _blas
+    if not _blas.libraries():
+        pytest.skip("no OpenBLAS found in this process (another BLAS, or not Linux)")
+    rng = np.random.default_rng(3)
+    n, Ts, f = 60_000, 1e-4, 150.0   # long enough for OpenBLAS to thread the dot product
+    t = np.arange(n) * Ts
+    x = 2.0 * np.sin(2 * math.pi * f * t + 0.3)
+    z = 0.01 + x + 0.02 * x * x + 0.01 * rng.standard_normal(n)
+    fits = []
+    for count in (1, 2, 4):
+        with _blas.threads(count):
+            fits.append(identify.fit_set(t, x, z, f))
+            with _blas.threads(count):   # threads() restores what it found
+                pass
+            assert [get() for _, get in _blas.libraries()] == [count] * len(_blas.libraries())
+    assert fits[0] == fits[1] == fits[2]
