@@ -474,6 +474,24 @@ def test_a_signal_during_the_native_build_leaves_every_path_as_it_was(signum, tm
     assert _tree(work) == before  # no SSP, no FMU of this run, no staging folder
 
 
+def test_a_failing_compiler_is_named_with_its_reason_on_the_error_line(tmp_path, monkeypatch):
+    """The command prints the first line of a failed build: it names the compiler that was set
+    and the compiler's own error, not only that compiling failed."""
+    from driftfmu.fmu_src import native_build
+    from driftfmu.simulations.cli import first_line
+    cc = tmp_path / "my-cc"
+    cc.write_text("#!/bin/sh\necho 'note: starting' >&2\necho 'my-cc: error: no licence' >&2\n"
+                  "exit 3\n")
+    cc.chmod(0o755)
+    monkeypatch.setenv("CC", str(cc))
+    (tmp_path / "a.c").write_text("int a;\n")
+    with pytest.raises(native_build.NativeBuildError) as exc:
+        native_build.compile_library("x86_64-linux", tmp_path, ["a.c"], tmp_path / "a.so")
+    assert first_line(exc.value) == ("compiling a.so for x86_64-linux failed: my-cc exited with "
+                                     "status 3: my-cc: error: no licence")
+    assert not (tmp_path / "a.so").exists()
+
+
 def test_build_warnings_go_to_stderr_with_the_prefix(tmp_path, capsys, monkeypatch):
     from driftfmu.fmu_src import builder
     monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
