@@ -66,8 +66,9 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         Folder of the Python FMUs (``<out_dir>/<Name>.fmu``); the native FMUs go to
         ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where :func:`simulate` looks for them
         (and, with an ARM compiler, the FMI 2.0 FMUs for ARM to ``native/fmi2-aarch64/``).
-        Created if missing; an FMU is moved into place only once it validates, and a failed
-        build leaves no folder it created.
+        Created if missing.  All or nothing: every output of the call (FMUs, ``cross_check``,
+        ``ssp``) is built in a hidden staging folder and moved into place only once the whole
+        build has succeeded; a failed or interrupted build leaves every path as it was.
     backend : {"python", "native"}
         ``"python"``: pythonfmu FMUs (FMI 2.0, Linux x86-64; the model runs in the host's
         CPython).  ``"native"``: the C twins, source FMUs with a binary for every platform
@@ -128,30 +129,36 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
             raise UsageError("ssp needs the FMI 2.0 FMUs %s; allowed: names with them and "
                              "fmi_version 2" % ", ".join(chain))
     log = _quiet_log if log is None else log
-    from driftfmu.simulations.output import removing_new_trees
-    trees = [out_dir, Path(out_dir) / "native" if backend == "native" else out_dir]
-    trees += [p for p in (cross_check, ssp is not None and Path(ssp).parent) if p]
-    # a failed or stopped build leaves no folder it created, half-filled or empty
-    with removing_new_trees(*trees):
+    from driftfmu.simulations.output import Staging
+    # all the outputs or none: each is written to a staged stand-in and moved into place only
+    # once the whole build has succeeded; a failed or stopped build leaves every path as it was
+    with Staging() as staging:
+        staged_out = staging.path(out_dir)
+        staged_cross_check = None if cross_check is None else staging.path(cross_check)
+        staged_ssp = None if ssp is None else staging.path(ssp, folder=False)
+        log = staging.log(log)
         if backend == "python":
             from driftfmu.fmu_src import builder
             built = {2: {Path(p).stem: Path(p)
-                         for p in builder.build_fmus(out_dir, names=names, log=log)}}
+                         for p in builder.build_fmus(staged_out, names=names, log=log)}}
         else:
             from driftfmu.fmu_src import native_build
-            built = native_build.build_native_fmus(Path(out_dir) / "native", names=names,
+            built = native_build.build_native_fmus(staged_out / "native", names=names,
                                                    fmi_versions=versions, log=log)
             built = {v: {n: Path(p) for n, p in built[v].items()} for v in built}
-        if cross_check is not None:
+        if staged_cross_check is not None:
             from driftfmu.fmu_src.crosscheck import write_cross_check
             for v in sorted(built):
-                for d in write_cross_check(built[v], cross_check, fmi_version=v,
+                for d in write_cross_check(built[v], staged_cross_check, fmi_version=v,
                                            backend=backend):
                     log("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
-        if ssp is not None:
+        if staged_ssp is not None:
             from driftfmu.fmu_src.ssp import build_ssp
             log("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
-                "Gaussian run)" % (build_ssp(built[2], ssp), backend))
+                "Gaussian run)" % (build_ssp(built[2], staged_ssp), backend))
+    out = Path(out_dir)  # the paths the FMUs have now, as given
+    built = {v: {n: out / p.relative_to(staged_out) for n, p in built[v].items()}
+             for v in built}
     if not several:
         return built[versions[0]]
     return {"fmi%d/%s" % (v, n): p for v in sorted(built) for n, p in built[v].items()}

@@ -548,6 +548,36 @@ def _linux_binaries(model_identifier, library, loader, work):
 
 # -- one FMU -----------------------------------------------------------------------------------
 
+def _pythonfmu_home():
+    """The installed pythonfmu's package folder.  pythonfmu's builder takes its binaries and
+    the modules it copies into every FMU from beside its own ``__file__`` (``HERE``); when a
+    Python FMU was simulated in this process before pythonfmu was imported here, the imported
+    pythonfmu is that FMU's copy (its ``resources/pythonfmu``: no binaries, and removed with
+    the instance)."""
+    from importlib import metadata
+
+    import pythonfmu.builder
+    try:
+        home = Path(metadata.distribution("pythonfmu").locate_file("pythonfmu"))
+    except metadata.PackageNotFoundError:
+        home = None
+    if home is None or not (home / "resources" / "binaries").is_dir():
+        return Path(pythonfmu.builder.__file__).parent
+    return home
+
+
+@contextlib.contextmanager
+def _installed_pythonfmu():
+    """pythonfmu's builder with ``HERE`` at :func:`_pythonfmu_home` for the block."""
+    import pythonfmu.builder
+    saved = pythonfmu.builder.HERE
+    pythonfmu.builder.HERE = _pythonfmu_home()
+    try:
+        yield
+    finally:
+        pythonfmu.builder.HERE = saved
+
+
 def _build_one(name, out_dir, src_dir, loader, log):
     from pythonfmu import __version__ as pythonfmu_version
     from pythonfmu.builder import FmuBuilder, get_model_class
@@ -562,8 +592,9 @@ def _build_one(name, out_dir, src_dir, loader, log):
         with _importable(stage, script.stem, package):
             slave = get_model_class(script)
             slave.version = __version__  # into the model description
-            built = FmuBuilder.build_FMU(script, dest=work / "pythonfmu",
-                                         project_files=[stage / package])
+            with _installed_pythonfmu():
+                built = FmuBuilder.build_FMU(script, dest=work / "pythonfmu",
+                                             project_files=[stage / package])
         with zipfile.ZipFile(built) as archive:
             entries = {info.filename: archive.read(info) for info in archive.infolist()
                        if not info.is_dir()}

@@ -467,9 +467,13 @@ def compile_library(platform, sources_dir, c_files, target):
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
             + [str(sources_dir / f) for f in c_files] + _libraries(platform, command))
     result = subprocess.run(args, capture_output=True, text=True, cwd=target.parent)
-    if result.returncode != 0:
-        raise NativeBuildError("compiling %s for %s failed:\n%s\n%s"
-                               % (target.name, platform, " ".join(args), result.stderr.strip()))
+    if result.returncode != 0:  # the first line says who failed and why (the command's one line)
+        lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
+        why = next((line for line in lines if "error" in line.lower()),
+                   lines[0] if lines else "no message")
+        raise NativeBuildError("compiling %s for %s failed: %s exited with status %d: %s\n%s\n%s"
+                               % (target.name, platform, label, result.returncode, why,
+                                  " ".join(args), result.stderr.strip()))
     return target, label
 
 

@@ -195,19 +195,24 @@ def cmd_build(args):
     for the native FMUs of both FMI versions.  The cross-check folders hold the native FMUs when
     they are built, else the Python ones; the SSP archive holds the ``--backend`` ones."""
     import driftfmu
-    from driftfmu.simulations.output import removing_new_trees
-    native = args.native or args.backend == "native"
-    trees = [args.out, Path(args.out) / "native"]
-    trees += [p for p in (args.cross_check, args.ssp and Path(args.ssp).parent) if p]
-    # a failed or stopped build leaves no folder it created, half-filled or empty
-    with removing_new_trees(*trees):
+    from driftfmu.simulations.output import Staging
+    if not (args.native or args.backend == "native"):  # one call, all or nothing by itself
         driftfmu.build_fmus(args.out, log=build_log,  # logs one line per FMU
-                            cross_check=None if native else args.cross_check,
-                            ssp=args.ssp if args.backend == "python" else None)
-        if native:
-            driftfmu.build_fmus(args.out, backend="native", fmi_version=(2, 3), log=build_log,
-                                cross_check=args.cross_check,
-                                ssp=args.ssp if args.backend == "native" else None)
+                            cross_check=args.cross_check, ssp=args.ssp)
+        return
+    # two calls, all the outputs of both or none: they write to staged stand-ins, moved into
+    # place only once both have succeeded (with --backend python the first call writes the
+    # SSP: a failing native build must not leave it behind)
+    with Staging() as staging:
+        out = staging.path(args.out)
+        cross_check = args.cross_check and staging.path(args.cross_check)
+        ssp = args.ssp and staging.path(args.ssp, folder=False)
+        log = staging.log(build_log)
+        driftfmu.build_fmus(out, log=log, cross_check=None,
+                            ssp=ssp if args.backend == "python" else None)
+        driftfmu.build_fmus(out, backend="native", fmi_version=(2, 3), log=log,
+                            cross_check=cross_check,
+                            ssp=ssp if args.backend == "native" else None)
 
 
 def build_log(line):

@@ -17,7 +17,6 @@ its source's output at the same point before the FMU's outputs are read, so the 
 the same bits.  Other wirings are refused.
 """
 import ctypes
-import shutil
 import subprocess
 from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
 
@@ -226,7 +225,10 @@ _LOOP_LIBRARY = []
 
 def loop_library():
     """The compiled C loop (ctypes function), or None when no C compiler works.  Compiled once
-    into the temporary directory, named by the source's hash, written atomically."""
+    into the temporary directory, named by the source's hash, written atomically: compiled in
+    a work folder registered for removal (:func:`~driftfmu.simulations.cosim.new_extract_folder`,
+    in the same temporary directory) and renamed from there in one step, so a worker stopped at
+    any point leaves either the whole library or nothing, never a partial file."""
     if _LOOP_LIBRARY:
         return _LOOP_LIBRARY[0]
     import hashlib
@@ -250,8 +252,7 @@ def loop_library():
                 partial = os.path.join(work, "loop.so")
                 subprocess.run(compiler + ["-O2", "-shared", "-fPIC", "-o", partial, source],
                                check=True, capture_output=True)
-                shutil.move(partial, target + ".part%d" % os.getpid())
-                os.replace(target + ".part%d" % os.getpid(), target)
+                os.replace(partial, target)  # one rename: the work folder is beside target
             finally:
                 _remove(work)
         function = ctypes.CDLL(target).driftfmu_loop

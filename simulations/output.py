@@ -35,28 +35,88 @@ def removing_new_folders(path):
         raise
 
 
-@contextlib.contextmanager
-def removing_new_trees(*paths):
-    """Run the block; when it fails (or is interrupted), remove every folder it would have
-    created for ``paths`` (each the highest folder of its path that did not exist before),
-    with whatever the block has put into it: a failed or stopped run leaves no folder it
-    created, not even a half-filled one.  Folders that existed before are left alone."""
-    new = []
-    for path in paths:
-        path = Path(path).absolute()
-        top = None
-        p = path
-        while not p.exists() and p != p.parent:
-            top = p
-            p = p.parent
-        if top is not None and top not in new:
-            new.append(top)
-    try:
-        yield
-    except BaseException:
-        for d in new:
-            shutil.rmtree(d, ignore_errors=True)
-        raise
+class Staging:
+    """All the outputs of one job, or none of them (``driftfmu build``: FMUs, native FMUs,
+    cross-check folders, the SSP archive).
+
+    :meth:`path` hands out a staged stand-in for each destination, a hidden folder
+    ``.driftfmu-stage-*`` in the destination's nearest existing folder (the same file system,
+    so the move is a rename); the job writes there.  Leaving the ``with`` block normally moves
+    every staged file into place, a file that was there kept aside until all have moved; an
+    exception or interrupt in the block or during the moves removes the staged files, puts
+    back what was replaced and removes the folders made for the destinations.  Either way the
+    hidden folders go.
+    """
+
+    def __init__(self):
+        self._pairs = []  # (hidden folder, staged path, destination)
+        self._shown = []  # (staged path, destination as given): for the log's lines
+
+    def path(self, target, folder=True):
+        """The staged stand-in for ``target`` (a folder, or with ``folder=False`` a file)."""
+        shown = Path(target)
+        target = shown.absolute()
+        anchor = target if folder else target.parent
+        while not anchor.is_dir() and anchor != anchor.parent:
+            anchor = anchor.parent
+        stage = Path(tempfile.mkdtemp(prefix=".driftfmu-stage-", dir=anchor))
+        staged = stage / target.name
+        self._pairs.append((stage, staged, target))
+        self._shown.append((staged, shown))
+        return staged
+
+    def log(self, log):
+        """``log`` with the staged paths in its lines named by their destinations."""
+        def staged_log(line):
+            for staged, shown in self._shown:
+                line = line.replace(str(staged), str(shown))
+            log(line)
+        return staged_log
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, kind, value, tb):
+        try:
+            if kind is None:
+                self._commit()
+        finally:
+            for stage, _, _ in self._pairs:
+                shutil.rmtree(stage, ignore_errors=True)
+        return False
+
+    def _commit(self):
+        placed, kept, made = [], [], []
+        try:
+            for stage, staged, target in self._pairs:
+                if staged.is_dir():
+                    files = sorted(p for p in staged.rglob("*") if not p.is_dir())
+                else:
+                    files = [staged] if staged.exists() else []
+                for f in files:
+                    dest = target / f.relative_to(staged) if f != staged else target
+                    top = dest.parent
+                    while not top.parent.exists():
+                        top = top.parent
+                    if not top.exists():
+                        made.append(top)
+                        dest.parent.mkdir(parents=True)
+                    if dest.exists() or dest.is_symlink():
+                        aside = stage / (".replaced-%d" % len(kept))
+                        os.replace(dest, aside)
+                        kept.append((aside, dest))
+                    os.replace(f, dest)
+                    placed.append(dest)
+        except BaseException:
+            for dest in reversed(placed):
+                with contextlib.suppress(OSError):
+                    dest.unlink()
+            for aside, dest in reversed(kept):
+                with contextlib.suppress(OSError):
+                    os.replace(aside, dest)
+            for d in reversed(made):
+                shutil.rmtree(d, ignore_errors=True)
+            raise
 
 
 @contextlib.contextmanager

@@ -454,3 +454,41 @@ def test_python_hosts_of_other_versions(built_fmus, reference_values, tmp_path):
             code, output = run([python, str(HOSTS / "ctypes_host.py"), *args], clean_env())
             assert code == 0 and not errors_in(output), (version, name, output)
             assert value_of(output) == reference_values[name], (version, name)
+
+
+# -- building after simulating a Python FMU in the same process ----------------------------------
+
+_SIMULATE_THEN_BUILD = """
+import sys
+import driftfmu
+from pathlib import Path
+fmu_dir, out = sys.argv[1:3]
+driftfmu.simulate(fmus=("Excitation",), stop_time=0.01, fmu_dir=fmu_dir)
+import pythonfmu
+print("imported pythonfmu from", Path(pythonfmu.__file__).parent)
+print(driftfmu.build_fmus(out, names=["Excitation"])["Excitation"])
+"""
+
+
+@integration
+def test_a_build_after_simulating_a_python_fmu_uses_the_installed_pythonfmu(built_fmus,
+                                                                          tmp_path):
+    """A Python FMU simulated in this process before pythonfmu was imported here brings its own
+    copy of pythonfmu (the FMU's resources/pythonfmu, without pythonfmu's binaries, removed with
+    the instance); the build then uses the installed pythonfmu's binaries and modules all the
+    same (it failed with KeyError 'binaries/linux64/Excitation.so')."""
+    fmu_dir = tmp_path / "fmus"
+    fmu_dir.mkdir()
+    (fmu_dir / "Excitation.fmu").symlink_to(built_fmus["Excitation"])
+    root = Path(__file__).resolve().parent.parent
+    p = subprocess.run([sys.executable, "-c", _SIMULATE_THEN_BUILD, str(fmu_dir),
+                        str(tmp_path / "out")], capture_output=True, text=True, timeout=600,
+                       env=dict(os.environ, PYTHONPATH=str(root)))
+    assert p.returncode == 0, p.stderr
+    assert "resources" in p.stdout.splitlines()[0]  # the FMU's copy was the one imported
+    fmu = Path(p.stdout.splitlines()[-1])
+    assert not validate_fmu(str(fmu))
+    with zipfile.ZipFile(fmu) as archive:
+        names = archive.namelist()
+    assert "binaries/linux64/Excitation.so" in names
+    assert "resources/pythonfmu/fmi2slave.py" in names

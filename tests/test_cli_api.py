@@ -4,6 +4,7 @@ replaced function is the one called) and writes nothing that function does not w
 import inspect
 import math
 import os
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -102,15 +103,28 @@ def test_build_native_calls_the_api_once_per_backend(tmp_path, monkeypatch, caps
     from driftfmu.fmu_src import native_build
     monkeypatch.setattr(native_build, "compiler_problem", lambda platform: None)
     calls = []
-    monkeypatch.setattr(driftfmu, "build_fmus", lambda *a, **k: calls.append((a, k)) or {})
-    out = str(tmp_path / "fmus")
-    assert main(["build", "--native", "--backend", "native", "--out", out,
+
+    def build(out_dir, **k):  # writes what it is asked to write, where it is asked to
+        calls.append((out_dir, k))
+        Path(out_dir).mkdir(parents=True, exist_ok=True)
+        (Path(out_dir) / ("%s.txt" % k.get("backend", "python"))).write_text("built")
+        if k["ssp"]:
+            Path(k["ssp"]).write_text(k.get("backend", "python"))
+        return {}
+    monkeypatch.setattr(driftfmu, "build_fmus", build)
+    out = tmp_path / "fmus"
+    assert main(["build", "--native", "--backend", "native", "--out", str(out),
                  "--ssp", str(tmp_path / "c.ssp")]) == 0, capsys.readouterr().err
     backends = [k.get("backend", "python") for _, k in calls]
     assert backends == ["python", "native"]
     assert calls[1][1]["fmi_version"] == (2, 3)
+    # both calls write to one staged stand-in of --out, moved into place after the second
+    assert calls[0][0] == calls[1][0] != out and calls[0][0].name == out.name
+    assert sorted(os.listdir(out)) == ["native.txt", "python.txt"]
     # the SSP holds the --backend FMUs: written by the native call, not by the Python one
-    assert calls[0][1]["ssp"] is None and calls[1][1]["ssp"] == str(tmp_path / "c.ssp")
+    assert calls[0][1]["ssp"] is None and calls[1][1]["ssp"].name == "c.ssp"
+    assert (tmp_path / "c.ssp").read_text() == "native"
+    assert sorted(os.listdir(tmp_path)) == ["c.ssp", "fmus"]  # no staging folder left
 
 
 def _recording(path, seed, f=50.0, Ts=1e-3, n=2000):

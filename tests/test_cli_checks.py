@@ -3,8 +3,10 @@
 Every usage error exits 2 with one line naming the value and what is allowed, before anything
 is built, run or written."""
 import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -270,33 +272,214 @@ def _fake_python_build(out_dir, log=print, **kw):
     return paths
 
 
+def _fake_ssp(fmus, out, **kw):
+    Path(out).parent.mkdir(parents=True, exist_ok=True)
+    Path(out).write_bytes(b"ssp of " + b",".join(sorted(n.encode() for n in fmus)))
+    return Path(out)
+
+
+def _tree(folder):
+    """Every file under ``folder`` (hidden ones too) -> its bytes."""
+    return {str(p.relative_to(folder)): p.read_bytes()
+            for p in sorted(Path(folder).rglob("*")) if p.is_file()}
+
+
 @pytest.mark.parametrize("stop,status", [(RuntimeError("gcc broke"), 1),
                                          (KeyboardInterrupt(), 130)])
 @pytest.mark.parametrize("existing", [False, True])
-def test_a_failed_or_stopped_native_build_leaves_no_folder_it_created(stop, status, existing,
+def test_a_failed_or_stopped_native_build_leaves_every_path_as_it_was(stop, status, existing,
                                                                      tmp_path, capsys,
                                                                      monkeypatch):
-    from driftfmu.fmu_src import builder, native_build
+    """All or nothing: the Python FMUs and the SSP archive (written from them before the
+    native build starts) appear only once the native build has succeeded too; an existing
+    folder keeps its old FMUs and an existing ``--ssp`` file (``--force``) its old bytes."""
+    from driftfmu.fmu_src import builder, native_build, ssp
 
     def half_native(out_dir, **kw):
         for v in (2, 3):
             (Path(out_dir) / ("fmi%d" % v)).mkdir(parents=True, exist_ok=True)
+            (Path(out_dir) / ("fmi%d" % v) / "Excitation.fmu").write_bytes(b"half")
         raise stop
     monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.setattr(ssp, "build_ssp", _fake_ssp)
     monkeypatch.setattr(native_build, "build_native_fmus", half_native)
     monkeypatch.setattr(native_build, "compiler_problem", lambda platform: None)
     out = tmp_path / "new" / "fmus"
+    chain = tmp_path / "new" / "chain.ssp"
     if existing:
         out.mkdir(parents=True)
         (out / "mine.txt").write_text("keep")
-    rc = _status(["build", "--native", "--out", str(out)])
+        (out / "Excitation.fmu").write_bytes(b"the previous build's")
+        chain.write_bytes(b"the previous SSP")
+    before = _tree(tmp_path)
+    rc = _status(["build", "--native", "--out", str(out), "--ssp", str(chain), "--force"])
     captured = capsys.readouterr()
     assert rc == status, captured.err
-    if existing:  # what was there stays; the new native/ folder goes
-        assert sorted(os.listdir(out)) == ["Accelerometer.fmu", "DriftEstimator.fmu",
-                                           "Excitation.fmu", "mine.txt"]
-    else:
+    assert _tree(tmp_path) == before  # no SSP, no FMU of this run, no staging folder
+    if not existing:
         assert os.listdir(tmp_path) == []
+
+
+@pytest.mark.parametrize("existing", [False, True])
+def test_a_build_that_succeeds_moves_every_output_into_place(existing, tmp_path, capsys,
+                                                            monkeypatch):
+    from test_api import _fake_native
+
+    from driftfmu.fmu_src import builder, native_build, ssp
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.setattr(ssp, "build_ssp", _fake_ssp)
+    monkeypatch.setattr(native_build, "build_native_fmus", _fake_native)
+    monkeypatch.setattr(native_build, "compiler_problem", lambda platform: None)
+    out = tmp_path / "fmus"
+    chain = tmp_path / "chain.ssp"
+    if existing:
+        out.mkdir()
+        (out / "mine.txt").write_text("keep")
+        (out / "Excitation.fmu").write_bytes(b"the previous build's")
+        chain.write_bytes(b"the previous SSP")
+    rc = _status(["build", "--native", "--out", str(out), "--ssp", str(chain), "--force"])
+    captured = capsys.readouterr()
+    assert rc == 0, captured.err
+    tree = _tree(tmp_path)
+    assert tree.pop("fmus/mine.txt", b"keep") == b"keep"
+    assert tree.pop("chain.ssp").startswith(b"ssp of ")
+    expected = {"fmus/%s.fmu" % n: b"fmu"
+                for n in ("Excitation", "Accelerometer", "DriftEstimator")}
+    expected.update({"fmus/native/fmi%d/%s.fmu" % (v, n): b"fmu" for v in (2, 3)
+                     for n in ("Excitation", "Accelerometer", "DriftEstimator",
+                               "DualDriftEstimator")})
+    assert tree == expected  # and no staging folder
+    # the lines name where the files are now, not the staging folder they were built in
+    assert "stage" not in captured.out and "built %s" % (out / "Excitation.fmu") in captured.out
+    assert "built %s" % (out / "native" / "fmi3" / "Excitation.fmu") in captured.out
+    assert str(chain) in captured.out
+
+
+def test_the_build_lines_name_the_paths_as_given(tmp_path, capsys, monkeypatch):
+    from driftfmu.fmu_src import builder
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.chdir(tmp_path)
+    assert _status(["build", "--out", "fmus"]) == 0
+    out = capsys.readouterr().out
+    assert "built %s\n" % os.path.join("fmus", "Excitation.fmu") in out, out
+    assert sorted(os.listdir(tmp_path)) == ["fmus"]
+
+
+def test_the_api_build_is_all_or_nothing_too(tmp_path, monkeypatch):
+    """driftfmu.build_fmus: an SSP step that fails after the FMUs are built leaves the
+    existing folder and file as they were."""
+    import driftfmu
+    from driftfmu.fmu_src import builder, ssp
+
+    def broken_ssp(fmus, out, **kw):
+        Path(out).write_bytes(b"half an archive")
+        raise OSError("disk full")
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.setattr(ssp, "build_ssp", broken_ssp)
+    out = tmp_path / "fmus"
+    out.mkdir()
+    (out / "Excitation.fmu").write_bytes(b"the previous build's")
+    (tmp_path / "chain.ssp").write_bytes(b"the previous SSP")
+    before = _tree(tmp_path)
+    with pytest.raises(OSError, match="disk full"):
+        driftfmu.build_fmus(out, ssp=tmp_path / "chain.ssp", log=lambda line: None)
+    assert _tree(tmp_path) == before
+
+
+@pytest.mark.parametrize("fail_at", [0, 1, 2])
+def test_staging_puts_everything_back_when_a_move_fails(fail_at, tmp_path, monkeypatch):
+    """The moves into place are all or nothing too: a move that fails (or is interrupted)
+    takes back the files already moved and restores the ones they replaced."""
+    from driftfmu.simulations import output
+    (tmp_path / "fmus").mkdir()
+    (tmp_path / "fmus" / "A.fmu").write_bytes(b"old A")
+    before = _tree(tmp_path)
+    real, moves = os.replace, []
+
+    def replace(src, dst):
+        if Path(src).name in ("A.fmu", "B.fmu", "c.ssp") and len(moves) == fail_at:
+            raise KeyboardInterrupt
+        moves.append(dst)
+        real(src, dst)
+    monkeypatch.setattr(output.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt):
+        with output.Staging() as staging:
+            out = staging.path(tmp_path / "fmus")
+            (out / "sub").mkdir(parents=True)
+            (out / "A.fmu").write_bytes(b"new A")
+            (out / "sub" / "B.fmu").write_bytes(b"new B")
+            staging.path(tmp_path / "new" / "c.ssp", folder=False).write_bytes(b"ssp")
+    assert _tree(tmp_path) == before and sorted(os.listdir(tmp_path)) == ["fmus"]
+
+
+_SIGNALLED_BUILD = """
+import sys, time
+from pathlib import Path
+from driftfmu.fmu_src import builder, native_build, ssp
+import test_cli_checks as t
+
+def slow_native(out_dir, **kw):
+    (Path(out_dir) / "fmi2").mkdir(parents=True)
+    (Path(out_dir) / "fmi2" / "Excitation.fmu").write_bytes(b"half")
+    Path(sys.argv[1]).write_text("native build started")
+    time.sleep(120)
+
+builder.build_fmus = t._fake_python_build
+ssp.build_ssp = t._fake_ssp
+native_build.build_native_fmus = slow_native
+native_build.compiler_problem = lambda platform: None
+from driftfmu.simulations.cli import main
+sys.exit(main(sys.argv[2:]))
+"""
+
+
+@pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM])
+def test_a_signal_during_the_native_build_leaves_every_path_as_it_was(signum, tmp_path):
+    work = tmp_path / "work"
+    (work / "fmus").mkdir(parents=True)
+    (work / "fmus" / "Excitation.fmu").write_bytes(b"the previous build's")
+    (work / "chain.ssp").write_bytes(b"the previous SSP")
+    before = _tree(work)
+    script = tmp_path / "signalled_build.py"
+    script.write_text(_SIGNALLED_BUILD)
+    started = tmp_path / "started"
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([str(ROOT / "tests"), str(ROOT)]))
+    p = subprocess.Popen([sys.executable, str(script), str(started), "build", "--native",
+                          "--out", str(work / "fmus"), "--ssp", str(work / "chain.ssp"),
+                          "--force"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                         text=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not started.exists():
+            assert p.poll() is None and time.monotonic() < deadline, p.communicate()
+            time.sleep(0.02)
+        p.send_signal(signum)
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    assert p.returncode == 130, err
+    assert "interrupted" in _last_line(err)
+    assert _tree(work) == before  # no SSP, no FMU of this run, no staging folder
+
+
+def test_a_failing_compiler_is_named_with_its_reason_on_the_error_line(tmp_path, monkeypatch):
+    """The command prints the first line of a failed build: it names the compiler that was set
+    and the compiler's own error, not only that compiling failed."""
+    from driftfmu.fmu_src import native_build
+    from driftfmu.simulations.cli import first_line
+    cc = tmp_path / "my-cc"
+    cc.write_text("#!/bin/sh\necho 'note: starting' >&2\necho 'my-cc: error: no licence' >&2\n"
+                  "exit 3\n")
+    cc.chmod(0o755)
+    monkeypatch.setenv("CC", str(cc))
+    (tmp_path / "a.c").write_text("int a;\n")
+    with pytest.raises(native_build.NativeBuildError) as exc:
+        native_build.compile_library("x86_64-linux", tmp_path, ["a.c"], tmp_path / "a.so")
+    assert first_line(exc.value) == ("compiling a.so for x86_64-linux failed: my-cc exited with "
+                                     "status 3: my-cc: error: no licence")
+    assert not (tmp_path / "a.so").exists()
 
 
 def test_build_warnings_go_to_stderr_with_the_prefix(tmp_path, capsys, monkeypatch):

@@ -18,7 +18,15 @@ independent test can see (a sub-ulp change of a kernel, visible only in the bits
 
 The report is a table: fault, file, the first test that failed.  Exit status 0 when every
 fault was caught, 1 when one survived (or timed out), 2 for a bad list or a failing
-baseline.
+baseline, 130 when stopped by SIGINT or SIGTERM.
+
+Time: the unmutated run of each test selection is timed (bounded only by ``--baseline-timeout``,
+default an hour), and a fault's run may take :data:`TIMEOUT_FACTOR` times its selection's
+baseline, at least :data:`TIMEOUT_FLOOR` seconds, so a loaded machine stretches the bound with
+the work; ``--timeout`` sets a fixed bound instead.  Each pytest runs in a session (process
+group) of its own, with its pytest-xdist workers and whatever they start: a run that times out,
+and every run when mutate.py is stopped (SIGINT, SIGTERM), is ended by killing its whole group,
+so no worker is left running.
 
 Usage::
 
@@ -28,6 +36,7 @@ Usage::
     python3 tools/mutate.py --only ekf-linear-innovation sensor-H-without-2a2x
     python3 tools/mutate.py --markdown # the report as a Markdown table (for docs/evidence.md)
     python3 tools/mutate.py --ignore-glob 'tests/test_evidence_*'   # without those tests
+    python3 tools/mutate.py --timeout 900   # a fixed bound per fault instead of 3 x baseline
 """
 import argparse
 import os
@@ -60,7 +69,17 @@ DESELECT = ("tests/test_native_models.py::test_windows_build_under_wine_prints_t
 #: Left out of every run unless a fault sets ``twin_evidence``: the C twins against models/ bit
 #: for bit.  They catch a fault applied to the Python twin alone by plumbing, not by evidence.
 TWIN_TESTS = ("tests/test_native_models.py",)
-TIMEOUT = 300
+#: Left out of every run: the mutation check's own tests (they run mutate.py on a tree of their
+#: own; no fault on the list is in tools/).
+SELF_TESTS = ("tests/test_mutate.py",)
+#: A fault's run may take this many times the unmutated run of its tests ...
+TIMEOUT_FACTOR = 3.0
+#: ... and at least this many seconds (a fault may slow the tests without failing them).
+TIMEOUT_FLOOR = 120.0
+#: The unmutated runs' bound (seconds): they are the measure, and may be slow on a loaded machine.
+BASELINE_TIMEOUT = 3600.0
+#: Seconds a killed run's group gets between SIGTERM and SIGKILL.
+GRACE = 5.0
 IGNORE = shutil.ignore_patterns(".git", "__pycache__", ".pytest_cache", "*.pyc", "*.egg-info",
                                 "results", "out", "target", "fmus", "cross-check", "tmp")
 
@@ -119,13 +138,40 @@ def check(faults, root=ROOT):
     return problems
 
 
+def fault_timeout(baseline_seconds, fixed=None):
+    """Seconds a fault's run may take: ``fixed`` (``--timeout``) when given, else
+    :data:`TIMEOUT_FACTOR` times the unmutated run of the same tests, at least
+    :data:`TIMEOUT_FLOOR`."""
+    if fixed is not None:
+        return fixed
+    return max(TIMEOUT_FLOOR, TIMEOUT_FACTOR * baseline_seconds)
+
+
+def kill_group(p, grace=GRACE):
+    """End ``p`` (started with ``start_new_session=True``) and everything in its process group:
+    SIGTERM, then SIGKILL after ``grace`` seconds for what is still there."""
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        try:
+            os.killpg(p.pid, sig)
+        except ProcessLookupError:  # the group is gone
+            return
+        deadline = time.monotonic() + grace
+        while time.monotonic() < deadline:
+            p.poll()  # reap the leader: a zombie still counts as a member of its group
+            try:
+                os.killpg(p.pid, 0)
+            except ProcessLookupError:
+                return
+            time.sleep(0.05)
+
+
 _FAILED = re.compile(r"^(FAILED|ERROR) (.+?)(?: - .*)?$")  # ids may hold spaces
 
 
 def run_tests(copy, tests, timeout, ignore=(), twins=False):
     """Run pytest on the copy, without :data:`TWIN_TESTS` unless ``twins``; return (status,
     first failing test or None, seconds)."""
-    ignore = tuple(ignore) + (() if twins else TWIN_TESTS)
+    ignore = tuple(ignore) + SELF_TESTS + (() if twins else TWIN_TESTS)
     # DRIFTFMU_KERNEL=numpy: the batch engine runs models/ (the faults' target) instead of the
     # compiled kernel, the C port that a fault in models/ leaves as it is
     env = dict(os.environ, PYTHONPATH=copy, PYTHONDONTWRITEBYTECODE="1", DRIFTFMU_KERNEL="numpy")
@@ -133,13 +179,21 @@ def run_tests(copy, tests, timeout, ignore=(), twins=False):
            "-m", DEFAULT_MARKERS] + ["--deselect=" + d for d in DESELECT] + \
         ["--ignore-glob=" + g for g in ignore] + list(tests)
     t0 = time.perf_counter()
+    # its own session: the timeout, SIGINT and SIGTERM end pytest and its xdist workers alike
+    p = subprocess.Popen(cmd, cwd=copy, env=env, stdout=subprocess.PIPE,
+                         stderr=subprocess.STDOUT, text=True, start_new_session=True)
     try:
-        p = subprocess.run(cmd, cwd=copy, env=env, capture_output=True, text=True,
-                           timeout=timeout)
+        out, _ = p.communicate(timeout=timeout)
     except subprocess.TimeoutExpired:
+        kill_group(p)
+        p.communicate()
         return "timeout", None, time.perf_counter() - t0
+    except BaseException:  # SIGINT, SIGTERM (SystemExit), anything: leave nothing running
+        kill_group(p)
+        p.communicate()
+        raise
     seconds = time.perf_counter() - t0
-    out = p.stdout + p.stderr
+    kill_group(p, grace=1.0)  # what a passed or failed run left behind in its group
     first = next((m.group(2) for m in map(_FAILED.match, out.splitlines()) if m), None)
     if p.returncode == 0:
         return "passed", None, seconds
@@ -153,6 +207,8 @@ def run_tests(copy, tests, timeout, ignore=(), twins=False):
 
 
 def make_copy(root=ROOT):
+    """Copy the tree at ``root`` (without .git, build outputs, caches) to a temporary folder;
+    return (that folder, the copy)."""
     tmp = tempfile.mkdtemp(prefix="driftfmu-mutate-")
     copy = os.path.join(tmp, "tree")
     shutil.copytree(root, copy, ignore=IGNORE, symlinks=True)
@@ -162,21 +218,33 @@ def make_copy(root=ROOT):
 def main(argv=None):
     ap = argparse.ArgumentParser(description="Apply each fault of tools/mutations.toml to a "
                                  "copy of the tree and check that the tests catch it.")
-    ap.add_argument("--list", default=LIST, help="fault list (TOML; default: %(default)s)")
+    ap.add_argument("--list", default=None,
+                    help="fault list (TOML; default: tools/mutations.toml of --root)")
+    ap.add_argument("--root", default=ROOT,
+                    help="the tree to copy and mutate (default: this checkout, %(default)s)")
     ap.add_argument("--short", action="store_true", help="only the faults marked short")
     ap.add_argument("--only", nargs="+", metavar="ID", help="only these faults")
     ap.add_argument("--check", action="store_true", help="only check the patterns")
-    ap.add_argument("--timeout", type=float, default=TIMEOUT,
-                    help="seconds per fault (default: %(default)s)")
+    ap.add_argument("--timeout", type=float, default=None, metavar="SECONDS",
+                    help="a fixed bound per fault (default: %g times the unmutated run of the "
+                    "same tests, at least %g s)" % (TIMEOUT_FACTOR, TIMEOUT_FLOOR))
+    ap.add_argument("--baseline-timeout", type=float, default=BASELINE_TIMEOUT,
+                    metavar="SECONDS", help="bound of each unmutated run (default: %(default)g)")
     ap.add_argument("--markdown", action="store_true", help="print the report as Markdown")
     ap.add_argument("--ignore-glob", action="append", default=[], metavar="GLOB",
                     help="run every fault on the default selection without the test files "
                     "matching GLOB (e.g. 'tests/test_evidence_*': which faults only those "
                     "catch); may be repeated")
     args = ap.parse_args(argv)
+    for name in ("timeout", "baseline_timeout"):
+        value = getattr(args, name)
+        if value is not None and not value > 0:
+            ap.error("--%s %r: allowed: seconds > 0" % (name.replace("_", "-"), value))
+    root = os.path.abspath(args.root)
+    args.list = args.list or os.path.join(root, "tools", "mutations.toml")
 
     faults = load(args.list)
-    problems = check(faults)  # the whole list, always: a stale pattern fails even --short
+    problems = check(faults, root)  # the whole list, always: a stale pattern fails even --short
     if problems:
         for p in problems:
             print("mutate: " + p, file=sys.stderr)
@@ -195,9 +263,25 @@ def main(argv=None):
         print("mutate: all %d patterns match exactly once" % len(load(args.list)))
         return 0
 
-    # SIGTERM as an exception, so the running pytest is killed and the copy removed
-    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))
-    tmp, copy = make_copy()
+    # SIGINT and SIGTERM as exceptions, so the running pytest's group is killed (run_tests) and
+    # the copy removed; a second signal while that happens is ignored
+    def stop(signum, frame):
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        raise KeyboardInterrupt
+    signal.signal(signal.SIGINT, stop)
+    signal.signal(signal.SIGTERM, stop)
+    try:
+        return _run(args, faults, root)
+    except KeyboardInterrupt:
+        print("mutate: stopped; the running tests were killed, the copy removed",
+              file=sys.stderr)
+        return 130
+
+
+def _run(args, faults, root):
+    """Baselines, then every fault; the report.  ``main`` handles the signals."""
+    tmp, copy = make_copy(root)
     try:
         where = subprocess.run([sys.executable, "-c", "import driftfmu.models as m, "
                                 "driftfmu.fmu_src.slave_base as s; print(m.__file__); "
@@ -209,14 +293,19 @@ def main(argv=None):
                   % (where.stdout + where.stderr).strip(), file=sys.stderr)
             return 2
         selections = sorted({(tuple(f["tests"]), f["twin_evidence"]) for f in faults})
+        timeouts = {}
         for tests, twins in selections:
-            status, first, seconds = run_tests(copy, tests, args.timeout, args.ignore_glob,
-                                               twins)
+            status, first, seconds = run_tests(copy, tests, args.baseline_timeout,
+                                               args.ignore_glob, twins)
             if status != "passed":
                 print("mutate: the unmutated copy does not pass %s (%s: %s)"
-                      % (" ".join(tests), status, first), file=sys.stderr)
+                      % (" ".join(tests), status,
+                         first or "over --baseline-timeout %g s" % args.baseline_timeout),
+                      file=sys.stderr)
                 return 2
-            print("baseline %s: passed in %.0f s" % (" ".join(tests), seconds), flush=True)
+            timeouts[tests, twins] = fault_timeout(seconds, args.timeout)
+            print("baseline %s: passed in %.0f s; a fault may take %.0f s" % (
+                " ".join(tests), seconds, timeouts[tests, twins]), flush=True)
         rows = []
         for f in faults:
             originals = {}
@@ -227,8 +316,9 @@ def main(argv=None):
                         originals[path] = fh.read()
                     with open(path, "w", encoding="utf-8") as fh:
                         fh.write(originals[path].replace(find, replace, 1))
-                status, first, seconds = run_tests(copy, f["tests"], args.timeout,
-                                                   args.ignore_glob, f["twin_evidence"])
+                status, first, seconds = run_tests(
+                    copy, f["tests"], timeouts[tuple(f["tests"]), f["twin_evidence"]],
+                    args.ignore_glob, f["twin_evidence"])
             finally:
                 for path, original in originals.items():
                     with open(path, "w", encoding="utf-8") as fh:

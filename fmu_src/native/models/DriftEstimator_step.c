@@ -109,25 +109,19 @@ static int harmonic_state_problems(ModelInstance *comp, const char *which, const
 {
     char name[64];
     int n = 0;
-#define REAL(field, nonneg)                                                                  \
-    do {                                                                                     \
-        snprintf(name, sizeof name, "%s.%s", which, #field);                                 \
-        n += slave_hidden_real(comp, name, s->field, nonneg);                                \
-    } while (0)
-    REAL(x, 0);
-    REAL(d, 0);
-    REAL(P, 1);
-    REAL(P12, 0);
-    REAL(P22, 1);
-    REAL(drift.s1, 0);
-    REAL(drift.dc2, 0);
-    REAL(drift.s3, 0);
-    REAL(drift.dc3, 0);
-    REAL(drift.t1, 0);
-    REAL(drift.q1, 0);
-    REAL(drift.t3, 0);
-    REAL(drift.q3, 0);
-#undef REAL
+    n += SLAVE_HIDDEN_REAL(comp, which, s, x, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, d, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, P, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, P12, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, P22, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.s1, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.dc2, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.s3, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.dc3, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.t1, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.q1, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.t3, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, drift.q3, 0);
     snprintf(name, sizeof name, "%s.drift.k", which);
     return n + slave_hidden_count(comp, name, s->drift.k);
 }

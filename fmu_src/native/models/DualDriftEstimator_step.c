@@ -160,15 +160,25 @@ static int dual_state_problems(ModelInstance *comp, const char *which, const Dua
 {
     char name[64];
     int n = 0;
-#define REAL(field, nonneg)                                                                  \
-    do {                                                                                     \
-        snprintf(name, sizeof name, "%s.%s", which, #field);                                 \
-        n += slave_hidden_real(comp, name, s->field, nonneg);                                \
-    } while (0)
-    REAL(g.x, 0); REAL(g.y, 0); REAL(g.Pxx, 1); REAL(g.Pxy, 0); REAL(g.Pyy, 1);
-    REAL(h.x, 0); REAL(h.dx, 0); REAL(h.y, 0); REAL(h.dy, 0); REAL(h.P11, 1); REAL(h.P12, 0);
-    REAL(h.P22, 1); REAL(h.P33, 1); REAL(h.P34, 0); REAL(h.P44, 1); REAL(h.P13, 0);
-    REAL(h.P14, 0); REAL(h.P23, 0); REAL(h.P24, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, g.x, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, g.y, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, g.Pxx, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, g.Pxy, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, g.Pyy, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.x, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.dx, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.y, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.dy, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P11, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P12, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P22, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P33, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P34, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P44, 1);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P13, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P14, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P23, 0);
+    n += SLAVE_HIDDEN_REAL(comp, which, s, h.P24, 0);
     const DualDrift *drifts[2] = {&s->g.drift, &s->h.drift};
     for (int i = 0; i < 2; i++) {
         const DualDrift *d = drifts[i];
@@ -183,7 +193,6 @@ static int dual_state_problems(ModelInstance *comp, const char *which, const Dua
         snprintf(name, sizeof name, "%s.%s.drift.k", which, i ? "h" : "g");
         n += slave_hidden_count(comp, name, d->k);
     }
-#undef REAL
     return n;
 }
 

@@ -83,6 +83,14 @@ int slave_hidden_real(ModelInstance *comp, const char *name, double value, int n
     return 0;
 }
 
+int slave_hidden_real_of(ModelInstance *comp, const char *which, const char *field, double value,
+                         int nonnegative)
+{
+    char name[64];
+    snprintf(name, sizeof name, "%s.%s", which, field);
+    return slave_hidden_real(comp, name, value, nonnegative);
+}
+
 int slave_hidden_flag(ModelInstance *comp, const char *name, int64_t value)
 {
     if (value == 0 || value == 1)

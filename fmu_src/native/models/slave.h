@@ -37,4 +37,12 @@ int slave_hidden_count(ModelInstance *comp, const char *name, int64_t value);
 int slave_hidden_derived(ModelInstance *comp, const char *name, const void *a, const void *b,
                          size_t n);
 
+/* slave_hidden_real of a field of a restored struct, named "<which>.<field>" (e.g.
+ * "state.drift.s1", at most 63 characters): the estimators' model_hidden_problems check their
+ * filter states field by field with it, `SLAVE_HIDDEN_REAL(comp, "state", s, drift.s1, 0)`. */
+int slave_hidden_real_of(ModelInstance *comp, const char *which, const char *field, double value,
+                         int nonnegative);
+#define SLAVE_HIDDEN_REAL(comp, which, s, field, nonnegative) \
+    slave_hidden_real_of((comp), (which), #field, (s)->field, (nonnegative))
+
 #endif

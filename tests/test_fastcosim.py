@@ -1,0 +1,53 @@
+"""simulations/fastcosim.py: the compiled C loop is written whole or not at all, even by a
+worker stopped (SIGTERM) in the middle of writing it."""
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+
+# A process-pool worker (batch._worker_init: SIGTERM removes its registered folders, then
+# os._exit) compiles the loop; SIGTERM arrives just before the library is put in its place
+# (os.replace), after every move before it (the loop once moved it beside its place first).
+_STOPPED_WORKER = textwrap.dedent("""
+    import os, signal, sys, time
+    from driftfmu.simulations import batch, fastcosim
+    batch._worker_init()
+
+    def stopped(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(60)
+    os.replace = stopped
+    fastcosim.loop_library()
+    sys.exit("not stopped")
+""")
+
+
+@pytest.mark.skipif(shutil.which(os.environ.get("CC", "cc").split()[0]) is None,
+                    reason="no C compiler")
+def test_a_worker_stopped_while_writing_the_loop_library_leaves_no_file(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+    p = subprocess.run([sys.executable, "-c", _STOPPED_WORKER], env=env, capture_output=True,
+                       text=True, timeout=300)
+    assert p.returncode == 128 + signal.SIGTERM, p.stderr
+    assert os.listdir(tmp) == []  # no .part file, no work folder, no half library
+
+
+def test_the_loop_library_is_compiled_once_into_the_temporary_directory(tmp_path,
+                                                                        monkeypatch):
+    from driftfmu.simulations import fastcosim
+    monkeypatch.setattr(fastcosim, "_LOOP_LIBRARY", [])
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    if fastcosim.loop_library() is None:
+        pytest.skip("no C compiler")
+    assert [f.name for f in tmp_path.iterdir()] == [
+        "driftfmu-loop-%s-%d.so" % (__import__("hashlib").sha256(
+            fastcosim.LOOP_SOURCE.encode()).hexdigest()[:12], os.getuid())]

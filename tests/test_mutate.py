@@ -1,0 +1,149 @@
+"""tools/mutate.py: a fault's time bound scales with the unmutated run, and a stopped or timed
+out run leaves none of its processes behind (pytest, its xdist workers, what they started).
+
+Each test runs mutate.py on a tiny tree of its own (``--root``): one fault, one test that
+records the pids of its pytest, its workers and a child it starts, and that hangs when told to
+(``HANG=1``) or when the fault is applied."""
+import importlib.util
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parent.parent
+MUTATE = ROOT / "tools" / "mutate.py"
+
+pytest.importorskip("xdist")
+if sys.version_info < (3, 11):
+    pytest.skip("tools/mutate.py needs Python 3.11 (tomllib)", allow_module_level=True)
+
+TREE = {
+    "tools/mutations.toml": '[[fault]]\nid = "x-two"\nfile = "models/__init__.py"\n'
+                            'find = "X = 1"\nreplace = "X = 2"\nwhy = "a fault that hangs"\n',
+    "driftfmu/__init__.py": "import os\n__path__.append(os.path.dirname(os.path.dirname("
+                            "os.path.abspath(__file__))))\n",
+    "models/__init__.py": "X = 1\n",
+    "fmu_src/__init__.py": "",
+    "fmu_src/slave_base.py": "",
+    "pytest.ini": "[pytest]\naddopts = -p xdist -n 2\n",
+    # every pytest process of the run (the controller, both workers) records its pid
+    "tests/conftest.py": "import os\nwith open(os.environ['PIDS'], 'a') as fh:\n"
+                         "    fh.write('%d\\n' % os.getpid())\n",
+    "tests/test_tiny.py": (
+        "import os, subprocess, time\n"
+        "import driftfmu.models as m\n\n"
+        "def test_tiny():\n"
+        "    if m.X == 1 and not os.environ.get('HANG'):\n"
+        "        return\n"
+        "    child = subprocess.Popen(['sleep', '600'])\n"
+        "    with open(os.environ['PIDS'], 'a') as fh:\n"
+        "        fh.write('%d\\n' % child.pid)\n"
+        "    open(os.environ['PIDS'] + '.hanging', 'w').close()\n"
+        "    time.sleep(600)\n"),
+}
+
+
+def _tree(tmp_path):
+    root = tmp_path / "tree"
+    for name, text in TREE.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    return root
+
+
+def _alive(pid):
+    """True while ``pid`` runs (a zombie, exited but not yet reaped, counts as gone)."""
+    try:
+        with open("/proc/%d/stat" % pid) as fh:
+            return fh.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except (FileNotFoundError, ProcessLookupError):
+        return False
+
+
+def _mutate(tmp_path, *args, hang=False):
+    pids = tmp_path / "pids"
+    env = dict(os.environ, PIDS=str(pids), TMPDIR=str(tmp_path))
+    env.pop("PYTEST_XDIST_WORKER", None)
+    env.pop("HANG", None)
+    if hang:
+        env["HANG"] = "1"
+    p = subprocess.Popen([sys.executable, str(MUTATE), "--root", str(_tree(tmp_path)), *args],
+                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    return p, pids
+
+
+def _recorded(pids):
+    return [int(line) for line in pids.read_text().split()] if pids.exists() else []
+
+
+def _none_left(pids, wait=10.0):
+    deadline = time.monotonic() + wait
+    while time.monotonic() < deadline:
+        left = [pid for pid in _recorded(pids) if _alive(pid)]
+        if not left:
+            return []
+        time.sleep(0.1)
+    for pid in left:  # do not leave them to the next test either
+        os.kill(pid, signal.SIGKILL)
+    return left
+
+
+@pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+def test_a_signal_stops_the_running_tests_and_their_workers(signum, tmp_path):
+    p, pids = _mutate(tmp_path, hang=True)
+    try:
+        deadline = time.monotonic() + 120
+        while not Path(str(pids) + ".hanging").exists():  # the baseline's test hangs
+            assert p.poll() is None and time.monotonic() < deadline, p.communicate()
+            time.sleep(0.05)
+        assert len(_recorded(pids)) == 4  # pytest, two workers, the test's child
+        p.send_signal(signum)
+        out, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+            p.communicate()
+    assert p.returncode == 130, err
+    assert err.strip().splitlines()[-1].startswith("mutate: stopped"), err
+    assert _none_left(pids) == []
+    assert not list(tmp_path.glob("driftfmu-mutate-*"))  # the copy is removed
+
+
+def test_a_baseline_over_its_bound_is_killed_with_its_workers(tmp_path):
+    p, pids = _mutate(tmp_path, "--baseline-timeout", "30", hang=True)
+    out, err = p.communicate(timeout=300)
+    assert p.returncode == 2, err
+    assert "over --baseline-timeout 30 s" in err
+    # pytest, two workers, the test's child (fewer when a loaded machine is slower than 30 s)
+    assert 1 <= len(_recorded(pids)) <= 4 and _none_left(pids) == []
+
+
+def test_a_fault_that_hangs_times_out_and_is_killed_with_its_workers(tmp_path):
+    p, pids = _mutate(tmp_path, "--timeout", "30")
+    out, err = p.communicate(timeout=300)
+    assert p.returncode == 1, out + err
+    assert "a fault may take 30 s" in out
+    assert "x-two" in out and "TIMEOUT" in out
+    # the baseline's pytest and workers (3), the fault's (3) and its hanging test's child
+    # (fewer of the fault's when a loaded machine is slower than 30 s)
+    assert 4 <= len(_recorded(pids)) <= 7 and _none_left(pids) == []
+
+
+def test_the_bound_per_fault_scales_with_the_baseline():
+    spec = importlib.util.spec_from_file_location("mutate", MUTATE)
+    mutate = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mutate)
+    assert mutate.fault_timeout(10.0) == mutate.TIMEOUT_FLOOR
+    assert mutate.fault_timeout(400.0) == mutate.TIMEOUT_FACTOR * 400.0 > 400.0
+    assert mutate.fault_timeout(400.0, fixed=50.0) == 50.0
+
+
+def test_a_bound_that_is_not_positive_is_a_usage_error(tmp_path):
+    p = subprocess.run([sys.executable, str(MUTATE), "--timeout", "0"], capture_output=True,
+                       text=True, timeout=60)
+    assert p.returncode == 2
+    assert "--timeout 0.0: allowed: seconds > 0" in p.stderr.strip().splitlines()[-1]
