@@ -78,3 +78,25 @@ def test_a_refresh_that_overflows_changes_no_byte(dirs, backend, name, reals, in
         assert state_bytes(drv) == before
     finally:
         drv.free()
+
+
+@pytest.mark.parametrize("backend", NATIVE)
+def test_a_step_refused_after_its_own_refresh_leaves_the_outputs_due(dirs, backend):
+    """An input set, then a step: the step first computes the pending sample from the new input
+    (a refresh, which marks the outputs current) and then overflows.  The refusal puts the
+    outputs back, so they must be marked due again, or a get returns the outputs of the old
+    input without a word: the whole instance is as before the step, flags included."""
+    drv = ready(dirs, "DriftEstimator", backend, {"Qh": 1e307, "P0": 0.0}, {"process": 2})
+    twin = ready(dirs, "DriftEstimator", backend, {"Qh": 1e307, "P0": 0.0}, {"process": 2})
+    try:
+        outputs = ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp"]
+        for d in (drv, twin):
+            assert d.getr(outputs)[0] == OK   # the pending sample with z = 0
+            assert d.setr(["z"], [0.5])[0] == OK
+        before = state_bytes(drv)
+        assert drv.step(0.0, 30e-3)[0] == ERROR
+        assert state_bytes(drv) == before
+        assert drv.getr(outputs) == twin.getr(outputs)   # computed from z = 0.5, as the twin's
+    finally:
+        drv.free()
+        twin.free()

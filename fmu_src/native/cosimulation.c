@@ -741,6 +741,7 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
 
     Backup backup;
     save_changeable(&backup, comp);
+    const int dirty = comp->dirty;   /* a refresh below marks the outputs current */
     if (plan.first_pending && refresh(comp, function) != STATUS_OK)
         return STATUS_ERROR;
     const char *bad = model_advance(comp, &plan);
@@ -748,6 +749,7 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
         bad = nonfinite_output(&comp->v);   /* the output guard */
     if (bad) {
         restore_changeable(comp, &backup);
+        comp->dirty = dirty;   /* the outputs put back are due again if they were */
         return refused_result(comp, bad, h);
     }
     comp->elapsed = elapsed;
