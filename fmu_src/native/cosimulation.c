@@ -1088,6 +1088,21 @@ static void snapshot_of(const ModelInstance *comp, Snapshot *s)
     s->checksum = checksum_of(s);
 }
 
+/* The state a host hands in to be written (get, deserialise): `node` when it is a live state
+ * of this FMU, else NULL (a new one is made), with a warning for a pointer that is not one. */
+static StateNode *reusable_state(ModelInstance *comp, const char *function, StateNode *node,
+                                 Status *status)
+{
+    if (node && !is_live(node)) {
+        cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
+               "a new state is returned and the old pointer is left alone", function,
+               (void *)node);
+        *status = STATUS_WARNING;
+        return NULL;
+    }
+    return node;
+}
+
 Status cs_get_state(ModelInstance *comp, const char *function, void **state)
 {
     if (!state_allowed(comp, function))
@@ -1098,14 +1113,7 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
         return STATUS_ERROR;
     }
     Status status = STATUS_OK;
-    StateNode *node = *state;
-    if (node && !is_live(node)) {
-        cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
-               "a new state is returned and the old pointer is left alone", function,
-               (void *)node);
-        node = NULL;
-        status = STATUS_WARNING;
-    }
+    StateNode *node = reusable_state(comp, function, *state, &status);
     if (!node) {
         node = malloc(sizeof *node);
         if (!node) {
@@ -1214,15 +1222,8 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
     }
     /* into the live state *state points to (as the loader shim does), else into a new one:
      * a host that deserialises into one state pointer again and again allocates nothing */
-    StateNode *node = *state;
     Status status = STATUS_OK;
-    if (node && !is_live(node)) {
-        cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
-               "a new state is returned and the old pointer is left alone", function,
-               (void *)node);
-        node = NULL;
-        status = STATUS_WARNING;
-    }
+    StateNode *node = reusable_state(comp, function, *state, &status);
     Snapshot s;   /* checked as a whole before it replaces anything */
     memcpy(&s, bytes, sizeof s);
     if (snapshot_problems(comp, function, &s))
