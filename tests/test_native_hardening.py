@@ -349,17 +349,23 @@ print(json.dumps(out))
 '''
 
 
+def _run_child(script, dirs):
+    """Run ``script`` in a child Python (a crash is a failure, not the end of the session) on
+    every model and backend; ``(targets, rows)``: the folders it got and the rows it printed."""
+    targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
+               for b in BACKENDS]
+    done = subprocess.run([sys.executable, "-c", script, str(Path(__file__).parent),
+                           json.dumps(targets)], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr[-3000:]
+    return targets, json.loads(done.stdout.splitlines()[-1])
+
+
 def test_sizes_from_the_host_are_not_trusted(dirs):
     """fmi2DeSerializeFMUstate(c, "{}", SIZE_MAX, &s) and other sizes no state can have (size + 1
     wraps, or more than the address space holds): an error that says what was given and
     allowed, no crash (in a child process).  A plausible size larger than the buffer cannot be
     told from a real one by any FMU: the standard makes the host answer for it."""
-    targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
-               for b in BACKENDS]
-    done = subprocess.run([sys.executable, "-c", SIZES_CHILD, str(Path(__file__).parent),
-                           json.dumps(targets)], capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr[-3000:]
-    rows = json.loads(done.stdout.splitlines()[-1])
+    targets, rows = _run_child(SIZES_CHILD, dirs)
     assert len(rows) == 4 * len(targets)
     for where, size, status, logged in rows:
         assert status == ERROR, (where, size)
@@ -438,12 +444,7 @@ def test_counts_and_lengths_from_the_host_are_not_trusted(dirs, report):
     FMUs ignore categories and read none.  A plausible count larger than the array cannot be
     told from a real one by any FMU: the standard makes the host answer for it.  And FMI 3.0
     strings of any length (instance name, resource path) and no logger: the instance works."""
-    targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
-               for b in BACKENDS]
-    done = subprocess.run([sys.executable, "-c", COUNTS_CHILD, str(Path(__file__).parent),
-                           json.dumps(targets)], capture_output=True, text=True, timeout=300)
-    assert done.returncode == 0, done.stderr[-3000:]
-    rows = json.loads(done.stdout.splitlines()[-1])
+    targets, rows = _run_child(COUNTS_CHILD, dirs)
     seen = {}
     for where, what, status, logged in rows:
         python = Path(where).name == "python"  # dirs: <folder>/<model>/<backend>
