@@ -18,6 +18,7 @@ FMI 3.0 FMUs (the native twins' fmi3 build) run through the same loop: :class:`F
 fmpy's ``FMU3Slave`` the FMI 2.0 method names the loop calls.
 """
 import contextlib
+import os
 import shutil
 import signal
 import tempfile
@@ -31,15 +32,20 @@ from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, 
 from driftfmu.simulations.errors import UsageError
 
 
-#: Folders the FMUs of live instances are extracted to (removed by :meth:`Instance.free`, or by
-#: :func:`remove_extracted` when a worker process is told to stop).
-EXTRACTED = set()
+#: Folders the FMUs of live instances are extracted to, each with the process that made it
+#: (removed by :meth:`Instance.free`, or by :func:`remove_extracted` when a worker process is
+#: told to stop).
+EXTRACTED = {}
 
 
 def remove_extracted():
-    """Remove every folder an FMU of this process is still extracted to."""
-    for d in list(EXTRACTED):
-        _remove(d)
+    """Remove every folder this process has extracted an FMU to and still holds.  A forked
+    worker inherits its parent's folders in :data:`EXTRACTED`: they are the parent's, still in
+    use there, and stay."""
+    me = os.getpid()
+    for d, owner in list(EXTRACTED.items()):
+        if owner == me:
+            _remove(d)
 
 
 def new_extract_folder(prefix="driftfmu_fmu_"):
@@ -50,7 +56,7 @@ def new_extract_folder(prefix="driftfmu_fmu_"):
         old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
     try:
         unzipdir = tempfile.mkdtemp(prefix=prefix)
-        EXTRACTED.add(unzipdir)
+        EXTRACTED[unzipdir] = os.getpid()
     finally:
         if mask:
             signal.pthread_sigmask(signal.SIG_SETMASK, old)
@@ -69,7 +75,7 @@ def _extract(path):
 
 def _remove(unzipdir):
     shutil.rmtree(unzipdir, ignore_errors=True)
-    EXTRACTED.discard(unzipdir)
+    EXTRACTED.pop(unzipdir, None)
 
 
 @contextlib.contextmanager

@@ -1,6 +1,8 @@
 """The batch engine: bit for bit the FMU co-simulation and models/ run by run, whatever the
 block size, the chunking or the workers; clear errors for bad input."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -181,3 +183,27 @@ def test_pool_workers_run_one_blas_thread():
     # each worker's every OpenBLAS at one thread (a worker started by a fork server may have
     # loaded fewer BLAS libraries than this process: only NumPy's)
     assert len(counts) == 2 and all(c and set(c) == {1} for c in counts), counts
+
+
+def _holds(folder):
+    from driftfmu.simulations import cosim
+    return folder in cosim.EXTRACTED
+
+
+def test_a_stopped_worker_leaves_its_parents_fmu_folders():
+    """A worker told to stop removes the FMU folders it extracted, not the ones it inherited
+    from the process that forked it: those are still in use there (the fast master keeps its
+    unpacked FMUs for later runs), and a stopped pool once removed them under the parent."""
+    import time
+    from driftfmu.simulations import cosim
+    mine = cosim.new_extract_folder(prefix="driftfmu_test_parent_")
+    try:
+        with pytest.raises(RuntimeError):
+            with batch.process_pool(1) as pool:
+                if not pool.submit(_holds, mine).result():
+                    pytest.skip("the worker was not forked from this process (fork server)")
+                pool.submit(time.sleep, 60)
+                raise RuntimeError("stop the pool")   # stop_pool: SIGTERM to the worker
+        assert os.path.isdir(mine) and mine in cosim.EXTRACTED
+    finally:
+        cosim._remove(mine)
