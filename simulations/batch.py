@@ -40,6 +40,10 @@ TRAJECTORIES = ("x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_emp
 FINALS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "zbar", "x2bar", "dc_realised")
 #: Samples of noise generated per block (rows of a ``(block, runs)`` array).
 BLOCK = 32
+#: Sample-runs per call of the compiled kernel when no one asks for progress (about 0.05 s):
+#: long enough that threads running it seldom wait for the GIL, short enough that an
+#: interrupted task ends soon.
+KERNEL_CALL = 1 << 22
 #: Runs per task handed to a worker (large enough for NumPy to be efficient, small enough to
 #: stay in cache and to give the progress bar some steps).
 CHUNK = 4096
@@ -163,11 +167,7 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = default_P0(fA, fQ)
-    general = sensor.higher(a3, a4) or not (_ops.is_scalar(B) and B == 0.0)
-    if general and kernel == "c":
-        raise UsageError("kernel = 'c' has the letter's quadratic sensor only; allowed with a3, "
-                         "a4 or B != 0: kernel = 'auto' or 'numpy'")
-    lib = _kernel_library("numpy" if general and kernel in KERNELS else kernel)
+    lib = _simulate_library(kernel, a3, a4, B)
     if lib is not None:
         return _simulate_kernel(lib, n, seeds, dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0,
                                                     P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
@@ -232,6 +232,17 @@ def _realised(quadratic, a2, a3, a4, x2bar, hbar):
     return np.where((np.asarray(a3) == 0.0) & (np.asarray(a4) == 0.0), a2 * x2bar, hbar)
 
 
+def _simulate_library(kernel, a3, a4, B):
+    """The compiled kernel :func:`simulate` runs in, or None (NumPy): the kernel has the
+    letter's quadratic sensor only, so the general one (``a3``, ``a4`` or ``B`` not 0) takes
+    NumPy."""
+    general = sensor.higher(a3, a4) or not (_ops.is_scalar(B) and B == 0.0)
+    if general and kernel == "c":
+        raise UsageError("kernel = 'c' has the letter's quadratic sensor only; allowed with a3, "
+                         "a4 or B != 0: kernel = 'auto' or 'numpy'")
+    return _kernel_library("numpy" if general and kernel in KERNELS else kernel)
+
+
 def _kernel_library(kernel):
     """The compiled kernel for ``kernel`` (``"auto"``, ``"numpy"`` or ``"c"``), or None."""
     from driftfmu.simulations import kernel as compiled
@@ -249,11 +260,12 @@ def _kernel_library(kernel):
 
 def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
     """:func:`simulate` in the compiled kernel: the same loop over samples, in blocks of about
-    1/32 of ``n`` (for ``progress``), the same finals computed by the same models/ code."""
+    1/32 of ``n`` for ``progress``, else of :data:`KERNEL_CALL` sample-runs; the same finals
+    computed by the same models/ code."""
     from driftfmu.simulations import kernel as compiled
     runs = seeds.shape[0]
     state = compiled.Batch(lib, seeds, params, kind, n, record)
-    step = max(BLOCK, -(-n // 32))
+    step = max(BLOCK, -(-n // 32) if progress is not None else KERNEL_CALL // max(1, runs))
     for k0 in range(1, n + 1, step):
         k1 = min(k0 + step, n + 1)
         state.run(k0, k1)
@@ -496,7 +508,9 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
     client : dask.distributed.Client, optional
         An existing client (used instead of ``scheduler``).
     workers : int, optional
-        Local worker processes (default: one per core); 1 runs in this process.
+        Local workers (default: one per core): threads of this process when every task runs
+        in the compiled kernel (:func:`in_kernel`), worker processes otherwise; 1 runs in
+        this process.
     progress : callable, optional
         Called with the number of runs done whenever a task finishes.
     meanwhile : callable, optional
@@ -544,11 +558,36 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
             finished(i, run_task(task))
         return results
     workers = min(workers, len(tasks))
-    with process_pool(workers) as pool:
+    pool = thread_pool if all(map(in_kernel, tasks)) else process_pool
+    with pool(workers) as pool:
         for i, res in bounded_map(pool, run_task, tasks, ahead=2 * workers,
                                   meanwhile=meanwhile):
             finished(i, res)
     return results
+
+
+def in_kernel(task):
+    """Whether :func:`run_task` runs ``task`` in the compiled kernel, whose calls release the
+    GIL: such tasks run in threads of this process (no workers to start, nothing to pickle)."""
+    kw = task["kwargs"]
+    return task["engine"] == "batch" and _simulate_library(
+        kw.get("kernel", "auto"), kw.get("a3", 0.0), kw.get("a4", 0.0), kw.get("B", 0.0)) \
+        is not None
+
+
+@contextlib.contextmanager
+def thread_pool(workers):
+    """A ``ThreadPoolExecutor`` of ``workers`` threads that, when the block fails or is
+    interrupted (Ctrl-C), cancels what is queued and returns at once (a running task ends with
+    its current block of samples, a fraction of a second)."""
+    from concurrent.futures import ThreadPoolExecutor
+    pool = ThreadPoolExecutor(max_workers=workers, thread_name_prefix="driftfmu-kernel")
+    try:
+        yield pool
+    except BaseException:
+        pool.shutdown(wait=False, cancel_futures=True)
+        raise
+    pool.shutdown(wait=True)
 
 
 def bounded_map(pool, fn, items, ahead, meanwhile=None):

@@ -88,14 +88,26 @@ def test_finals_are_the_last_samples():
 
 
 # -- tasks and workers --------------------------------------------------------------------------
-def test_tasks_on_worker_processes_equal_one_batch():
+@pytest.mark.parametrize("kernel", ["auto", "numpy"])
+def test_tasks_on_workers_equal_one_batch(kernel, monkeypatch):
+    """Tasks in the compiled kernel run in threads of this process (its calls release the
+    GIL), the others in worker processes; either way the runs are those of one batch."""
+    from driftfmu.simulations import kernel as compiled
+    threads = kernel == "auto" and compiled.library() is not None
+    pools = []
+    for name in ("thread_pool", "process_pool"):
+        real = getattr(batch, name)
+        monkeypatch.setattr(batch, name, lambda w, real=real, name=name:
+                            pools.append(name) or real(w))
     seeds = batch.run_seeds(2, 300)
     a2 = np.linspace(0.001, 0.3, 300)
-    whole = batch.simulate(100, seeds, a2=a2, R=1e-3)
-    tasks = batch.make_tasks(100, seeds, {"a2": a2}, {"R": 1e-3}, chunk=70)
+    whole = batch.simulate(100, seeds, a2=a2, R=1e-3, kernel="numpy")
+    tasks = batch.make_tasks(100, seeds, {"a2": a2}, {"R": 1e-3, "kernel": kernel}, chunk=70)
     assert [len(t["seeds"]) for t in tasks] == [70, 70, 70, 70, 20]
+    assert [batch.in_kernel(t) for t in tasks] == [threads] * 5
     done = []
     got = batch.gather(batch.run_tasks(tasks, workers=2, progress=done.append))
+    assert pools == ["thread_pool" if threads else "process_pool"]
     assert sorted(done) == done and done[-1] == 300
     for key in batch.FINALS:
         assert np.array_equal(got["final_" + key], whole["final_" + key]), key
@@ -190,18 +202,24 @@ def _holds(folder):
     return folder in cosim.EXTRACTED
 
 
-def test_a_stopped_worker_leaves_its_parents_fmu_folders():
+def test_a_stopped_worker_leaves_its_parents_fmu_folders(monkeypatch):
     """A worker told to stop removes the FMU folders it extracted, not the ones it inherited
     from the process that forked it: those are still in use there (the fast master keeps its
     unpacked FMUs for later runs), and a stopped pool once removed them under the parent."""
     import time
     from driftfmu.simulations import cosim
+    import multiprocessing
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork here: a worker inherits nothing")
+    # forked, even when this process runs other threads (pytest-xdist's), which would make
+    # the pool start its workers through a fork server, where they inherit nothing to remove
+    monkeypatch.setattr(batch, "mp_context", lambda preload=None:
+                        multiprocessing.get_context("fork"))
     mine = cosim.new_extract_folder(prefix="driftfmu_test_parent_")
     try:
         with pytest.raises(RuntimeError):
             with batch.process_pool(1) as pool:
-                if not pool.submit(_holds, mine).result():
-                    pytest.skip("the worker was not forked from this process (fork server)")
+                assert pool.submit(_holds, mine).result()   # inherited by the fork
                 pool.submit(time.sleep, 60)
                 raise RuntimeError("stop the pool")   # stop_pool: SIGTERM to the worker
         assert os.path.isdir(mine) and mine in cosim.EXTRACTED

@@ -49,6 +49,21 @@ def test_kernel_scalar_parameters_and_default_p0_equal_numpy(lib):
               batch.simulate(100, seeds, record=("dc_ekf1", "x"), kernel="c", **kw))
 
 
+@pytest.mark.parametrize("record", [(), ("dc_ekf1", "x")])
+def test_kernel_calls_of_any_length_give_the_same_bits(lib, monkeypatch, record):
+    """The kernel is called over blocks of samples: 1/32 of n for a progress report, about
+    KERNEL_CALL sample-runs otherwise; a run's bits do not depend on where blocks end."""
+    rng = np.random.default_rng(7)
+    seeds = batch.run_seeds(5, 37)
+    kw = _random_params(rng, 37, excitation.GAUSSIAN)
+    want = batch.simulate(700, seeds, record=record, kernel="numpy", **kw)
+    _same(want, batch.simulate(700, seeds, record=record, kernel="c", **kw))  # one call
+    _same(want, batch.simulate(700, seeds, record=record, kernel="c", progress=lambda k: None,
+                               **kw))
+    monkeypatch.setattr(batch, "KERNEL_CALL", 1)  # blocks of BLOCK samples
+    _same(want, batch.simulate(700, seeds, record=record, kernel="c", **kw))
+
+
 def test_kernel_progress_reaches_n(lib):
     seen = []
     batch.simulate(1000, batch.run_seeds(1, 3), progress=seen.append, kernel="c")
