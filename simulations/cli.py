@@ -522,21 +522,34 @@ def run_program():
     """``driftfmu`` as a program (``python -m driftfmu``): run :func:`main` and end the process
     with its status.
 
-    An interrupted command ends here, after the exit handlers, with ``os._exit``.  Through
-    ``sys.exit`` it could end killed by SIGINT instead of with status 130: when Ctrl-C lands in
-    code that runs from a string (``exec``/``eval``, as ``dataclasses`` and ``namedtuple`` do
-    while a module is imported), CPython notes the KeyboardInterrupt as unhandled even though
-    it was caught, and ``python -m`` then re-raises SIGINT at its exit whatever status is given.
+    Every command ends here with :func:`end_process` (``os._exit`` after the exit handlers).
+    Through ``sys.exit`` an interrupted one could end killed by SIGINT instead of with status
+    130: when Ctrl-C lands in code that runs from a string (``exec``/``eval``, as
+    ``dataclasses`` and ``namedtuple`` do while a module is imported), CPython notes the
+    KeyboardInterrupt as unhandled even though it was caught, and ``python -m`` then re-raises
+    SIGINT at its exit whatever status is given.
     """
     status = main()
-    if status == EXIT_INTERRUPTED:
-        import atexit
-        atexit._run_exitfuncs()  # noqa: SLF001 (what the interpreter's exit would run)
-        for stream in (sys.stdout, sys.stderr):
-            with contextlib.suppress(Exception):
-                stream.flush()
-        os._exit(status)
-    sys.exit(status)
+    end_process(status, join_threads=status != EXIT_INTERRUPTED)
+
+
+def end_process(status, join_threads=True):
+    """End this process with ``status`` as the interpreter's exit would, but without tearing
+    down every module and object (0.1 s after a command that drew figures): non-daemon threads
+    joined (not after an interrupt: :func:`exit_watchdog` bounds that exit instead), the exit
+    handlers run, the standard streams flushed, then ``os._exit``."""
+    import atexit
+    import threading
+    shutdown = getattr(threading, "_shutdown", None)  # noqa: SLF001 (the interpreter's join)
+    if join_threads:
+        if shutdown is None:  # an interpreter without it: its own exit
+            sys.exit(status)
+        shutdown()
+    atexit._run_exitfuncs()  # noqa: SLF001 (what the interpreter's exit would run)
+    for stream in (sys.stdout, sys.stderr):
+        with contextlib.suppress(Exception):
+            stream.flush()
+    os._exit(status)
 
 
 if __name__ == "__main__":

@@ -99,3 +99,26 @@ def test_main_as_the_program_arms_the_watchdog_after_an_interrupt(monkeypatch):
     assert cli.main() == 0 and armed == [130]
     monkeypatch.setattr(cli, "_main", lambda argv, previous: cli.EXIT_INTERRUPTED)
     assert cli.main(["sweep"]) == 130 and armed == [130]  # called by a test: not armed
+
+
+@pytest.mark.parametrize("interrupted", [False, True])
+def test_the_command_ends_as_the_interpreter_would_without_its_teardown(interrupted):
+    # cli.end_process: os._exit after what the interpreter's exit does that a command relies
+    # on: non-daemon threads joined (not after an interrupt), exit handlers, streams flushed
+    script = textwrap.dedent("""
+        import atexit, sys, threading, time
+        from driftfmu.simulations import cli
+        def late():
+            time.sleep(%s)
+            sys.stdout.write("thread ended\\n")
+        threading.Thread(target=late).start()
+        atexit.register(lambda: sys.stdout.write("exit handler ran\\n"))
+        sys.stdout.write("buffered, no newline; ")
+        cli.end_process(%d, join_threads=%s)
+    """ % ("3600" if interrupted else "0.3", 130 if interrupted else 3, not interrupted))
+    p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                       timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert p.returncode == (130 if interrupted else 3), p.stderr
+    want = "buffered, no newline; %sexit handler ran\n" % ("" if interrupted else
+                                                           "thread ended\n")
+    assert p.stdout == want
