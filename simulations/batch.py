@@ -13,9 +13,10 @@ generated in blocks of ``(block, runs)`` samples at once and still equals what t
 Seeds: run ``r`` of a batch under ``--seed S`` uses the FMU seed :func:`run_seed` ``(S, r) =
 S + r`` for both the Excitation and the Accelerometer.
 
-Parallel: :func:`run_tasks` maps a task function over chunks of runs on local worker processes
-(``concurrent.futures``) or on a Dask distributed cluster (``scheduler=ADDRESS``); the FMU
-engine (:func:`fmu_task`) is fanned out the same way.
+Parallel: :func:`run_tasks` maps a task function over chunks of runs on local workers
+(``concurrent.futures``: threads of this process for chunks in the compiled kernel, whose calls
+release the GIL, worker processes otherwise) or on a Dask distributed cluster
+(``scheduler=ADDRESS``); the FMU engine (:func:`fmu_task`) is fanned out the same way.
 """
 import contextlib
 import math
@@ -750,9 +751,10 @@ def add_engine_options(p):
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", type=scheduler_address,
                    help="run on the Dask distributed cluster at ADDRESS (e.g. "
                         "tcp://host:8786; needs the extra driftfmu[dask]); default: local "
-                        "worker processes")
+                        "workers")
     p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
-                   help="local worker processes (default: one per core)")
+                   help="local workers (default: one per core): threads for runs in the "
+                        "compiled kernel, worker processes otherwise")
 
 
 #: What ``--scheduler`` accepts.

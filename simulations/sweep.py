@@ -11,7 +11,8 @@ compared with the three drift references (``docs/method.md``, section 4):
 - expected ``a2 Q / (1 - A^2)``.
 
 The whole grid runs as one batch (``len(a2) * len(R) * runs`` runs on the leading axis, ``a2``
-and ``R`` per run), split over local worker processes or a Dask cluster.
+and ``R`` per run), split over local workers (threads in the compiled kernel, else processes)
+or a Dask cluster.
 
 The general sensor (issue 16, docs/method.md section 9): ``a3, a4, B`` and the known input
 ``drive, Qu, Xu, fu`` are shared by every grid point; the realised drift is then
@@ -79,8 +80,8 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
     engine : {"batch", "fmu"}
         The batch engine, or the FMUs co-simulated run by run.
     scheduler : str, optional
-        Address of a Dask scheduler; by default local worker processes (``workers``, one per
-        core by default).
+        Address of a Dask scheduler; by default local workers (``workers``, one per core by
+        default: threads for runs in the compiled kernel, processes otherwise).
     out : path, optional
         Folder for ``sweep.npz``, ``sweep.csv``, ``fig2.png``, ``fig3.png`` (all or none).
     progress : callable, optional
