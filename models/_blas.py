@@ -5,11 +5,12 @@ must not depend on the machine.
 
 OpenBLAS runs one thread per core by default and splits a long dot product (``r @ r`` over the
 60,000 samples of a set) between them, adding the partial sums in another order: the last bits
-of the result then depend on the core count, and a fit of the same data gave another ``R`` on a
-2-core machine than on a 1-core one.  :func:`threads` sets the count for a block and restores it
-after; :func:`identify.fit_set <driftfmu.models.identify.fit_set>` runs with one thread, so its
-bits are the same on every machine.  In worker processes (one per core already) one thread is
-also the fast choice: several BLAS threads per worker oversubscribe the cores.
+of the result then depend on the core count (a fit of the same data once gave another ``R`` on
+a 2-core machine than on a 1-core one), and they depend on the processor too, whose kernels
+OpenBLAS picks.  So :func:`identify.fit_set <driftfmu.models.identify.fit_set>` calls no BLAS
+at all.  In worker processes (one per core already) one thread is the fast choice: several BLAS
+threads per worker oversubscribe the cores.  :func:`threads` sets the count for a block and
+restores it after.
 
 The libraries are found in ``/proc/self/maps`` (Linux); elsewhere, or with another BLAS, nothing
 is changed.

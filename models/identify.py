@@ -73,7 +73,6 @@ import math
 import warnings
 from collections import namedtuple
 
-from . import _blas
 
 Fit = namedtuple("Fit", "a0 a1 a2 R X phi lag samples periods explained a3 a4 order se",
                  defaults=(0.0, 0.0, 2, None))
@@ -134,11 +133,80 @@ def whole_periods(n, f, Ts, rtol=1e-9):
 
 
 def _basis(theta, harmonics):
+    """The columns ``1, sin(j theta), cos(j theta)`` for ``j = 1 .. harmonics``, as a list."""
     import numpy as np
     cols = [np.ones_like(theta)]
     for j in range(1, harmonics + 1):
         cols += [np.sin(j * theta), np.cos(j * theta)]
-    return np.column_stack(cols)
+    return cols
+
+
+def _least_squares(columns, y):
+    """``(c, G)``: the least-squares coefficients ``c`` of ``y`` on ``columns`` (arrays of one
+    length) and ``G``, the inverse of their Gram matrix ``B^T B`` (``B`` the matrix of the
+    columns), as lists.
+
+    Householder QR in elementwise NumPy operations and sums (NumPy's pairwise summation), the
+    small triangular systems in Python floats: no BLAS or LAPACK call, so the same bits on every
+    processor.  (OpenBLAS picks its kernels by processor: with LAPACK's ``lstsq`` the ADXL203
+    experiment's margins differed in their last bits between an AVX2 and an AVX-512 machine.)
+    """
+    import numpy as np
+    n = len(columns)
+    a = [np.array(col, dtype=float) for col in columns]  # reduced in place
+    b = np.array(y, dtype=float)
+    r = [[0.0] * n for _ in range(n)]
+    for j in range(n):
+        v = a[j][j:].copy()
+        norm = math.sqrt(float(np.sum(v * v)))
+        if not norm > 0.0:
+            raise IdentificationError("the fit's basis is degenerate (column %d of %d is a "
+                                      "combination of the others); allowed: a recording of "
+                                      "whole periods of a sinusoidal drive" % (j + 1, n))
+        alpha = -norm if v[0] >= 0.0 else norm
+        v[0] -= alpha
+        vv = float(np.sum(v * v))
+        r[j][j] = alpha
+        for k in range(j + 1, n):
+            col = a[k][j:]
+            col -= v * (2.0 * float(np.sum(v * col)) / vv)
+            r[j][k] = float(col[0])
+        rest = b[j:]
+        rest -= v * (2.0 * float(np.sum(v * rest)) / vv)
+    qb = [float(b[j]) for j in range(n)]
+    coef = [0.0] * n
+    for i in reversed(range(n)):  # R c = Q^T y
+        acc = qb[i]
+        for k in range(i + 1, n):
+            acc -= r[i][k] * coef[k]
+        coef[i] = acc / r[i][i]
+    inv = [[0.0] * n for _ in range(n)]  # R^-1, upper triangular
+    for i in range(n):
+        inv[i][i] = 1.0 / r[i][i]
+        for k in range(i + 1, n):
+            acc = 0.0
+            for l in range(i, k):
+                acc -= inv[i][l] * r[l][k]
+            inv[i][k] = acc / r[k][k]
+    gram_inv = [[0.0] * n for _ in range(n)]  # (B^T B)^-1 = R^-1 R^-T
+    for i in range(n):
+        for k in range(n):
+            acc = 0.0
+            for l in range(max(i, k), n):
+                acc += inv[i][l] * inv[k][l]
+            gram_inv[i][k] = acc
+    return coef, gram_inv
+
+
+def _products(matrix, vector):
+    """``matrix @ vector`` for lists (rows of Python floats or arrays) in a fixed order."""
+    out = []
+    for row in matrix:
+        acc = 0.0
+        for m, v in zip(row, vector):
+            acc = acc + m * v
+        out.append(acc)
+    return out
 
 
 def resolvable_order(f, Ts):
@@ -165,7 +233,6 @@ def check_order(order, f, Ts):
             % (order, order, f, order * f, 0.5 / Ts, top, 0.5 / (order * Ts), order))
 
 
-@_blas.threads(1)  # the same bits on every machine (see models/_blas.py)
 def fit_set(t, x, z, f, skip=0, order=2):
     """Harmonic analysis of one set: a :class:`Fit` of ``z = a0 + a1 x + ... + a_order x^order
     + v`` (``order`` 2, 3 or 4).
@@ -191,7 +258,7 @@ def fit_set(t, x, z, f, skip=0, order=2):
     m = whole_periods(len(t), f, Ts)
     t, x, z = t[:m], x[:m], z[:m]
     w = 2.0 * math.pi * f * (t - t[0])
-    (s, c), *_ = np.linalg.lstsq(np.column_stack([np.sin(w), np.cos(w)]), x, rcond=None)
+    (s, c), _ = _least_squares([np.sin(w), np.cos(w)], x)
     X = math.hypot(s, c)
     if not X > 0.0:
         raise IdentificationError("the drive x has no component at f = %r Hz; allowed: a "
@@ -211,24 +278,25 @@ def fit_set(t, x, z, f, skip=0, order=2):
                       % (round(m * f * Ts), f), IdentificationWarning, stacklevel=3)
     phi = math.atan2(c, s)
     B = _basis(w + phi, order)
-    coef, *_ = np.linalg.lstsq(B, z, rcond=None)
+    coef, gram_inv = _least_squares(B, z)
     c0, al1, be1, al2, be2 = coef[:5]
     lag = math.atan2(-be1, al1)
-    resid = z - B @ coef
-    R = float(resid @ resid) / max(1, m - B.shape[1])
+    resid = z - _products([B], coef)[0]  # z - B c, column by column
+    R = float(np.sum(resid * resid)) / max(1, m - len(B))
     a3 = a4 = 0.0
     if order == 2:  # the 2nd-order fit, written as it always was (same bits)
         a1 = math.hypot(al1, be1) / X
         a2 = -2.0 / (X * X) * (be2 * math.cos(2 * lag) + al2 * math.sin(2 * lag))
         a0 = c0 - a2 * X * X / 2.0
-    M = _coefficient_map(order, X, lag)
-    a = M @ coef
+    M = [[float(v) for v in row] for row in _coefficient_map(order, X, lag)]
+    a = _products(M, coef)
     if order > 2:
         a0, a1, a2, a3 = (float(v) for v in a[:4])
         if order == 4:
             a4 = float(a[4])
-    cov = R * (M @ np.linalg.pinv(B.T @ B) @ M.T)
-    se = {"a%d" % i: float(math.sqrt(max(cov[i, i], 0.0))) for i in range(order + 1)}
+    # standard errors: the diagonal of R M (B^T B)^-1 M^T
+    var = [R * _products([row], _products(gram_inv, row))[0] for row in M]
+    se = {"a%d" % i: float(math.sqrt(max(var[i], 0.0))) for i in range(order + 1)}
     if text is not None:
         # the part of x the sinusoid misses reaches z through a1 and is counted as noise
         leak = a1 * a1 * (1.0 - explained) * var_x / R if R > 0 else math.inf

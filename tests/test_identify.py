@@ -2,6 +2,7 @@
 from the noise level; CSV recordings; bad input refused with nothing written."""
 import json
 import math
+import os
 import warnings
 
 import numpy as np
@@ -192,7 +193,7 @@ def test_cli_exit_1_for_a_contradicted_frequency_and_a_warning_line_for_a_doubtf
 def test_a_fit_has_the_same_bits_whatever_the_blas_thread_count():
     """OpenBLAS splits the residual's long dot product between its threads (one per core by
     default), so ``R`` came out with other last bits on a 2-core machine than on a 1-core one;
-    the fit runs with one thread (models/_blas.py) and gives the same bits under any count."""
+    the fit calls no BLAS (identify._least_squares) and gives the same bits under any count."""
     from driftfmu.models import _blas
     if not _blas.libraries():
         pytest.skip("no OpenBLAS found in this process (another BLAS, or not Linux)")
@@ -209,3 +210,36 @@ def test_a_fit_has_the_same_bits_whatever_the_blas_thread_count():
                 pass
             assert [get() for _, get in _blas.libraries()] == [count] * len(_blas.libraries())
     assert fits[0] == fits[1] == fits[2]
+
+
+def test_a_fit_has_the_same_bits_on_every_processor():
+    """OpenBLAS picks its kernels by processor, and LAPACK's least squares gave other last bits
+    with its AVX-512 kernels than with its AVX2 ones (the ADXL203 experiment's margins moved):
+    the fit calls no BLAS or LAPACK, and gives the same bits under the kernels of every
+    processor generation this machine can run (OPENBLAS_CORETYPE picks them)."""
+    import platform
+    import subprocess
+    import sys
+    from driftfmu.models import _blas
+    if platform.machine() not in ("x86_64", "AMD64") or not _blas.libraries():
+        pytest.skip("needs OpenBLAS on x86-64")
+    try:
+        flags = open("/proc/cpuinfo").read().split()
+    except OSError:
+        flags = []
+    cores = ["Prescott"] + ["Haswell"] * ("avx2" in flags) + ["SkylakeX"] * ("avx512f" in flags)
+    script = ("import math, numpy as np\n"
+              "from driftfmu.models import identify\n"
+              "rng = np.random.default_rng(3)\n"
+              "t = np.arange(60000) * 1e-4\n"
+              "x = 2.0 * np.sin(2 * math.pi * 150.0 * t + 0.3)\n"
+              "z = 0.01 + x + 0.02 * x * x + 0.001 * x ** 3 + 0.01 * rng.standard_normal(60000)\n"
+              "for order in (2, 4):\n"
+              "    print(repr(tuple(identify.fit_set(t, x, z, 150.0, order=order))))\n")
+    outs = {}
+    for core in cores:
+        p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
+                           timeout=120, env=dict(os.environ, OPENBLAS_CORETYPE=core))
+        assert p.returncode == 0, p.stderr
+        outs[core] = p.stdout
+    assert len(set(outs.values())) == 1, outs
