@@ -114,22 +114,22 @@ def test_a_signal_stops_the_running_tests_and_their_workers(signum, tmp_path):
 
 
 def test_a_baseline_over_its_bound_is_killed_with_its_workers(tmp_path):
-    p, pids = _mutate(tmp_path, "--baseline-timeout", "30", hang=True)
+    p, pids = _mutate(tmp_path, "--baseline-timeout", "10", hang=True)
     out, err = p.communicate(timeout=300)
     assert p.returncode == 2, err
-    assert "over --baseline-timeout 30 s" in err
-    # pytest, two workers, the test's child (fewer when a loaded machine is slower than 30 s)
+    assert "over --baseline-timeout 10 s" in err
+    # pytest, two workers, the test's child (fewer when a loaded machine is slower than 10 s)
     assert 1 <= len(_recorded(pids)) <= 4 and _none_left(pids) == []
 
 
 def test_a_fault_that_hangs_times_out_and_is_killed_with_its_workers(tmp_path):
-    p, pids = _mutate(tmp_path, "--timeout", "30")
+    p, pids = _mutate(tmp_path, "--timeout", "10")
     out, err = p.communicate(timeout=300)
     assert p.returncode == 1, out + err
-    assert "a fault may take 30 s" in out
+    assert "a fault may take 10 s" in out
     assert "x-two" in out and "TIMEOUT" in out
     # the baseline's pytest and workers (3), the fault's (3) and its hanging test's child
-    # (fewer of the fault's when a loaded machine is slower than 30 s)
+    # (fewer of the fault's when a loaded machine is slower than 10 s)
     assert 4 <= len(_recorded(pids)) <= 7 and _none_left(pids) == []
 
 
