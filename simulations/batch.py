@@ -168,11 +168,15 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = default_P0(fA, fQ)
-    lib = _simulate_library(kernel, a3, a4, B)
+    lib = _kernel_library(kernel)
     if lib is not None:
+        if drive not in excitation.DRIVES:
+            excitation.input_sample(drive, 0, 1)  # models/' own error
         return _simulate_kernel(lib, n, seeds, dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0,
                                                     P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
-                                                    fQ=fQ), kind, record, progress)
+                                                    fQ=fQ, a3=a3, a4=a4, B=B, drive=drive,
+                                                    Qu=Qu, Xu=Xu, fu=fu), kind, record,
+                                progress)
     shape = (runs,)
     x = np.broadcast_to(np.asarray(x0, dtype=float), shape).copy()
     est = chain.estimator_init(x.copy(), np.broadcast_to(np.asarray(P0, dtype=float),
@@ -210,15 +214,20 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
                         _realised(quadratic, a2, a3, a4, x2bar, hbar), a0, (a2, a3, a4))
         if progress is not None:
             progress(k0 - 1 + ks.shape[0])
+    out = _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4)
+    for name, arr in traj.items():
+        out[name] = np.ascontiguousarray(arr.T)
+    return out
+
+
+def _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4):
+    """The ``"final_<name>"`` arrays of :data:`FINALS` after the last sample (both engines)."""
     dc1, dc2, dc3 = drift.estimates(est.drift, a2, a3, a4)
     out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
            "zbar": zbar - a0, "x2bar": x2bar,
            "dc_realised": _realised(quadratic, a2, a3, a4, x2bar, hbar)}
-    out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), shape).copy()
-           for key, v in out.items()}
-    for name, arr in traj.items():
-        out[name] = np.ascontiguousarray(arr.T)
-    return out
+    return {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), (runs,)).copy()
+            for key, v in out.items()}
 
 
 def _realised(quadratic, a2, a3, a4, x2bar, hbar):
@@ -231,17 +240,6 @@ def _realised(quadratic, a2, a3, a4, x2bar, hbar):
     if _ops.is_scalar(a3) and _ops.is_scalar(a4):
         return hbar
     return np.where((np.asarray(a3) == 0.0) & (np.asarray(a4) == 0.0), a2 * x2bar, hbar)
-
-
-def _simulate_library(kernel, a3, a4, B):
-    """The compiled kernel :func:`simulate` runs in, or None (NumPy): the kernel has the
-    letter's quadratic sensor only, so the general one (``a3``, ``a4`` or ``B`` not 0) takes
-    NumPy."""
-    general = sensor.higher(a3, a4) or not (_ops.is_scalar(B) and B == 0.0)
-    if general and kernel == "c":
-        raise UsageError("kernel = 'c' has the letter's quadratic sensor only; allowed with a3, "
-                         "a4 or B != 0: kernel = 'auto' or 'numpy'")
-    return _kernel_library("numpy" if general and kernel in KERNELS else kernel)
 
 
 def _kernel_library(kernel):
@@ -265,20 +263,18 @@ def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
     computed by the same models/ code."""
     from driftfmu.simulations import kernel as compiled
     runs = seeds.shape[0]
-    state = compiled.Batch(lib, seeds, params, kind, n, record)
+    a2, a3, a4, a0 = params["a2"], params["a3"], params["a4"], params["a0"]
+    quadratic = not sensor.higher(a3, a4)
+    general = not quadratic or not (_ops.is_scalar(params["B"]) and params["B"] == 0.0)
+    state = compiled.Batch(lib, seeds, params, kind, n, record, general, quadratic)
     step = max(BLOCK, -(-n // 32) if progress is not None else KERNEL_CALL // max(1, runs))
     for k0 in range(1, n + 1, step):
         k1 = min(k0 + step, n + 1)
         state.run(k0, k1)
         if progress is not None:
             progress(k1 - 1)
-    x, zbar, x2bar, est = state.state()
-    a2, a0 = params["a2"], params["a0"]
-    dc1, dc2, dc3 = drift.estimates(est.drift, a2)
-    out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
-           "zbar": zbar - a0, "x2bar": x2bar, "dc_realised": a2 * x2bar}
-    out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), (runs,)).copy()
-           for key, v in out.items()}
+    x, zbar, x2bar, est, hbar = state.state()
+    out = _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4)
     out.update(state.traj)
     return out
 
@@ -570,10 +566,8 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
 def in_kernel(task):
     """Whether :func:`run_task` runs ``task`` in the compiled kernel, whose calls release the
     GIL: such tasks run in threads of this process (no workers to start, nothing to pickle)."""
-    kw = task["kwargs"]
-    return task["engine"] == "batch" and _simulate_library(
-        kw.get("kernel", "auto"), kw.get("a3", 0.0), kw.get("a4", 0.0), kw.get("B", 0.0)) \
-        is not None
+    return task["engine"] == "batch" and \
+        _kernel_library(task["kwargs"].get("kernel", "auto")) is not None
 
 
 @contextlib.contextmanager

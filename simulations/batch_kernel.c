@@ -16,17 +16,19 @@
 #include "noise.h"
 #include "sensor.h"
 
-/* One run of simulations.batch.simulate between blocks: the excitation, the filter and the two
- * running means (fourteen 8-byte fields, the layout of a (runs, 14) float64 array: kernel.py's
- * STATE_FIELDS). */
+/* One run of simulations.batch.simulate between blocks: the excitation, the filter, the two
+ * running means and the general sensor's realised drift (fifteen 8-byte fields, the layout of
+ * a (runs, 15) float64 array: kernel.py's STATE_FIELDS). */
 typedef struct {
     double x, zbar, x2bar;
     EstimatorState est;
+    double hbar;  /* running mean of a2 x^2 + a3 x^3 + a4 x^4 (the general sensor only) */
 } RunState;
 
-/* The per-run parameters of batch.simulate, in this order, each an array of `runs` values. */
+/* The per-run parameters of batch.simulate, in this order, each an array of `runs` values
+ * (the general model's last: a3, a4, B, the known input's drive, Qu, Xu, fu). */
 enum { P_A0, P_A1, P_A2, P_A, P_Q, P_R, P_X0, P_P0, P_TS, P_X, P_F, P_PHI, P_FA, P_FQ,
-       N_PARAMS };
+       P_A3, P_A4, P_B, P_DRIVE, P_QU, P_XU, P_FU, N_PARAMS };
 
 /* batch.TRAJECTORIES, in this order; a NULL pointer is a trajectory not recorded. */
 enum { T_X, T_Z, T_XHAT, T_P, T_DC1, T_DC2, T_DC3, T_EMPIRICAL, T_REALISED, N_TRAJ };
@@ -39,6 +41,7 @@ void driftfmu_batch_init(int64_t runs, const double *const *p, RunState *state)
         state[r].zbar = 0.0;
         state[r].x2bar = 0.0;
         state[r].est = chain_estimator_init(p[P_X0][r], p[P_P0][r]);
+        state[r].hbar = 0.0;
     }
 }
 
@@ -141,14 +144,17 @@ static int run_gaussian_vector(int64_t k0, int64_t k1, int64_t r0, int lanes,
 }
 
 /* Samples k = k0 .. k1 - 1 of every run (the loop body of batch.simulate); the recorded
- * trajectories are (runs, n) arrays, sample k in column k - 1. */
+ * trajectories are (runs, n) arrays, sample k in column k - 1.  `general`: the batch has the
+ * general sensor or the known input (a3, a4 or B not 0; batch.simulate's NumPy path then calls
+ * the same functions with them, the letter's with zeros, which the C functions of the letter's
+ * sensor are); `quadratic`: a3 = a4 = 0 in every run (no realised h to average). */
 void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const uint64_t *seeds,
-                        int64_t kind, const double *const *p, RunState *state,
-                        double *const *traj)
+                        int64_t kind, int64_t general, int64_t quadratic,
+                        const double *const *p, RunState *state, double *const *traj)
 {
     const int gaussian = kind == EXCITATION_GAUSSIAN;
     int64_t done = 0;  /* runs before this index ran in run_gaussian_vector */
-    if (gaussian && !traj)
+    if (gaussian && !traj && !general)
         while (done < runs && run_gaussian_vector(k0, k1, done, runs - done < VLANES ?
                                                   (int)(runs - done) : VLANES, seeds, p, state))
             done += VLANES;
@@ -166,20 +172,33 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
         for (int64_t k = k0; k < k1; k++) {
             for (int i = 0; i < lanes; i++) {
                 const double a0 = q[P_A0][i], a1 = q[P_A1][i], a2 = q[P_A2][i], R = q[P_R][i];
-                double z, dc1, dc2, dc3;
-                if (gaussian)
-                    s[i].x = excitation_gauss_markov(s[i].x, q[P_A][i], q[P_Q][i],
-                                                     keyed_normal(key_process[i], k));
-                else
+                const double a3 = q[P_A3][i], a4 = q[P_A4][i];
+                double z, x2, dc1, dc2, dc3, B = 0.0, u = 0.0;
+                if (gaussian) {
+                    const int64_t drive = (int64_t)q[P_DRIVE][i];
+                    B = q[P_B][i];
+                    if (drive != EXCITATION_DRIVE_OFF)
+                        u = excitation_input_sample(drive, (int64_t)seeds[r0 + i], k, q[P_QU][i],
+                                                    q[P_XU][i], q[P_FU][i], q[P_TS][i]);
+                    s[i].x = excitation_gauss_markov_general(s[i].x, q[P_A][i], q[P_Q][i],
+                                                             keyed_normal(key_process[i], k),
+                                                             B, u);
+                } else {
                     s[i].x = excitation_sine(k, q[P_X][i], q[P_F][i], q[P_TS][i], q[P_PHI][i]);
-                z = sensor_measure(s[i].x, a0, a1, a2, R, keyed_normal(key_measurement[i], k));
-                s[i].est = chain_estimator_step(s[i].est, z, a0, a1, a2, q[P_FA][i], q[P_FQ][i],
-                                                R);
+                }
+                z = sensor_measure_general(s[i].x, a0, a1, a2, R,
+                                           keyed_normal(key_measurement[i], k), a3, a4);
+                s[i].est = chain_estimator_step_general(s[i].est, z, a0, a1, a2, q[P_FA][i],
+                                                        q[P_FQ][i], R, a3, a4, B, u);
                 s[i].zbar = drift_running_mean(s[i].zbar, z, k);
-                s[i].x2bar = drift_running_mean(s[i].x2bar, s[i].x * s[i].x, k);
+                x2 = s[i].x * s[i].x;
+                s[i].x2bar = drift_running_mean(s[i].x2bar, x2, k);
+                if (!quadratic)
+                    s[i].hbar = drift_running_mean(s[i].hbar,
+                                                   a2 * x2 + a3 * x2 * s[i].x + a4 * x2 * x2, k);
                 if (traj) {
                     size_t j = (size_t)(r0 + i) * (size_t)n + (size_t)(k - 1);
-                    drift_estimates(s[i].est.drift, a2, &dc1, &dc2, &dc3);
+                    drift_estimates_general(s[i].est.drift, a2, a3, a4, &dc1, &dc2, &dc3);
                     if (traj[T_X]) traj[T_X][j] = s[i].x;
                     if (traj[T_Z]) traj[T_Z][j] = z;
                     if (traj[T_XHAT]) traj[T_XHAT][j] = s[i].est.x;
@@ -188,7 +207,9 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                     if (traj[T_DC2]) traj[T_DC2][j] = dc2;
                     if (traj[T_DC3]) traj[T_DC3][j] = dc3;
                     if (traj[T_EMPIRICAL]) traj[T_EMPIRICAL][j] = s[i].zbar - a0;
-                    if (traj[T_REALISED]) traj[T_REALISED][j] = a2 * s[i].x2bar;
+                    if (traj[T_REALISED])  /* batch._realised */
+                        traj[T_REALISED][j] = quadratic || (a3 == 0.0 && a4 == 0.0)
+                                              ? a2 * s[i].x2bar : s[i].hbar;
                 }
             }
         }

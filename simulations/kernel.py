@@ -31,12 +31,14 @@ SOURCE = HERE / "batch_kernel.c"
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
          "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c")
 #: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
-#: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``).
-PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "fA", "fQ")
+#: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``; the general model's last, ``drive`` as a
+#: float).
+PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "fA", "fQ",
+          "a3", "a4", "B", "drive", "Qu", "Xu", "fu")
 #: Fields of one run's state (``RunState``): float64 but the drift counter ``k`` (int64):
-#: x, zbar, x2bar, the filter's x and P, and the drift estimators' state (whose 3rd/4th-order
-#: sums, 0 here, come last).
-STATE_FIELDS = 5 + 9
+#: x, zbar, x2bar, the filter's x and P, the drift estimators' state (whose 3rd/4th-order
+#: sums come last), and the general sensor's realised drift.
+STATE_FIELDS = 5 + 9 + 1
 #: models.adxl203.simulate's start values and columns, in the kernel's order.
 EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
 SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",
@@ -159,7 +161,7 @@ def _load(path):
     lib.driftfmu_batch_init.restype = None
     lib.driftfmu_batch_init.argtypes = [i64, _P, _P]
     lib.driftfmu_batch_run.restype = None
-    lib.driftfmu_batch_run.argtypes = [i64, i64, i64, i64, _P, i64, _P, _P, _P]
+    lib.driftfmu_batch_run.argtypes = [i64, i64, i64, i64, _P, i64, i64, i64, _P, _P, _P]
     lib.driftfmu_adxl203.restype = ctypes.c_int
     lib.driftfmu_adxl203.argtypes = [i64, d, _P, _P, _P, _P]
     lib.driftfmu_dual.restype = ctypes.c_int
@@ -177,9 +179,11 @@ class Batch:
 
     ``params`` maps the names of :data:`PARAMS` to floats or ``(runs,)`` arrays.  :meth:`run`
     advances every run over samples ``k0 .. k1 - 1``; :meth:`state` gives the run states.
+    ``general``: the general sensor or the known input in the batch; ``quadratic``: ``a3 =
+    a4 = 0`` in every run (:func:`driftfmu.simulations.batch.simulate`'s flags).
     """
 
-    def __init__(self, lib, seeds, params, kind, n, record):
+    def __init__(self, lib, seeds, params, kind, n, record, general=False, quadratic=True):
         from driftfmu.simulations.batch import TRAJECTORIES
         self.lib = lib
         self.seeds = np.ascontiguousarray(seeds, dtype=np.uint64)
@@ -189,6 +193,7 @@ class Batch:
                        for name in PARAMS]
         self.param_ptrs = _pointers(self.params)
         self.kind, self.n, self.runs = int(kind), int(n), runs
+        self.general, self.quadratic = int(bool(general)), int(bool(quadratic))
         self.traj = {name: np.empty((runs, n)) for name in record}
         self.traj_ptrs = _pointers([self.traj.get(name) for name in TRAJECTORIES]) \
             if self.traj else None
@@ -198,18 +203,19 @@ class Batch:
     def run(self, k0, k1):
         """Samples ``k0 .. k1 - 1`` (1-based) of every run."""
         self.lib.driftfmu_batch_run(k0, k1, self.n, self.runs, self.seeds.ctypes.data,
-                                    self.kind, self.param_ptrs, self.buffer.ctypes.data,
-                                    self.traj_ptrs)
+                                    self.kind, self.general, self.quadratic, self.param_ptrs,
+                                    self.buffer.ctypes.data, self.traj_ptrs)
 
     def state(self):
-        """``(x, zbar, x2bar, est)``: arrays ``(runs,)`` and a chain.EstimatorState of arrays."""
+        """``(x, zbar, x2bar, est, hbar)``: arrays ``(runs,)``, a chain.EstimatorState of
+        arrays, and the realised ``mean(a2 x^2 + a3 x^3 + a4 x^4)`` (0 unless the batch has
+        ``a3`` or ``a4``)."""
         from driftfmu.models import chain, drift
         b = self.buffer
         k = b[:, 5].copy().view(np.int64)
         est = chain.EstimatorState(b[:, 3].copy(), b[:, 4].copy(),
-                                   drift.DriftState(k, b[:, 6].copy(), b[:, 7].copy(),
-                                                    b[:, 8].copy(), b[:, 9].copy()))
-        return b[:, 0].copy(), b[:, 1].copy(), b[:, 2].copy(), est
+                                   drift.DriftState(k, *(b[:, i].copy() for i in range(6, 14))))
+        return b[:, 0].copy(), b[:, 1].copy(), b[:, 2].copy(), est, b[:, 14].copy()
 
 
 def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values, Ts,

@@ -169,9 +169,9 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     ``general``: the general model's ``a3, a4`` (sensor and filter), ``B`` and the known
     input ``drive, Qu, Xu, fu`` (docs/method.md section 9), the names and checks of
     ``driftfmu run gaussian``; off by default (the letter's runs, same bits).  The batch engine
-    runs them in NumPy (the compiled kernel has the letter's sensor only: same results, more
-    time); the realised and expected drift are then the general ones, ``mean(a2 x^2 + a3 x^3 +
-    a4 x^4)`` and ``a2 E[x^2] + a4 E[x^4]``.
+    runs them in the compiled kernel or NumPy (same results); the realised and expected drift
+    are then the general ones, ``mean(a2 x^2 + a3 x^3 + a4 x^4)`` and ``a2 E[x^2] + a4
+    E[x^4]``.
 
     Returns the ``montecarlo.npz`` arrays (``fig1_x``, ``fig1_z``, ``fig1_dc1``, ``fig1_dc2``,
     ``fig1_dc3``, ``fig1_dc_empirical``, ``fig1_dc_realised``, each ``(runs, n)``), ``summary``

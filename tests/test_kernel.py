@@ -42,6 +42,33 @@ def test_kernel_equals_numpy_engine_over_random_parameters(lib, kind, runs, n):
     _same(want, got)
 
 
+def _general_cases(rng, runs):
+    """The general model's parameters: a3 and a4 shared or per run (some runs at 0), the known
+    input's two drives with B shared or per run, B without an input, all of it on a sine."""
+    some = rng.random(runs) > 0.3
+    return [dict(a3=0.02, a4=0.01),
+            dict(a4=rng.uniform(0.0, 0.05, runs) * some),
+            dict(a3=rng.uniform(-0.05, 0.05, runs)),
+            dict(B=0.5, drive=excitation.GAUSSIAN, Qu=0.2),
+            dict(B=rng.uniform(-1.0, 1.0, runs), drive=excitation.SINUSOIDAL, Xu=1.2, fu=37.0,
+                 a3=0.01),
+            dict(B=0.7),
+            dict(a3=0.02, a4=0.01, B=0.4, drive=excitation.GAUSSIAN, Qu=0.3,
+                 kind=excitation.SINUSOIDAL, X=1.1, f=30.0)]
+
+
+@pytest.mark.parametrize("record", [(), batch.TRAJECTORIES])
+@pytest.mark.parametrize("case", range(7))
+def test_kernel_equals_numpy_engine_for_the_general_model(lib, case, record):
+    rng = np.random.default_rng(50 + case)
+    runs = 23
+    kw = dict(a2=rng.uniform(0.0, 0.1, runs), A=0.6, Q=0.05, R=1e-3, x0=0.1)
+    kw.update(_general_cases(rng, runs)[case])
+    seeds = batch.run_seeds(int(rng.integers(0, 10 ** 6)), runs)
+    _same(batch.simulate(300, seeds, record=record, kernel="numpy", **kw),
+          batch.simulate(300, seeds, record=record, kernel="c", **kw))
+
+
 def test_kernel_scalar_parameters_and_default_p0_equal_numpy(lib):
     seeds = batch.run_seeds(3, 9)
     for kw in (dict(), dict(a2=0.1, R=1e-3, A=0.5), dict(P0=0.3, x0=0.2)):
