@@ -32,6 +32,8 @@ Layout: ``<out>/fmi2/<Name>.fmu``, ``<out>/fmi2-aarch64/<Name>.fmu`` and
 ``build/fmus/native``, beside the Python FMUs in ``build/fmus``.  Every FMU is validated with
 fmpy before it is moved into place (atomically).
 """
+import contextlib
+import functools
 import hashlib
 import importlib
 import os
@@ -495,8 +497,15 @@ def _compile_all(name, fmi_version, sources, c_files, work, platforms, cache=Non
         target = work / platform / (name + PLATFORMS[platform][0])
         key = _cache_key(platform, sources, c_files) if cache is not None else None
         hit = Path(cache) / key if key else None
-        if hit is not None and hit.exists():
-            return platform, (hit.read_bytes(), compiler(platform)[2])
+        if hit is not None:
+            try:
+                data = hit.read_bytes()
+            except OSError:  # not there (or removed meanwhile): compiled below
+                pass
+            else:
+                with contextlib.suppress(OSError):
+                    os.utime(hit)  # recently used (a cache kept across runs prunes by age)
+                return platform, (data, compiler(platform)[2])
         path, label = compile_library(platform, sources, c_files, target)
         data = path.read_bytes()
         if hit is not None:
@@ -559,14 +568,27 @@ def binaries_text(name, fmi_version, files, missing):
 
 
 def _cache_key(platform, sources, c_files):
-    """Hash of what a library's bytes depend on: the platform, the compiler command and flags,
-    the C files in order and every staged source's name and bytes (the build's folders are not
-    in the library, tests/test_platforms.py)."""
+    """Hash of what a library's bytes depend on: the platform, the compiler command, its
+    version and flags, the C files in order and every staged source's name and bytes (the
+    build's folders are not in the library, tests/test_platforms.py)."""
     command, extra, _ = compiler(platform)
-    h = hashlib.sha256(repr((platform, command, tuple(extra), CFLAGS, list(c_files))).encode())
+    h = hashlib.sha256(repr((platform, command, compiler_version(tuple(command)), tuple(extra),
+                             CFLAGS, list(c_files))).encode())
     for p in sorted(Path(sources).iterdir()):
         h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
     return "%s-%s" % (platform, h.hexdigest())
+
+
+@functools.lru_cache(maxsize=None)
+def compiler_version(command):
+    """What ``command --version`` prints (its output; empty if it fails), once per command: a
+    library cache kept from run to run must not serve what an older compiler made."""
+    try:
+        done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
+                              timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return done.stdout if done.returncode == 0 else ""
 
 
 def _build_one(name, fmi_version, out_dir, platforms, missing, log, cache=None):

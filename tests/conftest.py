@@ -1,6 +1,9 @@
 """Fixtures shared by the test modules."""
+import contextlib
 import json
 import os
+import tempfile
+import time
 from pathlib import Path
 
 import pytest
@@ -52,11 +55,30 @@ def python_fmus(tmp_path_factory):
 HOST_PLATFORMS = ("x86_64-linux", "x86_64-windows")
 
 
+#: The compiled libraries of :func:`_native_build`, kept from run to run (keyed by their
+#: sources, compiler, compiler version and flags: a changed source or compiler compiles anew;
+#: an entry unused for :data:`CACHE_DAYS` days is removed). ``DRIFTFMU_TEST_NATIVE_CACHE``
+#: names another folder.
+NATIVE_CACHE = Path(os.environ.get("DRIFTFMU_TEST_NATIVE_CACHE") or os.path.join(
+    tempfile.gettempdir(), "driftfmu-test-native-libraries-%d" % getattr(os, "getuid", lambda: 0)()))
+CACHE_DAYS = 14
+
+
+def _prune(folder, days=CACHE_DAYS):
+    """Remove the entries of ``folder`` not used (read or written) for ``days`` days."""
+    cutoff = time.time() - days * 86400
+    for entry in folder.glob("*"):
+        with contextlib.suppress(OSError):
+            if entry.stat().st_mtime < cutoff:
+                entry.unlink()
+
+
 def _native_build(tmp_path_factory, name, platforms):
     from driftfmu.fmu_src.native_build import build_native_fmus
 
     def build(out):  # the layout of build/fmus/native; libraries shared by both builds
-        cache = out.parent / "native_libraries"
+        cache = NATIVE_CACHE
+        _prune(cache)
         return {v: {n: str(p) for n, p in fmus.items()}
                 for v, fmus in build_native_fmus(out / "native", platforms=platforms(),
                                                  log=lambda line: None, cache=cache).items()}

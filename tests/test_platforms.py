@@ -310,7 +310,8 @@ def test_the_build_cache_reuses_a_library_only_for_the_same_sources_and_compiler
     """``build_native_fmus(cache=...)`` (the test suite's second build, every platform, reuses
     the first's libraries): the same FMU bytes as without the cache; a library in the cache is
     what goes into the FMU (a planted one shows it is not compiled again, whatever the build
-    folder); another source byte, compiler command or platform is another key."""
+    folder); another source byte, compiler command, compiler version or platform is another
+    key."""
     cache = tmp_path / "cache"
 
     def build(folder, **kw):
@@ -339,6 +340,11 @@ def test_the_build_cache_reuses_a_library_only_for_the_same_sources_and_compiler
     assert native_build._cache_key("x86_64-linux", sources, c_files) != keys[2]
     monkeypatch.delenv("CC")
     assert native_build._cache_key("x86_64-windows", sources, c_files) != keys[2]
+    # the same command after the compiler was upgraded (the test suite keeps the cache from
+    # run to run): another key
+    assert native_build.compiler_version(("cc",))  # it answers --version
+    monkeypatch.setattr(native_build, "compiler_version", lambda command: "cc 99.0")
+    assert native_build._cache_key("x86_64-linux", sources, c_files) != keys[2]
 
 
 def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(monkeypatch,
