@@ -51,6 +51,7 @@ class Staging:
     def __init__(self):
         self._pairs = []  # (hidden folder, staged path, destination)
         self._shown = []  # (staged path, destination as given): for the log's lines
+        self._held = []   # (log, line) of the lines about written files, until the commit
 
     def path(self, target, folder=True):
         """The staged stand-in for ``target`` (a folder, or with ``folder=False`` a file)."""
@@ -66,11 +67,18 @@ class Staging:
         return staged
 
     def log(self, log):
-        """``log`` with the staged paths in its lines named by their destinations."""
+        """``log`` with the staged paths in its lines named by their destinations; a line
+        naming a staged path (what was written: "built ...") is held back until every output
+        is in place, so a job that fails names no file it leaves behind."""
         def staged_log(line):
+            held = False
             for staged, shown in self._shown:
+                held = held or str(staged) in line
                 line = line.replace(str(staged), str(shown))
-            log(line)
+            if held:
+                self._held.append((log, line))
+            else:
+                log(line)
         return staged_log
 
     def __enter__(self):
@@ -83,6 +91,9 @@ class Staging:
         finally:
             for stage, _, _ in self._pairs:
                 shutil.rmtree(stage, ignore_errors=True)
+        if kind is None:  # (and the commit did not raise): every output is in place
+            for log, line in self._held:
+                log(line)
         return False
 
     def _commit(self):

@@ -316,6 +316,7 @@ def test_a_failed_or_stopped_native_build_leaves_every_path_as_it_was(stop, stat
     captured = capsys.readouterr()
     assert rc == status, captured.err
     assert _tree(tmp_path) == before  # no SSP, no FMU of this run, no staging folder
+    assert "built" not in captured.out  # no line names a file that is not there
     if not existing:
         assert os.listdir(tmp_path) == []
 
