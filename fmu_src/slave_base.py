@@ -444,6 +444,32 @@ class SlaveBase(Fmi2Slave):
 
     def do_step(self, current_time, step_size):
         try:  # (_call written out: this runs once per communication step)
+            # The common step, written out: t at sample k, whose hidden state was computed from
+            # the inputs set at t (the outputs were read), a finite float h > 0 and one sample
+            # instant in [t, t + h), that is ceil((t + h - t_start)/Ts - tol) = k, which for a
+            # float is k - 1 < (t + h - t_start)/Ts - tol <= k (false for nan and inf); and no
+            # pending sample to compute at t + h.  Then _step would only commit sample k: the
+            # same sums and flags here, the same bits.  Everything else (every refusal too)
+            # is _step's.
+            if (self._at_sample and not self._dirty and type(step_size) is float
+                    and 0.0 < step_size < _INF and self._initialised and not self._terminated
+                    and self._pending is not None):
+                s = self._elapsed
+                elapsed = s + step_size  # Neumaier's compensated sum, as in _step
+                comp = self._elapsed_c + (((s - elapsed) + step_size) if abs(s) >= step_size
+                                          else ((step_size - elapsed) + s))
+                position = (elapsed + comp) / self.Ts
+                k = self.k
+                if k - 1 < position - INSTANT_TOLERANCE <= k:
+                    at_sample = k <= position + INSTANT_TOLERANCE
+                    if self._feedthrough or not at_sample:
+                        self._committed = self._pending  # _commit(pending, k + 1, ...)
+                        self.k = k + 1
+                        self._at_sample = at_sample
+                        self._elapsed, self._elapsed_c = elapsed, comp
+                        self._pending = None
+                        self._dirty = True
+                        return True
             self._step(step_size)
         except Exception as exc:
             return self._failed("_step", exc)
