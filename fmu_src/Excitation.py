@@ -54,6 +54,7 @@ class Excitation(SlaveBase):
                    "Gauss-Markov y_k = A y_{k-1} + w_y,k with corr(w_x, w_y) = rho when Qy > 0")
     #: x_{k-1} and y_{k-1}, the excitation before the next sample (x0 and 0 before sample 1).
     HIDDEN = ("_x", "_y")
+    OUTPUTS = ("x", "y", "u")
     default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
@@ -83,7 +84,10 @@ class Excitation(SlaveBase):
     def sample(self, hidden, k, first):
         u = self._u(k)  # (once: x takes it as B u_k, and it is the output u)
         x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
-        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": u}
+        return {"_x": x, "_y": y}, (x, y, u)
+
+    def show(self, outputs):
+        self.x, self.y, self.u = outputs
 
     #: the hidden x is the output x, which the base class checks
     hidden_finite = None
@@ -97,4 +101,4 @@ class Excitation(SlaveBase):
         else:  # the sinusoid needs no history (nor the input)
             u = self._u(k0 + n - 1)
             x, y = self._sample(x, y, k0 + n - 1, u)
-        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": u}
+        return {"_x": x, "_y": y}, (x, y, u)

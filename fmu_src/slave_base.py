@@ -144,9 +144,12 @@ class SlaveBase(Fmi2Slave):
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
     #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
     #: before initialisation).  Slaves provide the hooks ``prepare``, ``initial_hidden``,
-    #: ``sample`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
+    #: ``sample``, ``show`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
     #: ``hidden_problems``; the step rule, the checks and the FMU state are this class's.
     HIDDEN = ()
+    #: Names of the outputs a sample computes, in the order of the tuple ``sample`` returns
+    #: (which may be a prefix of it: outputs a configuration does not compute keep their value).
+    OUTPUTS = ()
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -432,13 +435,23 @@ class SlaveBase(Fmi2Slave):
 
     def _refresh(self):
         """Outputs of the pending sample from the current inputs (feedthrough)."""
-        if self._initialised:
-            pending, outputs = self._samples(self._committed, self.k, 1, True)
+        if self._initialised:  # _samples(self._committed, self.k, 1, True), written out
+            k = self.k
+            try:
+                pending, outputs = self.sample(self._committed, k, True)
+            except _ARITHMETIC as exc:  # (ModelError is neither)
+                self._uncomputable(k, exc)
+            total = sum(outputs)  # not finite if any output is not (or if they overflow)
+            if total - total != 0.0:
+                self._check_outputs(outputs, k)
+            check = self.hidden_finite
+            if check is not None and not check(pending):
+                self._check_hidden(pending, k)
         else:  # Initialization Mode: sample 1 from the start values and inputs
             self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
             pending, outputs = self._samples(self.initial_hidden(), 1, 1, True)
             pending = None
-        self.__dict__.update(outputs)
+        self.show(outputs)
         self._pending = pending
         self._dirty = False
 
@@ -526,7 +539,7 @@ class SlaveBase(Fmi2Slave):
         if hidden is not None:
             self._committed = hidden
         if outputs is not None:
-            self.__dict__.update(outputs)
+            self.show(outputs)
         self.k = k
         self._at_sample = at_sample
         self._elapsed, self._elapsed_c = elapsed, comp
@@ -542,22 +555,34 @@ class SlaveBase(Fmi2Slave):
             else:
                 hidden, outputs = self.hold(hidden, k0, n, first)
         except _ARITHMETIC as exc:  # (ModelError is neither)
-            self._fail("the outputs at sample %d (t = %r s) cannot be computed: %s: %s; "
-                       "allowed: inputs and parameters whose outputs stay finite (nothing was "
-                       "changed)" % (k0 + n - 1, self._sample_time(k0 + n - 1),
-                                     type(exc).__name__, exc))
-        total = sum(outputs.values())  # not finite if any output is not (or if they overflow)
-        if total - total != 0.0:  # then look at each (v - v is 0 for every finite v)
-            for name, value in outputs.items():
-                if not math.isfinite(value):
-                    self._not_finite(name, value, k0 + n - 1)
+            self._uncomputable(k0 + n - 1, exc)
+        total = sum(outputs)  # not finite if any output is not (or if they overflow)
+        if total - total != 0.0:
+            self._check_outputs(outputs, k0 + n - 1)
         check = self.hidden_finite
         if check is not None and not check(hidden):
-            for name, value in hidden.items():
-                for part, v in _numbers(name, value):
-                    if not math.isfinite(v):
-                        self._not_finite("hidden state " + part, v, k0 + n - 1)
+            self._check_hidden(hidden, k0 + n - 1)
         return hidden, outputs
+
+    def _uncomputable(self, k, exc):
+        self._fail("the outputs at sample %d (t = %r s) cannot be computed: %s: %s; "
+                   "allowed: inputs and parameters whose outputs stay finite (nothing was "
+                   "changed)" % (k, self._sample_time(k), type(exc).__name__, exc))
+
+    def _check_outputs(self, outputs, k):
+        """Refuse sample ``k`` if one of ``outputs`` is not finite (the first, in the order of
+        ``OUTPUTS``); called when their sum is not (v - v is 0 for every finite v)."""
+        for name, value in zip(self.OUTPUTS, outputs):
+            if not math.isfinite(value):
+                self._not_finite(name, value, k)
+
+    def _check_hidden(self, hidden, k):
+        """Refuse sample ``k`` for the first non-finite number of ``hidden``; called when
+        ``hidden_finite`` says there is one."""
+        for name, value in hidden.items():
+            for part, v in _numbers(name, value):
+                if not math.isfinite(v):
+                    self._not_finite("hidden state " + part, v, k)
 
     # -- hooks for the slaves ---------------------------------------------------------------
     def prepare(self):
@@ -569,9 +594,16 @@ class SlaveBase(Fmi2Slave):
 
     def sample(self, hidden, k, first):
         """Process sample ``k`` with the current inputs from ``hidden`` (the state after
-        sample ``k - 1``): ``(hidden after k, {output: value})``.  ``first``: the first sample
-        instant of a step (or the pending sample)."""
+        sample ``k - 1``): ``(hidden after k, outputs)``, ``outputs`` a tuple of values in the
+        order of ``OUTPUTS`` (or a prefix of it).  ``first``: the first sample instant of a step
+        (or the pending sample)."""
         raise NotImplementedError
+
+    def show(self, outputs):
+        """Assign ``outputs`` (as ``sample`` returns them, checked finite) to the output
+        variables.  Slaves override this with the same assignment written out (faster)."""
+        for name, value in zip(self.OUTPUTS, outputs):
+            setattr(self, name, value)
 
     def hold(self, hidden, k0, n, first):
         """Process ``n >= 1`` samples from ``k0`` with the inputs held (``first`` applies to

@@ -12,6 +12,7 @@ from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
 from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
+from driftfmu.fmu_src.slave_base import SlaveBase
 from driftfmu.models import chain
 
 OUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
@@ -387,3 +388,19 @@ def test_the_fast_paths_give_the_general_paths_bits_and_refusals(cls, config):
             results = [[repr(v) for v in res] for res in results]  # (nan == nan)
         assert results[0] == results[1], (i, call)
         assert _observed(fast) == _observed(general), (i, call)
+
+
+@pytest.mark.parametrize("cls", [Excitation, Accelerometer, DriftEstimator, DualDriftEstimator])
+def test_show_assigns_the_outputs_in_the_order_of_OUTPUTS(cls):
+    """``OUTPUTS`` names every output variable once, and a slave's ``show`` (written out for
+    speed) assigns a tuple of them, or of a prefix of them, as the base class's does."""
+    declared = [s["name"] for s in cls.VARIABLES if s["causality"] == "output"]
+    assert sorted(cls.OUTPUTS) == sorted(declared) and len(set(cls.OUTPUTS)) == len(declared)
+    shortest = 1 if cls is Accelerometer else len(cls.OUTPUTS)
+    for n in range(shortest, len(cls.OUTPUTS) + 1):
+        mine, base = cls(instance_name="s"), cls(instance_name="s")
+        values = tuple(float(i + 10) for i in range(n))
+        mine.show(values)
+        SlaveBase.show(base, values)
+        assert [getattr(mine, v) for v in declared] == [getattr(base, v) for v in declared]
+        assert [getattr(mine, v) for v in cls.OUTPUTS[:n]] == list(values)
