@@ -73,6 +73,13 @@ class DriftEstimator(SlaveBase):
         self._step_args = (self.a0, self.a1, self.a2, self.R, m["process"], m["A"], m["Q"],
                            m["C"], m["S"], m["Qh"], self.a3, self.a4, m["B"])
         self._predict_args = (m["process"], m["A"], m["Q"], m["C"], m["S"], m["Qh"], m["B"])
+        # the check after each sample (see hidden_finite): the class's for the harmonic model;
+        # none for the Gauss-Markov one, whose numbers all reach the outputs (it would answer
+        # True); the state's kind follows process wherever a sample is computed
+        if self.process == harmonic.HARMONIC:
+            self.__dict__.pop("hidden_finite", None)
+        else:
+            self.hidden_finite = None
 
     def initial_hidden(self):
         return {"_state": harmonic.estimator_init(self.process, self.x0, self.P0)}

@@ -181,6 +181,7 @@ class SlaveBase(Fmi2Slave):
         # value reference -> name of the Real variables and of the Real inputs: the fast path
         # of get_real / set_real, called on every sample (value reference = table index)
         self._real_names = {vr: s["name"] for vr, s in self._specs.items() if s["type"] == "Real"}
+        self._real_refs = frozenset(self._real_names)
         self._real_inputs = {vr: s["name"] for vr, s in self._specs.items()
                              if s["type"] == "Real" and s["causality"] == "input"}
 
@@ -202,31 +203,32 @@ class SlaveBase(Fmi2Slave):
 
     # -- getters ----------------------------------------------------------------------------
     def get_real(self, vrs):
-        names = self._real_names
-        if len(vrs) == 1:  # the per-sample fast path: one value (the same checks, in order)
-            name = names.get(vrs[0])
-            if name is not None:
-                if self._dirty and self._at_sample and (self._in_init or (
-                        self._initialised and self._feedthrough)):
-                    try:  # outputs at this communication point, from its inputs
-                        self._refresh()
-                    except Exception as exc:
-                        self._failed("_refresh", exc)
-                return [float(self.__dict__[name])]
-        try:
-            wanted = [names[vr] for vr in vrs]
-        except KeyError:  # the whole call is refused, and changes nothing
-            self._call(self._fail, "fmi2GetReal: %s" % self._bad_refs(vrs, "Real"))
-            return [float(getattr(self, names[vr])) if vr in names else math.nan
-                    for vr in vrs]
         if self._dirty and self._at_sample and (self._in_init or (
                 self._initialised and self._feedthrough)):
+            if not self._real_refs.issuperset(vrs):  # refused as a whole: nothing computed
+                return self._get_real_refused(vrs)
             try:  # outputs at this communication point, from its inputs
                 self._refresh()
             except Exception as exc:
                 self._failed("_refresh", exc)
-        d = self.__dict__
-        return [float(d[name]) for name in wanted]
+        d, names = self.__dict__, self._real_names
+        if len(vrs) == 1:  # the per-sample fast path: one value
+            name = names.get(vrs[0])
+            if name is not None:
+                return [float(d[name])]
+        else:
+            try:
+                return [float(d[names[vr]]) for vr in vrs]
+            except KeyError:
+                pass
+        return self._get_real_refused(vrs)
+
+    def _get_real_refused(self, vrs):
+        """fmi2GetReal with a value reference that is not a Real variable: logged, the whole
+        call refused; the values of the valid ones, NaN for the others."""
+        names = self._real_names
+        self._call(self._fail, "fmi2GetReal: %s" % self._bad_refs(vrs, "Real"))
+        return [float(getattr(self, names[vr])) if vr in names else math.nan for vr in vrs]
 
     def get_integer(self, vrs):
         return self._get_typed("fmi2GetInteger", "Integer", vrs, 0, int)

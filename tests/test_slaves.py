@@ -404,3 +404,21 @@ def test_show_assigns_the_outputs_in_the_order_of_OUTPUTS(cls):
         SlaveBase.show(base, values)
         assert [getattr(mine, v) for v in declared] == [getattr(base, v) for v in declared]
         assert [getattr(mine, v) for v in cls.OUTPUTS[:n]] == list(values)
+
+
+def test_the_estimators_hidden_check_follows_the_process_model():
+    """DriftEstimator checks its hidden state after a sample only for the harmonic model (whose
+    d, P12, P22 reach no output); prepare picks the check again whenever process may change."""
+    from driftfmu.models import harmonic
+    s = DriftEstimator(instance_name="s")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    assert s.get_real([vr(s, "x_hat")]) == [0.0] and s.hidden_finite is None
+    set_var(s, "process", harmonic.HARMONIC)
+    s.get_real([vr(s, "x_hat")])
+    assert s.hidden_finite.__func__ is DriftEstimator.hidden_finite
+    state = harmonic.estimator_init(harmonic.HARMONIC, 0.0, 1.0)
+    assert s.hidden_finite({"_state": state._replace(P12=math.inf)}) is False
+    set_var(s, "process", harmonic.GAUSS_MARKOV)
+    s.exit_initialization_mode()
+    assert s.hidden_finite is None and "hidden_finite" in s.__dict__
