@@ -65,6 +65,12 @@ class Excitation(SlaveBase):
             problems += self.nyquist_problems("fu")
         return problems
 
+    def prepare(self):
+        # the Gaussian sample's arguments laid out once (the parameters are fixed after
+        # initialisation; prepare runs again whenever they may have changed)
+        self._gaussian = self.kind == excitation.GAUSSIAN
+        self._pair = (self.A, self.Q, self.Qy, self.rho, self.seed)
+
     def _u(self, k):
         if self.drive == excitation.DRIVE_OFF:  # from the host (0 unless it sets u_in)
             return self.u_in
@@ -83,7 +89,12 @@ class Excitation(SlaveBase):
 
     def sample(self, hidden, k, first):
         u = self._u(k)  # (once: x takes it as B u_k, and it is the output u)
-        x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
+        if self._gaussian:  # (_sample, written out)
+            A, Q, Qy, rho, seed = self._pair
+            x, y = excitation.gaussian_pair(hidden["_x"], hidden["_y"], A, Q, Qy, rho, seed, k,
+                                            self.B, u)
+        else:
+            x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
         return {"_x": x, "_y": y}, (x, y, u)
 
     def show(self, outputs):

@@ -208,7 +208,23 @@ class SlaveBase(Fmi2Slave):
             if not self._real_refs.issuperset(vrs):  # refused as a whole: nothing computed
                 return self._get_real_refused(vrs)
             try:  # outputs at this communication point, from its inputs
-                self._refresh()
+                if self._initialised:  # (_samples(self._committed, self.k, 1, True), written out)
+                    k = self.k
+                    try:
+                        pending, outputs = self.sample(self._committed, k, True)
+                    except _ARITHMETIC as exc:  # (ModelError is neither)
+                        self._uncomputable(k, exc)
+                    total = sum(outputs)  # not finite if any output is not (or they overflow)
+                    if total - total != 0.0:
+                        self._check_outputs(outputs, k)
+                    check = self.hidden_finite
+                    if check is not None and not check(pending):
+                        self._check_hidden(pending, k)
+                    self.show(outputs)
+                    self._pending = pending
+                    self._dirty = False
+                else:
+                    self._refresh_in_init()
             except Exception as exc:
                 self._failed("_refresh", exc)
         d, names = self.__dict__, self._real_names
@@ -435,26 +451,13 @@ class SlaveBase(Fmi2Slave):
             pending, outputs = self._samples(hidden, 1, 1, True)
         self._commit(hidden, 1, True, 0.0, 0.0, outputs, pending)
 
-    def _refresh(self):
-        """Outputs of the pending sample from the current inputs (feedthrough)."""
-        if self._initialised:  # _samples(self._committed, self.k, 1, True), written out
-            k = self.k
-            try:
-                pending, outputs = self.sample(self._committed, k, True)
-            except _ARITHMETIC as exc:  # (ModelError is neither)
-                self._uncomputable(k, exc)
-            total = sum(outputs)  # not finite if any output is not (or if they overflow)
-            if total - total != 0.0:
-                self._check_outputs(outputs, k)
-            check = self.hidden_finite
-            if check is not None and not check(pending):
-                self._check_hidden(pending, k)
-        else:  # Initialization Mode: sample 1 from the start values and inputs
-            self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
-            pending, outputs = self._samples(self.initial_hidden(), 1, 1, True)
-            pending = None
+    def _refresh_in_init(self):
+        """Outputs in Initialization Mode: sample 1 from the start values and inputs (after
+        it, fmi2GetReal computes the outputs of the pending sample itself)."""
+        self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
+        _, outputs = self._samples(self.initial_hidden(), 1, 1, True)
         self.show(outputs)
-        self._pending = pending
+        self._pending = None
         self._dirty = False
 
     def do_step(self, current_time, step_size):
@@ -471,7 +474,8 @@ class SlaveBase(Fmi2Slave):
                     and self._pending is not None):
                 s = self._elapsed
                 elapsed = s + step_size  # Neumaier's compensated sum, as in _step
-                comp = self._elapsed_c + (((s - elapsed) + step_size) if abs(s) >= step_size
+                # (s = t - t_start >= 0 always, so abs(s) is s)
+                comp = self._elapsed_c + (((s - elapsed) + step_size) if s >= step_size
                                           else ((step_size - elapsed) + s))
                 position = (elapsed + comp) / self.Ts
                 k = self.k
