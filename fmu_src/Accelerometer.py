@@ -54,6 +54,8 @@ class Accelerometer(SlaveBase):
                    "z_y = a0y + a1y y + a2y y^2 + by x y + v_y")
     #: Output filter states after the last sample (None before the first), per axis.
     HIDDEN = ("_lp", "_lpy")
+    #: (z alone while the second axis is off: z_y keeps its value)
+    OUTPUTS = ("z", "z_y")
     default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
@@ -93,16 +95,22 @@ class Accelerometer(SlaveBase):
         v = (adxl203.noise(self.seed, k, 1), adxl203.noise(self.seed, k, 2)) if self.noise \
             else (0.0, 0.0)
         z, z_y = dualaxis.measure(self.x, self.y, *self._axes, *v)
-        return {"_lp": None, "_lpy": None}, {"z": z, "z_y": z_y}
+        return {"_lp": None, "_lpy": None}, (z, z_y)
 
     def sample(self, hidden, k, first):
         if self.dual:
             return self._dual(k)
         lp, z = self._axis(hidden["_lp"], self.x, self.y, k, 1, "z")
         if self.axes != 2:
-            return {"_lp": lp, "_lpy": None}, {"z": z}
+            return {"_lp": lp, "_lpy": None}, (z,)
         lpy, z_y = self._axis(hidden["_lpy"], self.y, self.x, k, 2, "z_y")
-        return {"_lp": lp, "_lpy": lpy}, {"z": z, "z_y": z_y}
+        return {"_lp": lp, "_lpy": lpy}, (z, z_y)
+
+    def show(self, outputs):
+        if len(outputs) == 1:
+            self.z = outputs[0]
+        else:
+            self.z, self.z_y = outputs
 
     #: the filter state e of an axis reaches its output z = Q(a0 + e): a non-finite e makes z
     #: non-finite, or the ADC raises, both refused by the base class

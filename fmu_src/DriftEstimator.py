@@ -53,6 +53,7 @@ class DriftEstimator(SlaveBase):
                    "measurement, further instants in the same step are predict-only")
     #: The filter and drift-estimator state after the last sample (x0, P0 before the first).
     HIDDEN = ("_state",)
+    OUTPUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp")
     default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
@@ -72,6 +73,13 @@ class DriftEstimator(SlaveBase):
         self._step_args = (self.a0, self.a1, self.a2, self.R, m["process"], m["A"], m["Q"],
                            m["C"], m["S"], m["Qh"], self.a3, self.a4, m["B"])
         self._predict_args = (m["process"], m["A"], m["Q"], m["C"], m["S"], m["Qh"], m["B"])
+        # the check after each sample (see hidden_finite): the class's for the harmonic model;
+        # none for the Gauss-Markov one, whose numbers all reach the outputs (it would answer
+        # True); the state's kind follows process wherever a sample is computed
+        if self.process == harmonic.HARMONIC:
+            self.__dict__.pop("hidden_finite", None)
+        else:
+            self.hidden_finite = None
 
     def initial_hidden(self):
         return {"_state": harmonic.estimator_init(self.process, self.x0, self.P0)}
@@ -79,8 +87,11 @@ class DriftEstimator(SlaveBase):
     def _outputs(self, state):
         dcs = drift.estimates(state.drift, self.a2, self.a3, self.a4)
         dc = drift.select(dcs, self.estimator)
-        return {"x_hat": state.x, "P": state.P, "dc_ekf1": dcs[0], "dc_ekf2": dcs[1],
-                "dc_ekf3": dcs[2], "dc": dc, "z_comp": chain.compensate(self.z, dc)}
+        return state.x, state.P, dcs[0], dcs[1], dcs[2], dc, chain.compensate(self.z, dc)
+
+    def show(self, outputs):
+        (self.x_hat, self.P, self.dc_ekf1, self.dc_ekf2, self.dc_ekf3, self.dc,
+         self.z_comp) = outputs
 
     def sample(self, hidden, k, first):
         state = hidden["_state"]

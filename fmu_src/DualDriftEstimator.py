@@ -77,6 +77,7 @@ class DualDriftEstimator(SlaveBase):
     #: The filter and drift-estimator state after the last sample (x0, y0, P0, P0y before the
     #: first).
     HIDDEN = ("_state",)
+    OUTPUTS = OUTPUTS
     default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
@@ -98,11 +99,13 @@ class DualDriftEstimator(SlaveBase):
         x_hat, y_hat, P_xx, P_xy, P_yy = dualaxis.moments(state)
         dx, dy = dualaxis.estimates(state.drift, *self._axes)
         dc_x, dc_y = drift.select(dx, self.estimator), drift.select(dy, self.estimator)
-        return {"x_hat": x_hat, "y_hat": y_hat, "P_xx": P_xx, "P_xy": P_xy, "P_yy": P_yy,
-                "dc_ekf1_x": dx[0], "dc_ekf2_x": dx[1], "dc_ekf3_x": dx[2],
-                "dc_ekf1_y": dy[0], "dc_ekf2_y": dy[1], "dc_ekf3_y": dy[2],
-                "dc_x": dc_x, "dc_y": dc_y, "z_comp_x": chain.compensate(self.z_x, dc_x),
-                "z_comp_y": chain.compensate(self.z_y, dc_y)}
+        return (x_hat, y_hat, P_xx, P_xy, P_yy, dx[0], dx[1], dx[2], dy[0], dy[1], dy[2],
+                dc_x, dc_y, chain.compensate(self.z_x, dc_x), chain.compensate(self.z_y, dc_y))
+
+    def show(self, outputs):
+        (self.x_hat, self.y_hat, self.P_xx, self.P_xy, self.P_yy, self.dc_ekf1_x,
+         self.dc_ekf2_x, self.dc_ekf3_x, self.dc_ekf1_y, self.dc_ekf2_y, self.dc_ekf3_y,
+         self.dc_x, self.dc_y, self.z_comp_x, self.z_comp_y) = outputs
 
     def sample(self, hidden, k, first):
         state = hidden["_state"]

@@ -54,6 +54,7 @@ class Excitation(SlaveBase):
                    "Gauss-Markov y_k = A y_{k-1} + w_y,k with corr(w_x, w_y) = rho when Qy > 0")
     #: x_{k-1} and y_{k-1}, the excitation before the next sample (x0 and 0 before sample 1).
     HIDDEN = ("_x", "_y")
+    OUTPUTS = ("x", "y", "u")
     default_experiment = DEFAULT_EXPERIMENT
 
     def check_parameters(self):
@@ -63,6 +64,12 @@ class Excitation(SlaveBase):
         if self.drive == excitation.SINUSOIDAL:
             problems += self.nyquist_problems("fu")
         return problems
+
+    def prepare(self):
+        # the Gaussian sample's arguments laid out once (the parameters are fixed after
+        # initialisation; prepare runs again whenever they may have changed)
+        self._gaussian = self.kind == excitation.GAUSSIAN
+        self._pair = (self.A, self.Q, self.Qy, self.rho, self.seed)
 
     def _u(self, k):
         if self.drive == excitation.DRIVE_OFF:  # from the host (0 unless it sets u_in)
@@ -82,8 +89,16 @@ class Excitation(SlaveBase):
 
     def sample(self, hidden, k, first):
         u = self._u(k)  # (once: x takes it as B u_k, and it is the output u)
-        x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
-        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": u}
+        if self._gaussian:  # (_sample, written out)
+            A, Q, Qy, rho, seed = self._pair
+            x, y = excitation.gaussian_pair(hidden["_x"], hidden["_y"], A, Q, Qy, rho, seed, k,
+                                            self.B, u)
+        else:
+            x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
+        return {"_x": x, "_y": y}, (x, y, u)
+
+    def show(self, outputs):
+        self.x, self.y, self.u = outputs
 
     #: the hidden x is the output x, which the base class checks
     hidden_finite = None
@@ -97,4 +112,4 @@ class Excitation(SlaveBase):
         else:  # the sinusoid needs no history (nor the input)
             u = self._u(k0 + n - 1)
             x, y = self._sample(x, y, k0 + n - 1, u)
-        return {"_x": x, "_y": y}, {"x": x, "y": y, "u": u}
+        return {"_x": x, "_y": y}, (x, y, u)

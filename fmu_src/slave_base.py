@@ -144,9 +144,12 @@ class SlaveBase(Fmi2Slave):
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
     #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
     #: before initialisation).  Slaves provide the hooks ``prepare``, ``initial_hidden``,
-    #: ``sample`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
+    #: ``sample``, ``show`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
     #: ``hidden_problems``; the step rule, the checks and the FMU state are this class's.
     HIDDEN = ()
+    #: Names of the outputs a sample computes, in the order of the tuple ``sample`` returns
+    #: (which may be a prefix of it: outputs a configuration does not compute keep their value).
+    OUTPUTS = ()
 
     def __init__(self, **kwargs):
         super().__init__(**kwargs)
@@ -178,6 +181,7 @@ class SlaveBase(Fmi2Slave):
         # value reference -> name of the Real variables and of the Real inputs: the fast path
         # of get_real / set_real, called on every sample (value reference = table index)
         self._real_names = {vr: s["name"] for vr, s in self._specs.items() if s["type"] == "Real"}
+        self._real_refs = frozenset(self._real_names)
         self._real_inputs = {vr: s["name"] for vr, s in self._specs.items()
                              if s["type"] == "Real" and s["causality"] == "input"}
 
@@ -199,31 +203,48 @@ class SlaveBase(Fmi2Slave):
 
     # -- getters ----------------------------------------------------------------------------
     def get_real(self, vrs):
-        names = self._real_names
-        if len(vrs) == 1:  # the per-sample fast path: one value (the same checks, in order)
-            name = names.get(vrs[0])
-            if name is not None:
-                if self._dirty and self._at_sample and (self._in_init or (
-                        self._initialised and self._feedthrough)):
-                    try:  # outputs at this communication point, from its inputs
-                        self._refresh()
-                    except Exception as exc:
-                        self._failed("_refresh", exc)
-                return [float(self.__dict__[name])]
-        try:
-            wanted = [names[vr] for vr in vrs]
-        except KeyError:  # the whole call is refused, and changes nothing
-            self._call(self._fail, "fmi2GetReal: %s" % self._bad_refs(vrs, "Real"))
-            return [float(getattr(self, names[vr])) if vr in names else math.nan
-                    for vr in vrs]
         if self._dirty and self._at_sample and (self._in_init or (
                 self._initialised and self._feedthrough)):
+            if not self._real_refs.issuperset(vrs):  # refused as a whole: nothing computed
+                return self._get_real_refused(vrs)
             try:  # outputs at this communication point, from its inputs
-                self._refresh()
+                if self._initialised:  # (_samples(self._committed, self.k, 1, True), written out)
+                    k = self.k
+                    try:
+                        pending, outputs = self.sample(self._committed, k, True)
+                    except _ARITHMETIC as exc:  # (ModelError is neither)
+                        self._uncomputable(k, exc)
+                    total = sum(outputs)  # not finite if any output is not (or they overflow)
+                    if total - total != 0.0:
+                        self._check_outputs(outputs, k)
+                    check = self.hidden_finite
+                    if check is not None and not check(pending):
+                        self._check_hidden(pending, k)
+                    self.show(outputs)
+                    self._pending = pending
+                    self._dirty = False
+                else:
+                    self._refresh_in_init()
             except Exception as exc:
                 self._failed("_refresh", exc)
-        d = self.__dict__
-        return [float(d[name]) for name in wanted]
+        d, names = self.__dict__, self._real_names
+        if len(vrs) == 1:  # the per-sample fast path: one value
+            name = names.get(vrs[0])
+            if name is not None:
+                return [float(d[name])]
+        else:
+            try:
+                return [float(d[names[vr]]) for vr in vrs]
+            except KeyError:
+                pass
+        return self._get_real_refused(vrs)
+
+    def _get_real_refused(self, vrs):
+        """fmi2GetReal with a value reference that is not a Real variable: logged, the whole
+        call refused; the values of the valid ones, NaN for the others."""
+        names = self._real_names
+        self._call(self._fail, "fmi2GetReal: %s" % self._bad_refs(vrs, "Real"))
+        return [float(getattr(self, names[vr])) if vr in names else math.nan for vr in vrs]
 
     def get_integer(self, vrs):
         return self._get_typed("fmi2GetInteger", "Integer", vrs, 0, int)
@@ -430,20 +451,44 @@ class SlaveBase(Fmi2Slave):
             pending, outputs = self._samples(hidden, 1, 1, True)
         self._commit(hidden, 1, True, 0.0, 0.0, outputs, pending)
 
-    def _refresh(self):
-        """Outputs of the pending sample from the current inputs (feedthrough)."""
-        if self._initialised:
-            pending, outputs = self._samples(self._committed, self.k, 1, True)
-        else:  # Initialization Mode: sample 1 from the start values and inputs
-            self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
-            pending, outputs = self._samples(self.initial_hidden(), 1, 1, True)
-            pending = None
-        self.__dict__.update(outputs)
-        self._pending = pending
+    def _refresh_in_init(self):
+        """Outputs in Initialization Mode: sample 1 from the start values and inputs (after
+        it, fmi2GetReal computes the outputs of the pending sample itself)."""
+        self._check_and_prepare("cannot compute the outputs in Initialization Mode: ")
+        _, outputs = self._samples(self.initial_hidden(), 1, 1, True)
+        self.show(outputs)
+        self._pending = None
         self._dirty = False
 
     def do_step(self, current_time, step_size):
         try:  # (_call written out: this runs once per communication step)
+            # The common step, written out: t at sample k, whose hidden state was computed from
+            # the inputs set at t (the outputs were read), a finite float h > 0 and one sample
+            # instant in [t, t + h), that is ceil((t + h - t_start)/Ts - tol) = k, which for a
+            # float is k - 1 < (t + h - t_start)/Ts - tol <= k (false for nan and inf); and no
+            # pending sample to compute at t + h.  Then _step would only commit sample k: the
+            # same sums and flags here, the same bits.  Everything else (every refusal too)
+            # is _step's.
+            if (self._at_sample and not self._dirty and type(step_size) is float
+                    and 0.0 < step_size < _INF and self._initialised and not self._terminated
+                    and self._pending is not None):
+                s = self._elapsed
+                elapsed = s + step_size  # Neumaier's compensated sum, as in _step
+                # (s = t - t_start >= 0 always, so abs(s) is s)
+                comp = self._elapsed_c + (((s - elapsed) + step_size) if s >= step_size
+                                          else ((step_size - elapsed) + s))
+                position = (elapsed + comp) / self.Ts
+                k = self.k
+                if k - 1 < position - INSTANT_TOLERANCE <= k:
+                    at_sample = k <= position + INSTANT_TOLERANCE
+                    if self._feedthrough or not at_sample:
+                        self._committed = self._pending  # _commit(pending, k + 1, ...)
+                        self.k = k + 1
+                        self._at_sample = at_sample
+                        self._elapsed, self._elapsed_c = elapsed, comp
+                        self._pending = None
+                        self._dirty = True
+                        return True
             self._step(step_size)
         except Exception as exc:
             return self._failed("_step", exc)
@@ -500,7 +545,7 @@ class SlaveBase(Fmi2Slave):
         if hidden is not None:
             self._committed = hidden
         if outputs is not None:
-            self.__dict__.update(outputs)
+            self.show(outputs)
         self.k = k
         self._at_sample = at_sample
         self._elapsed, self._elapsed_c = elapsed, comp
@@ -516,22 +561,34 @@ class SlaveBase(Fmi2Slave):
             else:
                 hidden, outputs = self.hold(hidden, k0, n, first)
         except _ARITHMETIC as exc:  # (ModelError is neither)
-            self._fail("the outputs at sample %d (t = %r s) cannot be computed: %s: %s; "
-                       "allowed: inputs and parameters whose outputs stay finite (nothing was "
-                       "changed)" % (k0 + n - 1, self._sample_time(k0 + n - 1),
-                                     type(exc).__name__, exc))
-        total = sum(outputs.values())  # not finite if any output is not (or if they overflow)
-        if total - total != 0.0:  # then look at each (v - v is 0 for every finite v)
-            for name, value in outputs.items():
-                if not math.isfinite(value):
-                    self._not_finite(name, value, k0 + n - 1)
+            self._uncomputable(k0 + n - 1, exc)
+        total = sum(outputs)  # not finite if any output is not (or if they overflow)
+        if total - total != 0.0:
+            self._check_outputs(outputs, k0 + n - 1)
         check = self.hidden_finite
         if check is not None and not check(hidden):
-            for name, value in hidden.items():
-                for part, v in _numbers(name, value):
-                    if not math.isfinite(v):
-                        self._not_finite("hidden state " + part, v, k0 + n - 1)
+            self._check_hidden(hidden, k0 + n - 1)
         return hidden, outputs
+
+    def _uncomputable(self, k, exc):
+        self._fail("the outputs at sample %d (t = %r s) cannot be computed: %s: %s; "
+                   "allowed: inputs and parameters whose outputs stay finite (nothing was "
+                   "changed)" % (k, self._sample_time(k), type(exc).__name__, exc))
+
+    def _check_outputs(self, outputs, k):
+        """Refuse sample ``k`` if one of ``outputs`` is not finite (the first, in the order of
+        ``OUTPUTS``); called when their sum is not (v - v is 0 for every finite v)."""
+        for name, value in zip(self.OUTPUTS, outputs):
+            if not math.isfinite(value):
+                self._not_finite(name, value, k)
+
+    def _check_hidden(self, hidden, k):
+        """Refuse sample ``k`` for the first non-finite number of ``hidden``; called when
+        ``hidden_finite`` says there is one."""
+        for name, value in hidden.items():
+            for part, v in _numbers(name, value):
+                if not math.isfinite(v):
+                    self._not_finite("hidden state " + part, v, k)
 
     # -- hooks for the slaves ---------------------------------------------------------------
     def prepare(self):
@@ -543,9 +600,16 @@ class SlaveBase(Fmi2Slave):
 
     def sample(self, hidden, k, first):
         """Process sample ``k`` with the current inputs from ``hidden`` (the state after
-        sample ``k - 1``): ``(hidden after k, {output: value})``.  ``first``: the first sample
-        instant of a step (or the pending sample)."""
+        sample ``k - 1``): ``(hidden after k, outputs)``, ``outputs`` a tuple of values in the
+        order of ``OUTPUTS`` (or a prefix of it).  ``first``: the first sample instant of a step
+        (or the pending sample)."""
         raise NotImplementedError
+
+    def show(self, outputs):
+        """Assign ``outputs`` (as ``sample`` returns them, checked finite) to the output
+        variables.  Slaves override this with the same assignment written out (faster)."""
+        for name, value in zip(self.OUTPUTS, outputs):
+            setattr(self, name, value)
 
     def hold(self, hidden, k0, n, first):
         """Process ``n >= 1`` samples from ``k0`` with the inputs held (``first`` applies to

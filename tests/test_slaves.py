@@ -12,6 +12,7 @@ from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
 from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
+from driftfmu.fmu_src.slave_base import SlaveBase
 from driftfmu.models import chain
 
 OUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
@@ -304,3 +305,120 @@ def test_output_cannot_be_set(make):
     c = Chain(make=make)
     set_var(c.a, "z", 1.0)
     assert "z is an output; only parameters and inputs can be set" in messages(c.a)[0]
+
+
+def _general_path(cls):
+    """``cls`` with the do_step of before its common-step fast path: every step through
+    ``_step`` (same class name and module, so the same GUID and FMU state)."""
+    def do_step(self, current_time, step_size):
+        try:
+            self._step(step_size)
+        except Exception as exc:
+            return self._failed("_step", exc)
+        return True
+    return type(cls.__name__, (cls,), {"do_step": do_step, "__module__": cls.__module__})
+
+
+#: Configurations the fast paths must agree with the general ones in (parameters set in
+#: Initialization Mode): the defaults and each branch of a slave's sample.
+PATH_CONFIGS = [
+    (Excitation, {}), (Excitation, {"drive": 1, "Qu": 0.5, "B": 0.3, "Qy": 0.01, "rho": 0.5}),
+    (Excitation, {"kind": 2, "drive": 0}),
+    (Accelerometer, {}), (Accelerometer, {"fc": 100.0, "axes": 2, "a3": 0.01}),
+    (Accelerometer, {"dual": 1}), (Accelerometer, {"noise": 0}),
+    (DriftEstimator, {}), (DriftEstimator, {"process": 2, "estimator": 3, "a3": 0.01}),
+    (DriftEstimator, {"B": 0.5, "a4": 0.001, "estimator": 2}),
+    (DualDriftEstimator, {}), (DualDriftEstimator, {"process": 2}),
+]
+
+
+def _observed(s):
+    """Everything a call may change: the FMU state, the pending sample, the flags."""
+    return json.dumps(s._get_fmu_state()), repr(s._pending), s._dirty, messages(s)
+
+
+@pytest.mark.parametrize("cls,config", PATH_CONFIGS,
+                         ids=["%s-%d" % (c.__name__, i) for i, (c, _) in enumerate(PATH_CONFIGS)])
+def test_the_fast_paths_give_the_general_paths_bits_and_refusals(cls, config):
+    """A slave and the same slave through the general paths only (every step by ``_step``)
+    driven by the same random calls (steps of whole, near-whole, fractional and bad sizes;
+    inputs finite, overflowing or not finite; reads; states) agree after every call, in the
+    results, the FMU state, the pending sample and the log lines."""
+    import random
+    import zlib
+    rng = random.Random(zlib.crc32(repr((cls.__name__, sorted(config.items()))).encode()))
+    fast, general = cls(instance_name="s"), _general_path(cls)(instance_name="s")
+    pair = (fast, general)
+    reals = {s["name"]: vr_ for vr_, s in fast._specs.items() if s["type"] == "Real"}
+    inputs = [vr_ for vr_, s in fast._specs.items() if s["causality"] == "input"]
+    ints = {s["name"]: vr_ for vr_, s in fast._specs.items() if s["type"] == "Integer"}
+    Ts = fast.Ts
+    steps = [Ts] * 12 + [Ts * (1 + 5e-7), Ts * (1 - 5e-7), Ts * (1 + 3e-6), 0.3 * Ts,
+                         0.7 * Ts, 2 * Ts, 2.5 * Ts, 1e-9 * Ts, 1, math.nan, math.inf, -Ts, 0.0]
+    values = [lambda: rng.gauss(0.0, 1.0)] * 6 + [lambda: 1e200, lambda: -1e300,
+                                                   lambda: math.nan, lambda: math.inf]
+    for s in pair:
+        s.setup_experiment(0.0)
+        s.enter_initialization_mode()
+        for name, value in config.items():
+            (s.set_integer if name in ints else s.set_real)(
+                [(ints if name in ints else reals)[name]], [value])
+        s.exit_initialization_mode()
+    assert _observed(fast) == _observed(general)
+    saved = None
+    for i in range(1500):
+        r = rng.random()
+        if r < 0.35:
+            h = rng.choice(steps)
+            call = ("do_step", 0.0, h)
+        elif r < 0.6:
+            vrs = rng.sample(inputs, rng.randint(1, len(inputs)))
+            call = ("set_real", vrs, [rng.choice(values)() for _ in vrs])
+        elif r < 0.9:
+            call = ("get_real", rng.sample(sorted(reals.values()), rng.randint(1, 3)))
+        elif r < 0.94 or saved is None:
+            saved = fast._get_fmu_state()
+            call = ("_get_fmu_state",)
+        elif r < 0.985:
+            call = ("_set_fmu_state", json.loads(json.dumps(saved)))
+        else:
+            call = ("terminate",)
+        results = [getattr(s, call[0])(*call[1:]) for s in pair]
+        if call[0] == "get_real":
+            results = [[repr(v) for v in res] for res in results]  # (nan == nan)
+        assert results[0] == results[1], (i, call)
+        assert _observed(fast) == _observed(general), (i, call)
+
+
+@pytest.mark.parametrize("cls", [Excitation, Accelerometer, DriftEstimator, DualDriftEstimator])
+def test_show_assigns_the_outputs_in_the_order_of_OUTPUTS(cls):
+    """``OUTPUTS`` names every output variable once, and a slave's ``show`` (written out for
+    speed) assigns a tuple of them, or of a prefix of them, as the base class's does."""
+    declared = [s["name"] for s in cls.VARIABLES if s["causality"] == "output"]
+    assert sorted(cls.OUTPUTS) == sorted(declared) and len(set(cls.OUTPUTS)) == len(declared)
+    shortest = 1 if cls is Accelerometer else len(cls.OUTPUTS)
+    for n in range(shortest, len(cls.OUTPUTS) + 1):
+        mine, base = cls(instance_name="s"), cls(instance_name="s")
+        values = tuple(float(i + 10) for i in range(n))
+        mine.show(values)
+        SlaveBase.show(base, values)
+        assert [getattr(mine, v) for v in declared] == [getattr(base, v) for v in declared]
+        assert [getattr(mine, v) for v in cls.OUTPUTS[:n]] == list(values)
+
+
+def test_the_estimators_hidden_check_follows_the_process_model():
+    """DriftEstimator checks its hidden state after a sample only for the harmonic model (whose
+    d, P12, P22 reach no output); prepare picks the check again whenever process may change."""
+    from driftfmu.models import harmonic
+    s = DriftEstimator(instance_name="s")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    assert s.get_real([vr(s, "x_hat")]) == [0.0] and s.hidden_finite is None
+    set_var(s, "process", harmonic.HARMONIC)
+    s.get_real([vr(s, "x_hat")])
+    assert s.hidden_finite.__func__ is DriftEstimator.hidden_finite
+    state = harmonic.estimator_init(harmonic.HARMONIC, 0.0, 1.0)
+    assert s.hidden_finite({"_state": state._replace(P12=math.inf)}) is False
+    set_var(s, "process", harmonic.GAUSS_MARKOV)
+    s.exit_initialization_mode()
+    assert s.hidden_finite is None and "hidden_finite" in s.__dict__
