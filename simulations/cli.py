@@ -542,7 +542,9 @@ def end_process(status, join_threads=True):
     import threading
     shutdown = getattr(threading, "_shutdown", None)  # noqa: SLF001 (the interpreter's join)
     if join_threads:
-        if shutdown is None:  # an interpreter without it: its own exit
+        # an interpreter without the join, or a profiler or debugger that reports after the
+        # program (python -m cProfile -m driftfmu ...): the interpreter's own exit
+        if shutdown is None or sys.getprofile() is not None or sys.gettrace() is not None:
             sys.exit(status)
         shutdown()
     atexit._run_exitfuncs()  # noqa: SLF001 (what the interpreter's exit would run)

@@ -336,6 +336,29 @@ def caption(fig, text, width=95):
     fig.suptitle("\n".join(textwrap.wrap(text, width)), fontsize=10.5)
 
 
+#: Digits and minus as Unicode superscripts.
+_SUPERSCRIPT = str.maketrans("-0123456789", "\u207b\u2070\u00b9\u00b2\u00b3\u2074\u2075"
+                                            "\u2076\u2077\u2078\u2079")
+
+
+def decade_label(value, pos=None):
+    """A log axis' tick label: ``10⁻³`` at a power of ten (Unicode superscripts: the same
+    look as matplotlib's default, without its mathtext, whose parsing was a quarter of a
+    sweep figure's drawing time), ``%g`` elsewhere."""
+    import math
+    if value > 0.0:
+        e = round(math.log10(value))
+        if abs(math.log10(value) - e) < 1e-9:
+            return "10" + str(int(e)).translate(_SUPERSCRIPT)
+    return "%g" % value
+
+
+def decade_labels(axis):
+    """:func:`decade_label` for the major ticks of ``axis`` (``ax.xaxis`` or ``ax.yaxis``)."""
+    from matplotlib.ticker import FuncFormatter
+    axis.set_major_formatter(FuncFormatter(decade_label))
+
+
 def log_sample_axis(ax):
     """A log x axis of sample numbers with plain tick labels (1, 10, 100, 1000)."""
     from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter

@@ -305,6 +305,9 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
             ax.set_ylim(*ylim)
         ax.grid(True, which="major", alpha=0.3)
         ax.minorticks_off()  # log-axis minor ticks are most of the drawing time
+        output.decade_labels(ax.yaxis)
+        if xscale == "log":
+            output.decade_labels(ax.xaxis)
     axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)
     output.caption(fig, "Fig. %s of the letter%s: mean absolute error of %s over a grid of %s "
                    "and R (%s); the y axes are those of Fig. %s, to compare EKF1 with EKF3"

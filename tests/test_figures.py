@@ -185,6 +185,19 @@ def test_fig2_fig3_png(figures, tmp_path, monkeypatch):
                 values = [getattr(c, attr)() for c in curves]
                 assert len({str(v) for v in values}) == len(values), (attr, values)
             assert all(c.get_markerfacecolor() == "none" for c in curves)
+    # log axes labelled at the decades with superscripts (not mathtext, which cost a quarter
+    # of the drawing): 10⁻³ 10⁻² 10⁻¹ along a2
+    for fig in figures:
+        for ax in fig.axes:
+            labels = [t.get_text() for t in ax.get_xticklabels() if t.get_text()]
+            assert {"10\u207b\u00b3", "10\u207b\u00b2", "10\u207b\u00b9"} <= set(labels), labels
+            assert not any("$" in t.get_text() for t in ax.get_yticklabels())
+
+
+def test_decade_labels():
+    assert [output.decade_label(v) for v in (1e-3, 1e-12, 1.0, 10.0, 1e5)] == [
+        "10\u207b\u00b3", "10\u207b\u00b9\u00b2", "10\u2070", "10\u00b9", "10\u2075"]
+    assert [output.decade_label(v) for v in (2e-3, 0.5, 0.0)] == ["0.002", "0.5", "0"]
 
 
 def _per(freqs, held_out=3):

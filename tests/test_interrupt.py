@@ -122,3 +122,14 @@ def test_the_command_ends_as_the_interpreter_would_without_its_teardown(interrup
     want = "buffered, no newline; %sexit handler ran\n" % ("" if interrupted else
                                                            "thread ended\n")
     assert p.stdout == want
+
+
+def test_a_profiled_command_still_reports_after_it_ends(tmp_path):
+    # python -m cProfile -m driftfmu ...: the profiler prints when the program returns, which
+    # os._exit would skip; with a profiler (or a tracer) the command exits through sys.exit
+    p = subprocess.run([sys.executable, "-m", "cProfile", "-m", "driftfmu", "sweep", "--runs",
+                        "2", "--n", "10", "--a2", "0.01", "--R", "1e-4", "--out", "s"],
+                       capture_output=True, text=True, timeout=120, cwd=tmp_path,
+                       env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert p.returncode == 0, p.stderr
+    assert "wrote" in p.stdout and "function calls" in p.stdout
