@@ -198,15 +198,13 @@ def _least_squares(columns, y):
     return coef, gram_inv
 
 
-def _products(matrix, vector):
-    """``matrix @ vector`` for lists (rows of Python floats or arrays) in a fixed order."""
-    out = []
-    for row in matrix:
-        acc = 0.0
-        for m, v in zip(row, vector):
-            acc = acc + m * v
-        out.append(acc)
-    return out
+def _dot(u, v):
+    """``sum(u[i] * v[i])`` added left to right (Python floats, or arrays element by element):
+    the fixed order of a BLAS-free product."""
+    acc = 0.0
+    for a, b in zip(u, v):
+        acc = acc + a * b
+    return acc
 
 
 def resolvable_order(f, Ts):
@@ -281,7 +279,7 @@ def fit_set(t, x, z, f, skip=0, order=2):
     coef, gram_inv = _least_squares(B, z)
     c0, al1, be1, al2, be2 = coef[:5]
     lag = math.atan2(-be1, al1)
-    resid = z - _products([B], coef)[0]  # z - B c, column by column
+    resid = z - _dot(B, coef)  # z - B c, column by column
     R = float(np.sum(resid * resid)) / max(1, m - len(B))
     a3 = a4 = 0.0
     if order == 2:  # the 2nd-order fit, written as it always was (same bits)
@@ -289,13 +287,13 @@ def fit_set(t, x, z, f, skip=0, order=2):
         a2 = -2.0 / (X * X) * (be2 * math.cos(2 * lag) + al2 * math.sin(2 * lag))
         a0 = c0 - a2 * X * X / 2.0
     M = [[float(v) for v in row] for row in _coefficient_map(order, X, lag)]
-    a = _products(M, coef)
+    a = [_dot(row, coef) for row in M]
     if order > 2:
         a0, a1, a2, a3 = (float(v) for v in a[:4])
         if order == 4:
             a4 = float(a[4])
     # standard errors: the diagonal of R M (B^T B)^-1 M^T
-    var = [R * _products([row], _products(gram_inv, row))[0] for row in M]
+    var = [R * _dot(row, [_dot(g, row) for g in gram_inv]) for row in M]
     se = {"a%d" % i: float(math.sqrt(max(var[i], 0.0))) for i in range(order + 1)}
     if text is not None:
         # the part of x the sinusoid misses reaches z through a1 and is counted as noise

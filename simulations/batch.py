@@ -170,8 +170,8 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         P0 = default_P0(fA, fQ)
     lib = _kernel_library(kernel)
     if lib is not None:
-        if drive not in excitation.DRIVES:
-            excitation.input_sample(drive, 0, 1)  # models/' own error
+        if kind == excitation.GAUSSIAN and drive not in excitation.DRIVES:
+            excitation.input_sample(drive, 0, 1)  # models/' own error, as the NumPy path's
         return _simulate_kernel(lib, n, seeds, dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0,
                                                     P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
                                                     fQ=fQ, a3=a3, a4=a4, B=B, drive=drive,

@@ -66,9 +66,10 @@ SPEED_FLAGS = ("-O3", "-fno-math-errno", "-flto", "-fno-semantic-interposition",
 #: And, where the compiler takes them, the instructions of this machine's processor in
 #: vectors of up to 512 bits: the vectorised Gaussian chain (run_gaussian_vector) then advances
 #: eight runs per instruction (AVX-512; 0.29 instead of 0.34 s for the default sweep's runs
-#: on one core of the development machine) or four (AVX2) instead of two (SSE2).  The library is compiled on the machine
-#: that runs it (named by its processor too, :func:`_build`); the vector instructions are the
-#: IEEE operations of the scalar ones and -ffp-contract=off still forbids fusing them.
+#: on one core of the development machine) or four (AVX2) instead of two (SSE2).  The library
+#: is compiled on the machine that runs it (named by its processor too, :func:`_build`); the
+#: vector instructions are the IEEE operations of the scalar ones and -ffp-contract=off still
+#: forbids fusing them.
 MACHINE_FLAGS = ("-march=native", "-mprefer-vector-width=512")
 _LIBRARY = []
 _P = ctypes.c_void_p

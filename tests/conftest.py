@@ -60,7 +60,8 @@ HOST_PLATFORMS = ("x86_64-linux", "x86_64-windows")
 #: an entry unused for :data:`CACHE_DAYS` days is removed). ``DRIFTFMU_TEST_NATIVE_CACHE``
 #: names another folder.
 NATIVE_CACHE = Path(os.environ.get("DRIFTFMU_TEST_NATIVE_CACHE") or os.path.join(
-    tempfile.gettempdir(), "driftfmu-test-native-libraries-%d" % getattr(os, "getuid", lambda: 0)()))
+    tempfile.gettempdir(),
+    "driftfmu-test-native-libraries-%d" % getattr(os, "getuid", lambda: 0)()))
 CACHE_DAYS = 14
 
 
