@@ -51,3 +51,36 @@ def test_the_loop_library_is_compiled_once_into_the_temporary_directory(tmp_path
     assert [f.name for f in tmp_path.iterdir()] == [
         "driftfmu-loop-%s-%d.so" % (__import__("hashlib").sha256(
             fastcosim.LOOP_SOURCE.encode()).hexdigest()[:12], os.getuid())]
+
+
+def _unpack_in_worker(path):
+    from driftfmu.simulations import fastcosim
+    return fastcosim.unpacked(path)[0]
+
+
+@pytest.mark.integration
+def test_a_worker_process_removes_the_fmus_it_unpacked_when_it_ends(native_fmus, tmp_path,
+                                                                     monkeypatch):
+    """A pool worker ends through multiprocessing's os._exit, which runs no atexit handler:
+    the folders ``unpacked`` made there went with no one (every ``experiment adxl203`` left
+    its workers' FMUs in the temporary directory).  Both start methods of the pool (a fork
+    server started earlier keeps its temporary directory: the folders are checked by name)."""
+    from driftfmu.simulations import batch
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    fmu = str(native_fmus[2]["Accelerometer"])
+    for threads in (False, True):  # fork (one thread), forkserver (another thread runs)
+        if threads:
+            import threading
+            stop = threading.Event()
+            other = threading.Thread(target=stop.wait)
+            other.start()
+        try:
+            with batch.process_pool(2) as pool:
+                folders = list(pool.map(_unpack_in_worker, [fmu] * 4))
+                assert all(os.path.isdir(f) for f in folders), (threads, folders)
+        finally:
+            if threads:
+                stop.set()
+                other.join()
+        assert folders and not any(os.path.exists(f) for f in folders), folders
+        assert not list(tmp_path.glob("driftfmu_fast_*"))
