@@ -249,41 +249,39 @@ def _importable(module):
 
 
 def _try_instantiate(fmu, fmi_version="2.0"):
-    # the child removes the folder it extracts the FMU to, also when it fails or is interrupted
+    # the child extracts the FMU into a folder this process made and removes when the child
+    # has ended: also when the FMU crashed it or it was killed at the time limit
     if fmi_version.startswith("3"):
-        code = ("import shutil, sys, tempfile\nfrom fmpy import read_model_description, "
-                "extract\nfrom fmpy.fmi3 import FMU3Slave\n"
-                "md = read_model_description(sys.argv[1]); d = tempfile.mkdtemp()\n"
-                "try:\n"
-                "    extract(sys.argv[1], unzipdir=d)\n"
-                "    s = FMU3Slave(guid=md.guid, unzipDirectory=d, "
+        code = ("import sys\nfrom fmpy import read_model_description, extract\n"
+                "from fmpy.fmi3 import FMU3Slave\n"
+                "md = read_model_description(sys.argv[1]); d = sys.argv[2]\n"
+                "extract(sys.argv[1], unzipdir=d)\n"
+                "s = FMU3Slave(guid=md.guid, unzipDirectory=d, "
                 "modelIdentifier=md.coSimulation.modelIdentifier, instanceName='doctor')\n"
-                "    s.instantiate(); s.enterInitializationMode(startTime=0.0)\n"
-                "    s.exitInitializationMode(); s.terminate(); s.freeInstance()\n"
-                "finally:\n"
-                "    shutil.rmtree(d, ignore_errors=True)\n")
+                "s.instantiate(); s.enterInitializationMode(startTime=0.0)\n"
+                "s.exitInitializationMode(); s.terminate(); s.freeInstance()\n")
         return _run_instantiate(code, fmu)
-    code = ("import shutil, sys, tempfile\nfrom fmpy import read_model_description, extract\n"
+    code = ("import sys\nfrom fmpy import read_model_description, extract\n"
             "from fmpy.fmi2 import FMU2Slave\n"
-            "md = read_model_description(sys.argv[1]); d = tempfile.mkdtemp()\n"
-            "try:\n"
-            "    extract(sys.argv[1], unzipdir=d)\n"
-            "    s = FMU2Slave(guid=md.guid, unzipDirectory=d, "
+            "md = read_model_description(sys.argv[1]); d = sys.argv[2]\n"
+            "extract(sys.argv[1], unzipdir=d)\n"
+            "s = FMU2Slave(guid=md.guid, unzipDirectory=d, "
             "modelIdentifier=md.coSimulation.modelIdentifier, instanceName='doctor')\n"
-            "    s.instantiate(); s.setupExperiment(startTime=0.0)\n"
-            "    s.enterInitializationMode(); s.exitInitializationMode()\n"
-            "    s.terminate(); s.freeInstance()\n"
-            "finally:\n"
-            "    shutil.rmtree(d, ignore_errors=True)\n")
+            "s.instantiate(); s.setupExperiment(startTime=0.0)\n"
+            "s.enterInitializationMode(); s.exitInitializationMode()\n"
+            "s.terminate(); s.freeInstance()\n")
     return _run_instantiate(code, fmu)
 
 
-def _run_instantiate(code, fmu):
-    try:
-        r = subprocess.run([sys.executable, "-c", code, str(fmu)], capture_output=True,
-                           text=True, timeout=120)
-    except subprocess.TimeoutExpired:
-        return (FAIL, "instantiating the FMU in a Python host did not finish in 120 s")
+def _run_instantiate(code, fmu, timeout=120):
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="driftfmu_doctor_") as folder:
+        try:
+            r = subprocess.run([sys.executable, "-c", code, str(fmu), folder],
+                               capture_output=True, text=True, timeout=timeout)
+        except subprocess.TimeoutExpired:
+            return (FAIL, "instantiating the FMU in a Python host did not finish in %g s"
+                    % timeout)
     if r.returncode == 0:
         return (OK, "it instantiates and initialises in a Python host (fmpy) on this machine")
     if r.returncode < 0:

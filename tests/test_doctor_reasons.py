@@ -84,3 +84,18 @@ def test_a_truncated_native_binary_is_named_not_ok(native_fmus, tmp_path, capsys
     assert "binaries/linux64/Excitation.so is damaged: truncated" in out
     assert "damaged" in verdict
     assert "exit status -7" not in out
+
+
+@pytest.mark.parametrize("end, timeout, said", [
+    ("import os, signal; os.kill(os.getpid(), signal.SIGSEGV)", 120, "crashed that host"),
+    ("import time; time.sleep(60)", 1, "did not finish in 1 s")])
+def test_a_host_that_crashes_or_hangs_leaves_no_extracted_fmu(end, timeout, said, tmp_path,
+                                                              monkeypatch):
+    """The instantiation check's child extracts the FMU into a folder the doctor made and
+    removes (the child removed it itself before, which a crash or the time limit skipped)."""
+    monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    code = ("import sys; from pathlib import Path\n"
+            "(Path(sys.argv[2]) / 'modelDescription.xml').write_text('extracted')\n" + end)
+    status, text = doctor._run_instantiate(code, tmp_path / "x.fmu", timeout=timeout)
+    assert status == doctor.FAIL and said in text, text
+    assert list(tmp_path.iterdir()) == []

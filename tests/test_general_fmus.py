@@ -74,13 +74,13 @@ def test_dual_axis_refuses_a4():
 
 
 @pytest.mark.integration
-def test_native_dual_axis_refuses_a4(native_fmus):
+def test_native_dual_axis_refuses_a4(native_fmus, tmp_path):
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
     path = native_fmus[2]["Accelerometer"]
     md = read_model_description(str(path))
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    unzipped = extract(str(path))
+    unzipped = extract(str(path), unzipdir=tmp_path)
     for a4, refused in ((0.0, False), (0.5, True)):
         fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
                         modelIdentifier=md.coSimulation.modelIdentifier, instanceName="a")

@@ -84,14 +84,14 @@ def test_cli_run_sinusoidal(fmu_dir, tmp_path, capsys):
     assert not (tmp_path / "x").exists()
 
 
-def test_state_restore_replays_the_preset_accelerometer(fmu_dir):
+def test_state_restore_replays_the_preset_accelerometer(fmu_dir, tmp_path):
     """The low-pass state is hidden state: a restored FMU repeats the same outputs."""
     from fmpy import extract, read_model_description
     from fmpy.fmi2 import FMU2Slave
     path = str(fmu_dir / "Accelerometer.fmu")
     md = read_model_description(path)
     vr = {v.name: v.valueReference for v in md.modelVariables}
-    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(path),
+    fmu = FMU2Slave(guid=md.guid, unzipDirectory=extract(path, unzipdir=tmp_path),
                     modelIdentifier=md.coSimulation.modelIdentifier, instanceName="a")
     fmu.instantiate()
     fmu.setupExperiment(startTime=0.0)

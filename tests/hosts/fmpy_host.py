@@ -8,6 +8,7 @@ model identifier run side by side.  For each job one line ``RESULT {"value": ...
 ...}`` is printed after all steps; fmpy's logger prints the FMUs' messages as they come.
 """
 import json
+import shutil
 import sys
 
 import fmpy
@@ -15,9 +16,10 @@ from fmpy.fmi2 import FMU2Slave
 
 
 def main(jobs):
-    runs = []
+    runs, folders = [], []
     for i, job in enumerate(jobs):
         unzipped = fmpy.extract(job["fmu"])
+        folders.append(unzipped)
         md = fmpy.read_model_description(unzipped)
         variables = {v.name: v for v in md.modelVariables}
         fmu = FMU2Slave(guid=md.guid, unzipDirectory=unzipped,
@@ -40,6 +42,8 @@ def main(jobs):
         except Exception as exc:  # report the failing call, keep running the others
             result["error"] = str(exc)
         print("RESULT " + json.dumps(result), flush=True)
+    for folder in folders:  # the FMUs stay loaded; their unzipped files are not needed now
+        shutil.rmtree(folder, ignore_errors=True)
 
 
 if __name__ == "__main__":

@@ -1,4 +1,5 @@
 """Instantiate, initialise, step and free one FMU in fmpy, then exit (for tests/test_exit.py)."""
+import shutil
 import sys
 
 from fmpy import extract, read_model_description
@@ -17,3 +18,4 @@ for _ in range(int(sys.argv[2]) if len(sys.argv) > 2 else 1):
     fmu.terminate()
     fmu.fmi2FreeInstance(fmu.component)
 fmu.freeLibrary()
+shutil.rmtree(unzipped, ignore_errors=True)
