@@ -113,11 +113,14 @@ def make(request):
     fmus = request.getfixturevalue("built_fmus" if request.param == "python" else "native_fmus")
     if request.param == "native":
         fmus = fmus[2]
+    made = []
 
     def make_fmu(cls, name):
         if cls.__name__ not in fmus:
             pytest.skip("%s has no %s FMU" % (cls.__name__, request.param))
-        return FmuSlave(fmus[cls.__name__], name)
+        made.append(FmuSlave(fmus[cls.__name__], name))
+        return made[-1]
+    request.addfinalizer(lambda: [s._inst.free() for s in made])  # (and their folders)
     return make_fmu
 
 
