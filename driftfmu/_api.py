@@ -57,7 +57,8 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                names: Optional[Sequence[str]] = None,
                log: Optional[Callable[[str], None]] = None, *,
                cross_check: Optional[PathLike] = None,
-               ssp: Optional[PathLike] = None) -> Dict[str, Path]:
+               ssp: Optional[PathLike] = None,
+               cache: Optional[PathLike] = None) -> Dict[str, Path]:
     """Build and validate the FMUs.
 
     Parameters
@@ -90,6 +91,13 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         Also write the wired chain Excitation -> Accelerometer -> DriftEstimator of the built
         FMUs (FMI 2.0) as an SSP archive at this path (replaced if it exists), as ``driftfmu
         build --ssp``.
+    cache : str or pathlib.Path, optional
+        Native FMUs only: a folder of compiled libraries kept from build to build; a library
+        compiled before from the same sources by the same compiler (command, version, flags)
+        is taken from there instead of compiled again, the same bytes.  Entries unused for 30
+        days are removed.  ``driftfmu build`` uses the user's cache folder
+        (``~/.cache/driftfmu/native-libraries``, or ``DRIFTFMU_CACHE``); default here: none,
+        every library is compiled.
 
     Returns
     -------
@@ -143,8 +151,10 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                          for p in builder.build_fmus(staged_out, names=names, log=log)}}
         else:
             from driftfmu.fmu_src import native_build
+            if cache is not None:
+                native_build.prune_cache(cache)
             built = native_build.build_native_fmus(staged_out / "native", names=names,
-                                                   fmi_versions=versions, log=log)
+                                                   fmi_versions=versions, log=log, cache=cache)
             built = {v: {n: Path(p) for n, p in built[v].items()} for v in built}
         if staged_cross_check is not None:
             from driftfmu.fmu_src.crosscheck import write_cross_check

@@ -40,7 +40,9 @@ import os
 import shlex
 import shutil
 import subprocess
+import sys
 import tempfile
+import time
 import uuid
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -508,11 +510,15 @@ def _compile_all(name, fmi_version, sources, c_files, work, platforms, cache=Non
                 return platform, (data, compiler(platform)[2])
         path, label = compile_library(platform, sources, c_files, target)
         data = path.read_bytes()
-        if hit is not None:
-            hit.parent.mkdir(parents=True, exist_ok=True)
+        if hit is not None:  # a cache that cannot be written (read-only, full) is skipped
             part = hit.with_name("%s.%d.part" % (key, os.getpid()))
-            part.write_bytes(data)
-            os.replace(part, hit)  # whole or absent, also for a build running beside
+            try:
+                hit.parent.mkdir(parents=True, exist_ok=True)
+                part.write_bytes(data)
+                os.replace(part, hit)  # whole or absent, also for a build running beside
+            except OSError:
+                with contextlib.suppress(OSError):
+                    part.unlink()
         return platform, (data, label)
 
     from concurrent.futures import ThreadPoolExecutor
@@ -565,6 +571,38 @@ def binaries_text(name, fmi_version, files, missing):
     lines += ["For any other platform, compile sources/ (see sources/buildDescription.xml or the "
               "model description's SourceFiles).", ""]
     return "\n".join(lines)
+
+
+#: Days an entry of a library cache (:func:`user_cache`) is kept unused before
+#: :func:`prune_cache` removes it.
+CACHE_DAYS = 30
+
+
+def user_cache():
+    """The folder of compiled libraries that ``driftfmu build`` keeps from build to build:
+    ``DRIFTFMU_CACHE`` if set, else ``driftfmu/native-libraries`` in the user's cache folder
+    (``$XDG_CACHE_HOME`` or ``~/.cache``; ``~/Library/Caches`` on macOS; ``%LOCALAPPDATA%`` on
+    Windows)."""
+    if os.environ.get("DRIFTFMU_CACHE"):
+        return Path(os.environ["DRIFTFMU_CACHE"])
+    if sys.platform == "win32":
+        base = os.environ.get("LOCALAPPDATA") or os.path.expanduser("~/AppData/Local")
+    elif sys.platform == "darwin":
+        base = os.path.expanduser("~/Library/Caches")
+    else:
+        base = os.environ.get("XDG_CACHE_HOME") or os.path.expanduser("~/.cache")
+    return Path(base) / "driftfmu" / "native-libraries"
+
+
+def prune_cache(folder, days=CACHE_DAYS):
+    """Remove the entries of the library cache ``folder`` not used (read or written) for
+    ``days`` days, and parts of writes that were cut short an hour ago or more."""
+    now = time.time()
+    for entry in Path(folder).glob("*"):
+        with contextlib.suppress(OSError):
+            age = now - entry.stat().st_mtime
+            if age > days * 86400 or (entry.name.endswith(".part") and age > 3600):
+                entry.unlink()
 
 
 def _cache_key(platform, sources, c_files):

@@ -195,6 +195,7 @@ def cmd_build(args):
     for the native FMUs of both FMI versions.  The cross-check folders hold the native FMUs when
     they are built, else the Python ones; the SSP archive holds the ``--backend`` ones."""
     import driftfmu
+    from driftfmu.fmu_src import native_build
     from driftfmu.simulations.output import Staging
     if not (args.native or args.backend == "native"):  # one call, all or nothing by itself
         driftfmu.build_fmus(args.out, log=build_log,  # logs one line per FMU
@@ -212,7 +213,8 @@ def cmd_build(args):
                             ssp=ssp if args.backend == "python" else None)
         driftfmu.build_fmus(out, backend="native", fmi_version=(2, 3), log=log,
                             cross_check=cross_check,
-                            ssp=ssp if args.backend == "native" else None)
+                            ssp=ssp if args.backend == "native" else None,
+                            cache=None if args.no_cache else native_build.user_cache())
 
 
 def build_log(line):
@@ -321,6 +323,11 @@ def make_parser():
     add_backend(p, what="the FMUs of the cross-check artifacts and the SSP export: python, or "
                 "native (implies --native; the cross-check then has folders for FMI 2.0 and "
                 "3.0 and for each platform)")
+    p.add_argument("--no-cache", action="store_true",
+                   help="compile every native library; by default one compiled before from "
+                   "the same sources by the same compiler is taken from the cache folder "
+                   "DRIFTFMU_CACHE (default: ~/.cache/driftfmu/native-libraries; entries "
+                   "unused for 30 days are removed)")
     p.set_defaults(func=cmd_build)
 
     run = sub.add_parser("run", help="co-simulate the FMUs with an fmpy master")

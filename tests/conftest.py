@@ -1,9 +1,7 @@
 """Fixtures shared by the test modules."""
-import contextlib
 import json
 import os
 import tempfile
-import time
 from pathlib import Path
 
 import pytest
@@ -57,29 +55,22 @@ HOST_PLATFORMS = ("x86_64-linux", "x86_64-windows")
 
 #: The compiled libraries of :func:`_native_build`, kept from run to run (keyed by their
 #: sources, compiler, compiler version and flags: a changed source or compiler compiles anew;
-#: an entry unused for :data:`CACHE_DAYS` days is removed). ``DRIFTFMU_TEST_NATIVE_CACHE``
-#: names another folder.
+#: an entry unused for ``native_build.CACHE_DAYS`` days is removed, as in ``driftfmu build``'s
+#: cache). ``DRIFTFMU_TEST_NATIVE_CACHE`` names another folder.
 NATIVE_CACHE = Path(os.environ.get("DRIFTFMU_TEST_NATIVE_CACHE") or os.path.join(
     tempfile.gettempdir(),
     "driftfmu-test-native-libraries-%d" % getattr(os, "getuid", lambda: 0)()))
-CACHE_DAYS = 14
-
-
-def _prune(folder, days=CACHE_DAYS):
-    """Remove the entries of ``folder`` not used (read or written) for ``days`` days."""
-    cutoff = time.time() - days * 86400
-    for entry in folder.glob("*"):
-        with contextlib.suppress(OSError):
-            if entry.stat().st_mtime < cutoff:
-                entry.unlink()
+#: ``driftfmu build --native`` run by a test keeps its libraries there too, not in the user's
+#: cache folder (its default, ``native_build.user_cache``)
+os.environ["DRIFTFMU_CACHE"] = str(NATIVE_CACHE)
 
 
 def _native_build(tmp_path_factory, name, platforms):
-    from driftfmu.fmu_src.native_build import build_native_fmus
+    from driftfmu.fmu_src.native_build import build_native_fmus, prune_cache
 
     def build(out):  # the layout of build/fmus/native; libraries shared by both builds
         cache = NATIVE_CACHE
-        _prune(cache)
+        prune_cache(cache)
         return {v: {n: str(p) for n, p in fmus.items()}
                 for v, fmus in build_native_fmus(out / "native", platforms=platforms(),
                                                  log=lambda line: None, cache=cache).items()}

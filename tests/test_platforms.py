@@ -15,6 +15,8 @@ import os
 import re
 import shutil
 import subprocess
+import sys
+import time
 import zipfile
 from pathlib import Path
 from xml.etree import ElementTree as ET
@@ -345,6 +347,54 @@ def test_the_build_cache_reuses_a_library_only_for_the_same_sources_and_compiler
     assert native_build.compiler_version(("cc",))  # it answers --version
     monkeypatch.setattr(native_build, "compiler_version", lambda command: "cc 99.0")
     assert native_build._cache_key("x86_64-linux", sources, c_files) != keys[2]
+
+
+def test_a_cache_that_cannot_be_written_does_not_fail_the_build(tmp_path):
+    """A library cache that cannot be written (here a path under a file) is skipped: the build
+    succeeds with the bytes of a build without a cache, and leaves no part of a write."""
+    (tmp_path / "file").write_text("not a folder")
+    fmu = native_build.build_native_fmus(tmp_path / "out", names=("Excitation",),
+                                         fmi_versions=(3,), platforms=("x86_64-linux",),
+                                         log=lambda line: None, cache=tmp_path / "file" / "c")
+    plain = native_build.build_native_fmus(tmp_path / "plain", names=("Excitation",),
+                                           fmi_versions=(3,), platforms=("x86_64-linux",),
+                                           log=lambda line: None)
+    assert fmu[3]["Excitation"].read_bytes() == plain[3]["Excitation"].read_bytes()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["file", "out", "plain"]
+
+
+def test_prune_cache_removes_entries_unused_for_its_days_and_stale_parts(tmp_path):
+    now = time.time()
+    for name, age in (("fresh", 0), ("old", 31 * 86400), ("recent", 29 * 86400),
+                      ("key.123.part", 7200), ("key.456.part", 60)):
+        (tmp_path / name).write_bytes(b"x")
+        os.utime(tmp_path / name, (now - age, now - age))
+    native_build.prune_cache(tmp_path)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fresh", "key.456.part", "recent"]
+    native_build.prune_cache(tmp_path / "missing")  # nothing to prune: no error
+
+
+def test_the_user_cache_folder(monkeypatch, tmp_path):
+    monkeypatch.delenv("DRIFTFMU_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))
+    if sys.platform.startswith("linux"):
+        assert native_build.user_cache() == tmp_path / "xdg" / "driftfmu" / "native-libraries"
+    monkeypatch.setenv("DRIFTFMU_CACHE", str(tmp_path / "mine"))
+    assert native_build.user_cache() == tmp_path / "mine"
+
+
+@pytest.mark.parametrize("flag", [[], ["--no-cache"]])
+def test_cli_build_native_uses_the_user_cache_unless_told_not_to(flag, monkeypatch, tmp_path):
+    import driftfmu
+    from driftfmu.simulations.cli import main
+    monkeypatch.setenv("DRIFTFMU_CACHE", str(tmp_path / "cache"))
+    monkeypatch.setattr(native_build, "compiler_problem", lambda platform: None)
+    calls = []
+    monkeypatch.setattr(driftfmu, "build_fmus", lambda out, **kw: calls.append(kw) or {})
+    assert main(["build", "--native", "--out", str(tmp_path / "fmus")] + flag) == 0
+    python, native = calls
+    assert "cache" not in python and native["backend"] == "native"
+    assert native["cache"] == (None if flag else tmp_path / "cache")
 
 
 def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(monkeypatch,
