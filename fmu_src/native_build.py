@@ -37,6 +37,7 @@ import functools
 import hashlib
 import importlib
 import os
+import re
 import shlex
 import shutil
 import subprocess
@@ -596,12 +597,19 @@ def user_cache():
 
 def prune_cache(folder, days=CACHE_DAYS):
     """Remove the entries of the library cache ``folder`` not used (read or written) for
-    ``days`` days, and parts of writes that were cut short an hour ago or more."""
+    ``days`` days, and parts of writes that were cut short an hour ago or more.  Only files
+    named as the cache names them (``<platform>-<sha256>``, ``<that>.<pid>.part``) are
+    touched: a cache folder set to one that holds other files loses none of them."""
+    entry_name = re.compile(r"(%s)-[0-9a-f]{64}(\.[0-9]+\.part)?\Z"
+                            % "|".join(map(re.escape, PLATFORMS)))
     now = time.time()
     for entry in Path(folder).glob("*"):
+        match = entry_name.match(entry.name)
+        if match is None:
+            continue
         with contextlib.suppress(OSError):
             age = now - entry.stat().st_mtime
-            if age > days * 86400 or (entry.name.endswith(".part") and age > 3600):
+            if age > days * 86400 or (match.group(2) and age > 3600):
                 entry.unlink()
 
 

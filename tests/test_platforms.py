@@ -364,13 +364,20 @@ def test_a_cache_that_cannot_be_written_does_not_fail_the_build(tmp_path):
 
 
 def test_prune_cache_removes_entries_unused_for_its_days_and_stale_parts(tmp_path):
+    """Only the cache's own files: a folder of the user's set as the cache loses nothing."""
     now = time.time()
-    for name, age in (("fresh", 0), ("old", 31 * 86400), ("recent", 29 * 86400),
-                      ("key.123.part", 7200), ("key.456.part", 60)):
-        (tmp_path / name).write_bytes(b"x")
-        os.utime(tmp_path / name, (now - age, now - age))
+    entries = {"fresh": ("a", "", 0), "old": ("b", "", 31 * 86400),
+               "recent": ("c", "", 29 * 86400), "stale part": ("d", ".123.part", 7200),
+               "young part": ("e", ".456.part", 60)}
+    for what, (digit, part, age) in entries.items():
+        for name in ("x86_64-linux-%s%s" % (digit * 64, part), "mine %s%s" % (what, part)):
+            (tmp_path / name).write_bytes(b"x")
+            os.utime(tmp_path / name, (now - age, now - age))
     native_build.prune_cache(tmp_path)
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fresh", "key.456.part", "recent"]
+    left = sorted(p.name for p in tmp_path.iterdir())
+    assert left == sorted(["mine %s%s" % (w, e[1]) for w, e in entries.items()] + [
+        "x86_64-linux-%s%s" % (entries[w][0] * 64, entries[w][1])
+        for w in ("fresh", "recent", "young part")])
     native_build.prune_cache(tmp_path / "missing")  # nothing to prune: no error
 
 
