@@ -618,11 +618,6 @@ def _worker_init():
     if hasattr(signal, "pthread_sigmask"):  # forked with both blocked (see process_pool)
         signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT, signal.SIGTERM})
     warnings.showwarning = _worker_warning  # one line each, as the command's own
-    # a worker ends through multiprocessing's os._exit, which runs no atexit handler: the
-    # folders it extracted FMUs to are removed by a multiprocessing finalizer, which it runs
-    from multiprocessing import util
-    from driftfmu.simulations import cosim
-    util.Finalize(None, cosim.remove_extracted, exitpriority=0)
     # one BLAS thread: the pool runs one worker per core already, and OpenBLAS's own thread per
     # core in every worker would oversubscribe them (its threads spin while they wait: the
     # ADXL203 experiment took 1.6 times as long)

@@ -34,8 +34,12 @@ from driftfmu.simulations.errors import UsageError
 
 #: Folders the FMUs of live instances are extracted to, each with the process that made it
 #: (removed by :meth:`Instance.free`, or by :func:`remove_extracted` when a worker process is
-#: told to stop).
+#: told to stop and when the process ends).
 EXTRACTED = {}
+
+#: The process that registered :func:`remove_extracted` to run when it ends (a forked child
+#: starts without its parent's registration).
+_REMOVED_AT_END = [None]
 
 
 def remove_extracted():
@@ -55,6 +59,12 @@ def new_extract_folder(prefix="driftfmu_fmu_"):
     if mask:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
     try:
+        if _REMOVED_AT_END[0] != os.getpid():
+            # a multiprocessing finalizer: the interpreter's exit runs it (through atexit),
+            # and so does a multiprocessing worker, which ends by os._exit without atexit
+            from multiprocessing import util
+            util.Finalize(None, remove_extracted, exitpriority=0)
+            _REMOVED_AT_END[0] = os.getpid()
         unzipdir = tempfile.mkdtemp(prefix=prefix)
         EXTRACTED[unzipdir] = os.getpid()
     finally:

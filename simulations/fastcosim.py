@@ -136,16 +136,15 @@ def unpacked(path):
     model description and this platform's binaries only; removed at exit) and read without
     schema validation (the builder validated it): loading an FMU costs microseconds, not the
     0.2 s of unzipping and validating it again for every run."""
-    import atexit
     import os
     import platform
     import zipfile
     stat = os.stat(path)
     key = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)
     if key not in _UNPACKED:
-        # registered where a worker told to stop finds it (batch._worker_stop), removed at exit
+        # registered where a worker told to stop finds it (batch._worker_stop), removed when
+        # the process ends (cosim.new_extract_folder)
         folder = new_extract_folder(prefix="driftfmu_fast_")
-        atexit.register(_remove, folder)
         here = {"Linux": ("linux64", "x86_64-linux"), "Windows": ("win64", "x86_64-windows"),
                 "Darwin": ("darwin64", "x86_64-darwin", "aarch64-darwin")}.get(
                     platform.system(), ())
