@@ -151,8 +151,6 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                          for p in builder.build_fmus(staged_out, names=names, log=log)}}
         else:
             from driftfmu.fmu_src import native_build
-            if cache is not None:
-                native_build.prune_cache(cache)
             built = native_build.build_native_fmus(staged_out / "native", names=names,
                                                    fmi_versions=versions, log=log, cache=cache)
             built = {v: {n: Path(p) for n, p in built[v].items()} for v in built}

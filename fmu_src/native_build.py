@@ -709,7 +709,9 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
     cache : path-like, optional
         A folder of compiled libraries: one compiled before from the same staged sources with
         the same compiler command is reused instead of compiled again (the test suite builds
-        the FMUs for its hosts first and then, reusing those, every platform's).  Default: none.
+        the FMUs for its hosts first and then, reusing those, every platform's); its entries
+        unused for :data:`CACHE_DAYS` days are removed first (:func:`prune_cache`).  Default:
+        none.
 
     Returns
     -------
@@ -724,6 +726,8 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
         raise NativeBuildError("platforms %s are not known; allowed: %s"
                                % (", ".join(unknown), ", ".join(PLATFORMS)))
     missing = [p for p in PLATFORMS if p not in platforms]
+    if cache is not None:
+        prune_cache(cache)
     from concurrent.futures import ThreadPoolExecutor
     jobs = [(n, v) for v in fmi_versions for n in names]
     # two FMUs at a time (each compiles its platforms side by side): compilers are processes

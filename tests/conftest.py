@@ -66,14 +66,13 @@ os.environ["DRIFTFMU_CACHE"] = str(NATIVE_CACHE)
 
 
 def _native_build(tmp_path_factory, name, platforms):
-    from driftfmu.fmu_src.native_build import build_native_fmus, prune_cache
+    from driftfmu.fmu_src.native_build import build_native_fmus
 
     def build(out):  # the layout of build/fmus/native; libraries shared by both builds
-        cache = NATIVE_CACHE
-        prune_cache(cache)
         return {v: {n: str(p) for n, p in fmus.items()}
                 for v, fmus in build_native_fmus(out / "native", platforms=platforms(),
-                                                 log=lambda line: None, cache=cache).items()}
+                                                 log=lambda line: None,
+                                                 cache=NATIVE_CACHE).items()}
     built = built_once(tmp_path_factory, name, build)
     return {int(v): {n: Path(p) for n, p in fmus.items()} for v, fmus in built.items()}
 
