@@ -404,7 +404,6 @@ def zig_command():
     """The zig C compiler (list), or None: ``DRIFTFMU_ZIG`` if set, else ziglang from PyPI
     (``python -m ziglang cc``), else ``zig cc`` from PATH."""
     import importlib.util
-    import sys
     if os.environ.get("DRIFTFMU_ZIG"):
         command = shlex.split(os.environ["DRIFTFMU_ZIG"])
         return command if shutil.which(command[0]) else None
@@ -500,22 +499,18 @@ def _compile_all(name, fmi_version, sources, c_files, work, platforms, cache=Non
         target = work / platform / (name + PLATFORMS[platform][0])
         key = _cache_key(platform, sources, c_files) if cache is not None else None
         hit = Path(cache) / key if key else None
-        if hit is not None:
-            try:
-                data = hit.read_bytes()
-            except OSError:  # not there (or removed meanwhile): compiled below
-                pass
-            else:
-                with contextlib.suppress(OSError):
-                    os.utime(hit)  # recently used (a cache kept across runs prunes by age)
-                return platform, (data, compiler(platform)[2])
+        data = _read_cache_entry(hit) if hit is not None else None
+        if data is not None:
+            with contextlib.suppress(OSError):
+                os.utime(hit)  # recently used (a cache kept across runs prunes by age)
+            return platform, (data, compiler(platform)[2])
         path, label = compile_library(platform, sources, c_files, target)
         data = path.read_bytes()
         if hit is not None:  # a cache that cannot be written (read-only, full) is skipped
             part = hit.with_name("%s.%d.part" % (key, os.getpid()))
             try:
                 hit.parent.mkdir(parents=True, exist_ok=True)
-                part.write_bytes(data)
+                part.write_bytes(cache_entry(data))
                 os.replace(part, hit)  # whole or absent, also for a build running beside
             except OSError:
                 with contextlib.suppress(OSError):
@@ -613,16 +608,63 @@ def prune_cache(folder, days=CACHE_DAYS):
                 entry.unlink()
 
 
+#: First line of a library cache entry; the second is the SHA-256 of the library that follows.
+CACHE_MAGIC = b"driftfmu native-library cache 1\n"
+
+
+def cache_entry(data):
+    """The bytes of a library cache entry holding the library ``data``: :data:`CACHE_MAGIC`,
+    the library's SHA-256 in hex on a line, the library."""
+    return CACHE_MAGIC + hashlib.sha256(data).hexdigest().encode() + b"\n" + data
+
+
+def _read_cache_entry(path):
+    """The library in the cache entry ``path``, or None when there is none or it is not whole
+    (a file damaged on disk, cut short, or of another format): then it is compiled again and
+    the entry replaced, never shipped in an FMU."""
+    try:
+        raw = path.read_bytes()
+    except OSError:  # not there (or removed meanwhile)
+        return None
+    head = len(CACHE_MAGIC) + 65
+    if not raw.startswith(CACHE_MAGIC) or raw[head - 1:head] != b"\n":
+        return None
+    data = raw[head:]
+    return data if hashlib.sha256(data).hexdigest().encode() == raw[head - 65:head - 1] \
+        else None
+
+
 def _cache_key(platform, sources, c_files):
     """Hash of what a library's bytes depend on: the platform, the compiler command, its
     version and flags, the C files in order and every staged source's name and bytes (the
-    build's folders are not in the library, tests/test_platforms.py)."""
+    build's folders are not in the library, tests/test_platforms.py).  Where the compiler is
+    installed is not in it (:func:`_command_identity`, :func:`_version_identity`)."""
     command, extra, _ = compiler(platform)
-    h = hashlib.sha256(repr((platform, command, compiler_version(tuple(command)), tuple(extra),
+    h = hashlib.sha256(repr((platform, _command_identity(command),
+                             _version_identity(compiler_version(tuple(command))), tuple(extra),
                              CFLAGS, list(c_files))).encode())
     for p in sorted(Path(sources).iterdir()):
         h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
     return "%s-%s" % (platform, h.hexdigest())
+
+
+def _command_identity(command):
+    """The compiler command as the cache key names it: ziglang run by this Python (``python -m
+    ziglang``) is named by ziglang's version instead of the interpreter's path, so environments
+    with the same ziglang (a new virtual environment) share the cache."""
+    if list(command[:3]) == [sys.executable, "-m", "ziglang"]:
+        from importlib.metadata import PackageNotFoundError, version
+        try:
+            return ["ziglang==%s" % version("ziglang")] + list(command[3:])
+        except PackageNotFoundError:  # ziglang without its metadata: the path, as given
+            pass
+    return list(command)
+
+
+def _version_identity(text):
+    """What ``--version`` printed, without clang's ``InstalledDir:`` line (where the compiler
+    is installed, not which compiler it is: it names the virtual environment of ziglang)."""
+    return "\n".join(line for line in text.splitlines() if not line.startswith("InstalledDir:"))
 
 
 @functools.lru_cache(maxsize=None)
@@ -710,8 +752,9 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
         A folder of compiled libraries: one compiled before from the same staged sources with
         the same compiler command is reused instead of compiled again (the test suite builds
         the FMUs for its hosts first and then, reusing those, every platform's); its entries
-        unused for :data:`CACHE_DAYS` days are removed first (:func:`prune_cache`).  Default:
-        none.
+        unused for :data:`CACHE_DAYS` days are removed first (:func:`prune_cache`).  Each
+        entry carries its library's SHA-256: one that does not match (damaged on disk, cut
+        short) is compiled again and replaced, never shipped.  Default: none.
 
     Returns
     -------

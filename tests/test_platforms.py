@@ -327,7 +327,7 @@ def test_the_build_cache_reuses_a_library_only_for_the_same_sources_and_compiler
     entry, = cache.iterdir()
     assert entry.name.startswith("x86_64-linux-")
     assert build("second", cache=cache) == plain
-    entry.write_bytes(b"planted")
+    entry.write_bytes(native_build.cache_entry(b"planted"))
     with zipfile.ZipFile(io.BytesIO(build("third", cache=cache))) as archive:
         assert archive.read("binaries/x86_64-linux/Excitation.so") == b"planted"
     keys = []
@@ -347,6 +347,58 @@ def test_the_build_cache_reuses_a_library_only_for_the_same_sources_and_compiler
     assert native_build.compiler_version(("cc",))  # it answers --version
     monkeypatch.setattr(native_build, "compiler_version", lambda command: "cc 99.0")
     assert native_build._cache_key("x86_64-linux", sources, c_files) != keys[2]
+
+
+@pytest.mark.parametrize("damage", ["flipped byte", "cut short", "old format", "empty"])
+def test_a_damaged_cache_entry_is_compiled_again_and_replaced_never_shipped(damage, tmp_path):
+    """An entry whose library no longer matches the checksum written with it (a file damaged on
+    disk or cut short), or without one: the build compiles the library again, ships the bytes
+    of a build without a cache and replaces the entry with a whole one."""
+    cache = tmp_path / "cache"
+
+    def build(folder, **kw):
+        return native_build.build_native_fmus(tmp_path / folder, names=("Excitation",),
+                                              fmi_versions=(3,), platforms=("x86_64-linux",),
+                                              log=lambda line: None, **kw)[3]["Excitation"]
+
+    plain = build("plain").read_bytes()
+    build("first", cache=cache)
+    entry, = cache.iterdir()
+    whole = entry.read_bytes()
+    library = native_build._read_cache_entry(entry)
+    assert library is not None and whole == native_build.cache_entry(library)
+    damaged = {"flipped byte": whole[:-100] + bytes([whole[-100] ^ 1]) + whole[-99:],
+               "cut short": whole[:len(whole) // 2], "old format": library, "empty": b""}[damage]
+    entry.write_bytes(damaged)
+    assert native_build._read_cache_entry(entry) is None
+    assert build("second", cache=cache).read_bytes() == plain
+    assert entry.read_bytes() == whole
+
+
+def test_the_cache_key_does_not_name_where_ziglang_is_installed(tmp_path, monkeypatch):
+    """ziglang in another virtual environment (another Python running ``-m ziglang``, clang's
+    ``InstalledDir`` elsewhere) is the same compiler: the same key.  Another ziglang version,
+    or another clang version, is another key."""
+    import importlib.metadata
+    sources = tmp_path / "sources"
+    c_files = native_build.stage_sources("Excitation", 3, sources)
+    versions = {"ziglang": "0.17.1"}
+    monkeypatch.setattr(native_build, "zig_command",
+                        lambda: [sys.executable, "-m", "ziglang", "cc"])
+    monkeypatch.setattr(importlib.metadata, "version", lambda name: versions[name])
+
+    def key(python, installed, clang="22.1.8"):
+        monkeypatch.setattr(sys, "executable", python)
+        monkeypatch.setattr(native_build, "compiler_version", lambda command: (
+            "clang version %s\nTarget: aarch64-unknown-linux-musl\nThread model: posix\n"
+            "InstalledDir: %s/site-packages/ziglang\n" % (clang, installed)))
+        return native_build._cache_key("aarch64-linux", sources, c_files)
+
+    first = key("/home/me/a/bin/python", "/home/me/a/lib")
+    assert key("/home/me/b/bin/python", "/home/me/b/lib") == first
+    assert key("/home/me/b/bin/python", "/home/me/b/lib", clang="22.1.9") != first
+    versions["ziglang"] = "0.17.2"
+    assert key("/home/me/a/bin/python", "/home/me/a/lib") != first
 
 
 def test_a_cache_that_cannot_be_written_does_not_fail_the_build(tmp_path):
