@@ -2,9 +2,9 @@
 
 Writing results whole or not at all, and the plots.
 
-Files are written into a staging folder beside the destination and moved into place only when
-every file of the set has been written; on any error or Ctrl-C the destination is left as it
-was, and folders created for it are removed again when they are still empty.
+Files are written into a hidden staging folder beside the destination and moved into place only
+when every file of the set has been written (:class:`Staging`, :func:`staged`); on any error or
+Ctrl-C, also during the moves, the destination is left as it was.
 """
 import contextlib
 import json
@@ -16,28 +16,9 @@ from pathlib import Path
 from driftfmu.simulations.errors import UsageError
 
 
-@contextlib.contextmanager
-def removing_new_folders(path):
-    """Run the block; when it fails (or is interrupted), remove the folders of ``path`` and its
-    parents that did not exist before and are empty after."""
-    path = Path(path)
-    new = []
-    p = path
-    while not p.exists() and p != p.parent:
-        new.append(p)
-        p = p.parent
-    try:
-        yield
-    except BaseException:
-        for d in new:  # deepest first
-            with contextlib.suppress(OSError):
-                d.rmdir()  # only when empty
-        raise
-
-
 class Staging:
     """All the outputs of one job, or none of them (``driftfmu build``: FMUs, native FMUs,
-    cross-check folders, the SSP archive).
+    cross-check folders, the SSP archive; a master's result folder, through :func:`staged`).
 
     :meth:`path` hands out a staged stand-in for each destination, a hidden folder
     ``.driftfmu-stage-*`` in the destination's nearest existing folder (the same file system,
@@ -132,21 +113,23 @@ class Staging:
 
 @contextlib.contextmanager
 def staged(out_dir):
-    """Yield a staging folder; on success move its files into ``out_dir`` (created if missing).
+    """Yield a folder for the files of ``out_dir``; when the block succeeds they are moved into
+    ``out_dir`` (created if missing), all of them or none (:class:`Staging`: on an error or an
+    interrupt in the block or during the moves, ``out_dir`` is left as it was).
 
-    ``out_dir`` naming an existing file is a ValueError (one line, nothing written)."""
+    ``out_dir`` naming an existing file, or a path under one, is a UsageError (one line, raised
+    before the block runs, nothing written)."""
     out = Path(out_dir)
-    if out.exists() and not out.is_dir():
-        raise UsageError("%s is an existing file; allowed: a folder (created if missing)" % out)
-    with removing_new_folders(out):
-        out.mkdir(parents=True, exist_ok=True)
-        stage = Path(tempfile.mkdtemp(prefix=".staging-", dir=out))
-        try:
-            yield stage
-            for f in sorted(stage.iterdir()):
-                os.replace(f, out / f.name)
-        finally:
-            shutil.rmtree(stage, ignore_errors=True)
+    existing = out
+    while not existing.exists() and existing != existing.parent:
+        existing = existing.parent
+    if existing.exists() and not existing.is_dir():
+        raise UsageError("%s is an existing file; allowed: a folder (created if missing)"
+                         % existing)
+    with Staging() as staging:
+        stage = staging.path(out)
+        stage.mkdir()
+        yield stage
 
 
 def write_csv(path, columns, names):

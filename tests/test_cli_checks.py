@@ -413,6 +413,57 @@ def test_staging_puts_everything_back_when_a_move_fails(fail_at, tmp_path, monke
     assert _tree(tmp_path) == before and sorted(os.listdir(tmp_path)) == ["fmus"]
 
 
+@pytest.mark.parametrize("case", ["block fails", "move fails", "interrupted move"])
+@pytest.mark.parametrize("existing", [True, False])
+def test_a_masters_result_folder_is_written_whole_or_left_as_it_was(case, existing, tmp_path,
+                                                                    monkeypatch):
+    """output.staged (every master's result folder): a job that fails, a move into place that
+    fails or is interrupted after the first file, leave the folder as it was (a previous run's
+    files back in place, a new folder not made) and no staging folder; a job that succeeds
+    replaces the files it wrote and keeps the others."""
+    from driftfmu.simulations import output
+    out = tmp_path / "results" / "run1"
+    if existing:
+        out.mkdir(parents=True)
+        (out / "summary.json").write_text("previous")
+        (out / "notes.txt").write_text("the user's")
+    before = _tree(tmp_path)
+    real, moves = os.replace, []
+
+    def replace(src, dst):
+        if case != "block fails" and len(moves) == 1:
+            raise KeyboardInterrupt if case == "interrupted move" else OSError("disk full")
+        moves.append(dst)
+        real(src, dst)
+    monkeypatch.setattr(output.os, "replace", replace)
+    with pytest.raises(KeyboardInterrupt if case == "interrupted move" else OSError):
+        with output.staged(out) as stage:
+            (stage / "results.csv").write_text("new csv")
+            (stage / "summary.json").write_text("new summary")
+            if case == "block fails":
+                raise OSError("the job failed")
+    assert _tree(tmp_path) == before
+    assert (tmp_path / "results").exists() == existing  # no folder made for a failed job
+    monkeypatch.setattr(output.os, "replace", real)
+    with output.staged(out) as stage:
+        (stage / "results.csv").write_text("new csv")
+        (stage / "summary.json").write_text("new summary")
+    assert sorted(os.listdir(out)) == ["notes.txt", "results.csv", "summary.json"][not existing:]
+    assert (out / "summary.json").read_text() == "new summary"
+    assert not list(tmp_path.rglob(".*"))  # no staging folder anywhere
+
+
+def test_a_result_folder_under_a_file_is_refused_before_the_job_runs(tmp_path):
+    from driftfmu.simulations import output
+    from driftfmu.simulations.errors import UsageError
+    (tmp_path / "taken").write_text("a file")
+    for out in (tmp_path / "taken", tmp_path / "taken" / "run1"):
+        with pytest.raises(UsageError, match="taken is an existing file; allowed: a folder"):
+            with output.staged(out):
+                raise AssertionError("the job ran")
+    assert os.listdir(tmp_path) == ["taken"]
+
+
 _SIGNALLED_BUILD = """
 import sys, time
 from pathlib import Path

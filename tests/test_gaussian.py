@@ -61,7 +61,8 @@ def test_files_written(paper_run):
     assert summary["validation"]["passed"] is True
     assert summary["parameters"]["a2"] == 0.01
     assert (out / "drift.png").stat().st_size > 10_000
-    assert not [p for p in out.iterdir() if p.name.startswith(".staging")]
+    assert not [p for p in out.iterdir() if p.name.startswith(".")]  # no staging folder
+    assert not list(out.parent.glob(".driftfmu-stage-*"))
 
 
 def test_failed_validation_writes_nothing(built_fmus, tmp_path, monkeypatch):
