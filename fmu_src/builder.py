@@ -139,12 +139,34 @@ def build_fmus(out_dir="build/fmus", names=NAMES, src_dir=SRC_DIR, log=print):
     BuildError
         If a slave cannot be bundled or an FMU does not validate.
     """
+    generated = generation_time()  # a bad SOURCE_DATE_EPOCH fails before anything is built
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     src_dir = Path(src_dir).resolve()
     with tempfile.TemporaryDirectory(prefix="driftfmu_loader_") as work:
         loader = _make_loader(Path(work), log)
-        return [_build_one(name, out_dir, src_dir, loader, log) for name in names]
+        return [_build_one(name, out_dir, src_dir, loader, log, generated) for name in names]
+
+
+def generation_time():
+    """The ``generationDateAndTime`` of the model descriptions: ``SOURCE_DATE_EPOCH`` (seconds
+    since 1970-01-01 UTC, https://reproducible-builds.org/specs/source-date-epoch/) as
+    ``YYYY-MM-DDThh:mm:ssZ`` when it is set, so that the same sources build the same bytes;
+    None (pythonfmu's time of the build) when it is not."""
+    value = os.environ.get("SOURCE_DATE_EPOCH")
+    if value is None or value == "":
+        return None
+    import datetime
+    try:
+        seconds = int(value.strip())
+        if seconds < 0:
+            raise ValueError
+        stamp = datetime.datetime.fromtimestamp(seconds, datetime.timezone.utc)
+    except (ValueError, OverflowError, OSError):
+        raise BuildError("SOURCE_DATE_EPOCH=%r is not a time; allowed: a whole number of "
+                         "seconds since 1970-01-01 00:00 UTC, e.g. $(git log -1 --format=%%ct)"
+                         % value) from None
+    return stamp.strftime("%Y-%m-%dT%H:%M:%SZ")
 
 
 def libpython_soname():
@@ -578,7 +600,7 @@ def _installed_pythonfmu():
         pythonfmu.builder.HERE = saved
 
 
-def _build_one(name, out_dir, src_dir, loader, log):
+def _build_one(name, out_dir, src_dir, loader, log, generated=None):
     from pythonfmu import __version__ as pythonfmu_version
     from pythonfmu.builder import FmuBuilder, get_model_class
 
@@ -599,6 +621,13 @@ def _build_one(name, out_dir, src_dir, loader, log):
             entries = {info.filename: archive.read(info) for info in archive.infolist()
                        if not info.is_dir()}
         xml = complete_model_description(entries["modelDescription.xml"], slave, log)
+        if generated is not None:  # SOURCE_DATE_EPOCH: the same sources, the same bytes
+            xml, count = re.subn(rb'generationDateAndTime="[^"]*"',
+                                 b'generationDateAndTime="%s"' % generated.encode(), xml,
+                                 count=1)
+            if count != 1:
+                raise BuildError("%s: pythonfmu's model description has no "
+                                 "generationDateAndTime to set from SOURCE_DATE_EPOCH" % name)
         entries["modelDescription.xml"] = xml
         model_identifier = ET.fromstring(xml).find("CoSimulation").get("modelIdentifier")
         # pythonfmu's stock win64 (and any other) binary is not shipped: no test here loads

@@ -145,11 +145,16 @@ def build_ssp(fmus, out="build/DriftChain.ssp", start_values=None, n=2000, Ts=1e
     with tempfile.NamedTemporaryFile(dir=out.parent, suffix=".ssp.part", delete=False) as tmp:
         part = Path(tmp.name)
     try:
+        entries = [("SystemStructure.ssd",
+                    ET.tostring(tree.getroot(), encoding="utf-8", xml_declaration=True))]
+        entries += [("resources/%s.fmu" % name, Path(fmus[name]).read_bytes())
+                    for name in FMU_NAMES]
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
-            z.writestr("SystemStructure.ssd",
-                       ET.tostring(tree.getroot(), encoding="utf-8", xml_declaration=True))
-            for name in FMU_NAMES:
-                z.write(fmus[name], "resources/%s.fmu" % name)
+            for filename, data in entries:  # a fixed date, as in the FMUs: the same bytes
+                info = zipfile.ZipInfo(filename, date_time=(1980, 1, 1, 0, 0, 0))
+                info.external_attr = 0o644 << 16
+                info.compress_type = zipfile.ZIP_DEFLATED
+                z.writestr(info, data)
         os.chmod(part, 0o644)  # as the FMUs; NamedTemporaryFile creates it 0600
         shutil.move(str(part), str(out))
     finally:

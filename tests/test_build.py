@@ -14,8 +14,10 @@ import subprocess
 import sys
 import sysconfig
 import textwrap
+import time
 import zipfile
 from pathlib import Path
+from xml.etree import ElementTree as ET
 
 import fmpy
 import pytest
@@ -376,6 +378,35 @@ def test_failed_build_keeps_the_previous_fmu(tmp_path):
 
 
 @integration
+def test_source_date_epoch_makes_the_same_sources_build_the_same_bytes(tmp_path, monkeypatch):
+    """With SOURCE_DATE_EPOCH set, the model description's generationDateAndTime is that time
+    (not the build's), so two builds of the same sources, seconds apart, are equal byte for
+    byte (the zip entries carry a fixed date already, the GUID is derived from the model and
+    the version)."""
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "1700000000")
+    first, = build_fmus(tmp_path / "a", names=("Excitation",), log=lambda line: None)
+    with zipfile.ZipFile(first) as archive:
+        md = ET.fromstring(archive.read("modelDescription.xml"))
+    assert md.get("generationDateAndTime") == "2023-11-14T22:13:20Z"
+    second_started = int(time.time())
+    while int(time.time()) == second_started:  # the build's own clock shows another second
+        time.sleep(0.05)
+    second, = build_fmus(tmp_path / "b", names=("Excitation",), log=lambda line: None)
+    assert first.read_bytes() == second.read_bytes()
+
+
+@pytest.mark.parametrize("value", ["yesterday", "-1", "1.5", "99999999999999999999"])
+def test_a_bad_source_date_epoch_is_refused_before_anything_is_built(value, tmp_path,
+                                                                     monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", value)
+    with pytest.raises(BuildError, match=r"SOURCE_DATE_EPOCH=.* is not a time; allowed: a "
+                                         r"whole number of seconds since 1970"):
+        build_fmus(tmp_path / "out", names=("Toy",), src_dir=tmp_path / "none",
+                   log=lambda line: None)
+    assert not (tmp_path / "out").exists()
+
+
+@integration
 def test_without_a_compiler_libpython_becomes_a_dt_needed_entry(tmp_path, monkeypatch):
     if not shutil.which("patchelf"):
         pytest.skip("patchelf is not installed")
@@ -462,6 +493,7 @@ _SIMULATE_THEN_BUILD = """
 import sys
 import driftfmu
 from pathlib import Path
+from xml.etree import ElementTree as ET
 fmu_dir, out = sys.argv[1:3]
 driftfmu.simulate(fmus=("Excitation",), stop_time=0.01, fmu_dir=fmu_dir)
 import pythonfmu

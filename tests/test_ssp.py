@@ -4,7 +4,10 @@ fmpy's ``simulate_ssp`` is a Jacobi master (each connection delays its signal by
 fmu_src/ssp.py); its rows are compared to 1e-12 with :func:`driftfmu.fmu_src.ssp.jacobi_reference`, and
 the signal no connection feeds (the excitation) with our master's rows shifted by one.
 """
+import shutil
+import time
 import zipfile
+from pathlib import Path
 
 import pytest
 
@@ -76,6 +79,21 @@ def test_fmpy_ssp_equals_our_master_with_the_same_coupling(archive, built_fmus, 
     report("SSP fmpy.ssp simulate_ssp vs our master (simulations.cosim, coupling='jacobi'): "
            "%d steps, %d signals, max |diff| = %.3g" % (N, len(diffs), max(diffs.values())))
     assert max(diffs.values()) <= TOLERANCE, diffs
+
+
+def test_the_same_fmus_give_the_same_archive_bytes_at_another_time(archive, built_fmus,
+                                                                   tmp_path):
+    """No time stamp inside: the archive of the same FMUs, written seconds later from copies
+    with new modification times, is equal byte for byte (a reproducible build)."""
+    copies = {}
+    for name, fmu in built_fmus.items():
+        copies[name] = tmp_path / Path(fmu).name
+        shutil.copyfile(fmu, copies[name])  # a new modification time
+    second = int(time.time())
+    while int(time.time()) == second:
+        time.sleep(0.05)
+    again = ssp.build_ssp(copies, tmp_path / "again.ssp", n=N)
+    assert again.read_bytes() == archive.read_bytes()
 
 
 def test_start_values_in_the_archive_are_applied(built_fmus, tmp_path):
