@@ -191,6 +191,36 @@ def _variables(path: Path) -> Dict[str, Any]:
     return {v.name: v for v in read_model_description(str(path)).modelVariables}
 
 
+def _is_number(value: Any) -> bool:
+    """True for an int or float (NumPy's too), False for bool, str and the rest."""
+    import numbers
+    return isinstance(value, numbers.Real) and not isinstance(value, bool)
+
+
+def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
+    """Why ``value`` is not allowed as the start value of the FMU's parameter ``variable``
+    (an fmpy model variable), or None: the rule of :mod:`driftfmu.models.parameters` where it
+    has one (what the FMU checks too), else the declared type, min and max."""
+    import math
+    from driftfmu.models import parameters
+    integer = variable.type in ("Integer", "Int32")
+    kind = "an integer" if integer else "a finite number"
+    if not _is_number(value):
+        return "%s = %r is not a number; allowed: %s" % (name, value, kind)
+    if name in parameters.PARAMETERS:
+        return parameters.problem(name, value)
+    low = None if variable.min is None else float(variable.min)
+    high = None if variable.max is None else float(variable.max)
+    if not math.isfinite(value) or (integer and value != int(value)) or \
+            (low is not None and value < low) or (high is not None and value > high):
+        bounds = " and ".join(b for b in (
+            None if variable.min is None else "%s >= %s" % (name, variable.min),
+            None if variable.max is None else "%s <= %s" % (name, variable.max)) if b)
+        return "%s = %r is not allowed; allowed: %s%s" % (name, value, kind,
+                                                          ", " + bounds if bounds else "")
+    return None
+
+
 def _split_name(name: str, names: Sequence[str]) -> tuple:
     """``"FMU.var"`` -> (FMU, var) when FMU is simulated, else (None, name)."""
     fmu, dot, var = name.partition(".")
@@ -261,10 +291,12 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     Raises
     ------
     ValueError
-        An FMU, variable, backend, step or time is not allowed (the message names it and
-        what is allowed), or a parameter value is refused by an FMU.
+        An FMU, variable, backend, step, time, input value or start value is not allowed
+        (one line naming it and what is allowed; a start value is checked against its
+        parameter's rule and declared type and range before any FMU runs).
     RuntimeError
-        An FMU call failed (the message holds the FMUs' log).
+        An FMU call failed, e.g. a combination of parameters an FMU refuses (the message holds
+        the FMUs' log).
 
     See Also
     --------
@@ -284,6 +316,17 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
 
     from driftfmu.simulations.errors import UsageError
 
+    from collections.abc import Iterable
+    if isinstance(fmus, (str, bytes)) or not isinstance(fmus, Iterable):
+        raise UsageError("fmus = %r is not allowed; allowed: a sequence of FMU names (one or "
+                         "more of %s), e.g. [%r]" % (fmus, ", ".join(FMU_NAMES), FMU_NAMES[0]))
+    if isinstance(fmu_dir, str) and not fmu_dir.strip():
+        raise UsageError("fmu_dir = %r is empty; allowed: a folder path, e.g. 'build/fmus'"
+                         % (fmu_dir,))
+    for label, value in (("stop_time", stop_time), ("step_size", step_size),
+                         ("start_time", start_time)):
+        if value is not None and not _is_number(value):
+            raise UsageError("%s = %r is not a number; allowed: a finite number" % (label, value))
     names = list(fmus)
     if not names:
         raise UsageError("fmus = [] is not allowed; allowed: one or more of %s"
@@ -327,12 +370,15 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
                 ", ".join(sorted({v for n in names for v, mv in variables[n].items()
                                   if mv.causality == "parameter"}))))
         for t in targets:
+            problem = _start_value_problem(var, value, variables[t][var])
+            if problem:  # here, not as an FMU's log: fmpy would wrap an Integer out of range
+                raise UsageError("start value %s" % problem)
             per_fmu[t][var] = value
 
     # external inputs, sampled with a zero-order hold at the communication points
     feeds = {}
     if input is not None:
-        fields = input.dtype.names or ()
+        fields = getattr(getattr(input, "dtype", None), "names", None) or ()
         if not fields or fields[0] != "time":
             raise UsageError("input has fields %r; allowed: a structured array whose first "
                              "field is 'time'" % (fields,))
@@ -354,6 +400,10 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
                     ", ".join(sorted({v for n in names for v, mv in variables[n].items()
                                       if mv.causality == "input"})) or "none"))
             values = np.asarray(input[key], dtype=float)[rows]
+            if not np.all(np.isfinite(values)):
+                raise UsageError("input field %r has values that are not finite (NaN or "
+                                 "infinite) at the communication points; allowed: finite "
+                                 "values" % (key,))
             for t in targets:
                 if (t, var) in connected:
                     raise UsageError("input field %r drives %s.%s, which the connection from "

@@ -105,7 +105,11 @@ def allowed(name):
         parts.append("%s %s %s" % (name, "<" if p.high_open else "<=", _fmt(p.high)))
     if name in NONZERO:
         parts.append("%s != 0" % name)
-    return " and ".join(parts) if parts else "any finite value"
+    return " and ".join(parts) if parts else ANY_FINITE
+
+
+#: What :func:`allowed` says of a parameter without bounds.
+ANY_FINITE = "any finite value"
 
 
 def next_float(x, toward):
@@ -145,8 +149,12 @@ def problem(name, value):
         v = float(value)
     except (TypeError, ValueError):
         return "%s = %r is not a number; allowed: %s" % (name, value, allowed(name))
-    bad = not math.isfinite(v)
-    if not bad and p.low is not None:
+    if not math.isfinite(v):
+        rule = allowed(name)
+        return "%s = %r is not finite; allowed: %s" % (
+            name, value, rule if rule == ANY_FINITE else "a finite value with " + rule)
+    bad = False
+    if p.low is not None:
         bad = v <= p.low if p.low_open else v < p.low
     if not bad and p.high is not None:
         bad = v >= p.high if p.high_open else v > p.high

@@ -1,5 +1,6 @@
 """The public API (driftfmu.build_fmus, driftfmu.simulate, the experiments) against models/."""
 import inspect
+import os
 from pathlib import Path
 
 import numpy as np
@@ -91,6 +92,11 @@ def test_a_name_recorded_from_two_fmus_is_qualified(fmu_dir):
     (dict(stop_time=-1.0), ["stop_time = -1.0"]),
     (dict(backend="java"), ["backend = 'java'", "'native'"]),
     (dict(fmi_version=3), ["fmi_version = 3", "allowed: 2"]),
+    (dict(fmus="DriftEstimator"), ["fmus = 'DriftEstimator'", "a sequence of FMU names"]),
+    (dict(fmus=None), ["fmus = None", "a sequence of FMU names"]),
+    (dict(stop_time="1"), ["stop_time = '1' is not a number"]),
+    (dict(stop_time=True), ["stop_time = True is not a number"]),
+    (dict(step_size=None, start_time="0"), ["start_time = '0' is not a number"]),
 ])
 def test_simulate_refuses_bad_settings_before_building(kwargs, words, tmp_path):
     with pytest.raises(ValueError) as info:
@@ -107,12 +113,40 @@ def test_simulate_refuses_bad_settings_before_building(kwargs, words, tmp_path):
      ["'x'", "Excitation"]),
     (dict(input=np.zeros(3, dtype=[("t", float), ("x", float)])), ["'time'"]),
     (dict(output=["nope"]), ["'nope'"]),
+    # start values are checked before any FMU runs: one line, what is allowed (an Integer out
+    # of its 32 bits would reach the FMU wrapped, as another seed, through fmpy)
+    (dict(start_values={"seed": 2 ** 40}), ["seed = 1099511627776 is out of range",
+                                             "seed <= 2147483647"]),
+    (dict(start_values={"seed": 2 ** 32 + 5}), ["seed = 4294967301 is out of range"]),
+    (dict(start_values={"seed": 1.9}), ["seed = 1.9 is out of range"]),
+    (dict(start_values={"seed": -1}), ["seed = -1 is out of range", "seed >= 0"]),
+    (dict(start_values={"a2": float("nan")}), ["a2 = nan is not finite"]),
+    (dict(start_values={"Q": float("inf")}), ["Q = inf is not finite", "Q >= 0"]),
+    (dict(start_values={"R": 0}), ["R = 0 is out of range", "R > 0"]),
+    (dict(start_values={"a1": 0}), ["a1 = 0 is out of range", "a1 != 0"]),
+    (dict(start_values={"a2": "x"}), ["a2 = 'x' is not a number"]),
+    (dict(start_values={"a2": None}), ["a2 = None is not a number"]),
+    (dict(start_values={"a2": True}), ["a2 = True is not a number"]),
+    (dict(start_values={"estimator": 4}), ["estimator = 4 is not allowed", "estimator <= 3"]),
+    (dict(start_values={"estimator": 2.5}), ["estimator = 2.5 is not allowed", "an integer"]),
+    (dict(input=np.array([(0.0, 1.0), (0.001, np.nan)], dtype=[("time", float), ("z", float)]),
+          fmus=["DriftEstimator"]), ["input field 'z'", "not finite"]),
+    (dict(input=[1, 2, 3]), ["input has fields ()", "'time'"]),
 ])
-def test_simulate_refuses_bad_names(fmu_dir, kwargs, words):
+def test_simulate_refuses_bad_names_and_values(fmu_dir, kwargs, words):
     with pytest.raises(ValueError) as info:
         driftfmu.simulate(stop_time=0.002, fmu_dir=fmu_dir, **kwargs)
+    assert "\n" not in str(info.value)
     for word in words:
         assert word in str(info.value)
+
+
+def test_an_empty_fmu_dir_is_refused_not_the_current_folder(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    for empty in ("", "  "):
+        with pytest.raises(ValueError, match="fmu_dir = .* is empty; allowed: a folder path"):
+            driftfmu.simulate(fmu_dir=empty)
+    assert os.listdir(tmp_path) == []
 
 
 def test_build_fmus_refuses_what_it_cannot_build(tmp_path):

@@ -172,7 +172,7 @@ def test_ekf1_is_unbiased_over_seeds():
     ("Q", -1.0, "Q = -1.0 is out of range; allowed: Q >= 0"),
     ("A", 1.0, "allowed: A > -1 and A < 1"),
     ("a1", 0.0, "allowed: a1 != 0"),
-    ("a2", float("nan"), "a2 = nan is out of range"),
+    ("a2", float("nan"), "a2 = nan is not finite; allowed: any finite value"),
     ("n", 2.5, "n = 2.5 is out of range; allowed: n >= 1"),
     ("seed", "x", "seed = 'x' is not a number"),
 ])

@@ -81,7 +81,7 @@ def test_general_parameters_reach_every_grid_point_and_the_expected_drift():
 
 @pytest.mark.parametrize("kw, match", [
     (dict(a2=[0.01, 0.1]), "a sweep over a4 .3 values. and a2 .2 values. at once"),
-    (dict(a4=[0.0, float("nan")]), "a4 = nan is out of range"),
+    (dict(a4=[0.0, float("nan")]), "a4 = nan is not finite"),
     (dict(drive=7), "drive = 7 is out of range"),
     (dict(Xb=1.0), r"unknown parameter\(s\) Xb"),
 ])

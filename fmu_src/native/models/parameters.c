@@ -101,8 +101,15 @@ int parameters_problem(const char *name, double value, int is_integer, char *out
     char r[40];
     int bad;
     if (!p) return -1;
-    bad = !isfinite(value);
-    if (!bad && p->has_low) bad = p->low_open ? value <= p->low : value < p->low;
+    if (!isfinite(value)) {
+        parameters_repr_float(value, r, sizeof r);
+        if (n > 0) snprintf(out, n, "%s = %s is not finite; allowed: %s%s", name, r,
+                            strcmp(p->allowed, "any finite value") ? "a finite value with " : "",
+                            p->allowed);
+        return 1;
+    }
+    bad = 0;
+    if (p->has_low) bad = p->low_open ? value <= p->low : value < p->low;
     if (!bad && p->has_high) bad = p->high_open ? value >= p->high : value > p->high;
     if (!bad && p->nonzero) bad = value == 0.0;
     if (!bad && p->integer && value != floor(value)) bad = 1;
