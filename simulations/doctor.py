@@ -17,6 +17,7 @@ import subprocess
 import sys
 import sysconfig
 import zipfile
+import zlib
 from pathlib import Path
 
 OK, WARN, FAIL = "ok", "warning", "problem"
@@ -90,12 +91,25 @@ def diagnose(fmu):
     """List of ``(level, message)`` about running ``fmu`` on this host."""
     fmu = Path(fmu)
     out = []
+    if fmu.is_dir():
+        return [(FAIL, "%s is a folder, not an FMU; allowed: the path of a .fmu file (the zip "
+                       "archive, not the folder it was unzipped to)" % fmu)]
     if not fmu.is_file():
         return [(FAIL, "%s does not exist or is not a file" % fmu)]
     try:
         zf = zipfile.ZipFile(fmu)
     except zipfile.BadZipFile:
         return [(FAIL, "%s is not an FMU: not a zip archive" % fmu)]
+    bad = None
+    for info in zf.infolist():  # every entry read, its CRC checked: named here, not a crash
+        try:
+            zf.read(info)
+        except (zipfile.BadZipFile, zlib.error, EOFError, OSError, NotImplementedError) as exc:
+            bad = "%s (%s)" % (info.filename, exc)
+            break
+    if bad is not None:
+        return [(FAIL, "%s is damaged: %s cannot be read from the zip archive; rebuild it "
+                       "(driftfmu build) or copy it again" % (fmu, bad))]
     names = set(zf.namelist())
     if "modelDescription.xml" not in names:
         return [(FAIL, "%s has no modelDescription.xml" % fmu)]
@@ -306,20 +320,30 @@ def report(fmu):
     bad = [m for lvl, m in findings if lvl == FAIL]
     print("verdict: %s" % ("this FMU will run on this host" if not bad else
                            "this FMU will NOT run on this host as it is: %s"
-                           % "; ".join(_reason(m) for m in bad)))
+                           % "; ".join(_reason(m, str(fmu)) for m in bad)))
     return 1 if bad else 0
 
 
-def _reason(message):
-    """The first clause of a problem, for the verdict line."""
-    return message.split(". ")[0].split(": the FMU is damaged")[0]
+def _reason(message, path=""):
+    """The first clause of a problem, for the verdict line (a message that starts with the
+    FMU's path keeps it whole, whatever dots it holds)."""
+    head = path if path and message.startswith(path) else ""
+    rest = message[len(head):]
+    return head + rest.split(". ")[0].split(": the FMU is damaged")[0]
 
 
 def add_cli(groups):
     p = groups["top"].add_parser("doctor", help="tell whether and why an FMU will run on this "
                                  "host (libpython, Python version, imports)")
     p.add_argument("fmu", metavar="FMU", help="path of the .fmu file")
-    p.set_defaults(func=lambda args: _exit(report(args.fmu)))
+    p.set_defaults(func=_cli)
+
+
+def _cli(args):
+    if not args.fmu.strip():
+        from driftfmu.simulations.errors import UsageError
+        raise UsageError("FMU %r is empty; allowed: the path of a .fmu file" % args.fmu)
+    _exit(report(args.fmu))
 
 
 def _exit(code):

@@ -1,5 +1,6 @@
 """``driftfmu doctor``: plain-words diagnosis of whether an FMU runs on this host."""
 import zipfile
+from pathlib import Path
 
 import pytest
 
@@ -51,3 +52,42 @@ def test_not_an_fmu(tmp_path):
     p = tmp_path / "x.fmu"
     p.write_text("hello")
     assert doctor.diagnose(p) == [(doctor.FAIL, "%s is not an FMU: not a zip archive" % p)]
+
+
+@pytest.mark.parametrize("damage", ["deflate stream", "crc"])
+def test_a_damaged_archive_is_a_named_problem_not_a_crash(built_fmus, tmp_path, capsys, damage):
+    """Bytes overwritten inside one entry's compressed data (a broken download or copy): the
+    doctor names the file and the entry instead of stopping with zlib's message."""
+    fmu = tmp_path / "copy of.fmu"
+    data = bytearray(Path(built_fmus["DriftEstimator"]).read_bytes())
+    with zipfile.ZipFile(built_fmus["DriftEstimator"]) as z:
+        info = z.getinfo("binaries/linux64/DriftEstimator.so")
+    start = info.header_offset + 30 + len(info.filename.encode()) + len(info.extra)
+    if damage == "crc":  # the CRC-32 of the central directory changed: the data inflate fine
+        name = info.filename.encode()
+        at = next(i for i in range(len(data)) if data[i:i + 4] == b"PK\x01\x02"
+                  and data[i + 46:i + 46 + len(name)] == name)
+        data[at + 16] ^= 0xFF
+    else:
+        data[start + 2000:start + 2050] = bytes(50)
+    fmu.write_bytes(bytes(data))
+    assert doctor.report(fmu) == 1
+    out = capsys.readouterr().out
+    assert "[PROBLEM] %s is damaged: binaries/linux64/DriftEstimator.so (" % fmu in out
+    assert "verdict: this FMU will NOT run on this host as it is: %s is damaged" % fmu in out
+
+
+def test_a_folder_is_refused_with_what_is_allowed(tmp_path, capsys):
+    folder = tmp_path / "un. zipped"  # a ". " in the path does not cut the verdict short
+    folder.mkdir()
+    assert doctor.report(folder) == 1
+    out = capsys.readouterr().out
+    assert ("verdict: this FMU will NOT run on this host as it is: %s is a folder, not an FMU"
+            % folder) in out
+
+
+def test_an_empty_path_is_a_usage_error(capsys):
+    from driftfmu.simulations.cli import main
+    assert main(["doctor", ""]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["driftfmu: error: FMU '' is empty; allowed: the path of a .fmu file"]
