@@ -229,6 +229,11 @@ def build_log(line):
 
 def check_build_args(args):
     """Usage errors of ``driftfmu build`` found before anything is built."""
+    from driftfmu.fmu_src.builder import BuildError, generation_time
+    try:
+        generation_time()  # SOURCE_DATE_EPOCH, when set, is a time
+    except BuildError as exc:
+        raise UsageError(str(exc)) from None
     if args.native or args.backend == "native":
         from driftfmu.fmu_src import native_build
         problem = native_build.compiler_problem("linux64")
@@ -382,6 +387,8 @@ def check_out(args):
         value = getattr(args, attr, None)
         if value is not None:
             check_folder(option, value)
+    if getattr(args, "fmu_dir", None) is not None:  # read, or written when the FMUs are missing
+        check_folder("--fmu-dir", args.fmu_dir, writable=False)
     ssp = getattr(args, "ssp", None)
     if ssp is not None:
         if not ssp.strip():
@@ -389,10 +396,11 @@ def check_out(args):
         check_folder("--ssp", str(Path(ssp).parent), what="the folder of")
 
 
-def check_folder(option, value, what=""):
+def check_folder(option, value, what="", writable=True):
     """Usage error unless ``value`` names a folder that exists and can be written to, or that
     can be created: its nearest existing parent is a folder this process can write to (tried
-    with a temporary folder, so it holds for root and for read-only file systems alike)."""
+    with a temporary folder, so it holds for root and for read-only file systems alike).  With
+    ``writable=False`` only an empty path and a file where the folder or a parent should be."""
     if not value.strip():
         raise UsageError("%s %r is empty; allowed: a folder path, e.g. results/run1"
                          % (option, value))
@@ -406,13 +414,16 @@ def check_folder(option, value, what=""):
     if not parent.is_dir():
         raise UsageError("%s %s cannot be created: %s is a file; allowed: a folder path"
                          % (option, value, parent))
+    if not writable:
+        return
     import tempfile
     try:
         os.rmdir(tempfile.mkdtemp(prefix=".driftfmu-write-test-", dir=parent))
     except OSError as exc:
-        raise UsageError("%s %s cannot be written: %s%s: %s; allowed: a folder you can write "
-                         "to" % (option, value, what + " " if what else "", parent,
-                                 exc.strerror or exc)) from None
+        raise UsageError("%s %s cannot be written: no folder can be made in %s%s (%s); "
+                         "allowed: a folder you can write to" % (
+                             option, value, what + " " if what else "", parent,
+                             exc.strerror or exc)) from None
 
 
 #: Set by the first SIGINT/SIGTERM: whatever exception the interrupted code then raises (an

@@ -132,6 +132,16 @@ def interrupts_deferred(signals=(signal.SIGINT, signal.SIGTERM)):
             previous[pending[0]](pending[0], None)
 
 
+def check_fmu_file(path):
+    """UsageError unless ``path`` is a zip archive, before fmpy reads it (whose message, "File
+    is not a zip file", names neither the file nor what to do)."""
+    import zipfile
+    if not zipfile.is_zipfile(path):
+        raise UsageError("%s is not an FMU (not a zip archive: damaged or cut short); allowed: "
+                         "an FMU as driftfmu build writes it (remove this one and it is built "
+                         "again)" % path)
+
+
 class CoSimulationError(RuntimeError):
     """A co-simulation failed; the message carries what the FMUs logged."""
 
@@ -162,6 +172,7 @@ class Instance:
     def __init__(self, name, path, logging_on=False):
         self.name = name
         self.path = str(path)
+        check_fmu_file(self.path)
         self.md = read_model_description(self.path)
         self.unzipdir = _extract(self.path)
         self.vrs = {v.name: v.valueReference for v in self.md.modelVariables}
@@ -400,6 +411,8 @@ def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, sta
             if progress is not None and (i + 1) % every == 0:
                 progress(i + 1)
         return out
+    except UsageError:  # what the caller gave cannot be run (a file that is not an FMU)
+        raise
     except Exception as exc:
         raise failed(exc, insts) from exc
     finally:

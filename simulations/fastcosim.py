@@ -24,8 +24,9 @@ import numpy as np
 from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
-from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, failed, free_all, \
-    new_extract_folder
+from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, check_fmu_file, \
+    failed, free_all, new_extract_folder
+from driftfmu.simulations.errors import UsageError
 
 
 #: fmpy FMU objects whose instance was freed but whose library stays loaded, for the next run
@@ -144,6 +145,7 @@ def unpacked(path):
     if key not in _UNPACKED:
         # registered where a worker told to stop finds it (batch._worker_stop), removed when
         # the process ends (cosim.new_extract_folder)
+        check_fmu_file(path)
         folder = new_extract_folder(prefix="driftfmu_fast_")
         here = {"Linux": ("linux64", "x86_64-linux"), "Windows": ("win64", "x86_64-windows"),
                 "Darwin": ("darwin64", "x86_64-darwin", "aarch64-darwin")}.get(
@@ -427,6 +429,8 @@ def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, re
                 key = "%s.%s" % (name, v)
                 out[key] = column(index[key])
         return out
+    except UsageError:  # what the caller gave cannot be run (a file that is not an FMU)
+        raise
     except Exception as exc:
         raise failed(exc, insts) from exc
     finally:

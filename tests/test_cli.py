@@ -69,6 +69,52 @@ def test_out_naming_an_existing_file_is_one_line_and_exit_2(tmp_path, capsys):
     assert f.read_text() == "mine\n"
 
 
+@pytest.mark.parametrize("where, words", [
+    ("file", "--fmu-dir {d}/afile is an existing file; allowed: a folder"),
+    ("under a file", "--fmu-dir {d}/afile/sub cannot be created: {d}/afile is a file"),
+    ("empty", "--fmu-dir '' is empty; allowed: a folder path"),
+])
+def test_fmu_dir_naming_a_file_is_one_line_and_exit_2(where, words, tmp_path, capsys):
+    (tmp_path / "afile").write_text("mine\n")
+    value = {"file": tmp_path / "afile", "under a file": tmp_path / "afile" / "sub",
+             "empty": ""}[where]
+    assert _status(["run", "gaussian", "--n", "10", "--out", str(tmp_path / "out"),
+                    "--fmu-dir", str(value)]) == 2
+    assert _one_error_line(capsys.readouterr().err).startswith(
+        "driftfmu: error: " + words.format(d=tmp_path))
+    assert sorted(os.listdir(tmp_path)) == ["afile"]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("backend", ["python", "native"])
+def test_a_damaged_fmu_in_fmu_dir_is_named_in_one_line(backend, built_fmus, native_fmus,
+                                                       tmp_path, capsys):
+    """An FMU of --fmu-dir that is not a zip archive (a download cut short): the error names
+    the file and what to do, not fmpy's "File is not a zip file"; no result is written."""
+    fmus = tmp_path / "fmus"
+    folder = fmus if backend == "python" else fmus / "native" / "fmi2"
+    folder.mkdir(parents=True)
+    for name, path in (built_fmus if backend == "python" else native_fmus[2]).items():
+        (folder / Path(path).name).write_bytes(Path(path).read_bytes())
+    (folder / "Accelerometer.fmu").write_bytes(b"PK\x03\x04 cut short")
+    rc = _status(["run", "gaussian", "--n", "10", "--out", str(tmp_path / "out"), "--fmu-dir",
+                  str(fmus), "--backend", backend])
+    assert rc == 2
+    assert _one_error_line(capsys.readouterr().err) == (
+        "driftfmu: error: %s is not an FMU (not a zip archive: damaged or cut short); allowed: "
+        "an FMU as driftfmu build writes it (remove this one and it is built again)"
+        % (folder / "Accelerometer.fmu"))
+    assert not (tmp_path / "out").exists()
+
+
+def test_a_bad_source_date_epoch_is_a_usage_error_of_build(tmp_path, capsys, monkeypatch):
+    monkeypatch.setenv("SOURCE_DATE_EPOCH", "abc")
+    assert _status(["build", "--out", str(tmp_path / "fmus")]) == 2
+    assert _one_error_line(capsys.readouterr().err).startswith(
+        "driftfmu: error: SOURCE_DATE_EPOCH='abc' is not a time; allowed: a whole number")
+    assert os.listdir(tmp_path) == []
+
+
 def test_version(capsys):
     from driftfmu import __version__
     with pytest.raises(SystemExit) as exc:
