@@ -202,6 +202,29 @@ def _variables(path: Path) -> Dict[str, Any]:
     return {v.name: v for v in read_model_description(str(path)).modelVariables}
 
 
+#: Bytes a recorded value may take while a master runs (a Python float in a list, then its
+#: place in the result array).
+_BYTES_PER_VALUE = 40
+
+
+def _check_memory(n_steps: int, columns: int, stop_time: float, step_size: float) -> None:
+    """UsageError when recording ``columns`` values at ``n_steps`` communication points
+    cannot fit in the memory this process may use (checked before any FMU runs, as the
+    command line does; a run that would fill the memory is refused, not left to fail)."""
+    from driftfmu.simulations import budget
+    from driftfmu.simulations.errors import UsageError
+    need = _BYTES_PER_VALUE * float(columns) * n_steps
+    have = budget.available_memory()
+    if have is not None and need > budget.MEMORY_SHARE * have:
+        raise UsageError("stop_time = %r with step_size = %r makes %d communication points: "
+                         "recording %d values at each needs about %s of memory, this machine "
+                         "has %s available; allowed: at most about %d points (an earlier "
+                         "stop_time, a longer step_size) or fewer output variables" % (
+                             stop_time, step_size, n_steps, columns, budget.size(need),
+                             budget.size(have),
+                             budget.MEMORY_SHARE * have / (_BYTES_PER_VALUE * columns)))
+
+
 def _is_number(value: Any) -> bool:
     """True for an int or float (NumPy's too), False for bool, str and the rest."""
     import numbers
@@ -443,6 +466,7 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
                 if var not in record[o]:
                     record[o].append(var)
     record = {n: vs for n, vs in record.items() if vs}
+    _check_memory(n_steps, 1 + sum(len(vs) for vs in record.values()), stop_time, step_size)
 
     from driftfmu.simulations.cosim import cosimulate
     if backend == "native" and not feeds:
