@@ -109,6 +109,9 @@ class Progress:
 
     On a terminal a tqdm bar; otherwise one plain line on standard error every ``every``
     seconds (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``).
+    The time left is the rate since the phase's first update that reported work done, so what
+    came before it (building the FMUs, starting workers) does not count as that work; a line
+    before a second such update has no estimate.
     """
 
     def __init__(self, total, desc, unit, bar=None, every=PROGRESS_EVERY, stream=None,
@@ -117,6 +120,7 @@ class Progress:
         self.every, self.stream, self.clock = every, stream or sys.stderr, clock
         self.done = 0
         self.started = self.phase_started = self.last = clock()
+        self.first = None  # (time, done) of the phase's first update with done > 0
 
     def __call__(self, done):
         self.done = done
@@ -124,6 +128,8 @@ class Progress:
             self.bar.update(done - self.bar.n)
             return
         now = self.clock()
+        if self.first is None and done > 0:
+            self.first = (now, done)
         if now - self.last >= self.every:
             self.last = now
             self.write(now)
@@ -133,6 +139,7 @@ class Progress:
         self.desc, self.total, self.unit = desc, total, unit or self.unit
         self.done = 0
         self.phase_started = self.clock()
+        self.first = None
         if self.bar is not None:
             self.bar.reset(total=total)
             self.bar.set_description(desc)
@@ -148,8 +155,10 @@ class Progress:
             line += " %.0f %% (%d/%d %ss)" % (100.0 * self.done / self.total, self.done,
                                               self.total, self.unit)
         line += ", %s" % _seconds(elapsed)
-        if self.total and 0 < self.done < self.total:
-            line += ", about %s left" % _seconds(elapsed * (self.total - self.done) / self.done)
+        if self.total and self.first is not None and self.first[1] < self.done < self.total:
+            t0, done0 = self.first
+            line += ", about %s left" % _seconds(
+                (now - t0) * (self.total - self.done) / (self.done - done0))
         self.stream.write(line + "\n")
         self.stream.flush()
 

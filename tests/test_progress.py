@@ -30,7 +30,8 @@ def test_plain_lines_come_at_intervals_with_percent_and_time_left():
     assert out.getvalue() == ""  # not yet 10 s
     clock.t = 10.0
     p(250)
-    assert out.getvalue() == "driftfmu: progress: runs 25 % (250/1000 runs), 10 s, about 30 s left\n"
+    # 150 runs in the 5 s since the first update: 750 more take 25 s
+    assert out.getvalue() == "driftfmu: progress: runs 25 % (250/1000 runs), 10 s, about 25 s left\n"
     clock.t = 12.0
     p(300)
     assert out.getvalue().count("\n") == 1  # one line per interval
@@ -47,12 +48,29 @@ def test_a_new_phase_restarts_the_count_and_is_announced_in_a_long_run():
     cli.start_phase(p, "validation", 4, "point")
     lines = out.getvalue().splitlines()
     assert lines[-1] == "driftfmu: progress: validation 0 % (0/4 points), 0 s"
-    clock.t = 45.0
+    clock.t = 35.0
     p(1)
-    assert out.getvalue().splitlines()[-1] == ("driftfmu: progress: validation 25 % (1/4 points), "
-                                               "15 s, about 45 s left")
+    clock.t = 45.0
+    p(2)
+    assert out.getvalue().splitlines()[-1] == ("driftfmu: progress: validation 50 % (2/4 points), "
+                                               "15 s, about 20 s left")
     cli.start_phase(lambda done: None, "x", 1)  # a plain callable has no phases: ignored
     cli.start_phase(None, "x", 1)
+
+
+def test_the_time_left_does_not_count_what_came_before_the_first_work_done():
+    """A run that first builds its FMUs for 60 s, then co-simulates 100 samples in 10 s: 890
+    samples are 89 s more, not the 566 s that counting the build would say; the line before
+    a rate is known has no estimate."""
+    clock, out = Clock(), io.StringIO()
+    p = cli.Progress(1000, "co-simulation", "sample", every=1.0, stream=out, clock=clock)
+    clock.t = 60.0
+    p(10)
+    clock.t = 70.0
+    p(110)
+    assert out.getvalue().splitlines() == [
+        "driftfmu: progress: co-simulation 1 % (10/1000 samples), 60 s",
+        "driftfmu: progress: co-simulation 11 % (110/1000 samples), 70 s, about 89 s left"]
 
 
 class Bar:
