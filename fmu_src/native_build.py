@@ -671,9 +671,11 @@ def _version_identity(text):
 def compiler_version(command):
     """What ``command --version`` prints (its output; empty if it fails), once per command: a
     library cache kept from run to run must not serve what an older compiler made."""
-    try:
-        done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
-                              timeout=60)
+    import tempfile
+    try:  # in a folder of its own: zig cc -target ... --version leaves an empty a.o behind
+        with tempfile.TemporaryDirectory(prefix="driftfmu_cc_") as work:
+            done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
+                                  timeout=60, cwd=work)
     except (OSError, subprocess.SubprocessError):
         return ""
     return done.stdout if done.returncode == 0 else ""

@@ -401,6 +401,19 @@ def test_the_cache_key_does_not_name_where_ziglang_is_installed(tmp_path, monkey
     assert key("/home/me/a/bin/python", "/home/me/a/lib") != first
 
 
+def test_asking_a_compiler_its_version_leaves_nothing_in_the_current_folder(tmp_path,
+                                                                            monkeypatch):
+    """``zig cc -target <macOS> --version`` writes an empty ``a.o`` into its working folder:
+    the cache key's question runs elsewhere, so a build leaves nothing in the user's folder."""
+    monkeypatch.chdir(tmp_path)
+    for platform in PLATFORMS:
+        chosen = native_build.compiler(platform)
+        if chosen is not None:
+            native_build.compiler_version.cache_clear()
+            native_build.compiler_version(tuple(chosen[0]))
+    assert os.listdir(tmp_path) == []
+
+
 def test_a_cache_that_cannot_be_written_does_not_fail_the_build(tmp_path):
     """A library cache that cannot be written (here a path under a file) is skipped: the build
     succeeds with the bytes of a build without a cache, and leaves no part of a write."""
