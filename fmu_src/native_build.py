@@ -626,12 +626,10 @@ def _read_cache_entry(path):
         raw = path.read_bytes()
     except OSError:  # not there (or removed meanwhile)
         return None
-    head = len(CACHE_MAGIC) + 65
-    if not raw.startswith(CACHE_MAGIC) or raw[head - 1:head] != b"\n":
+    if not raw.startswith(CACHE_MAGIC):
         return None
-    data = raw[head:]
-    return data if hashlib.sha256(data).hexdigest().encode() == raw[head - 65:head - 1] \
-        else None
+    digest, newline, data = raw[len(CACHE_MAGIC):].partition(b"\n")
+    return data if newline and hashlib.sha256(data).hexdigest().encode() == digest else None
 
 
 def _cache_key(platform, sources, c_files):
