@@ -176,21 +176,16 @@ def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
                fmu_dir: PathLike) -> Dict[str, Path]:
     """Paths of ``names``; the missing ones are built first."""
     from driftfmu.simulations.errors import UsageError
+    from driftfmu.simulations.output import nearest_existing
     fmu_dir = Path(fmu_dir)
-    existing = fmu_dir
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
-    if existing.exists() and not existing.is_dir():
+    existing = nearest_existing(fmu_dir)
+    if not existing.is_dir():
         raise UsageError("fmu_dir %s: %s is a file; allowed: a folder of FMUs (built there if "
                          "missing)" % (fmu_dir, existing))
     if backend == "python":
         paths = {n: fmu_dir / ("%s.fmu" % n) for n in names}
     else:
         paths = {n: fmu_dir / "native" / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in names}
-    from driftfmu.simulations.cosim import check_fmu_file
-    for p in paths.values():
-        if p.is_file():
-            check_fmu_file(p)
     missing = [n for n, p in paths.items() if not p.is_file()]
     if missing:
         build_fmus(fmu_dir, backend=backend, fmi_version=fmi_version, names=missing)
@@ -199,6 +194,8 @@ def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
 
 def _variables(path: Path) -> Dict[str, Any]:
     from fmpy import read_model_description
+    from driftfmu.simulations.cosim import check_fmu_file
+    check_fmu_file(path)  # before fmpy, whose message names neither the file nor a remedy
     return {v.name: v for v in read_model_description(str(path)).modelVariables}
 
 

@@ -417,9 +417,8 @@ def check_folder(option, value, what="", writable=True):
     if path.exists() and not path.is_dir():
         raise UsageError("%s %s is an existing file; allowed: a folder (created if missing)"
                          % (option, value))
-    parent = path
-    while not parent.exists() and parent != parent.parent:
-        parent = parent.parent
+    from driftfmu.simulations.output import nearest_existing
+    parent = nearest_existing(path)
     if not parent.is_dir():
         raise UsageError("%s %s cannot be created: %s is a file; allowed: a folder path"
                          % (option, value, parent))

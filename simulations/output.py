@@ -16,6 +16,15 @@ from pathlib import Path
 from driftfmu.simulations.errors import UsageError
 
 
+def nearest_existing(path):
+    """``path`` if it exists, else its nearest parent that does (a folder, or a file in the
+    way of the folders to make)."""
+    path = Path(path)
+    while not path.exists() and path != path.parent:
+        path = path.parent
+    return path
+
+
 class Staging:
     """All the outputs of one job, or none of them (``driftfmu build``: FMUs, native FMUs,
     cross-check folders, the SSP archive; a master's result folder, through :func:`staged`).
@@ -120,10 +129,8 @@ def staged(out_dir):
     ``out_dir`` naming an existing file, or a path under one, is a UsageError (one line, raised
     before the block runs, nothing written)."""
     out = Path(out_dir)
-    existing = out
-    while not existing.exists() and existing != existing.parent:
-        existing = existing.parent
-    if existing.exists() and not existing.is_dir():
+    existing = nearest_existing(out)
+    if not existing.is_dir():
         raise UsageError("%s is an existing file; allowed: a folder (created if missing)"
                          % existing)
     with Staging() as staging:
