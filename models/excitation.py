@@ -99,10 +99,19 @@ def gaussian_pair(x_prev, y_prev, A, Q, Qy, rho, seed, k, B=0.0, u=0.0):
     known input ``B u_k`` drives ``x`` only (:func:`gauss_markov`).
     """
     w1 = normal(seed, STREAM_PROCESS, k)
+    if (type(Qy) is float or _ops.is_scalar(Qy)) and Qy == 0.0:
+        return correlated_pair(x_prev, y_prev, A, Q, Qy, rho, w1, 0.0, B, u)
+    return correlated_pair(x_prev, y_prev, A, Q, Qy, rho, w1,
+                           normal(seed, STREAM_SENSOR_Y, k), B, u)
+
+
+def correlated_pair(x_prev, y_prev, A, Q, Qy, rho, w1, w2, B=0.0, u=0.0):
+    """:func:`gaussian_pair` from its two standard normal draws ``w1`` (process-noise stream)
+    and ``w2`` (second-axis stream; not used while ``Qy = 0``), for a caller that draws them
+    itself (the Excitation FMU draws them in blocks of samples, the same bits)."""
     x = gauss_markov(x_prev, A, Q, w1, B, u)
     if (type(Qy) is float or _ops.is_scalar(Qy)) and Qy == 0.0:
         return x, 0.0
-    w2 = normal(seed, STREAM_SENSOR_Y, k)
     y = A * y_prev + _ops.sqrt(Qy) * (rho * w1 + _ops.sqrt(1.0 - rho * rho) * w2)
     return x, y
 

@@ -72,6 +72,7 @@ class DualModel(ctypes.Structure):
 
 SIGNATURES = {
     "excitation_gaussian_pair": (None, D, D, D, D, D, D, I64, I64, PD, PD),
+    "excitation_correlated_pair": (None, D, D, D, D, D, D, D, D, D, D, PD, PD),
     "sensor_h_bilinear": (D, D, D, D, D, D, D),
     "sensor_measure_bilinear": (D, D, D, D, D, D, D, D, D),
     "dualaxis_measure": (None, D, D, Axis, Axis, D, D, PD, PD),
@@ -160,6 +161,19 @@ def _pair(c, *args):
     x, y = D(), D()
     c.excitation_gaussian_pair(*args, ctypes.byref(x), ctypes.byref(y))
     return x.value, y.value
+
+
+def test_correlated_pair_equals_models(c):
+    """The pair from draws given by the caller (the Excitation FMU's blocks of draws)."""
+    rng = random.Random(RNG_SEED + 31)
+    for _ in range(2000):
+        args = (rng.uniform(-5, 5), rng.uniform(-5, 5), rng.uniform(-0.999, 0.999),
+                rng.uniform(0, 3), rng.choice((0.0, -0.0, rng.uniform(0, 3))), rng.uniform(-1, 1),
+                rng.gauss(0, 1), rng.gauss(0, 1), rng.choice((0.0, rng.uniform(-2, 2))),
+                rng.uniform(-3, 3))
+        x, y = D(), D()
+        c.excitation_correlated_pair(*args, ctypes.byref(x), ctypes.byref(y))
+        assert_same(excitation.correlated_pair(*args), (x.value, y.value), "correlated_pair")
 
 
 def test_gaussian_pair_and_bilinear_sensor_equal_models(c):

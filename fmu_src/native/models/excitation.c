@@ -50,13 +50,25 @@ void excitation_gaussian_pair_general(double x_prev, double y_prev, double A, do
                                       double Qy, double rho, int64_t seed, int64_t k, double B,
                                       double u, double *x, double *y)
 {
-    double w1 = noise_normal((uint64_t)seed, NOISE_STREAM_PROCESS, (uint64_t)k), w2;
+    double w1 = noise_normal((uint64_t)seed, NOISE_STREAM_PROCESS, (uint64_t)k);
+    if (Qy == 0.0) {
+        excitation_correlated_pair(x_prev, y_prev, A, Q, Qy, rho, w1, 0.0, B, u, x, y);
+        return;
+    }
+    excitation_correlated_pair(x_prev, y_prev, A, Q, Qy, rho, w1,
+                               noise_normal((uint64_t)seed, NOISE_STREAM_SENSOR_Y, (uint64_t)k),
+                               B, u, x, y);
+}
+
+void excitation_correlated_pair(double x_prev, double y_prev, double A, double Q, double Qy,
+                                double rho, double w1, double w2, double B, double u, double *x,
+                                double *y)
+{
     *x = excitation_gauss_markov_general(x_prev, A, Q, w1, B, u);
     if (Qy == 0.0) {
         *y = 0.0;
         return;
     }
-    w2 = noise_normal((uint64_t)seed, NOISE_STREAM_SENSOR_Y, (uint64_t)k);
     *y = A * y_prev + ops_sqrt(Qy) * (rho * w1 + ops_sqrt(1.0 - rho * rho) * w2);
 }
 

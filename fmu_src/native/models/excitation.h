@@ -29,6 +29,11 @@ void excitation_gaussian_pair(double x_prev, double y_prev, double A, double Q, 
 void excitation_gaussian_pair_general(double x_prev, double y_prev, double A, double Q,
                                       double Qy, double rho, int64_t seed, int64_t k, double B,
                                       double u, double *x, double *y);
+/* The same from its two standard normal draws w1 (process noise) and w2 (second axis; not used
+ * while Qy = 0) (models.excitation.correlated_pair). */
+void excitation_correlated_pair(double x_prev, double y_prev, double A, double Q, double Qy,
+                                double rho, double w1, double w2, double B, double u, double *x,
+                                double *y);
 /* Sample k of X sin(2 pi f t_k + phi), t_k = (k - 1) Ts. */
 double excitation_sine(int64_t k, double X, double f, double Ts, double phi);
 /* Q / (1 - A^2) (Gaussian) or X^2 / 2 (sinusoidal); NaN for another kind (Python raises). */
