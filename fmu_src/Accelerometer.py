@@ -78,12 +78,15 @@ class Accelerometer(SlaveBase):
     def prepare(self):
         self._cfg = adxl203.config(**self.parameter_values())
         self._axes = dualaxis.axes(self.parameter_values())
+        seed = self.seed  # the noise draws of both axes, a pure function of k: in blocks
+        self._v = (None, self.blocks("v1", seed, lambda k: adxl203.noise(seed, k, 1)),
+                   self.blocks("v2", seed, lambda k: adxl203.noise(seed, k, 2)))
 
     def initial_hidden(self):
         return {"_lp": None, "_lpy": None}
 
     def _axis(self, prev, own, other, k, axis, output):
-        v = adxl203.noise(self.seed, k, axis) if self.noise else 0.0
+        v = self._v[axis](k) if self.noise else 0.0  # (adxl203.noise)
         try:
             return adxl203.measure(prev, own, other, v, self._cfg)
         except (OverflowError, ValueError):  # the ADC cannot quantise a non-finite voltage
@@ -92,8 +95,7 @@ class Accelerometer(SlaveBase):
             self._not_finite(output, cfg.a0 + e, k)
 
     def _dual(self, k):
-        v = (adxl203.noise(self.seed, k, 1), adxl203.noise(self.seed, k, 2)) if self.noise \
-            else (0.0, 0.0)
+        v = (self._v[1](k), self._v[2](k)) if self.noise else (0.0, 0.0)  # (adxl203.noise)
         z, z_y = dualaxis.measure(self.x, self.y, *self._axes, *v)
         return {"_lp": None, "_lpy": None}, (z, z_y)
 

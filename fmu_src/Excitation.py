@@ -8,7 +8,7 @@ input u_in when drive = 0) that enters the Gaussian x as B u_k (eq. 1) and that 
 DriftEstimator takes as its input u."""
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
-from driftfmu.models import excitation
+from driftfmu.models import excitation, noise
 
 
 class Excitation(SlaveBase):
@@ -66,35 +66,46 @@ class Excitation(SlaveBase):
         return problems
 
     def prepare(self):
-        # the Gaussian sample's arguments laid out once (the parameters are fixed after
-        # initialisation; prepare runs again whenever they may have changed)
+        # the Gaussian sample's arguments laid out once, and what depends on k alone (the
+        # draws, the sinusoids, the drive) made blocks of samples; the parameters are fixed
+        # after initialisation, and prepare runs again whenever they may have changed
         self._gaussian = self.kind == excitation.GAUSSIAN
-        self._pair = (self.A, self.Q, self.Qy, self.rho, self.seed)
+        self._pair = (self.A, self.Q, self.Qy, self.rho)
+        seed, Ts = self.seed, self.Ts
+        if self._gaussian:
+            self._w1 = self.blocks("w1", seed, lambda k: noise.normal(
+                seed, noise.STREAM_PROCESS, k))
+            self._w2 = self.blocks("w2", seed, lambda k: noise.normal(
+                seed, noise.STREAM_SENSOR_Y, k))
+        else:
+            X, Xy, f, phi, phiy = self.X, self.Xy, self.f, self.phi, self.phiy
+            self._sx = self.blocks("sx", (X, f, Ts, phi),
+                                   lambda k: excitation.sine(k, X, f, Ts, phi))
+            self._sy = self.blocks("sy", (Xy, f, Ts, phiy),
+                                   lambda k: excitation.sine(k, Xy, f, Ts, phiy))
+        drive, Qu, Xu, fu = self.drive, self.Qu, self.Xu, self.fu
+        self._drive = None if drive == excitation.DRIVE_OFF else self.blocks(
+            "u", (drive, seed, Qu, Xu, fu, Ts),
+            lambda k: excitation.input_sample(drive, seed, k, Qu, Xu, fu, Ts))
 
     def _u(self, k):
-        if self.drive == excitation.DRIVE_OFF:  # from the host (0 unless it sets u_in)
+        if self._drive is None:  # from the host (0 unless it sets u_in)
             return self.u_in
-        return excitation.input_sample(self.drive, self.seed, k, self.Qu, self.Xu, self.fu,
-                                       self.Ts)
+        return self._drive(k)
 
     def _sample(self, x_prev, y_prev, k, u):
-        if self.kind == excitation.GAUSSIAN:
-            return excitation.gaussian_pair(x_prev, y_prev, self.A, self.Q, self.Qy, self.rho,
-                                            self.seed, k, self.B, u)
-        return (excitation.sine(k, self.X, self.f, self.Ts, self.phi),
-                excitation.sine(k, self.Xy, self.f, self.Ts, self.phiy))
+        if self._gaussian:  # excitation.gaussian_pair, its draws from the blocks
+            A, Q, Qy, rho = self._pair
+            return excitation.correlated_pair(x_prev, y_prev, A, Q, Qy, rho, self._w1(k),
+                                              self._w2(k) if Qy != 0.0 else 0.0, self.B, u)
+        return self._sx(k), self._sy(k)  # excitation.sine of x and y
 
     def initial_hidden(self):
         return {"_x": self.x0, "_y": 0.0}
 
     def sample(self, hidden, k, first):
         u = self._u(k)  # (once: x takes it as B u_k, and it is the output u)
-        if self._gaussian:  # (_sample, written out)
-            A, Q, Qy, rho, seed = self._pair
-            x, y = excitation.gaussian_pair(hidden["_x"], hidden["_y"], A, Q, Qy, rho, seed, k,
-                                            self.B, u)
-        else:
-            x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
+        x, y = self._sample(hidden["_x"], hidden["_y"], k, u)
         return {"_x": x, "_y": y}, (x, y, u)
 
     def show(self, outputs):
@@ -105,7 +116,7 @@ class Excitation(SlaveBase):
 
     def hold(self, hidden, k0, n, first):
         x, y = hidden["_x"], hidden["_y"]
-        if self.kind == excitation.GAUSSIAN:
+        if self._gaussian:
             for k in range(k0, k0 + n):
                 u = self._u(k)
                 x, y = self._sample(x, y, k, u)

@@ -45,9 +45,11 @@ FMU state: a JSON-ready dict of the fields ``model`` (class name), ``guid`` (of 
 state reads exactly these fields, checks each one's type and finiteness, refuses a state of
 another model, build or version, and assigns only when all of it is valid.
 
-This module runs inside the FMU: standard library and pythonfmu only, and it works under
+This module runs inside the FMU: standard library and pythonfmu only (NumPy where the FMU's
+Python has it, for :class:`Blocks`, the same bits without it), and it works under
 ``python -OO`` (no docstring is read, no ``assert`` is relied on).
 """
+import array
 import math
 import sys
 import uuid
@@ -86,6 +88,59 @@ _TERMINATED = ("the instance is terminated (fmi2Terminate); allowed: fmi2Reset, 
 
 class ModelError(Exception):
     """A problem the host must hear about: logged, then turned into fmi2Error."""
+
+
+class Blocks:
+    """``f(k)`` at the samples ``k`` of one FMU instance, for an ``f`` that is a pure function
+    of the sample index (a noise draw, a sinusoid: parameters fixed when it is made), computed
+    for :attr:`SIZE` consecutive samples at once over a NumPy array of ``k``.  models/ gives
+    the array path the bits of the float path (tests/test_models.py; the FMUs are compared
+    with models/ and with their native twins), so a sample reads a stored value instead of
+    running the draw's Python arithmetic.  Without NumPy, before sample 1, past 2**62, or where
+    a block would not be all finite (so that a failure is reported as before), ``f`` runs on
+    the one ``k``."""
+
+    SIZE = 1024
+
+    def __init__(self, f):
+        self._f = f
+        self._k0 = self._end = 0  # the block holds k0 .. end - 1 (nothing yet)
+        self._values = None       # (None over a block where f runs sample by sample)
+
+    def __call__(self, k):
+        i = k - self._k0
+        if 0 <= i < self._end - self._k0:
+            values = self._values
+            return values[i] if values is not None else self._f(k)
+        return self._fill(k)
+
+    def _fill(self, k):
+        np = _numpy()
+        if np is None or type(k) is not int or not 1 <= k <= 2 ** 62:
+            return self._f(k)
+        # forward from k, or ending at k when the samples run backwards (a state restored)
+        k0 = k if k >= self._end else max(1, k - self.SIZE + 1)
+        with np.errstate(all="ignore"):
+            block = np.asarray(self._f(np.arange(k0, k0 + self.SIZE, dtype=np.int64)),
+                               dtype=np.float64)
+        self._values = array.array("d", block.tobytes()) if np.isfinite(block).all() else None
+        self._k0, self._end = k0, k0 + self.SIZE
+        return self(k)
+
+
+def _numpy():
+    """NumPy, or None where the FMU's Python has none (imported on the first block)."""
+    global _NUMPY
+    if _NUMPY is False:
+        try:
+            import numpy
+        except ImportError:
+            numpy = None
+        _NUMPY = numpy
+    return _NUMPY
+
+
+_NUMPY = False
 
 
 def var(name, causality, start=None, unit=None, description=None, type="Real",
@@ -593,6 +648,18 @@ class SlaveBase(Fmi2Slave):
     # -- hooks for the slaves ---------------------------------------------------------------
     def prepare(self):
         """Derived constants from the (checked) parameters."""
+
+    def blocks(self, name, parameters, f):
+        """The :class:`Blocks` of ``f`` under ``name``, the same object while ``parameters``
+        (those ``f`` depends on) keep their bits, so that ``prepare`` after a state restore
+        keeps the samples already computed (a master that rolls back every step pays no new
+        block)."""
+        kept = self.__dict__.setdefault("_kept_blocks", {})
+        key = repr(parameters)  # (repr tells -0.0 from 0.0, and gives every float's bits)
+        entry = kept.get(name)
+        if entry is None or entry[0] != key:
+            entry = kept[name] = (key, Blocks(f))
+        return entry[1]
 
     def initial_hidden(self):
         """The hidden state before sample 1, ``{name: value}`` over ``HIDDEN``."""

@@ -5,6 +5,8 @@ the pythonfmu FMU and its native (C) twin, each driven through the same calls, w
 messages expected."""
 import json
 import math
+import random
+import struct
 
 import pytest
 
@@ -12,6 +14,7 @@ from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
 from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
+from driftfmu.fmu_src import slave_base
 from driftfmu.fmu_src.slave_base import SlaveBase
 from driftfmu.models import chain
 
@@ -425,3 +428,108 @@ def test_the_estimators_hidden_check_follows_the_process_model():
     set_var(s, "process", harmonic.GAUSS_MARKOV)
     s.exit_initialization_mode()
     assert s.hidden_finite is None and "hidden_finite" in s.__dict__
+
+
+# -- Blocks: what depends on k alone, computed for many samples at once ------------------------
+def _bits(values):
+    return [struct.pack("<d", v) for v in values]
+
+
+def test_blocks_give_the_float_paths_bits_in_any_order_of_samples():
+    """Forward across block ends, backwards (a state restored), jumps, and the samples outside
+    the blocks' range (0, past 2**62): every value has the bits of the float path."""
+    from driftfmu.models import excitation, noise
+    rng = random.Random(2024)
+    size = slave_base.Blocks.SIZE
+    order = (list(range(1, 2 * size + 3)) + list(range(3 * size, size - 5, -1))
+             + [rng.randint(1, 10 ** 9) for _ in range(200)] + [0, 2 ** 62 + 7, 5])
+    for f in (lambda k: noise.normal(123456789, noise.STREAM_MEASUREMENT, k),
+              lambda k: excitation.sine(k, 1.5, 150.0, 1e-4, 0.7),
+              lambda k: excitation.input_sample(1, 42, k, 0.3)):
+        block = slave_base.Blocks(f)
+        assert _bits([block(k) for k in order]) == _bits([f(k) for k in order])
+        assert all(type(block(k)) is float for k in order[:5])
+
+
+def test_blocks_run_f_sample_by_sample_without_numpy(monkeypatch):
+    monkeypatch.setattr(slave_base, "_NUMPY", None)
+    calls = []
+    block = slave_base.Blocks(lambda k: calls.append(k) or k * 0.5)
+    assert [block(k) for k in (1, 2, 3, 2)] == [0.5, 1.0, 1.5, 1.0]
+    assert calls == [1, 2, 3, 2]
+
+
+def test_a_block_that_is_not_finite_runs_f_sample_by_sample():
+    """Where the array path overflows, the float path runs, so a failure is what it was."""
+    import numpy as np
+
+    def f(k):
+        if isinstance(k, np.ndarray):
+            return np.where(k == 5, np.inf, k * 1.0)
+        if k == 5:
+            raise OverflowError("sample 5")
+        return k * 1.0
+
+    block = slave_base.Blocks(f)
+    assert block(4) == 4.0 and block(6) == 6.0
+    with pytest.raises(OverflowError, match="sample 5"):
+        block(5)
+
+
+#: Slaves whose samples read blocks: each branch of a draw, a sinusoid or a drive.
+BLOCK_CONFIGS = PATH_CONFIGS[:6] + [
+    (Excitation, {"drive": 2, "Xu": 0.4, "fu": 30.0, "B": 0.2}),
+    (Excitation, {"kind": 2, "drive": 1, "Qu": 0.2, "Xy": 0.3, "phiy": 1.0}),
+]
+
+
+@pytest.mark.parametrize("cls,config", BLOCK_CONFIGS,
+                         ids=["%s-%d" % (c.__name__, i) for i, (c, _) in enumerate(BLOCK_CONFIGS)])
+def test_slaves_give_the_same_bits_with_and_without_blocks(monkeypatch, cls, config):
+    """A slave's samples from blocks equal its samples from the float path (NumPy hidden),
+    over whole, multi-sample and fractional steps and a state restored backwards."""
+    def outputs(numpy_off):
+        if numpy_off:
+            monkeypatch.setattr(slave_base, "_NUMPY", None)
+        s = cls(instance_name="s")
+        s.setup_experiment(0.0)
+        s.enter_initialization_mode()
+        for name, value in config.items():
+            set_var(s, name, value)
+        s.exit_initialization_mode()
+        reals = sorted(vr for vr, v in s.vars.items() if _is_real(v))
+        rows, t, h, state = [], 0.0, 1e-3, None
+        for i in range(2600):
+            if cls is Accelerometer:
+                set_var(s, "x", math.sin(0.01 * i))
+                set_var(s, "y", math.cos(0.02 * i))
+            rows.append(s.get_real(reals))
+            step = h * (7 if i % 500 == 3 else 0.5 if i % 700 == 9 else 1)
+            assert s.do_step(t, step)
+            t += step
+            if i == 1500:
+                state = (s._get_fmu_state(), t)
+            if i == 2400:
+                s._set_fmu_state(state[0])
+                t = state[1]
+        monkeypatch.undo()
+        return _bits(v for row in rows for v in row)
+
+    assert outputs(False) == outputs(True)
+
+
+def test_a_state_restore_keeps_the_blocks_and_a_new_parameter_makes_new_ones():
+    """A master that rolls back every step pays no new block; a parameter whose bits changed
+    (-0.0 is not 0.0: X = -0.0 gives -0.0) gets its own."""
+    s = Excitation(instance_name="s")
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    set_var(s, "kind", 2)
+    s.exit_initialization_mode()
+    state = s._get_fmu_state()
+    sx, sy = s._sx, s._sy
+    s.do_step(0.0, 1e-3)
+    s._set_fmu_state(state)
+    assert (s._sx, s._sy) == (sx, sy)
+    assert s.blocks("sx", (s.X, s.f, s.Ts, s.phi), None) is sx
+    assert s.blocks("sx", (-0.0, s.f, s.Ts, s.phi), None) is not sx
