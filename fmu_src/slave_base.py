@@ -58,7 +58,7 @@ from pythonfmu import Fmi2Causality, Fmi2Slave, Fmi2Variability, Integer, Real
 from pythonfmu.enums import Fmi2Status
 from pythonfmu.default_experiment import DefaultExperiment
 
-from driftfmu.models import drift, parameters
+from driftfmu.models import drift, excitation, noise, parameters
 
 _TYPES = {"Real": Real, "Integer": Integer}
 
@@ -129,17 +129,37 @@ class Blocks:
 
 
 def _numpy():
-    """NumPy, or None where the FMU's Python has none (imported on the first block)."""
+    """NumPy, or None where the FMU's Python has none or its arrays do not give models/' float
+    bits (checked once, on the first block)."""
     global _NUMPY
     if _NUMPY is False:
-        try:
-            import numpy
-        except ImportError:
-            numpy = None
-        _NUMPY = numpy
+        _NUMPY = _exact_numpy()
     return _NUMPY
 
 
+def _exact_numpy():
+    """NumPy if it imports and every function of :data:`_SELF_TEST` gives over an array of
+    ``k = 1 .. 256`` the bits it gives sample by sample; else None (the FMU then computes every
+    value for its one sample).  The host's Python may have any NumPy: an older one promotes
+    integers differently."""
+    try:
+        import numpy
+        ks = range(1, 257)
+        for f in _SELF_TEST:
+            with numpy.errstate(all="ignore"):
+                got = numpy.asarray(f(numpy.arange(1, 257, dtype=numpy.int64)),
+                                    dtype=numpy.float64).tobytes()
+            if got != array.array("d", [f(k) for k in ks]).tobytes():
+                return None
+        return numpy
+    except Exception:  # (no NumPy, or one that cannot run these)
+        return None
+
+
+#: What :func:`_exact_numpy` checks: draws (over the quantile's central part and both tails:
+#: 256 draws hold about a dozen tail values) and a sinusoid.
+_SELF_TEST = (lambda k: noise.normal(20261203, noise.STREAM_PROCESS, k),
+              lambda k: excitation.sine(k, 1.5, 150.0, 1e-4, 0.7))
 _NUMPY = False
 
 

@@ -54,3 +54,23 @@ def test_each_host_thread_keeps_one_python_thread_state(python_fmus, thread_host
     code, reference = run([sys.executable, str(HOSTS / "ctypes_host.py"), *args], clean_env())
     assert code == 0 and not errors_in(reference), reference
     assert value_of(output) == value_of(reference)
+
+
+@pytest.mark.parametrize("name", ["Excitation", "Accelerometer"])
+def test_a_hosts_python_without_numpy_gives_the_same_bits(python_fmus, thread_host, name,
+                                                         tmp_path):
+    """In a host whose Python has no NumPy the FMUs compute their draws sample by sample
+    (slave_base.Blocks), with the bits of a Python host that has NumPy (blocks of samples)."""
+    hidden = tmp_path / "no_numpy"
+    (hidden / "numpy").mkdir(parents=True)
+    tried = tmp_path / "numpy_was_tried"
+    (hidden / "numpy" / "__init__.py").write_text(
+        "open(%r, 'w').close()\nraise ImportError('no NumPy in this host')\n" % str(tried))
+    args = host_args(python_fmus[name], tmp_path)
+    code, output = run([thread_host, *args],
+                       clean_env(LD_LIBRARY_PATH=LIBDIR, PYTHONPATH=str(hidden)))
+    assert code == 0 and not errors_in(output), output
+    assert tried.exists()  # the FMU looked for NumPy and went without it
+    code, reference = run([sys.executable, str(HOSTS / "ctypes_host.py"), *args], clean_env())
+    assert code == 0 and not errors_in(reference), reference
+    assert value_of(output) == value_of(reference)

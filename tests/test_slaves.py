@@ -459,6 +459,27 @@ def test_blocks_run_f_sample_by_sample_without_numpy(monkeypatch):
     assert calls == [1, 2, 3, 2]
 
 
+def test_numpy_is_used_only_where_its_arrays_give_the_float_bits(monkeypatch):
+    """The once-per-process check of the host's NumPy: it passes here, it covers the draws'
+    tails, and a function whose array path has other bits turns the blocks off."""
+    import numpy as np
+    assert slave_base._exact_numpy() is np
+    draws = [slave_base._SELF_TEST[0](k) for k in range(1, 257)]
+    assert min(draws) < -1.98 and max(draws) > 1.98  # both tails of Acklam's quantile
+
+    def other_bits(k):  # an array path one ulp off at one sample
+        if isinstance(k, np.ndarray):
+            return np.where(k == 200, np.nextafter(0.5, 1.0), 0.5)
+        return 0.5
+
+    monkeypatch.setattr(slave_base, "_SELF_TEST", slave_base._SELF_TEST + (other_bits,))
+    assert slave_base._exact_numpy() is None
+    monkeypatch.setattr(slave_base, "_NUMPY", False)
+    calls = []
+    block = slave_base.Blocks(lambda k: calls.append(k) or 1.0)
+    assert block(7) == 1.0 and calls == [7]  # the one sample, not a block
+
+
 def test_a_block_that_is_not_finite_runs_f_sample_by_sample():
     """Where the array path overflows, the float path runs, so a failure is what it was."""
     import numpy as np
