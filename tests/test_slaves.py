@@ -480,6 +480,25 @@ def test_numpy_is_used_only_where_its_arrays_give_the_float_bits(monkeypatch):
     assert block(7) == 1.0 and calls == [7]  # the one sample, not a block
 
 
+@pytest.mark.parametrize("imported", [False, True])
+def test_blocks_wait_for_numpy_only_where_the_host_has_not_imported_it(monkeypatch, imported):
+    """A C host's Python has not imported NumPy: the first WARM_UP samples run one by one (a
+    short run never imports it); a Python host's blocks start at once."""
+    import numpy as np
+    monkeypatch.setattr(slave_base, "_numpy_imported", lambda: imported)
+    kinds = []
+
+    def f(k):
+        kinds.append(type(k))
+        return k * 0.25
+
+    block = slave_base.Blocks(f)
+    n = slave_base.Blocks.WARM_UP + 10
+    assert [block(k) for k in range(1, n + 1)] == [k * 0.25 for k in range(1, n + 1)]
+    one_by_one = 0 if imported else slave_base.Blocks.WARM_UP
+    assert kinds[:one_by_one] == [int] * one_by_one and kinds[one_by_one] is np.ndarray
+
+
 def test_a_block_that_is_not_finite_runs_f_sample_by_sample():
     """Where the array path overflows, the float path runs, so a failure is what it was."""
     import numpy as np
