@@ -18,6 +18,8 @@ from driftfmu.fmu_src import slave_base
 from driftfmu.fmu_src.slave_base import SlaveBase
 from driftfmu.models import chain
 
+from test_hardening import ready
+
 OUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
           "DriftEstimator": DriftEstimator}
@@ -531,12 +533,7 @@ def test_slaves_give_the_same_bits_with_and_without_blocks(monkeypatch, cls, con
     def outputs(numpy_off):
         if numpy_off:
             monkeypatch.setattr(slave_base, "_NUMPY", None)
-        s = cls(instance_name="s")
-        s.setup_experiment(0.0)
-        s.enter_initialization_mode()
-        for name, value in config.items():
-            set_var(s, name, value)
-        s.exit_initialization_mode()
+        s = ready(cls, **config)
         reals = sorted(vr for vr, v in s.vars.items() if _is_real(v))
         rows, t, h, state = [], 0.0, 1e-3, None
         for i in range(2600):
@@ -561,11 +558,7 @@ def test_slaves_give_the_same_bits_with_and_without_blocks(monkeypatch, cls, con
 def test_a_state_restore_keeps_the_blocks_and_a_new_parameter_makes_new_ones():
     """A master that rolls back every step pays no new block; a parameter whose bits changed
     (-0.0 is not 0.0: X = -0.0 gives -0.0) gets its own."""
-    s = Excitation(instance_name="s")
-    s.setup_experiment(0.0)
-    s.enter_initialization_mode()
-    set_var(s, "kind", 2)
-    s.exit_initialization_mode()
+    s = ready(Excitation, kind=2)
     state = s._get_fmu_state()
     sx, sy = s._sx, s._sy
     s.do_step(0.0, 1e-3)
