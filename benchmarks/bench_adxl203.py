@@ -13,10 +13,18 @@ Both must give the same summary, bit for bit (checked here, times aside).  Print
 goes (from the summary's ``timing``), the CPU seconds of this process and of the workers (CPU
 time grows much less with the load than wall time: CPU / cores is what the run needs of an
 idle machine), the start-up of the command (a new Python importing the CLI) and the goals: at
-most 5 s (native FMUs), 60 s (Python FMUs).  Not a pytest test:
+most 5 s (native FMUs), 60 s (Python FMUs).
+
+With the Python FMUs it also measures their floor: the experiment's co-simulations alone (the same
+sets, sizes, workers, fast master, connections and recorded values) through pass-through
+pythonfmu FMUs built with stock pythonfmu in this run (``passthrough/PassPair``, ``PassTwo``,
+``PassThree``: the driftfmu FMUs' variables, no model).  That is what pythonfmu's calls cost
+before any FMU computes anything; the goal leaves the driftfmu FMUs what is above it.  Not a
+pytest test:
 
     python benchmarks/bench_adxl203.py [--backend native|python] [--sets 30] [--n 60000]
                                        [--freqs 100,125,150,175,200] [--no-baseline]
+                                       [--no-floor]
 """
 import argparse
 import json
@@ -28,14 +36,20 @@ import sys
 import tempfile
 import time
 
+from pythonfmu import FmuBuilder
+
 from driftfmu.models import adxl203, identify
 from driftfmu.simulations import adxl203 as experiment
+from driftfmu.simulations import batch
 from driftfmu.simulations.gaussian import fmu_paths, master
 from driftfmu.simulations.sinusoidal import CONNECTIONS
 
 from machine import cpu
 
 GOALS = {"native": 5.0, "python": 60.0}
+HERE = os.path.dirname(os.path.abspath(__file__))
+#: The pass-through FMUs of the floor, by role.
+FLOOR = {"Excitation": "PassPair", "Accelerometer": "PassTwo", "DriftEstimator": "PassThree"}
 
 
 def baseline_run_set(task):
@@ -76,6 +90,42 @@ def baseline_run_set(task):
     res["seconds"] = {"simulation": t1 - t0, "identification": t2 - t1,
                       "validation": time.perf_counter() - t2}
     return res
+
+
+def _floor_set(task):
+    """Worker of the floor: one set's co-simulation as the experiment's worker runs it (training
+    sets: Excitation and Accelerometer; held-out ones: all three), through the pass-through
+    FMUs; returns the seconds it took."""
+    from driftfmu.simulations.fastcosim import cosimulate_fast
+    paths, held_out, n, Ts = task
+    t0 = time.perf_counter()
+    if held_out:
+        cosimulate_fast(paths, CONNECTIONS, n, Ts, record=experiment.RECORD, reuse=True,
+                        arrays=True)
+    else:
+        cosimulate_fast({k: paths[k] for k in ("Excitation", "Accelerometer")},
+                        CONNECTIONS[:2], n, Ts, record={"Excitation": ["x"],
+                                                        "Accelerometer": ["z"]},
+                        reuse=True, arrays=True)
+    return time.perf_counter() - t0
+
+
+def floor(args, workers):
+    """The experiment's co-simulations alone through the pass-through FMUs, in the same pool of
+    ``workers`` (training sets first, then the held-out ones, as the experiment): (wall seconds,
+    CPU seconds of the workers, the workers' seconds in co-simulation)."""
+    held_out = experiment.default_held_out(args.sets)
+    with tempfile.TemporaryDirectory() as tmp:
+        paths = {role: FmuBuilder.build_FMU(os.path.join(HERE, "passthrough", name + ".py"),
+                                            dest=tmp) for role, name in FLOOR.items()}
+        paths = {role: str(p) for role, p in paths.items()}
+        k0, t0 = children_cpu(), time.perf_counter()
+        seconds = 0.0
+        with batch.process_pool(workers) as pool:
+            for kind, count in ((False, args.sets - held_out), (True, held_out)):
+                tasks = [(paths, kind, args.n, experiment.TS)] * (count * len(args.freqs))
+                seconds += sum(pool.map(_floor_set, tasks))
+        return time.perf_counter() - t0, children_cpu() - k0, seconds
 
 
 def children_cpu():
@@ -122,6 +172,11 @@ def startup():
     return sorted(runs)[1]
 
 
+def steps(args):
+    """Co-simulation steps of the experiment: every set, training and held out."""
+    return len(args.freqs) * args.sets * args.n
+
+
 def cpu_line(cpu, wall, workers):
     total = cpu["parent"] + cpu["workers"]
     return ("CPU: this process %.2f s, the workers %.2f s, together %.2f s: %.2f s on %d "
@@ -138,6 +193,8 @@ def main(argv=None):
                     default=list(experiment.FREQS))
     ap.add_argument("--no-baseline", action="store_true", help="skip the run of before")
     ap.add_argument("--fmu-dir", default="build/fmus")
+    ap.add_argument("--no-floor", action="store_true",
+                    help="skip the floor (pass-through FMUs; Python FMUs only)")
     args = ap.parse_args(argv)
     fmu_paths(args.fmu_dir, args.backend)
     from driftfmu.simulations import kernel
@@ -159,6 +216,20 @@ def main(argv=None):
     print("start-up of the command (python -m driftfmu experiment adxl203 --help): %.2f s wall, "
           "%.2f s CPU; the command: about %.2f s wall here"
           % (up_wall, up_cpu, wall + up_wall))
+    if args.backend == "python" and not args.no_floor:
+        f_wall, f_cpu, f_sim = floor(args, s["workers"])
+        sim = s["timing"]["workers_s"]["simulation"]
+        print("floor:    %.2f s wall: the same co-simulations through pass-through pythonfmu "
+              "FMUs (no model; the same master, sets, workers and values); CPU of the workers "
+              "%.2f s; their co-simulation %.2f s" % (f_wall, f_cpu, f_sim))
+        n = steps(args)
+        paper = len(experiment.FREQS) * experiment.SETS * experiment.N
+        print("          now / floor: %.2f x wall, %.2f x co-simulation; a step of a worker: "
+              "floor %.2f us, driftfmu FMUs %.2f us; the goal (%g s for %d steps on %d "
+              "workers) allows %.2f us a step for everything: co-simulation, identification, "
+              "validation, files"
+              % (wall / f_wall, sim / f_sim, f_sim / n * 1e6, sim / n * 1e6, GOALS["python"],
+                 paper, s["workers"], GOALS["python"] * s["workers"] / paper * 1e6))
     if not args.no_baseline:
         old_wall, old, before, old_cpu = run(args, baseline_run_set)
         print("baseline: %.2f s wall (the worker of before: %s, pure-Python check)"
