@@ -43,6 +43,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
+from driftfmu.simulations import folders
 
 SRC_DIR = Path(__file__).resolve().parent
 NAMES = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
@@ -143,7 +144,7 @@ def build_fmus(out_dir="build/fmus", names=NAMES, src_dir=SRC_DIR, log=print):
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     src_dir = Path(src_dir).resolve()
-    with tempfile.TemporaryDirectory(prefix="driftfmu_loader_") as work:
+    with folders.temporary("driftfmu_loader_") as work:
         loader = _make_loader(Path(work), log)
         return [_build_one(name, out_dir, src_dir, loader, log, generated) for name in names]
 
@@ -606,7 +607,7 @@ def _build_one(name, out_dir, src_dir, loader, log, generated=None):
 
     digest = source_hash(name, src_dir)
     package = "drift_" + digest
-    with tempfile.TemporaryDirectory(prefix="driftfmu_%s_" % name) as tmp:
+    with folders.temporary("driftfmu_%s_" % name) as tmp:
         work = Path(tmp)
         stage = work / "stage"
         stage.mkdir()

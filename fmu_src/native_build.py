@@ -42,7 +42,6 @@ import shlex
 import shutil
 import subprocess
 import sys
-import tempfile
 import time
 import uuid
 from pathlib import Path
@@ -50,6 +49,7 @@ from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
 from driftfmu.fmu_src import builder
+from driftfmu.simulations import folders
 
 NATIVE_DIR = Path(__file__).resolve().parent / "native"
 MODELS_DIR = NATIVE_DIR / "models"
@@ -542,9 +542,9 @@ def _layouts(name, fmi_version, built):
         common["binaries/darwin64/%s.dylib" % name] = (
             data, "universal Mach-O: %s" % "; ".join(entry(p)[1] for p in darwin))
     layouts = []
-    for variant, folders in (("", FMI2_FOLDERS), (FMI2_ARM, FMI2_ARM_FOLDERS)):
+    for variant, by_platform in (("", FMI2_FOLDERS), (FMI2_ARM, FMI2_ARM_FOLDERS)):
         files = {"binaries/%s/%s%s" % (folder, name, PLATFORMS[p][0]): entry(p)
-                 for p, folder in folders.items() if p in built}
+                 for p, folder in by_platform.items() if p in built}
         if files:
             files.update(common)
             layouts.append((variant, files))
@@ -669,9 +669,9 @@ def _version_identity(text):
 def compiler_version(command):
     """What ``command --version`` prints (its output; empty if it fails), once per command: a
     library cache kept from run to run must not serve what an older compiler made."""
-    import tempfile
+    from driftfmu.simulations import folders
     try:  # in a folder of its own: zig cc -target ... --version leaves an empty a.o behind
-        with tempfile.TemporaryDirectory(prefix="driftfmu_cc_") as work:
+        with folders.temporary("driftfmu_cc_") as work:
             done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
                                   timeout=60, cwd=work)
     except (OSError, subprocess.SubprocessError):
@@ -683,7 +683,7 @@ def _build_one(name, fmi_version, out_dir, platforms, missing, log, cache=None):
     slave = slave_class(name)
     tok = token(name, fmi_version)
     targets = []
-    with tempfile.TemporaryDirectory(prefix="driftfmu_native_%s_" % name) as tmp:
+    with folders.temporary("driftfmu_native_%s_" % name) as tmp:
         work = Path(tmp)
         sources = work / "sources"
         c_files = stage_sources(name, fmi_version, sources)
@@ -708,10 +708,10 @@ def _build_one(name, fmi_version, out_dir, platforms, missing, log, cache=None):
             folder.mkdir(parents=True, exist_ok=True)
             target = folder / ("%s.fmu" % name)
             builder._write_atomically(target, entries)
-            folders = sorted({p.split("/")[1] for p in files})
+            shipped = sorted({p.split("/")[1] for p in files})
             log("built %s (native C, FMI %d.0, %d kB: %s)"
                 % (target, fmi_version, (target.stat().st_size + 512) // 1024,
-                   ", ".join(folders)))
+                   ", ".join(shipped)))
             targets.append(target)
     return targets
 

@@ -19,9 +19,7 @@ fmpy's ``FMU3Slave`` the FMI 2.0 method names the loop calls.
 """
 import contextlib
 import os
-import shutil
 import signal
-import tempfile
 import threading
 
 from fmpy import extract, read_model_description
@@ -29,6 +27,7 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
     fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
+from driftfmu.simulations import folders
 from driftfmu.simulations.errors import UsageError
 
 
@@ -54,7 +53,10 @@ def remove_extracted():
 
 def new_extract_folder(prefix="driftfmu_fmu_"):
     """A new temporary folder, registered in :data:`EXTRACTED` before anything is written there
-    (SIGTERM held back until it is), so that a worker told to stop removes it."""
+    (SIGTERM held back until it is), so that a worker told to stop removes it.  It is locked for
+    as long as this process lives (:func:`driftfmu.simulations.folders.make`); the first call in
+    a process removes the temporary folders left by processes killed outright
+    (:data:`driftfmu.simulations.folders.TEMPORARY`)."""
     mask = hasattr(signal, "pthread_sigmask")
     if mask:
         old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
@@ -65,7 +67,8 @@ def new_extract_folder(prefix="driftfmu_fmu_"):
             from multiprocessing import util
             util.Finalize(None, remove_extracted, exitpriority=0)
             _REMOVED_AT_END[0] = os.getpid()
-        unzipdir = tempfile.mkdtemp(prefix=prefix)
+        folders.sweep(folders.TEMPORARY)
+        unzipdir = folders.make(prefix)
         EXTRACTED[unzipdir] = os.getpid()
     finally:
         if mask:
@@ -84,7 +87,7 @@ def _extract(path):
 
 
 def _remove(unzipdir):
-    shutil.rmtree(unzipdir, ignore_errors=True)
+    folders.remove(unzipdir)
     EXTRACTED.pop(unzipdir, None)
 
 

@@ -288,8 +288,8 @@ def _try_instantiate(fmu, fmi_version="2.0"):
 
 
 def _run_instantiate(code, fmu, timeout=120):
-    import tempfile
-    with tempfile.TemporaryDirectory(prefix="driftfmu_doctor_") as folder:
+    from driftfmu.simulations import folders
+    with folders.temporary("driftfmu_doctor_") as folder:
         try:
             r = subprocess.run([sys.executable, "-c", code, str(fmu), folder],
                                capture_output=True, text=True, timeout=timeout)

@@ -25,6 +25,8 @@ from pathlib import Path
 
 import numpy as np
 
+from driftfmu.simulations import folders
+
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
 #: The C units of models/ the kernel calls (with their own dependencies).
@@ -116,7 +118,7 @@ def _build():
     if target.exists():
         return target
     compiler = shlex.split(os.environ.get("CC", "cc"))
-    with tempfile.TemporaryDirectory(prefix="driftfmu_kernel_") as work:
+    with folders.temporary("driftfmu_kernel_") as work:
         (Path(work) / "parameters_table.h").write_text(table)
         partial = Path(work) / "kernel.so"
         # the compiler's own temporary files (link-time optimisation writes several) go into

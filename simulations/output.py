@@ -10,10 +10,13 @@ import contextlib
 import json
 import os
 import shutil
-import tempfile
 from pathlib import Path
 
+from driftfmu.simulations import folders
 from driftfmu.simulations.errors import UsageError
+
+#: The prefix of the hidden staging folders.
+STAGE = ".driftfmu-stage-"
 
 
 def nearest_existing(path):
@@ -23,6 +26,12 @@ def nearest_existing(path):
     while not path.exists() and path != path.parent:
         path = path.parent
     return path
+
+
+def _holds_replaced(stage):
+    """True when the staging folder ``stage`` holds files that were in place before (its
+    process was killed while it moved its files in): they are not removed with it."""
+    return any(name.startswith(".replaced-") for name in os.listdir(stage))
 
 
 class Staging:
@@ -35,7 +44,9 @@ class Staging:
     every staged file into place, a file that was there kept aside until all have moved; an
     exception or interrupt in the block or during the moves removes the staged files, puts
     back what was replaced and removes the folders made for the destinations.  Either way the
-    hidden folders go.
+    hidden folders go.  Those of a process killed outright (SIGKILL) stay until the next
+    staging in the same folder removes them (:func:`driftfmu.simulations.folders.sweep`), unless
+    they hold a file that was in place before.
     """
 
     def __init__(self):
@@ -50,7 +61,8 @@ class Staging:
         anchor = target if folder else target.parent
         while not anchor.is_dir() and anchor != anchor.parent:
             anchor = anchor.parent
-        stage = Path(tempfile.mkdtemp(prefix=".driftfmu-stage-", dir=anchor))
+        folders.sweep((STAGE,), dir=anchor, keep=_holds_replaced)
+        stage = Path(folders.make(STAGE, dir=anchor))
         staged = stage / target.name
         self._pairs.append((stage, staged, target))
         self._shown.append((staged, shown))
@@ -80,7 +92,7 @@ class Staging:
                 self._commit()
         finally:
             for stage, _, _ in self._pairs:
-                shutil.rmtree(stage, ignore_errors=True)
+                folders.remove(stage)
         if kind is None:  # (and the commit did not raise): every output is in place
             for log, line in self._held:
                 log(line)
