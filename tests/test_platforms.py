@@ -349,29 +349,42 @@ def test_the_build_cache_reuses_a_library_only_for_the_same_sources_and_compiler
     assert native_build._cache_key("x86_64-linux", sources, c_files) != keys[2]
 
 
+def _build_excitation(folder, **kw):
+    """The FMI 3.0 Excitation for x86-64 Linux alone, built into ``folder``."""
+    return native_build.build_native_fmus(folder, names=("Excitation",), fmi_versions=(3,),
+                                          platforms=("x86_64-linux",), log=lambda line: None,
+                                          **kw)[3]["Excitation"]
+
+
+@pytest.fixture(scope="module")
+def cached_excitation(tmp_path_factory):
+    """(bytes of a build without a cache, the cache entry a build with a cache wrote): built
+    once for the four damages below."""
+    tmp = tmp_path_factory.mktemp("damaged_cache")
+    plain = _build_excitation(tmp / "plain").read_bytes()
+    _build_excitation(tmp / "first", cache=tmp / "cache")
+    entry, = (tmp / "cache").iterdir()
+    return plain, entry
+
+
 @pytest.mark.parametrize("damage", ["flipped byte", "cut short", "old format", "empty"])
-def test_a_damaged_cache_entry_is_compiled_again_and_replaced_never_shipped(damage, tmp_path):
+def test_a_damaged_cache_entry_is_compiled_again_and_replaced_never_shipped(
+        damage, cached_excitation, tmp_path):
     """An entry whose library no longer matches the checksum written with it (a file damaged on
     disk or cut short), or without one: the build compiles the library again, ships the bytes
     of a build without a cache and replaces the entry with a whole one."""
+    plain, written = cached_excitation
     cache = tmp_path / "cache"
-
-    def build(folder, **kw):
-        return native_build.build_native_fmus(tmp_path / folder, names=("Excitation",),
-                                              fmi_versions=(3,), platforms=("x86_64-linux",),
-                                              log=lambda line: None, **kw)[3]["Excitation"]
-
-    plain = build("plain").read_bytes()
-    build("first", cache=cache)
-    entry, = cache.iterdir()
-    whole = entry.read_bytes()
-    library = native_build._read_cache_entry(entry)
+    cache.mkdir()
+    entry = cache / written.name
+    whole = written.read_bytes()
+    library = native_build._read_cache_entry(written)
     assert library is not None and whole == native_build.cache_entry(library)
     damaged = {"flipped byte": whole[:-100] + bytes([whole[-100] ^ 1]) + whole[-99:],
                "cut short": whole[:len(whole) // 2], "old format": library, "empty": b""}[damage]
     entry.write_bytes(damaged)
     assert native_build._read_cache_entry(entry) is None
-    assert build("second", cache=cache).read_bytes() == plain
+    assert _build_excitation(tmp_path / "second", cache=cache).read_bytes() == plain
     assert entry.read_bytes() == whole
 
 
