@@ -16,6 +16,7 @@ import argparse
 import contextlib
 import math
 import os
+import re
 import signal
 import sys
 import time
@@ -28,7 +29,17 @@ from driftfmu.simulations.errors import (DataError, EXIT_FAILED, EXIT_INTERRUPTE
 
 
 class _Parser(argparse.ArgumentParser):
-    """ArgumentParser whose errors are one readable line."""
+    """ArgumentParser whose errors are one readable line, and that takes every negative number
+    as a value (``--a0 -1e-3``, ``--a0 -inf``), not as an option: argparse's own test knows only
+    ``-1`` and ``-0.5``."""
+
+    #: A negative number as Python's ``float`` reads it (no option of driftfmu looks like one).
+    NEGATIVE_NUMBER = re.compile(r"^-(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?$|^-(inf|infinity|nan)$",
+                                 re.IGNORECASE)
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self._negative_number_matcher = self.NEGATIVE_NUMBER
 
     def error(self, message):
         choices = self.command_choices()

@@ -567,3 +567,23 @@ def test_the_refusal_names_summary_only_and_summary_only_fits(tmp_path, capsys, 
     est = budget.check_montecarlo("gaussian", 1000000, 1000, 2, None, summary_only=True)
     assert est["memory"] < 0.8 * 4e9  # the same run fits with --summary-only
     assert not (tmp_path / "r").exists()
+
+
+@pytest.mark.parametrize("text, value", [("-1e-3", -1e-3), ("-1E+4", -1e4), ("-.5", -0.5),
+                                         ("-5.", -5.0), ("-2", -2.0)])
+def test_a_negative_number_in_any_float_form_is_a_value_not_an_option(text, value):
+    """argparse alone reads ``--a0 -1e-3`` as an option ("expected one argument")."""
+    from driftfmu.simulations.cli import make_parser
+    args = make_parser().parse_args(["run", "gaussian", "--a0", text])
+    assert args.a0 == value
+    sweep = make_parser().parse_args(["sweep", "--a2", text, "0.01"])
+    assert sweep.a2[0] == value
+
+
+def test_minus_inf_is_refused_as_not_finite_and_an_unknown_option_still_is_one(capsys):
+    from driftfmu.simulations.cli import make_parser
+    for argv, said in ((["run", "gaussian", "--a0", "-inf"], "a0 = -inf is not finite"),
+                       (["run", "gaussian", "--a0", "-x"], "expected one argument")):
+        with pytest.raises(SystemExit) as exit:
+            make_parser().parse_args(argv)
+        assert exit.value.code == 2 and said in capsys.readouterr().err
