@@ -785,9 +785,10 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
 
 def native_fmu_paths(fmu_dir, fmi_version=2):
     """Paths of the three native FMUs of ``fmi_version`` under ``<fmu_dir>/native``; built
-    first when any is missing."""
+    first when any is missing, from the libraries ``driftfmu build --native`` keeps
+    (:func:`user_cache`) where they were compiled before."""
     folder = Path(fmu_dir) / "native"
     paths = {n: folder / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in NAMES}
     if not all(p.exists() for p in paths.values()):
-        build_native_fmus(folder, fmi_versions=(fmi_version,))
+        build_native_fmus(folder, fmi_versions=(fmi_version,), cache=user_cache())
     return paths

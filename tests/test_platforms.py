@@ -512,3 +512,17 @@ def test_doctor_tells_an_fmi2_fmu_for_another_architecture(fmu_sets, capsys):
     assert info.value.code == 1
     assert ("binaries/linux64/DriftEstimator.so is for aarch64, this machine is x86_64 (FMI 2.0 "
             "names no architecture" in out), out
+
+
+def test_native_fmus_built_on_demand_take_the_libraries_driftfmu_build_keeps(tmp_path,
+                                                                              monkeypatch):
+    """``run --backend native`` / ``simulate(backend="native")`` with no native FMUs built
+    them without the cache (26 s where ``driftfmu build --native`` took 6 s)."""
+    calls = []
+    monkeypatch.setenv("DRIFTFMU_CACHE", str(tmp_path / "kept"))
+    monkeypatch.setattr(native_build, "build_native_fmus",
+                        lambda folder, **kw: calls.append((folder, kw)))
+    native_build.native_fmu_paths(tmp_path / "fmus", 3)
+    (folder, kw), = calls
+    assert folder == tmp_path / "fmus" / "native" and kw["fmi_versions"] == (3,)
+    assert kw["cache"] == tmp_path / "kept" == native_build.user_cache()
