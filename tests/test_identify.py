@@ -126,6 +126,30 @@ def test_cli_identify_and_its_errors(recordings, tmp_path, capsys):
     assert rc == 2 and "Nyquist" in capsys.readouterr().err
 
 
+def test_one_recording_given_twice_is_refused_before_anything_runs(recordings, tmp_path, capsys):
+    """Fitted and held out, the check is no check (45 dB where a recording not fitted gave 13);
+    fitted twice, it weighs double."""
+    from driftfmu.simulations.cli import main
+    c = recordings
+    _write(tmp_path / "a.csv", c["time"][0], c["x"][0], c["z"][0])
+    _write(tmp_path / "b.csv", c["time"][1], c["x"][1], c["z"][1])
+    (tmp_path / "copy.csv").write_bytes((tmp_path / "a.csv").read_bytes())
+    a, b, copy = (str(tmp_path / n) for n in ("a.csv", "b.csv", "copy.csv"))
+    for files, held_out, said in (
+            ([a, b, a], 1, "a.csv is given twice (fitted, then held out)"),
+            ([a, os.path.join(str(tmp_path), ".", "a.csv"), b], 1,
+             "is given twice (fitted, then fitted)"),
+            ([a, b, copy], 1, "copy.csv holds the same recording as %s (fitted, then held out)"
+             % a)):
+        rc = main(["identify", *files, "--f", "50", "--held-out", str(held_out),
+                   "--out", str(tmp_path / "o")])
+        err = capsys.readouterr().err
+        assert rc == 2 and said in err and "allowed: distinct recordings" in err, err
+        assert not (tmp_path / "o").exists()
+    assert main(["identify", a, b, "--f", "50", "--held-out", "1",
+                 "--out", str(tmp_path / "o")]) == 0
+
+
 # -- fits the data cannot support: errors; doubtful ones: warnings with the figure ---------------
 
 def test_a_drive_frequency_the_recording_contradicts_is_refused(recordings):
