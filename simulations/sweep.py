@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from driftfmu.models import chain, excitation, parameters
-from driftfmu.simulations import batch, output
+from driftfmu.simulations import batch, budget, output
 from driftfmu.simulations.errors import UsageError
 
 DEFAULT_A2 = tuple(np.logspace(-3, -0.5, 6))
@@ -117,6 +117,8 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
     if engine not in ("batch", "fmu"):
         raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     xs = a4s if axis == "a4" else a2
+    # before anything is allocated: a sweep too large for the machine is refused, not killed
+    budget.check_sweep(len(xs) * len(R), runs, n, workers, out, announce=False)
     seeds1 = batch.run_seeds(seed, runs)
     points = len(xs) * len(R)
     seeds = np.tile(seeds1, points)
@@ -356,6 +358,7 @@ def cmd_sweep(args):
     if a2 is None:
         a2 = list(DEFAULT_A2) if len(args.a4) == 1 else [parameters.PARAMETERS["a2"].default]
     total = max(len(a2), len(args.a4)) * len(args.R) * args.runs
+    budget.check_sweep(total // args.runs, args.runs, args.n, args.workers, args.out)
     t0 = time.perf_counter()
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine

@@ -3,6 +3,7 @@
 Every usage error exits 2 with one line naming the value and what is allowed, before anything
 is built, run or written."""
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -587,3 +588,27 @@ def test_minus_inf_is_refused_as_not_finite_and_an_unknown_option_still_is_one(c
         with pytest.raises(SystemExit) as exit:
             make_parser().parse_args(argv)
         assert exit.value.code == 2 and said in capsys.readouterr().err
+
+
+def test_a_sweep_too_large_for_the_memory_is_refused_before_it_allocates(tmp_path, capsys,
+                                                                        monkeypatch):
+    """``sweep --runs 100000000`` took 24 GB and was killed by the kernel: now exit 2 with the
+    estimate and the largest --runs that fits; the API raises; a sweep that fits runs."""
+    import driftfmu
+    from driftfmu.simulations import batch, budget
+    monkeypatch.setattr(budget, "available_memory", lambda: 1e9)
+    rc = _status(["sweep", "--runs", "1000000", "--n", "10", "--out", str(tmp_path / "r")])
+    line = _one_line(capsys.readouterr().err)
+    assert rc == 2 and "sweep of 30 grid points x --runs 1000000" in line, line
+    fits = int(re.search(r"at most --runs (\d+) for the 30 grid points", line).group(1))
+    assert not (tmp_path / "r").exists()
+    allocated = []
+    monkeypatch.setattr(batch, "run_seeds", lambda *a: allocated.append(a))
+    with pytest.raises(ValueError, match="needs about"):
+        driftfmu.sweep(runs=1000000, n=10)
+    assert allocated == []  # refused before the seeds were made
+    monkeypatch.undo()
+    monkeypatch.setattr(budget, "available_memory", lambda: 1e9)
+    budget.check_sweep(30, fits, 10, 2, None)  # the figure it names fits
+    with pytest.raises(ValueError):
+        budget.check_sweep(30, 2 * fits, 10, 2, None)
