@@ -145,6 +145,33 @@ def check_fmu_file(path):
                          "again)" % path)
 
 
+def check_variables(insts, connections, record=None, start_values=None, inputs=None):
+    """UsageError unless each FMU of ``insts`` (name -> an instance with ``path``, ``md`` and
+    ``vrs``) has every variable the master will use: the connections' ends, the recorded
+    values, the start values and the inputs.  A wrong FMU under an expected file name (the
+    DriftEstimator saved as Excitation.fmu) is named, not a bare "'x'" of a lookup."""
+    needed = {name: [] for name in insts}
+    for s, o, d, i in connections:
+        needed[s].append(o)
+        needed[d].append(i)
+    for group in (record or {}, start_values or {}, inputs or {}):
+        for name, names in group.items():
+            needed.setdefault(name, []).extend(names)
+    for name, names in needed.items():
+        inst = insts[name]
+        missing = sorted(set(v for v in names if v not in inst.vrs))
+        if not missing:
+            continue
+        from driftfmu.fmu_src.builder import NAMES
+        model = inst.md.modelName
+        ours = name in NAMES
+        raise UsageError("%s has no variable %s (its model is %s)%s; allowed: %s" % (
+            inst.path, ", ".join(missing), model,
+            ": it is not driftfmu's %s" % name if ours and model != name else "",
+            "driftfmu's %s.fmu, as driftfmu build writes it (remove this one and it is built "
+            "again)" % name if ours else "an FMU with the variables %s uses" % name))
+
+
 class CoSimulationError(RuntimeError):
     """A co-simulation failed; the message carries what the FMUs logged."""
 
@@ -372,6 +399,8 @@ def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, sta
         if record is None:
             record = {name: [v.name for v in inst.md.modelVariables if v.causality == "output"]
                       for name, inst in insts.items()}
+        check_variables(insts, connections, record, start_values,
+                        {name: list(signals) for name, signals in (inputs or {}).items()})
         links = [(insts[s].fmu, insts[s].vrs[o], insts[d].fmu, insts[d].vrs[i])
                  for s, o, d, i in connections]
         feeds = [(insts[name].fmu, insts[name].vrs[v], values)

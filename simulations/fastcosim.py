@@ -25,7 +25,7 @@ from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
 from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, check_fmu_file, \
-    failed, free_all, new_extract_folder
+    check_variables, failed, free_all, new_extract_folder
 from driftfmu.simulations.errors import UsageError
 
 
@@ -45,6 +45,7 @@ class FastInstance:
 
     def __init__(self, name, path, logging_on=False, reuse=False):
         self.name = name
+        self.path = str(path)
         self.unzipdir, self.md = unpacked(path)
         self.fmi = int(self.md.fmiVersion[0])
         self._key = (self.unzipdir, self.md.coSimulation.modelIdentifier, name) if reuse \
@@ -381,6 +382,7 @@ def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, re
         if record is None:
             record = {name: [v.name for v in inst.md.modelVariables if v.causality == "output"]
                       for name, inst in insts.items()}
+        check_variables(insts, connections, record, start_values)
         # one row per point: time, then per FMU the recorded and connected outputs it is read for
         reads = {name: list(record.get(name, ())) for name in order}
         for s, o, d, i in connections:

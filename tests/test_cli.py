@@ -107,6 +107,33 @@ def test_a_damaged_fmu_in_fmu_dir_is_named_in_one_line(backend, built_fmus, nati
     assert not (tmp_path / "out").exists()
 
 
+@pytest.mark.integration
+@pytest.mark.parametrize("backend", ["python", "native"])
+def test_another_fmu_under_an_expected_name_is_named_in_one_line(backend, built_fmus,
+                                                                 native_fmus, tmp_path, capsys):
+    """The DriftEstimator saved as Excitation.fmu in --fmu-dir: the error names the file, what
+    it is and what to do (it was "driftfmu: error: 'x'", exit 1); nothing is written; the API
+    raises the same."""
+    import driftfmu
+    fmus = tmp_path / "fmus"
+    folder = fmus if backend == "python" else fmus / "native" / "fmi2"
+    folder.mkdir(parents=True)
+    for name, path in (built_fmus if backend == "python" else native_fmus[2]).items():
+        (folder / Path(path).name).write_bytes(Path(path).read_bytes())
+    (folder / "Excitation.fmu").write_bytes((folder / "DriftEstimator.fmu").read_bytes())
+    rc = _status(["run", "gaussian", "--n", "10", "--out", str(tmp_path / "out"), "--fmu-dir",
+                  str(fmus), "--backend", backend])
+    line = _one_error_line(capsys.readouterr().err)
+    assert rc == 2
+    assert line.startswith("driftfmu: error: %s has no variable " % (folder / "Excitation.fmu"))
+    assert line.endswith("(its model is DriftEstimator): it is not driftfmu's Excitation; "
+                         "allowed: driftfmu's Excitation.fmu, as driftfmu build writes it "
+                         "(remove this one and it is built again)"), line
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(ValueError, match="it is not driftfmu's Excitation"):
+        driftfmu.simulate(stop_time=0.01, fmu_dir=fmus, backend=backend)
+
+
 def test_a_bad_source_date_epoch_is_a_usage_error_of_build(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "abc")
     assert _status(["build", "--out", str(tmp_path / "fmus")]) == 2
