@@ -178,9 +178,16 @@ class CoSimulationError(RuntimeError):
 
 def failed(exc, insts):
     """The CoSimulationError of a master over ``insts`` (name -> Instance) that met ``exc``:
-    its message and, one per line, what the FMUs logged."""
+    its message, with the last error an FMU logged on its first line (what a one-line report
+    shows: why the call failed, not only that it did), and, one per line, what the FMUs
+    logged."""
     log = [m for inst in insts.values() for m in inst.messages]
-    return CoSimulationError("%s%s" % (exc, "".join("\n  " + m for m in log)))
+    text = str(exc)
+    errors = [m for m in log if " [error] " in m or " [fatal] " in m]
+    if errors:
+        first, _, rest = text.partition("\n")
+        text = "%s: %s%s" % (first.rstrip("."), errors[-1], _ + rest)
+    return CoSimulationError("%s%s" % (text, "".join("\n  " + m for m in log)))
 
 
 def free_all(insts):

@@ -134,6 +134,19 @@ def test_another_fmu_under_an_expected_name_is_named_in_one_line(backend, built_
         driftfmu.simulate(stop_time=0.01, fmu_dir=fmus, backend=backend)
 
 
+@pytest.mark.integration
+def test_an_fmu_error_s_reason_is_on_the_one_line(built_fmus, tmp_path, capsys):
+    """Values the command accepts but the model overflows with: the line says why the FMU
+    refused (it said only "fmi2GetReal failed with status 3 (error).")."""
+    rc = _status(["run", "gaussian", "--Q", "1e160", "--n", "20", "--out", str(tmp_path / "o"),
+                  "--fmu-dir", str(Path(built_fmus["Excitation"]).parent)])
+    line = _one_error_line(capsys.readouterr().err)
+    assert rc == 1 and line.startswith("driftfmu: error: fmi2GetReal failed with status 3 "
+                                       "(error): DriftEstimator [error] DriftEstimator: "), line
+    assert "would be inf at sample 1" in line and "overflow the model" in line, line
+    assert not (tmp_path / "o").exists()
+
+
 def test_a_bad_source_date_epoch_is_a_usage_error_of_build(tmp_path, capsys, monkeypatch):
     monkeypatch.setenv("SOURCE_DATE_EPOCH", "abc")
     assert _status(["build", "--out", str(tmp_path / "fmus")]) == 2
