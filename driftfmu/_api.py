@@ -136,8 +136,17 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         if 2 not in versions or not set(chain) <= set(names):
             raise UsageError("ssp needs the FMI 2.0 FMUs %s; allowed: names with them and "
                              "fmi_version 2" % ", ".join(chain))
+    from driftfmu.simulations.output import Staging, nearest_existing
+    for what, path, folder in (("out_dir", out_dir, True), ("cross_check", cross_check, True),
+                               ("ssp", ssp, False)):
+        if path is None:
+            continue
+        existing = nearest_existing(path if folder else Path(path).parent)
+        if not existing.is_dir():  # before anything is built, not after
+            raise UsageError("%s = %s: %s is an existing file; allowed: %s" % (
+                what, path, existing, "a folder (created if missing)" if folder
+                else "a file path in a folder"))
     log = _quiet_log if log is None else log
-    from driftfmu.simulations.output import Staging
     # all the outputs or none: each is written to a staged stand-in and moved into place only
     # once the whole build has succeeded; a failed or stopped build leaves every path as it was
     with Staging() as staging:

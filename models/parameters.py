@@ -145,7 +145,9 @@ def _fmt(v):
 def problem(name, value):
     """Why ``value`` is not allowed for parameter ``name``, or None when it is."""
     p = PARAMETERS[name]
-    try:
+    try:  # (text and True/False are not numbers, though float() reads them)
+        if isinstance(value, (str, bytes, bool)):
+            raise TypeError
         v = float(value)
     except (TypeError, ValueError):
         return "%s = %r is not a number; allowed: %s" % (name, value, allowed(name))

@@ -1,6 +1,7 @@
 """The public API (driftfmu.build_fmus, driftfmu.simulate, the experiments) against models/."""
 import inspect
 import os
+import re
 from pathlib import Path
 
 import numpy as np
@@ -172,6 +173,34 @@ def test_build_fmus_refuses_what_it_cannot_build(tmp_path):
         with pytest.raises(ValueError, match=word):
             driftfmu.build_fmus(tmp_path / "out", **kwargs)
     assert sorted(p.name for p in tmp_path.iterdir()) == []
+
+
+def test_build_fmus_refuses_a_file_in_the_way_before_it_builds(tmp_path, monkeypatch):
+    """It built every FMU, then raised NotADirectoryError naming its staging folder."""
+    from driftfmu.fmu_src import builder
+    monkeypatch.setattr(builder, "build_fmus", lambda *a, **k: pytest.fail("built"))
+    (tmp_path / "afile.txt").write_text("mine")
+    for kwargs, said in ((dict(out_dir=tmp_path / "afile.txt"), "out_dir"),
+                         (dict(out_dir=tmp_path / "afile.txt" / "sub"), "out_dir"),
+                         (dict(out_dir=tmp_path / "o", ssp=tmp_path / "afile.txt" / "c.ssp"),
+                          "ssp"),
+                         (dict(out_dir=tmp_path / "o", cross_check=tmp_path / "afile.txt"),
+                          "cross_check")):
+        with pytest.raises(ValueError) as info:
+            driftfmu.build_fmus(**kwargs)
+        assert str(info.value).startswith("%s = " % said) and (
+            "%s is an existing file; allowed: " % (tmp_path / "afile.txt")) in str(info.value)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["afile.txt"]
+    assert (tmp_path / "afile.txt").read_text() == "mine"
+
+
+@pytest.mark.parametrize("n", ["5", True, b"5"])
+def test_a_count_that_is_not_a_number_is_refused(n, tmp_path):
+    """``run_gaussian(n="5")`` raised "unsupported operand type(s) for //" from the master."""
+    with pytest.raises(ValueError, match="n = %s is not a number; allowed: n >= 1"
+                       % re.escape(repr(n))):
+        driftfmu.run_gaussian(n=n, fmu_dir=tmp_path / "fmus")
+    assert os.listdir(tmp_path) == []
 
 
 def _fake_native(out_dir, names, fmi_versions, log, **kw):
