@@ -161,7 +161,16 @@ def check_montecarlo(command, runs, n, workers, out, summary_only=False):
         chunk = min(runs, 4096) * min(cores, 2)
         memory = MONTECARLO_MEMORY * (kept + chunk) * n + SUMMARY_BYTES * runs
         disk = (MONTECARLO_DISK * kept * n + SUMMARY_BYTES * runs) if out else 0
-        return check(what, memory, disk, seconds, out, "a smaller --n")
+
+        def fit_summaries(share):
+            # the trajectories kept grow with --n, the summaries with --runs: name the largest
+            # --runs at this --n when it is the runs that do not fit
+            room = share * memory - MONTECARLO_MEMORY * (kept + chunk) * n
+            if room >= SUMMARY_BYTES:
+                return "at most --runs %d at --n %d" % (room // SUMMARY_BYTES, n)
+            return "a smaller --n"
+        return check(what, memory, disk, seconds, out, "fewer --runs or a smaller --n",
+                     fit_summaries)
 
     def fit(share):
         return "at most --runs %d at --n %d" % (max(1, int(runs * share)), n)

@@ -612,3 +612,16 @@ def test_a_sweep_too_large_for_the_memory_is_refused_before_it_allocates(tmp_pat
     budget.check_sweep(30, fits, 10, 2, None)  # the figure it names fits
     with pytest.raises(ValueError):
         budget.check_sweep(30, 2 * fits, 10, 2, None)
+
+
+def test_summary_only_too_large_names_the_largest_runs_that_fit(monkeypatch):
+    """With --summary-only the memory grows with --runs: the refusal said "a smaller --n" at
+    --n 1.  The --runs it names fits, twice that does not."""
+    from driftfmu.simulations import budget
+    monkeypatch.setattr(budget, "available_memory", lambda: 4e9)
+    with pytest.raises(ValueError) as info:
+        budget.check_montecarlo("gaussian", 100000000, 1, 2, None, summary_only=True)
+    runs = int(re.search(r"at most --runs (\d+) at --n 1;", str(info.value)).group(1))
+    budget.check_montecarlo("gaussian", runs, 1, 2, None, summary_only=True)
+    with pytest.raises(ValueError):
+        budget.check_montecarlo("gaussian", 2 * runs, 1, 2, None, summary_only=True)
