@@ -53,6 +53,10 @@ def check_grid(name, values):
         raise UsageError("the %s grid is empty; allowed: one or more values of %s"
                          % (name, name))
     batch.check_parameters({name: arr})
+    values, counts = np.unique(arr, return_counts=True)
+    if (counts > 1).any():
+        raise UsageError("the %s grid has %s more than once; allowed: distinct values of %s"
+                         % (name, ", ".join("%r" % float(v) for v in values[counts > 1]), name))
     return arr
 
 
@@ -280,8 +284,16 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
     t = result["table"]
     axis = result.get("axis", "a2")
     a2, R = result["grid_" + axis], result["grid_R"]
-    # a sweep over a4 starts at the letter's a4 = 0: a linear a4 axis
-    xscale = "linear" if axis == "a4" else "log"
+    # a sweep over a4 starts at the letter's a4 = 0: a linear a4 axis; an a2 grid with 0 or
+    # negative values: a symmetric log axis, linear within the smallest |a2| but 0, which shows
+    # them all (a log axis dropped them, with a warning)
+    xscale = "linear" if axis == "a4" else "log" if (a2 > 0).all() else "symlog"
+    nonzero = np.abs(a2[a2 != 0])
+    xscale_kw = {"linthresh": float(nonzero.min()) if nonzero.size else 1.0} \
+        if xscale == "symlog" else {}
+    # the drift and the errors are 0 at a2 = 0: a log y axis for what is above 0, a linear one
+    # when nothing is (matplotlib's log axis cannot show that, and warns)
+    yscale = "log" if ylim is not None else "linear"
     general = any(k in result.get("parameters", {}) for k in GENERAL_OFF)
     drift_label = ("drift a2σx²+3a4σx⁴" if axis == "a4" else "the expected drift"
                    if general else "the drift a2·Q/(1−A²)")
@@ -290,14 +302,18 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
     for ax, ref in zip(axes, ("realised", "empirical")):
         mae = t["mae_%s_%s" % (estimator, ref)].reshape(len(a2), len(R))
         for j, r in enumerate(R):
-            ax.loglog(a2, mae[:, j], marker=markers[j % len(markers)],
-                      ms=4.0 + 2.5 * (len(R) - 1 - j), mfc="none", mew=1.3,
-                      ls=R_STYLES[j % len(R_STYLES)], lw=1.3,
-                      color=plt.cm.viridis(0.9 * j / max(1, len(R) - 1)),
-                      label="R = %.0e V²" % r)
-        ax.loglog(a2, t["dc_expected"].reshape(len(a2), len(R))[:, 0], color="k", ls=":",
-                  lw=1.2, label=drift_label)
-        ax.set_xscale(xscale)
+            if yscale == "log" and not (mae[:, j] > 0).any():
+                continue  # 0 everywhere (a2 = 0 alone, no noise): nothing a log axis shows
+            ax.plot(a2, mae[:, j], marker=markers[j % len(markers)],
+                    ms=4.0 + 2.5 * (len(R) - 1 - j), mfc="none", mew=1.3,
+                    ls=R_STYLES[j % len(R_STYLES)], lw=1.3,
+                    color=plt.cm.viridis(0.9 * j / max(1, len(R) - 1)),
+                    label="R = %.0e V²" % r)
+        drift = t["dc_expected"].reshape(len(a2), len(R))[:, 0]
+        if yscale == "linear" or (drift > 0).any():  # (the drift is 0 at a2 = 0)
+            ax.plot(a2, drift, color="k", ls=":", lw=1.2, label=drift_label)
+        ax.set_xscale(xscale, **xscale_kw)
+        ax.set_yscale(yscale)
         ax.set_xlabel("a2 [V/g²]" if axis == "a2" else "a4 [V/g⁴]")
         ax.set_ylabel("mean |%s − %s drift| [V]" % (estimator.upper(), ref))
         ax.set_title("%s against the %s drift%s" % (
@@ -307,7 +323,8 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
             ax.set_ylim(*ylim)
         ax.grid(True, which="major", alpha=0.3)
         ax.minorticks_off()  # log-axis minor ticks are most of the drawing time
-        output.decade_labels(ax.yaxis)
+        if yscale == "log":
+            output.decade_labels(ax.yaxis)
         if xscale == "log":
             output.decade_labels(ax.xaxis)
     axes[1].legend(loc="upper left", bbox_to_anchor=(1.02, 1.0), fontsize=9, frameon=False)

@@ -128,6 +128,8 @@ def test_files_are_written(local, tmp_path):
     (dict(runs=0), "runs = 0 is not allowed"),
     (dict(engine="gpu"), "engine = 'gpu' is not allowed"),
     (dict(seed=2 ** 31 - 10, runs=20), "seed"),
+    (dict(a2=[0.01, 0.02, 0.01]), r"the a2 grid has 0.01 more than once; allowed: distinct"),
+    (dict(R=[1e-4, 1e-4]), r"the R grid has 0.0001 more than once"),
 ])
 def test_bad_input_is_refused_before_anything_runs(kw, match):
     args = dict(KW, **kw)
@@ -166,3 +168,16 @@ def test_cli_unreachable_scheduler_exits_1_quickly_and_writes_nothing(tmp_path, 
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no Dask scheduler answered at 'tcp://127.0.0.1:1'" in err[0]
     assert not out.exists() or not any(out.iterdir())
+
+
+def test_an_a2_grid_with_zero_and_negative_values_is_drawn_without_a_warning(tmp_path):
+    """a2 = 0 alone gave six "Data has no positive values, and therefore cannot be log-scaled"
+    warnings and empty figures; a negative a2 was dropped from the log axis."""
+    import warnings
+    for i, a2 in enumerate(([0.0], [-0.01, 0.0, 0.01])):
+        with warnings.catch_warnings(record=True) as seen:
+            warnings.simplefilter("always")
+            sweep.sweep(**dict(KW, a2=a2, out=tmp_path / str(i)))
+        assert [str(w.message) for w in seen] == []
+        for fig in ("fig2.png", "fig3.png"):
+            assert (tmp_path / str(i) / fig).read_bytes()[:4] == b"\x89PNG"
