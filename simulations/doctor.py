@@ -21,6 +21,10 @@ import zlib
 from pathlib import Path
 
 OK, WARN, FAIL = "ok", "warning", "problem"
+#: The line of an FMU whose binary for this platform cannot load here (named by a problem
+#: above): instantiating it would only repeat that, in the loader's words.
+NOT_TRIED = (WARN, "not instantiated in a Python host: its binary for this platform cannot "
+                   "be loaded here (see above)")
 
 
 def _platform_dir(fmi_version="2.0"):
@@ -117,9 +121,14 @@ def diagnose(fmu):
     try:
         md = read_model_description(str(fmu))
     except Exception as exc:  # an XML parser's or fmpy's validation message
-        text = (str(exc).strip().splitlines() or [type(exc).__name__])[0]
-        return [(FAIL, "its modelDescription.xml cannot be read (%s): the FMU is damaged or "
-                       "was edited; a host cannot even learn its variables. Rebuild it "
+        # (fmpy's ValidationError says only "Failed to validate modelDescription.xml:" and
+        # keeps what failed in .problems)
+        problems = [str(p).strip() for p in getattr(exc, "problems", None) or []]
+        text = "; ".join(problems) or \
+            (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        return [(FAIL, "its modelDescription.xml cannot be read (%s): the FMU is damaged, was "
+                       "edited or does not follow the FMI standard; a host cannot even learn "
+                       "its variables. If it is one of driftfmu's FMUs, rebuild it "
                        "(driftfmu build)" % text)]
     if md.coSimulation is None:
         return [(FAIL, "the FMU has no co-simulation interface")]
@@ -131,6 +140,7 @@ def diagnose(fmu):
     binary = "binaries/%s/%s%s" % (plat, ident, ext)
     present = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and
                       n.count("/") >= 2})
+    loadable = False  # a binary for this platform, whole, for this machine's architecture
     if binary in names:
         damaged = [(b, why) for b in sorted(n for n in names if n.startswith(
             "binaries/%s/" % plat) and n.endswith(ext)) for why in [
@@ -141,6 +151,7 @@ def diagnose(fmu):
                                   "Rebuild the FMU (driftfmu build)" % (b, why)))
         else:
             out.append(_architecture(zf.read(binary), binary, md.fmiVersion))
+            loadable = out[-1][0] != FAIL
     else:
         out.append((FAIL, "it has no binary for this platform (%s); it has: %s"
                     % (plat, ", ".join(present) or "none")))
@@ -183,7 +194,7 @@ def diagnose(fmu):
         if "sources/" in {n[:8] for n in names}:
             out.append((OK, "a native FMU (no Python inside): a host needs no libpython; it is "
                             "also a source FMU (sources/) for platforms without a binary"))
-        out.append(_try_instantiate(fmu, md.fmiVersion))
+        out.append(_try_instantiate(fmu, md.fmiVersion) if loadable else NOT_TRIED)
         return out
     # libpython for hosts that are not Python
     found = [s for s in _libpython_candidates(record) if _loadable(s)]
@@ -224,7 +235,7 @@ def diagnose(fmu):
     if optional:
         out.append((OK, "imported only inside functions that the FMU does not call: %s "
                         "(not needed)" % ", ".join(optional)))
-    out.append(_try_instantiate(fmu))
+    out.append(_try_instantiate(fmu) if loadable else NOT_TRIED)
     return out
 
 
@@ -329,7 +340,9 @@ def _reason(message, path=""):
     FMU's path keeps it whole, whatever dots it holds)."""
     head = path if path and message.startswith(path) else ""
     rest = message[len(head):]
-    return head + rest.split(". ")[0].split(": the FMU is damaged")[0]
+    if ": the FMU is damaged" in rest:  # what comes before it may quote a parser's sentences
+        return head + rest.split(": the FMU is damaged")[0]
+    return head + rest.split(". ")[0]
 
 
 def add_cli(groups):

@@ -91,3 +91,35 @@ def test_an_empty_path_is_a_usage_error(capsys):
     assert main(["doctor", ""]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["driftfmu: error: FMU '' is empty; allowed: the path of a .fmu file"]
+
+
+def test_a_model_description_that_does_not_validate_says_what_fails(built_fmus, tmp_path,
+                                                                     capsys):
+    """fmpy's ValidationError reads "Failed to validate modelDescription.xml:" and keeps what
+    failed in .problems: the doctor quotes those, whole, also in the verdict; the advice to
+    rebuild is for driftfmu's own FMUs."""
+    with zipfile.ZipFile(built_fmus["Excitation"]) as z:
+        md = z.read("modelDescription.xml").decode()
+    start, end = md.index("<ModelVariables>"), md.index("</ModelVariables>")
+    bad = md[:start] + "<ModelVariables>" + md[end:]  # no variable at all
+    fmu = _rewrite(built_fmus["Excitation"], tmp_path / "Excitation.fmu",
+                   drop=("modelDescription.xml",), add={"modelDescription.xml": bad})
+    with pytest.raises(SystemExit) as info:
+        main(["doctor", str(fmu)])
+    out = capsys.readouterr().out
+    assert info.value.code == 1
+    assert "Failed to validate modelDescription.xml:)" not in out, out
+    assert "Missing child element(s). Expected is ( ScalarVariable )." in out, out
+    assert "If it is one of driftfmu's FMUs, rebuild it (driftfmu build)" in out
+    verdict = next(line for line in out.splitlines() if line.startswith("verdict:"))
+    assert verdict.endswith("Expected is ( ScalarVariable ).)"), verdict
+
+
+def test_a_binary_that_cannot_load_is_not_instantiated_too(built_fmus, tmp_path, capsys):
+    """No binary for this platform: the problem is named once, not again in fmpy's words."""
+    broken = _rewrite(built_fmus["Accelerometer"], tmp_path / "Accelerometer.fmu",
+                      drop=("binaries/linux64/",))
+    with pytest.raises(SystemExit):
+        main(["doctor", str(broken)])
+    out = capsys.readouterr().out
+    assert "not instantiated in a Python host" in out and "Failed to load" not in out, out

@@ -512,6 +512,10 @@ def test_doctor_tells_an_fmi2_fmu_for_another_architecture(fmu_sets, capsys):
     assert info.value.code == 1
     assert ("binaries/linux64/DriftEstimator.so is for aarch64, this machine is x86_64 (FMI 2.0 "
             "names no architecture" in out), out
+    # not instantiated as well: fmpy's "cannot open shared object file" for a file that is
+    # there would only repeat the problem in misleading words
+    assert "not instantiated in a Python host: its binary for this platform cannot be loaded" \
+        in out and "shared object" not in out, out
 
 
 def test_native_fmus_built_on_demand_take_the_libraries_driftfmu_build_keeps(tmp_path,
