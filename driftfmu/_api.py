@@ -378,6 +378,10 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     names = [n for n in FMU_NAMES if n in names]  # the Gauss-Seidel order
     _check_choice("backend", backend, BACKENDS)
     _check_choice("fmi_version", fmi_version, (2,) if backend == "python" else (2, 3))
+    if start_values is not None and not isinstance(start_values, Mapping):
+        raise UsageError("start_values = %r is not a mapping; allowed: a dict of variable "
+                         "names and values, e.g. {\"a2\": 0.02, \"seed\": 3}"
+                         % (start_values,))
     start_values = dict(start_values or {})
     if step_size is None:
         ts = start_values.get("Ts")

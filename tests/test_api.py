@@ -133,6 +133,7 @@ def test_simulate_refuses_bad_settings_before_building(kwargs, words, tmp_path):
     (dict(input=np.array([(0.0, 1.0), (0.001, np.nan)], dtype=[("time", float), ("z", float)]),
           fmus=["DriftEstimator"]), ["input field 'z'", "not finite"]),
     (dict(input=[1, 2, 3]), ["input has fields ()", "'time'"]),
+    (dict(start_values=[1, 2]), ["start_values = [1, 2] is not a mapping", "allowed: a dict"]),
 ])
 def test_simulate_refuses_bad_names_and_values(fmu_dir, kwargs, words):
     with pytest.raises(ValueError) as info:
