@@ -62,7 +62,7 @@ def test_a_broken_model_description_is_named_with_a_verdict(built_fmus, tmp_path
     bad = _rewrite(built_fmus["Excitation"], tmp_path / "Excitation.fmu",
                    replace={"modelDescription.xml": lambda data: data[:len(data) // 2]})
     out, verdict = _verdict(bad, capsys)
-    assert "modelDescription.xml cannot be read" in out and "Rebuild it" in out
+    assert "modelDescription.xml cannot be read" in out and "rebuild it (driftfmu build)" in out
     assert "will NOT run" in verdict and "modelDescription.xml cannot be read" in verdict
 
 
