@@ -185,6 +185,30 @@ def test_python_and_native_twins_agree_call_by_call(twins, name, report):
     assert problems == [], "\n".join(problems[:10])
 
 
+def test_a_state_got_while_sample_1_overflows_restores_in_every_twin(twins):
+    """Found by the differential fuzz (seed 3302): after an exit whose sample 1 overflows
+    (B = -1e308), the native Excitation had already written x = inf into its outputs, so a state
+    got then was refused when set again ("x = inf is not finite"); the Python FMU, which
+    computes sample 1 only when it is read, restored it.  Now every twin restores it, and
+    still refuses to read the sample."""
+    script = [["setup", -2.0], ["enter"], ["setr", ["u_in"], [-1.826915875]],
+              ["setr", ["B"], [-1e308]], ["exit"], ["getr", ["x", "y", "u"]], ["gst", 0],
+              ["reset"], ["setup", 1.5], ["enter"], ["exit"], ["getr", ["x", "y", "u"]],
+              ["sst", 0], ["getr", ["x", "y", "u"]]]
+    info = differential.model_info(twins["Excitation"]["native-fmi2"])
+    results = {}
+    for name, fmi in (("python", 2), ("native-fmi2", 2), ("native-fmi3", 3)):
+        driver = differential.Driver(twins["Excitation"][name], fmi)
+        driver.reset()
+        try:
+            results[name] = differential.run_script(driver, script, info["reals"])
+        finally:
+            driver.free()
+    assert differential.compare(script, results) == []
+    for name, rows in results.items():
+        assert [row[0] for row in rows] == [0, 0, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0, 3], name
+
+
 #: Scripts per model with every instance compared around every call.
 CHECKED_SCRIPTS = 20
 

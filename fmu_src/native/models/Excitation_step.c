@@ -74,7 +74,17 @@ void model_start(ModelInstance *comp)
 {
     comp->h.x = comp->v.x0;
     comp->h.y = 0.0;
-    make_pending(comp, 1);
+    const double x = comp->v.x, y = comp->v.y, u = comp->v.u;
+    if (make_pending(comp, 1)) {
+        /* sample 1 overflows (B u_in, say): nothing pending and the outputs as they were, as
+         * in the Python FMU, which computes sample 1 when it is read and refuses it there; a
+         * state got now must not hold the values that cannot be (a restore refuses them) */
+        comp->v.x = x;
+        comp->v.y = y;
+        comp->v.u = u;
+        comp->h.x_pending = comp->h.y_pending = 0.0;
+        comp->h.has_pending = 0;
+    }
 }
 
 const char *model_compute(ModelInstance *comp)
