@@ -156,7 +156,8 @@ def check_variables(insts, connections, record=None, start_values=None, inputs=N
         needed[d].append(i)
     for group in (record or {}, start_values or {}, inputs or {}):
         for name, names in group.items():
-            needed.setdefault(name, []).extend(names)
+            if name in needed:  # (values for an FMU not in this run: the masters skip them)
+                needed[name].extend(names)
     for name, names in needed.items():
         inst = insts[name]
         missing = sorted(set(v for v in names if v not in inst.vrs))

@@ -135,6 +135,19 @@ def test_another_fmu_under_an_expected_name_is_named_in_one_line(backend, built_
 
 
 @pytest.mark.integration
+def test_the_variable_check_skips_values_for_fmus_not_in_the_run(built_fmus):
+    """Start values and recorded names for an FMU the run does not load are skipped by both
+    masters, as before the check of the variables (which raised a bare KeyError for them)."""
+    from driftfmu.simulations.cosim import cosimulate
+    from driftfmu.simulations.fastcosim import cosimulate_fast
+    fmus = {"Excitation": str(built_fmus["Excitation"])}
+    extra = {"Excitation": {"seed": 2}, "DriftEstimator": {"a2": 0.1}}
+    for master in (cosimulate, cosimulate_fast):
+        out = master(fmus, [], 3, 1e-3, start_values=extra)
+        assert len(out["time"]) == 3 and len(out["Excitation.x"]) == 3
+
+
+@pytest.mark.integration
 def test_an_fmu_error_s_reason_is_on_the_one_line(built_fmus, tmp_path, capsys):
     """Values the command accepts but the model overflows with: the line says why the FMU
     refused (it said only "fmi2GetReal failed with status 3 (error).")."""
