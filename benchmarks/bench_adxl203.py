@@ -116,9 +116,8 @@ def floor(args, workers):
     CPU seconds of the workers, the workers' seconds in co-simulation)."""
     held_out = experiment.default_held_out(args.sets)
     with tempfile.TemporaryDirectory() as tmp:
-        paths = {role: FmuBuilder.build_FMU(os.path.join(HERE, "passthrough", name + ".py"),
-                                            dest=tmp) for role, name in FLOOR.items()}
-        paths = {role: str(p) for role, p in paths.items()}
+        paths = {role: str(FmuBuilder.build_FMU(os.path.join(HERE, "passthrough", name + ".py"),
+                                                dest=tmp)) for role, name in FLOOR.items()}
         k0, t0 = children_cpu(), time.perf_counter()
         seconds = 0.0
         with batch.process_pool(workers) as pool:

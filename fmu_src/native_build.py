@@ -669,7 +669,6 @@ def _version_identity(text):
 def compiler_version(command):
     """What ``command --version`` prints (its output; empty if it fails), once per command: a
     library cache kept from run to run must not serve what an older compiler made."""
-    from driftfmu.simulations import folders
     try:  # in a folder of its own: zig cc -target ... --version leaves an empty a.o behind
         with folders.temporary("driftfmu_cc_") as work:
             done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,

@@ -121,10 +121,10 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
     if engine not in ("batch", "fmu"):
         raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
     xs = a4s if axis == "a4" else a2
-    # before anything is allocated: a sweep too large for the machine is refused, not killed
-    budget.check_sweep(len(xs) * len(R), runs, n, workers, out, announce=False)
-    seeds1 = batch.run_seeds(seed, runs)
     points = len(xs) * len(R)
+    # before anything is allocated: a sweep too large for the machine is refused, not killed
+    budget.check_sweep(points, runs, n, workers, out, announce=False)
+    seeds1 = batch.run_seeds(seed, runs)
     seeds = np.tile(seeds1, points)
     per_run = {axis: np.repeat(xs, len(R) * runs), "R": np.tile(np.repeat(R, runs), len(xs))}
     common = dict(a0=a0, a1=a1, Q=Q, A=A, Ts=Ts, **on)
@@ -374,8 +374,9 @@ def cmd_sweep(args):
     a2 = args.a2
     if a2 is None:
         a2 = list(DEFAULT_A2) if len(args.a4) == 1 else [parameters.PARAMETERS["a2"].default]
-    total = max(len(a2), len(args.a4)) * len(args.R) * args.runs
-    budget.check_sweep(total // args.runs, args.runs, args.n, args.workers, args.out)
+    points = max(len(a2), len(args.a4)) * len(args.R)
+    total = points * args.runs
+    budget.check_sweep(points, args.runs, args.n, args.workers, args.out)
     t0 = time.perf_counter()
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine
