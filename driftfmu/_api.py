@@ -202,7 +202,7 @@ def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
 
 
 def _variables(path: Path) -> Dict[str, Any]:
-    from fmpy import read_model_description
+    from driftfmu.fmu_src.schemas import read_model_description
     from driftfmu.simulations.cosim import check_fmu_file
     check_fmu_file(path)  # before fmpy, whose message names neither the file nor a remedy
     return {v.name: v for v in read_model_description(str(path)).modelVariables}

@@ -669,7 +669,7 @@ def _write_atomically(target, entries):
                 info.external_attr = 0o644 << 16
                 info.compress_type = zipfile.ZIP_DEFLATED
                 archive.writestr(info, entries[filename])
-        from fmpy.validation import validate_fmu
+        from driftfmu.fmu_src.schemas import validate_fmu
         problems = validate_fmu(partial)
         if problems:
             raise BuildError("%s does not validate:\n  %s" % (target.name, "\n  ".join(problems)))

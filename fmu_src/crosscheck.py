@@ -183,7 +183,7 @@ def max_abs_diff(result, reference, names):
 
 def other_inputs(fmu, name):
     """Inputs of ``fmu`` outside :data:`INPUTS` (not wired in the chain): name -> start value."""
-    from fmpy import read_model_description
+    from driftfmu.fmu_src.schemas import read_model_description
     md = read_model_description(str(fmu))
     return {v.name: float(v.start or 0.0) for v in md.modelVariables
             if v.causality == "input" and v.name not in INPUTS[name]}

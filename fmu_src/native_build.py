@@ -48,7 +48,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
-from driftfmu.fmu_src import builder
+from driftfmu.fmu_src import builder, schemas
 from driftfmu.simulations import folders
 
 NATIVE_DIR = Path(__file__).resolve().parent / "native"
@@ -771,6 +771,7 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
     if cache is not None:
         prune_cache(cache)
     from concurrent.futures import ThreadPoolExecutor
+    schemas.prime()  # before the threads that validate (fmu_src/schemas.py)
     jobs = [(n, v) for v in fmi_versions for n in names]
     # two FMUs at a time (each compiles its platforms side by side): compilers are processes
     with ThreadPoolExecutor(max_workers=2) as pool:

@@ -79,7 +79,7 @@ def _q(prefix, tag):
 
 def system_structure(fmus, start_values, n, Ts):
     """The ``SystemStructure.ssd`` element tree of the chain."""
-    from fmpy import read_model_description
+    from driftfmu.fmu_src.schemas import read_model_description
 
     root = ET.Element(_q("ssd", "SystemStructureDescription"),
                       {"version": "1.0", "name": SYSTEM})

@@ -22,11 +22,12 @@ import os
 import signal
 import threading
 
-from fmpy import extract, read_model_description
+from fmpy import extract
 from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
     fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
+from driftfmu.fmu_src import schemas
 from driftfmu.simulations import folders
 from driftfmu.simulations.errors import UsageError
 
@@ -211,7 +212,7 @@ class Instance:
         self.name = name
         self.path = str(path)
         check_fmu_file(self.path)
-        self.md = read_model_description(self.path)
+        self.md = schemas.read_model_description(self.path)
         self.unzipdir = _extract(self.path)
         self.vrs = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}

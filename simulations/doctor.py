@@ -117,7 +117,7 @@ def diagnose(fmu):
     names = set(zf.namelist())
     if "modelDescription.xml" not in names:
         return [(FAIL, "%s has no modelDescription.xml" % fmu)]
-    from fmpy import read_model_description
+    from driftfmu.fmu_src.schemas import read_model_description
     try:
         md = read_model_description(str(fmu))
     except Exception as exc:  # an XML parser's or fmpy's validation message

@@ -21,9 +21,9 @@ import subprocess
 from ctypes import c_double, c_int, c_size_t, c_uint, c_void_p
 
 import numpy as np
-from fmpy import read_model_description
 from fmpy.fmi1 import FMICallException
 
+from driftfmu.fmu_src import schemas
 from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, check_fmu_file, \
     check_variables, failed, free_all, new_extract_folder
 from driftfmu.simulations.errors import UsageError
@@ -156,7 +156,7 @@ def unpacked(path):
                      or n.startswith("resources/")
                      or any(n.startswith("binaries/%s/" % p) for p in here)]
             archive.extractall(folder, names)
-        _UNPACKED[key] = (folder, read_model_description(folder, validate=False))
+        _UNPACKED[key] = (folder, schemas.read_model_description(folder, validate=False))
     return _UNPACKED[key]
 
 

@@ -144,6 +144,35 @@ def report(request):
     return write
 
 
+def pytest_configure(config):
+    # libxml2's schema set-up done before any test's threads parse a schema (fmu_src/schemas.py)
+    from driftfmu.fmu_src import schemas
+    schemas.prime()
+
+
+def pytest_addoption(parser):
+    parser.addoption(
+        "--qualification", action="store_true",
+        help="run the release qualification (the tests marked qualification: valgrind, the "
+             "cross-built platforms under qemu and wine, fmpy's CMake source builds, memory "
+             "cycles, long fuzz, the mutation check, the figures at full size) instead of the "
+             "everyday loop")
+
+
+def pytest_collection_modifyitems(config, items):
+    """Two tiers: without ``--qualification`` the everyday loop (every test not marked
+    ``qualification``), with it the qualification alone; the other tier is deselected (pytest's
+    summary counts it), not skipped."""
+    qualification = config.getoption("--qualification")
+    keep, other = [], []
+    for item in items:
+        tier = item.get_closest_marker("qualification") is not None
+        (keep if tier == qualification else other).append(item)
+    if other:
+        config.hook.pytest_deselected(items=other)
+        items[:] = keep
+
+
 #: ``(test id, line)`` of every :func:`report` line of this session.
 _REPORTED = []
 

@@ -306,7 +306,7 @@ RESULTS_DUAL_TABLE = """
 """
 
 
-@pytest.mark.slow  # 18 points x 4 runs x 4000 samples of the dual chain
+@pytest.mark.qualification  # 18 points x 4 runs x 4000 samples of the dual chain
 def test_documented_dual_axis_table_and_its_worst_error():
     # docs/results.md: "the dual-axis EKF1 is within 0.081 % of the scale at every point"; scales 9.0
     # and 4.96 mV (sinusoids), 0.20 and 0.14 mV (Gaussian); rows of its table
@@ -335,7 +335,7 @@ def test_documented_dual_axis_table_and_its_worst_error():
     assert ["%.2f" % (1e3 * by[("rho", 0.0, a)]["scale"]) for a in "xy"] == ["0.20", "0.14"]
 
 
-@pytest.mark.slow  # 18 points x 1000 runs x 4000 samples: about 30 s in the compiled kernel
+@pytest.mark.qualification  # 18 points x 1000 runs x 4000 samples: about 30 s in the compiled kernel
 def test_documented_dual_axis_figures_over_1000_runs_per_point():
     # docs/results.md: "Over 1000 runs per point (--engine batch) the dual-axis error is at most 0.008 %
     # of the scale; on the Gaussian sweep the single-axis error minus -b mean(xy) is within 0.25

@@ -315,7 +315,7 @@ def test_partial_period_term_of_the_empirical_drift_is_the_documented_bound():
     assert np.max(worst / bound) >= 0.99
 
 
-@pytest.mark.slow  # 4 million samples: a minute or more
+@pytest.mark.qualification  # 4 million samples: a minute or more
 def test_montecarlo_sinusoidal_median_settles_against_the_empirical_drift_at_3808(capsys):
     # docs/results.md: "With --runs 200 --n 20000 the median run settles against the empirical drift
     # from sample 3808"
@@ -333,7 +333,7 @@ ADXL203_TABLE = {100: ("2.50020", "0.99920", "0.00983", "2.09e-05", "10.889", "0
 
 
 @pytest.mark.integration
-@pytest.mark.slow  # the full size, 150 sets of 60,000 samples: a minute on the native FMUs
+@pytest.mark.qualification  # the full size, 150 sets of 60,000 samples: a minute on the native FMUs
 def test_adxl203_experiment_prints_the_documented_table(native_fmus, tmp_path, capsys):
     # docs/results.md: "driftfmu experiment adxl203" (the native FMUs give the Python FMUs' numbers to
     # the last bit: test_native.py); the margins 23-28 dB of the table and docs/method.md

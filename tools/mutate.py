@@ -56,10 +56,10 @@ except ImportError:  # Python < 3.11
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 LIST = os.path.join(ROOT, "tools", "mutations.toml")
 #: What every run selects unless a fault names its own tests: the suite without the tests that
-#: build or load FMUs (those test the FMI plumbing; the slaves' step logic runs in Python) and
-#: without the slow reproductions of documented figures at full size.
+#: build or load FMUs (those test the FMI plumbing; the slaves' step logic runs in Python); the
+#: qualification tier (tests/conftest.py) is left out as in every run without --qualification.
 DEFAULT_TESTS = ("tests",)
-DEFAULT_MARKERS = "not integration and not slow"
+DEFAULT_MARKERS = "not integration"
 #: Left out of every run: compares the C port built for Linux with the same C built for Windows
 #: (under wine, minutes); no fault in the Python tree can change what it compares.
 #: Also: a wall-clock bound on connecting to a Dask scheduler, which a loaded machine's slow
