@@ -758,20 +758,20 @@ SCHEDULER_ALLOWED = ("the address of a Dask scheduler, [tcp:// | tls:// | ws:// 
 
 def scheduler_address(text):
     """argparse type of ``--scheduler``: an address a Dask client can connect to, checked by
-    its form only (whether something answers there is the run's to find out)."""
+    its form first (the same message with or without Dask), then that Dask is installed
+    (whether something answers there is the run's to find out)."""
     import argparse
     import importlib.util
     import re
+    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
+                     r"(\d{1,5})", text.strip())
+    inproc = text.strip().startswith("inproc://") and len(text.strip()) > len("inproc://")
+    if not inproc and (m is None or not 0 < int(m.group(3)) < 65536):
+        raise argparse.ArgumentTypeError("scheduler = %r is not allowed; allowed: %s"
+                                         % (text, SCHEDULER_ALLOWED))
     if importlib.util.find_spec("distributed") is None:
         raise argparse.ArgumentTypeError("%r: --scheduler needs Dask, which is not installed; "
                                          "install the extra: %s" % (text, DASK_EXTRA))
-    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
-                     r"(\d{1,5})", text.strip())
-    if text.strip().startswith("inproc://") and len(text.strip()) > len("inproc://"):
-        return text.strip()
-    if m is None or not 0 < int(m.group(3)) < 65536:
-        raise argparse.ArgumentTypeError("scheduler = %r is not allowed; allowed: %s"
-                                         % (text, SCHEDULER_ALLOWED))
     return text.strip()
 
 

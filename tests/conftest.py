@@ -47,10 +47,14 @@ def python_fmus(tmp_path_factory):
     return dict(zip(NAMES, map(Path, paths)))
 
 
-#: The platforms of :func:`native_fmus`: those the tests run here (the C host, fmpy, wine).
-#: The cross-built ones (zig: aarch64, macOS), which only :func:`native_fmus_all`'s tests read
-#: or run under qemu, cost most of the build, so the other tests do not wait for them.
+#: The platforms of :func:`native_fmus`: those the tests run here (the C host and fmpy; wine
+#: runs the Windows binaries in the qualification). The cross-built ones (zig: aarch64, macOS),
+#: which only :func:`native_fmus_all`'s tests read or run under qemu, cost most of the build,
+#: so the other tests do not wait for them.
 HOST_PLATFORMS = ("x86_64-linux", "x86_64-windows")
+#: The everyday loop runs no Windows binary (the wine tests are qualification): it compiles
+#: for this machine alone.
+LOOP_PLATFORMS = ("x86_64-linux",)
 
 
 #: The compiled libraries of :func:`_native_build`, kept from run to run (keyed by their
@@ -78,12 +82,14 @@ def _native_build(tmp_path_factory, name, platforms):
 
 
 @pytest.fixture(scope="session")
-def native_fmus(tmp_path_factory):
-    """The native (C) twins for this machine's hosts (x86-64 Linux, and x86-64 Windows when a
-    compiler for it is installed), built once per test run: {2: {name: path}, 3: {name: path}}."""
+def native_fmus(tmp_path_factory, request):
+    """The native (C) twins for this machine's hosts (x86-64 Linux; in the qualification also
+    x86-64 Windows when a compiler for it is installed), built once per test run:
+    {2: {name: path}, 3: {name: path}}."""
     from driftfmu.fmu_src import native_build
+    wanted = HOST_PLATFORMS if request.config.getoption("--qualification") else LOOP_PLATFORMS
     return _native_build(tmp_path_factory, "fmus_native", lambda: [
-        p for p in HOST_PLATFORMS if native_build.compiler(p) is not None])
+        p for p in wanted if native_build.compiler(p) is not None])
 
 
 @pytest.fixture(scope="session")
@@ -137,7 +143,7 @@ def report(request):
     error texts of bad inputs, the memory figure).  The lines are listed together after the
     test session, under their own heading and each with its test's name, so that the CI log
     shows them (``pytest -ra`` hides passing tests' output) without mixing them into the
-    progress lines, where they read as failures.  They travel as the test's user properties,
+    progress lines, where they read as failures; ``pytest -q`` leaves them out.  They travel as the test's user properties,
     so pytest-xdist's workers hand them on too."""
     def write(line):
         request.node.user_properties.append(("report", str(line)))
@@ -159,6 +165,10 @@ def pytest_addoption(parser):
              "everyday loop")
 
 
+#: Fixtures too costly for the everyday loop: a test that takes one is a qualification test.
+QUALIFICATION_FIXTURES = frozenset({"native_fmus_all"})
+
+
 def pytest_collection_modifyitems(config, items):
     """Two tiers: without ``--qualification`` the everyday loop (every test not marked
     ``qualification``), with it the qualification alone; the other tier is deselected (pytest's
@@ -168,6 +178,11 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         tier = item.get_closest_marker("qualification") is not None
         (keep if tier == qualification else other).append(item)
+        heavy = QUALIFICATION_FIXTURES.intersection(getattr(item, "fixturenames", ()))
+        if heavy and not tier:
+            raise pytest.UsageError(
+                "%s uses %s, which only the qualification builds; mark it "
+                "@pytest.mark.qualification" % (item.nodeid, ", ".join(sorted(heavy))))
     if other:
         config.hook.pytest_deselected(items=other)
         items[:] = keep
@@ -182,8 +197,9 @@ def pytest_runtest_logreport(report):
         _REPORTED.extend((report.nodeid, v) for k, v in report.user_properties if k == "report")
 
 
-def pytest_terminal_summary(terminalreporter):
-    if _REPORTED:
+def pytest_terminal_summary(terminalreporter, config):
+    # a quiet run (-q) ends with pytest's own summary alone
+    if _REPORTED and config.getoption("verbose") >= 0:
         terminalreporter.section("what passing tests saw (their report lines; not failures)",
                                  sep="-")
         for nodeid, line in _REPORTED:

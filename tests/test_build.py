@@ -26,6 +26,7 @@ from fmpy.validation import validate_fmu
 from driftfmu.fmu_src import builder
 from driftfmu.fmu_src.builder import (NAMES, BuildError, build_fmus, rewrite_imports, source_hash,
                              unit_definition)
+from waiting import BOUND
 
 HOSTS = Path(__file__).parent / "hosts"
 LIBDIR = sysconfig.get_config_var("LIBDIR")
@@ -57,7 +58,7 @@ def host_args(fmu, tmp_path):
 
 
 def run(command, env):
-    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=120)
+    result = subprocess.run(command, env=env, capture_output=True, text=True, timeout=BOUND)
     return result.returncode, result.stdout + result.stderr
 
 
@@ -475,6 +476,7 @@ def test_without_any_libpython_instantiate_returns_null_with_a_message(built_fmu
     assert "DRIFTFMU_LIBPYTHON" in output and "LD_LIBRARY_PATH" in output
 
 
+@pytest.mark.qualification
 @integration
 def test_python_hosts_of_other_versions(built_fmus, reference_values, tmp_path):
     if not other_pythons():

@@ -7,12 +7,12 @@ import re
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
 
 from driftfmu.simulations.cli import main
+from waiting import BOUND, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -147,7 +147,7 @@ def test_the_main_jobs_run_without_the_extras(tmp_path):
                                "'40', '--out', 'mc'])\n"
                                "sys.exit(rc)\n")
     r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
-                       text=True, timeout=600, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                       text=True, timeout=BOUND, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert r.returncode == 0, r.stderr
     assert (tmp_path / "sw" / "sweep.npz").exists() and (tmp_path / "mc" / "fig1.png").exists()
 
@@ -155,7 +155,7 @@ def test_the_main_jobs_run_without_the_extras(tmp_path):
 def test_scheduler_without_dask_names_the_extra_to_install(tmp_path):
     script = WITHOUT_EXTRAS + "sys.exit(main(['sweep', '--scheduler', 'tcp://127.0.0.1:8786']))\n"
     r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
-                       text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                       text=True, timeout=BOUND, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert r.returncode == 2
     line = _one_line(r.stderr)
     assert "needs Dask" in line and "pip install 'driftfmu[dask]'" in line
@@ -208,7 +208,7 @@ def test_a_run_that_cannot_fit_the_memory_is_refused_before_it_starts(argv, word
               "from driftfmu.simulations.cli import main\n"
               "sys.exit(main(%r))\n" % (argv + ["--out", "res", "--fmu-dir", "fmus"]))
     r = subprocess.run([sys.executable, "-c", script], cwd=tmp_path, capture_output=True,
-                       text=True, timeout=300, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                       text=True, timeout=BOUND, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     line = _one_line(r.stderr)
     assert r.returncode == 2, line
     for w in words:
@@ -475,7 +475,7 @@ def slow_native(out_dir, **kw):
     (Path(out_dir) / "fmi2").mkdir(parents=True)
     (Path(out_dir) / "fmi2" / "Excitation.fmu").write_bytes(b"half")
     Path(sys.argv[1]).write_text("native build started")
-    time.sleep(120)
+    time.sleep(3600)  # a build far longer than the tests' bound: the signal ends it
 
 builder.build_fmus = t._fake_python_build
 ssp.build_ssp = t._fake_ssp
@@ -502,12 +502,9 @@ def test_a_signal_during_the_native_build_leaves_every_path_as_it_was(signum, tm
                           "--force"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                          text=True)
     try:
-        deadline = time.monotonic() + 120
-        while not started.exists():
-            assert p.poll() is None and time.monotonic() < deadline, p.communicate()
-            time.sleep(0.02)
+        wait_for(started.exists, "start of the native build", p)
         p.send_signal(signum)
-        out, err = p.communicate(timeout=60)
+        out, err = p.communicate(timeout=BOUND)
     finally:
         if p.poll() is None:
             p.kill()

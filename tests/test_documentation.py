@@ -38,6 +38,7 @@ def _fmus(python_fmus, native_fmus):
             yield name, "native", v, path
 
 
+@pytest.mark.qualification
 @pytest.mark.integration
 def test_every_fmu_carries_its_generated_documentation(python_fmus, native_fmus_all):
     native_fmus = native_fmus_all  # as the build ships them: every platform's binaries

@@ -24,6 +24,7 @@ def _errors_in_fmu_code(log):
             and re.search(r"binaries/linux64/|finalizePythonInterpreter", b)]
 
 
+@pytest.mark.qualification
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
 def test_no_invalid_memory_access_at_exit(built_fmus):
     r = subprocess.run(["valgrind", "--num-callers=12", sys.executable, str(HOST),

@@ -9,6 +9,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from waiting import BOUND
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -36,7 +37,7 @@ def test_a_worker_stopped_while_writing_the_loop_library_leaves_no_file(tmp_path
     tmp.mkdir()
     env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
     p = subprocess.run([sys.executable, "-c", _STOPPED_WORKER], env=env, capture_output=True,
-                       text=True, timeout=300)
+                       text=True, timeout=BOUND)
     assert p.returncode == 128 + signal.SIGTERM, p.stderr
     assert os.listdir(tmp) == []  # no .part file, no work folder, no half library
 

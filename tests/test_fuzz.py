@@ -146,6 +146,7 @@ def test_a_crash_a_hang_and_a_change_are_seen(host, models, tmp_path):
 
 # -- under valgrind ----------------------------------------------------------------------------
 
+@pytest.mark.qualification
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
 @pytest.mark.parametrize("name", ["Accelerometer", "DriftEstimator"])
 def test_under_valgrind_no_invalid_memory_access(host, models, name, report):
@@ -274,6 +275,7 @@ def test_native_twins_refuse_invalid_calls_and_change_nothing(host, native_model
     assert problems == [], "\n".join(problems) + "\n" + result.output[-3000:]
 
 
+@pytest.mark.qualification
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
 @pytest.mark.parametrize("name", differential.MODELS)
 def test_native_twins_under_valgrind_no_invalid_memory_access(host, native_models, name,
@@ -292,6 +294,7 @@ def test_native_twins_under_valgrind_no_invalid_memory_access(host, native_model
     assert problems == [], (problems, result.output[-3000:])
 
 
+@pytest.mark.qualification
 @pytest.mark.skipif(shutil.which("valgrind") is None, reason="valgrind is not installed")
 def test_differential_fuzz_under_valgrind(twins, report):
     """A few differential scripts with the whole child process under valgrind: the shim, the

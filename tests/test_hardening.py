@@ -20,6 +20,7 @@ from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
 from driftfmu.models import parameters, sensor
 from driftfmu.simulations.cosim import Instance
+from waiting import BOUND
 
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
           "DriftEstimator": DriftEstimator, "DualDriftEstimator": DualDriftEstimator}
@@ -485,11 +486,12 @@ def test_fmus_work_under_python_OO(built_fmus, tmp_path):
     env = dict(os.environ, PYTHONPATH=ROOT)
     run = subprocess.run([sys.executable, "-OO", str(tmp_path / "oo.py")]
                          + [str(built_fmus[n]) for n in SLAVES],
-                         capture_output=True, text=True, timeout=300, env=env)
+                         capture_output=True, text=True, timeout=BOUND, env=env)
     assert run.returncode == 0 and run.stdout.strip() == "ok", run.stderr[-2000:]
 
 
 # -- memory the Python side keeps per instantiation ----------------------------------------------
+@pytest.mark.qualification
 @pytest.mark.parametrize("name", ["DriftEstimator"])
 def test_python_memory_kept_per_instantiation_and_error(built_fmus, name, report):
     inst = Instance(name, built_fmus[name])

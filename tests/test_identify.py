@@ -10,6 +10,7 @@ import pytest
 
 from driftfmu.models import adxl203, identify
 from driftfmu.simulations.adxl203 import run_identify
+from waiting import BOUND
 
 TRUE = dict(a0=0.3, a1=1.2, a2=0.05, R=0.01 ** 2)
 N, SETS, X, F, TS = 4000, 20, 1.0, 50.0, 1e-3
@@ -263,7 +264,7 @@ def test_a_fit_has_the_same_bits_on_every_processor():
     outs = {}
     for core in cores:
         p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                           timeout=120, env=dict(os.environ, OPENBLAS_CORETYPE=core))
+                           timeout=BOUND, env=dict(os.environ, OPENBLAS_CORETYPE=core))
         assert p.returncode == 0, p.stderr
         outs[core] = p.stdout
     assert len(set(outs.values())) == 1, outs

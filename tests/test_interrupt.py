@@ -16,6 +16,8 @@ from pathlib import Path
 
 import pytest
 
+from waiting import BOUND
+
 ROOT = Path(__file__).resolve().parent.parent
 
 #: Many queued tasks, each sending back 200 MB: a stop catches a worker in the middle of
@@ -46,21 +48,21 @@ SCRIPT = textwrap.dedent("""
 
 
 def _stop_after(script, delay, env=None):
-    """Run ``script``; SIGTERM it ``delay`` s after it printed its first line; return (exit
-    status, seconds from the signal to its end, or None when it still ran after 30 s)."""
+    """Run ``script``; SIGTERM it ``delay`` s after it printed its first line; return its exit
+    status, or None when it still ran :data:`waiting.BOUND` seconds after the signal (its 300
+    tasks of 200 MB each take far longer)."""
     p = subprocess.Popen([sys.executable, "-c", script], stdout=subprocess.PIPE, text=True,
                          start_new_session=True,
                          env=dict(os.environ, PYTHONPATH=str(ROOT), **(env or {})))
     try:
         p.stdout.readline()
-        time.sleep(delay)
-        sent = time.monotonic()
+        time.sleep(delay)  # where in the run the signal lands, not a deadline
         p.send_signal(signal.SIGTERM)
         try:
-            p.wait(timeout=30)
+            p.wait(timeout=BOUND)
         except subprocess.TimeoutExpired:
-            return None, None
-        return p.returncode, time.monotonic() - sent
+            return None
+        return p.returncode
     finally:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGKILL)
@@ -69,9 +71,8 @@ def _stop_after(script, delay, env=None):
 
 @pytest.mark.parametrize("delay", [0.5, 1.5, 2.5])
 def test_a_stop_with_many_queued_tasks_and_large_results_ends_the_process(delay):
-    rc, seconds = _stop_after(SCRIPT, delay)
-    assert rc == 130, "the process still ran 30 s after SIGTERM" if rc is None else rc
-    assert seconds < 10.0  # workers get 2 s to clean up, then SIGKILL
+    rc = _stop_after(SCRIPT, delay)
+    assert rc == 130, "the process still ran %g s after SIGTERM" % BOUND if rc is None else rc
 
 
 def test_the_exit_watchdog_ends_a_process_that_something_holds():
@@ -85,7 +86,7 @@ def test_the_exit_watchdog_ends_a_process_that_something_holds():
         sys.exit(130)
     """)
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                       timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                       timeout=BOUND, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert p.returncode == 130, p.stderr
 
 
@@ -117,7 +118,7 @@ def test_the_command_ends_as_the_interpreter_would_without_its_teardown(interrup
         cli.end_process(%d, join_threads=%s)
     """ % ("3600" if interrupted else "0.3", 130 if interrupted else 3, not interrupted))
     p = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True,
-                       timeout=60, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+                       timeout=BOUND, env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert p.returncode == (130 if interrupted else 3), p.stderr
     want = "buffered, no newline; %sexit handler ran\n" % ("" if interrupted else
                                                            "thread ended\n")
@@ -129,7 +130,7 @@ def test_a_profiled_command_still_reports_after_it_ends(tmp_path):
     # os._exit would skip; with a profiler (or a tracer) the command exits through sys.exit
     p = subprocess.run([sys.executable, "-m", "cProfile", "-m", "driftfmu", "sweep", "--runs",
                         "2", "--n", "10", "--a2", "0.01", "--R", "1e-4", "--out", "s"],
-                       capture_output=True, text=True, timeout=120, cwd=tmp_path,
+                       capture_output=True, text=True, timeout=BOUND, cwd=tmp_path,
                        env=dict(os.environ, PYTHONPATH=str(ROOT)))
     assert p.returncode == 0, p.stderr
     assert "wrote" in p.stdout and "function calls" in p.stdout

@@ -148,6 +148,7 @@ def _rss_bytes():
         return int(fh.read().split()[1]) * os.sysconf("SC_PAGE_SIZE")
 
 
+@pytest.mark.qualification
 @pytest.mark.parametrize("name", NAMES)
 def test_thousand_instantiate_free_cycles_leave_memory_flat(built_fmus, name, report):
     inst = Instance(name, built_fmus[name])

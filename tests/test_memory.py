@@ -14,7 +14,7 @@ import fuzz
 from driftfmu.simulations.gaussian import FMU_NAMES
 from fuzz.differential import MODELS as NATIVE_MODELS  # the models with native twins
 
-pytestmark = pytest.mark.integration
+pytestmark = [pytest.mark.integration, pytest.mark.qualification]  # thousands of cycles each
 CYCLES = 20_000
 STATE_GETS = 100_000
 ERRORS = 20_000

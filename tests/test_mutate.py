@@ -9,15 +9,17 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from pathlib import Path
 
 import pytest
+
+from waiting import BOUND, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 MUTATE = ROOT / "tools" / "mutate.py"
 
 pytest.importorskip("xdist")
+pytestmark = pytest.mark.qualification  # runs of the mutation check itself
 if sys.version_info < (3, 11):
     pytest.skip("tools/mutate.py needs Python 3.11 (tomllib)", allow_module_level=True)
 
@@ -80,29 +82,30 @@ def _recorded(pids):
     return [int(line) for line in pids.read_text().split()] if pids.exists() else []
 
 
-def _none_left(pids, wait=10.0):
-    deadline = time.monotonic() + wait
-    while time.monotonic() < deadline:
-        left = [pid for pid in _recorded(pids) if _alive(pid)]
-        if not left:
-            return []
-        time.sleep(0.1)
-    for pid in left:  # do not leave them to the next test either
+def _none_left(pids):
+    """[] once every recorded process is gone (waited for up to :data:`waiting.BOUND`), else
+    those still alive (killed, so that they do not outlive the test)."""
+    def left():
+        return [pid for pid in _recorded(pids) if _alive(pid)]
+    try:
+        wait_for(lambda: not left(), "end of the recorded processes", poll=0.1)
+    except AssertionError:
+        pass
+    alive = left()
+    for pid in alive:  # do not leave them to the next test either
         os.kill(pid, signal.SIGKILL)
-    return left
+    return alive
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
 def test_a_signal_stops_the_running_tests_and_their_workers(signum, tmp_path):
     p, pids = _mutate(tmp_path, hang=True)
     try:
-        deadline = time.monotonic() + 120
-        while not Path(str(pids) + ".hanging").exists():  # the baseline's test hangs
-            assert p.poll() is None and time.monotonic() < deadline, p.communicate()
-            time.sleep(0.05)
+        # the baseline's test hangs
+        wait_for(Path(str(pids) + ".hanging").exists, "the hanging test", p, poll=0.05)
         assert len(_recorded(pids)) == 4  # pytest, two workers, the test's child
         p.send_signal(signum)
-        out, err = p.communicate(timeout=60)
+        out, err = p.communicate(timeout=BOUND)
     finally:
         if p.poll() is None:
             p.kill()
@@ -115,7 +118,7 @@ def test_a_signal_stops_the_running_tests_and_their_workers(signum, tmp_path):
 
 def test_a_baseline_over_its_bound_is_killed_with_its_workers(tmp_path):
     p, pids = _mutate(tmp_path, "--baseline-timeout", "10", hang=True)
-    out, err = p.communicate(timeout=300)
+    out, err = p.communicate(timeout=BOUND)
     assert p.returncode == 2, err
     assert "over --baseline-timeout 10 s" in err
     # pytest, two workers, the test's child (fewer when a loaded machine is slower than 10 s)
@@ -124,7 +127,7 @@ def test_a_baseline_over_its_bound_is_killed_with_its_workers(tmp_path):
 
 def test_a_fault_that_hangs_times_out_and_is_killed_with_its_workers(tmp_path):
     p, pids = _mutate(tmp_path, "--timeout", "10")
-    out, err = p.communicate(timeout=300)
+    out, err = p.communicate(timeout=BOUND)
     assert p.returncode == 1, out + err
     assert "a fault may take 10 s" in out
     assert "x-two" in out and "TIMEOUT" in out
@@ -144,6 +147,6 @@ def test_the_bound_per_fault_scales_with_the_baseline():
 
 def test_a_bound_that_is_not_positive_is_a_usage_error(tmp_path):
     p = subprocess.run([sys.executable, str(MUTATE), "--timeout", "0"], capture_output=True,
-                       text=True, timeout=60)
+                       text=True, timeout=BOUND)
     assert p.returncode == 2
     assert "--timeout 0.0: allowed: seconds > 0" in p.stderr.strip().splitlines()[-1]

@@ -24,6 +24,7 @@ import pytest
 from fuzz import differential as diff
 from fuzz import native_state as ns
 from driftfmu.fmu_src.builder import NAMES
+from waiting import BOUND
 
 pytestmark = pytest.mark.integration
 OK, WARNING, DISCARD, ERROR = diff.OK, diff.WARNING, diff.DISCARD, diff.ERROR
@@ -355,7 +356,7 @@ def _run_child(script, dirs):
     targets = [(str(dirs[name][b]), 3 if b.endswith("3") else 2) for name in NAMES
                for b in BACKENDS]
     done = subprocess.run([sys.executable, "-c", script, str(Path(__file__).parent),
-                           json.dumps(targets)], capture_output=True, text=True, timeout=300)
+                           json.dumps(targets)], capture_output=True, text=True, timeout=BOUND)
     assert done.returncode == 0, done.stderr[-3000:]
     return targets, json.loads(done.stdout.splitlines()[-1])
 

@@ -16,6 +16,7 @@ import pytest
 from driftfmu.fmu_src.native.models import generate
 from driftfmu.models import _ops, adxl203, chain, drift, dualaxis, ekf, excitation, harmonic, \
     noise, parameters, sensor
+from waiting import BOUND
 
 CC = shutil.which("gcc") or shutil.which("cc")
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
@@ -742,7 +743,7 @@ def include_dirs(gen):
     return ["-I", str(gen), "-I", str(NATIVE), "-I", str(generate.HERE)]
 
 
-def run_parallel(commands, timeout=300, env=None):
+def run_parallel(commands, timeout=BOUND, env=None):
     """Run the commands at once (two cores: the compilations overlap); their stdout, in order.
     A failing command fails the test with its stderr."""
     procs = [subprocess.Popen(c, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -1082,6 +1083,7 @@ WINE = next((w for w in ("/usr/lib/wine/wine64", shutil.which("wine64") or "",
                          shutil.which("wine") or "") if w and Path(w).exists()), None)
 
 
+@pytest.mark.qualification
 def test_windows_build_under_wine_prints_the_linux_bits(tmp_path):
     """tests/native_harness/bits_main.c (the models/ math over a grid, a 3000-step run of each
     model's step logic with whole-sample and fractional steps, the check messages of a bad

@@ -19,6 +19,7 @@ import pytest
 
 import driftfmu
 from driftfmu.fmu_src import builder
+from waiting import BOUND
 
 ROOT = Path(__file__).resolve().parent.parent
 integration = pytest.mark.integration
@@ -105,6 +106,7 @@ def test_the_source_files_are_found_without_git(tmp_path, monkeypatch):
 
 
 @integration
+@pytest.mark.qualification  # builds the wheel and the sdist
 def test_wheel_installs_only_the_driftfmu_namespace(dists):
     wheel, _, _ = dists
     tops = {name.split("/")[0] for name in _contents(wheel)}
@@ -112,6 +114,7 @@ def test_wheel_installs_only_the_driftfmu_namespace(dists):
 
 
 @integration
+@pytest.mark.qualification  # builds the wheel and the sdist
 def test_wheel_carries_what_the_builder_bundles(dists):
     wheel, _, _ = dists
     names = set(_contents(wheel))
@@ -127,6 +130,7 @@ def test_wheel_carries_what_the_builder_bundles(dists):
 
 
 @integration
+@pytest.mark.qualification  # builds the wheel and the sdist
 def test_sdist_has_no_build_outputs_and_rebuilds_the_same_wheel(dists):
     wheel, sdist, rebuilt = dists
     with tarfile.open(sdist) as archive:
@@ -154,10 +158,10 @@ def test_built_fmus_carry_the_package_version(built_fmus):
 
 def test_python_dash_m_driftfmu_is_the_command():
     result = subprocess.run([sys.executable, "-m", "driftfmu", "--help"], capture_output=True,
-                            text=True, timeout=60)
+                            text=True, timeout=BOUND)
     assert result.returncode == 0 and result.stdout.startswith("usage: driftfmu"), result.stderr
     result = subprocess.run([sys.executable, "-m", "driftfmu", "no-such-command"],
-                            capture_output=True, text=True, timeout=60)
+                            capture_output=True, text=True, timeout=BOUND)
     assert result.returncode == 2
 
 

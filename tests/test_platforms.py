@@ -81,12 +81,14 @@ def test_every_platform_has_a_compiler_here():
          % ", ".join(sorted(set(PLATFORMS) - set(built_platforms()))))
 
 
+@pytest.mark.qualification
 def test_the_fmi2_fmus_for_arm_are_built_when_zig_is_there(fmu_sets):
     need("aarch64-linux" in built_platforms(), "zig is not installed (pip install ziglang)")
     assert set(fmu_sets[native_build.FMI2_ARM]) == set(NAMES)
     assert all(p.is_file() for p in fmu_sets[native_build.FMI2_ARM].values())
 
 
+@pytest.mark.qualification
 def test_fmpy_validate_passes_the_fmi2_fmus_for_arm(fmu_sets):
     import sys
     if native_build.FMI2_ARM not in fmu_sets:
@@ -99,6 +101,7 @@ def test_fmpy_validate_passes_the_fmi2_fmus_for_arm(fmu_sets):
 
 @pytest.mark.parametrize("kind", ["fmi2", native_build.FMI2_ARM, "fmi3"])
 @pytest.mark.parametrize("name", NAMES)
+@pytest.mark.qualification
 def test_fmu_holds_exactly_the_binaries_it_lists(fmu_sets, kind, name):
     if kind not in fmu_sets:
         need(False, "the FMI 2.0 FMUs for ARM are not built (no zig)")
@@ -140,6 +143,7 @@ LINKER_SYMBOLS = {"darwin": {"__dso_handle", "_mh_dylib_header"}}
 
 
 @pytest.mark.parametrize("kind", ["fmi2", native_build.FMI2_ARM, "fmi3"])
+@pytest.mark.qualification
 def test_every_binary_is_a_library_for_its_platform_exporting_every_fmi_function(fmu_sets,
                                                                                  kind):
     if kind not in fmu_sets:
@@ -173,6 +177,7 @@ def test_every_binary_is_a_library_for_its_platform_exporting_every_fmi_function
     assert checked >= len(NAMES) * (2 if kind == "fmi2" else 1)
 
 
+@pytest.mark.qualification
 def test_binaries_are_reproducible_and_darwin64_is_universal_of_the_thin_builds(native_fmus_all,
                                                                                tmp_path):
     """Compiled again elsewhere, every binary of an FMU comes out byte for byte the same (no
@@ -231,6 +236,7 @@ class tempfile_dir:
 
 # -- the readers, checked against binutils where binutils reads the format ------------------------
 
+@pytest.mark.qualification
 def test_elf_reader_agrees_with_nm_and_readelf(native_fmus_all, tmp_path):
     need(shutil.which("nm") and shutil.which("readelf"), "binutils is not installed")
     with zipfile.ZipFile(native_fmus_all[3]["DriftEstimator"]) as archive:
@@ -250,6 +256,7 @@ def test_elf_reader_agrees_with_nm_and_readelf(native_fmus_all, tmp_path):
             assert lib.imports == re.findall(r"\(NEEDED\).*\[(.+)\]", dynamic)
 
 
+@pytest.mark.qualification
 def test_pe_reader_agrees_with_objdump(native_fmus_all, tmp_path):
     objdump = shutil.which("x86_64-w64-mingw32-objdump")
     need(objdump, "x86_64-w64-mingw32-objdump is not installed")
@@ -495,6 +502,7 @@ def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(mo
         native_build.build_native_fmus(tmp_path, platforms=("x86_64-linux", "mac"))
 
 
+@pytest.mark.qualification
 def test_doctor_tells_an_fmi2_fmu_for_another_architecture(fmu_sets, capsys):
     """FMI 2.0's linux64 names no architecture: the doctor reads the binary and says whose it
     is (the FMI 2.0 FMU for ARM on this x86-64 machine: a problem, with the FMU to take)."""
