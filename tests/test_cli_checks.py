@@ -126,6 +126,7 @@ def test_a_read_only_out_folder_is_refused_before_the_run(tmp_path, capsys):
 
 
 def test_the_scheduler_check_accepts_real_addresses():
+    pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not installed")
     from driftfmu.simulations.batch import scheduler_address
     for ok in ("tcp://127.0.0.1:8786", "localhost:8786", "tls://host.example:1",
                "tcp://[::1]:8786", "inproc://abc"):

@@ -75,7 +75,7 @@ def test_identify_a2_finds_the_sensor(fmu_dir, tmp_path):
 
 
 def test_dask_sweep_equals_the_local_sweep_and_shows_the_letters_trend():
-    pytest.importorskip("dask.distributed")
+    pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not installed")
     import driftfmu
     result = _example("dask_sweep").dask_sweep(show_plot=False, runs=100, n=400)
     local = driftfmu.sweep(a2=[1e-3, 1e-2, 1e-1], R=[1e-6, 1e-4, 1e-2], runs=100, n=400,

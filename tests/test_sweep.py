@@ -158,6 +158,7 @@ def test_cli_bad_options_exit_2(argv, capsys):
 
 def test_cli_unreachable_scheduler_exits_1_quickly_and_writes_nothing(tmp_path, capsys,
                                                                       monkeypatch):
+    pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not installed")
     out = tmp_path / "none"
     probes = []  # "quickly": the connection attempt is bounded (checked on the call, not timed)
     probe = batch._probe
