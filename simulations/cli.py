@@ -286,7 +286,7 @@ def cmd_run_gaussian(args):
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)
-    print("final drift: EKF1 %.4g, EKF2 %.4g, EKF3 %.4g | realised %.4g, empirical %.4g, "
+    print("final drift [V]: EKF1 %.4g, EKF2 %.4g, EKF3 %.4g | realised %.4g, empirical %.4g, "
           "expected %.4g" % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"], f["dc_realised"],
                              f["dc_empirical"], f["dc_expected"]))
     line = "EKF1-EKF2 gap %.4f dB" % s["ekf1_ekf2_gap_db"]
