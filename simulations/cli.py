@@ -118,11 +118,14 @@ class Progress:
     current phase, and ``update.phase(desc, total, unit)`` when a new phase starts (for
     example the validation after the runs), so that no long phase sits at 100 %.
 
-    On a terminal a tqdm bar; otherwise one plain line on standard error every ``every``
-    seconds (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``).
-    The time left is the rate since the phase's first update that reported work done, so what
-    came before it (building the FMUs, starting workers) does not count as that work; a line
-    before a second such update has no estimate.
+    On a terminal a tqdm bar; otherwise plain lines on standard error
+    (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``): the first
+    as soon as the first units are done when the phase looks long (at the pace since it
+    started, more than ``every`` seconds to go), so that a long run shows within seconds that
+    it runs, then one every ``every`` seconds; a short phase stays silent.  The time left is
+    the rate since the phase's first update that reported work done, so what came before it
+    (building the FMUs, starting workers) does not count as that work; a line before a second
+    such update has no estimate.
     """
 
     def __init__(self, total, desc, unit, bar=None, every=PROGRESS_EVERY, stream=None,
@@ -139,9 +142,13 @@ class Progress:
             self.bar.update(done - self.bar.n)
             return
         now = self.clock()
+        early = False
         if self.first is None and done > 0:
             self.first = (now, done)
-        if now - self.last >= self.every:
+            # the phase's first work done: say so at once when the rest looks long
+            early = done < (self.total or 0) and \
+                (now - self.phase_started) * (self.total - done) / done > self.every
+        if early or now - self.last >= self.every:
             self.last = now
             self.write(now)
 

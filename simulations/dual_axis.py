@@ -459,12 +459,27 @@ def _int_at_least(low, name):
     return parse
 
 
+#: Seconds per run and sample on one core, for the estimate a long run announces: the FMU
+#: engine by backend (five FMU instances and the check against models/), the batch engine
+#: (the compiled kernel; NumPy is about ten times slower).
+SAMPLE_SECONDS = {"python": 1.5e-3, "native": 3e-4, "batch": 5e-7}
+
+
 def _cmd(args):
     """``driftfmu experiment dual-axis``: :func:`driftfmu.experiment_dual_axis`."""
+    import os
+
     import driftfmu
-    from driftfmu.simulations import cli
+    from driftfmu.simulations import budget, cli
     runs = RUNS[args.engine] if args.runs is None else args.runs
     total = 2 * args.points * runs
+    workers = max(1, args.workers or os.cpu_count() or 1)
+    per = SAMPLE_SECONDS["batch" if args.engine == "batch" else args.backend]
+    budget.check("experiment dual-axis, 2 sweeps x %d points x %d runs x %d samples, %s engine%s"
+                 % (args.points, runs, args.n, args.engine,
+                    "" if args.engine == "batch" else ", %s FMUs" % args.backend),
+                 0, 1e6 if args.out else 0, per * total * args.n / workers, args.out,
+                 "fewer --points or --runs")
     settings = {k: getattr(args, k) for k in ("n", "Ts", "f", "X", "Xy", "phi", "A", "Q", "Qy",
                                               "a2", "bx", "R", "a2y", "by", "Ry")}
     with cli.progress(total, "runs", "run", monitor=False) as update:
