@@ -111,6 +111,9 @@ def add_params(parser, names, **defaults):
 #: Seconds between the plain progress lines written when standard error is not a terminal
 #: (a CI log, a file); the environment variable ``DRIFTFMU_PROGRESS_EVERY`` overrides it.
 PROGRESS_EVERY = 30.0
+#: Seconds into a phase from which a long one writes its first line (not waiting for the
+#: first interval): the first seconds of the run say that it runs and how long it will take.
+FIRST_LINE = 3.0
 
 
 class Progress:
@@ -120,12 +123,12 @@ class Progress:
 
     On a terminal a tqdm bar; otherwise plain lines on standard error
     (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``): the first
-    as soon as the first units are done when the phase looks long (at the pace since it
-    started, more than ``every`` seconds to go), so that a long run shows within seconds that
-    it runs, then one every ``every`` seconds; a short phase stays silent.  The time left is
-    the rate since the phase's first update that reported work done, so what came before it
-    (building the FMUs, starting workers) does not count as that work; a line before a second
-    such update has no estimate.
+    at the first update from :data:`FIRST_LINE` seconds into a phase that looks long (more than
+    ``every`` seconds to go at its pace), so that a long run shows within seconds that it runs
+    and how long it will take, then one every ``every`` seconds; a short phase stays silent.
+    The time left is the rate since the phase's first update that reported work done, so what
+    came before it (building the FMUs, starting workers) does not count as that work; a line
+    before a second such update has no estimate.
     """
 
     def __init__(self, total, desc, unit, bar=None, every=PROGRESS_EVERY, stream=None,
@@ -135,6 +138,7 @@ class Progress:
         self.done = 0
         self.started = self.phase_started = self.last = clock()
         self.first = None  # (time, done) of the phase's first update with done > 0
+        self.spoke = False  # a line of this phase written
 
     def __call__(self, done):
         self.done = done
@@ -142,15 +146,22 @@ class Progress:
             self.bar.update(done - self.bar.n)
             return
         now = self.clock()
-        early = False
         if self.first is None and done > 0:
             self.first = (now, done)
-            # the phase's first work done: say so at once when the rest looks long
-            early = done < (self.total or 0) and \
-                (now - self.phase_started) * (self.total - done) / done > self.every
-        if early or now - self.last >= self.every:
+        if now - self.last >= self.every or self._early(now, done):
             self.last = now
+            self.spoke = True
             self.write(now)
+
+    def _early(self, now, done):
+        """The phase's first line, before its first interval: from ``FIRST_LINE`` seconds on,
+        when the rest of the phase looks longer than an interval."""
+        elapsed = now - self.phase_started
+        if self.spoke or self.first is None or not 0 < done < (self.total or 0) \
+                or elapsed < min(FIRST_LINE, self.every):
+            return False
+        t0, done0 = self.first if done > self.first[1] else (self.phase_started, 0)
+        return (now - t0) * (self.total - done) / (done - done0) > self.every
 
     def phase(self, desc, total, unit=None):
         """Start a new phase of ``total`` units (``unit``: the last one's by default)."""
@@ -158,6 +169,7 @@ class Progress:
         self.done = 0
         self.phase_started = self.clock()
         self.first = None
+        self.spoke = False
         if self.bar is not None:
             self.bar.reset(total=total)
             self.bar.set_description(desc)
