@@ -706,6 +706,9 @@ def _cmd_experiment(args):
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
     held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
+    # the settings' usage errors first: a run that cannot start announces nothing
+    check_settings(tuple(float(f) for f in args.freqs), args.sets, held_out, args.n, args.Ts,
+                   args.order)
     check_size(args.freqs, args.sets, args.n, args.workers, args.backend, args.out)
     with cli.progress(total, "sets", "set") as update:
         s = driftfmu.experiment_adxl203(
