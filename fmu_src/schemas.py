@@ -1,4 +1,4 @@
-"""Internal (not a stable API).
+"""Internal (not a stable API; use driftfmu.build_fmus and driftfmu.simulate instead).
 
 XML Schema parsing that threads cannot break.
 
