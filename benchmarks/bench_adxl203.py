@@ -29,7 +29,6 @@ pytest test:
 import argparse
 import json
 import os
-import platform
 import resource
 import subprocess
 import sys
@@ -44,7 +43,7 @@ from driftfmu.simulations import batch
 from driftfmu.simulations.gaussian import fmu_paths, master
 from driftfmu.simulations.sinusoidal import CONNECTIONS
 
-from machine import cpu
+import figures
 
 GOALS = {"native": 5.0, "python": 60.0}
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -194,15 +193,16 @@ def main(argv=None):
     ap.add_argument("--fmu-dir", default="build/fmus")
     ap.add_argument("--no-floor", action="store_true",
                     help="skip the floor (pass-through FMUs; Python FMUs only)")
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
     fmu_paths(args.fmu_dir, args.backend)
     from driftfmu.simulations import kernel
     kernel.library()
     load = os.getloadavg()
     wall, s, now, used = run(args, experiment._run_set)
-    print("machine: %s, %s, %d cores, Python %s; load average before %s"
-          % (platform.machine(), cpu(), os.cpu_count() or 0, platform.python_version(),
-             " ".join("%.2f" % v for v in load)))
+    print("machine: %s; load average before %s"
+          % (figures.machine(), " ".join("%.2f" % v for v in load)))
     print("experiment adxl203, %s FMUs, %d frequencies x %d sets x %d samples, %d workers"
           % (args.backend, len(args.freqs), args.sets, args.n, s["workers"]))
     print("now:      %.2f s wall (goal <= %g s at paper size); margins %s dB; max |FMU - "
@@ -211,7 +211,21 @@ def main(argv=None):
               s["validation"]["max_abs_diff"]))
     print("          " + experiment.timing_line(s["timing"]))
     print("          " + cpu_line(used, wall, s["workers"]))
+    letter_size = (len(args.freqs), args.sets, args.n) == (len(experiment.FREQS), experiment.SETS,
+                                                     experiment.N)
+    size = "%d frequencies x %d sets x %d samples" % (len(args.freqs), args.sets, args.n)
+    total = used["parent"] + used["workers"]
+    rows = [figures.row("`driftfmu experiment adxl203 --backend %s`, %s%s, %d workers: wall "
+                        "time" % (args.backend, size, " (the letter's size)" if letter_size else "",
+                                  s["workers"]), wall, "s",
+                        goal="<= %g s" % GOALS[args.backend] if letter_size else None,
+                        met=wall <= GOALS[args.backend] if letter_size else None),
+            figures.row("the same, CPU time of the command and its workers", total, "s"),
+            figures.row("the same, CPU time / workers: the wall time of an idle machine",
+                        total / s["workers"], "s")]
     up_wall, up_cpu = startup()
+    rows.append(figures.row("the command's start-up (`driftfmu experiment adxl203 --help`)",
+                            up_wall, "s"))
     print("start-up of the command (python -m driftfmu experiment adxl203 --help): %.2f s wall, "
           "%.2f s CPU; the command: about %.2f s wall here"
           % (up_wall, up_cpu, wall + up_wall))
@@ -229,6 +243,12 @@ def main(argv=None):
               "validation, files"
               % (wall / f_wall, sim / f_sim, f_sim / n * 1e6, sim / n * 1e6, GOALS["python"],
                  paper, s["workers"], GOALS["python"] * s["workers"] / paper * 1e6))
+        rows.append(figures.row(
+            "the same co-simulations through pass-through pythonfmu FMUs (the floor)", f_wall,
+            "s"))
+        rows.append(figures.row("a step of a worker's co-simulation, driftfmu Python FMUs",
+                                sim / n * 1e6, "µs", "the same step of the pass-through FMUs",
+                                sim / f_sim))
     if not args.no_baseline:
         old_wall, old, before, old_cpu = run(args, baseline_run_set)
         print("baseline: %.2f s wall (the worker of before: %s, pure-Python check)"
@@ -238,9 +258,18 @@ def main(argv=None):
         print("          " + cpu_line(old_cpu, old_wall, old["workers"]))
         print("baseline / now: %.1f x; summaries equal bit for bit (times aside): %s"
               % (old_wall / wall, now == before))
+        rows.insert(1, figures.row(
+            "the same experiment with the set worker of before (%s, a pure-Python check)"
+            % ("fmpy's wrappers" if args.backend == "python"
+               else "the fast master, FMUs loaded per set"), old_wall, "s",
+            "the experiment as it is (first row)", old_wall / wall))
         if now != before:
             sys.exit(1)
     print("load average after: %s" % " ".join("%.2f" % v for v in os.getloadavg()))
+    figures.record(__file__, argv, rows, load[0],
+                   "Margins %s dB; the held-out sets' FMU outputs equal models/ (max |diff| %g)."
+                   % (", ".join("%.2f" % p["margin_db"] for p in s["per_frequency"]),
+                      s["validation"]["max_abs_diff"]), variant=args.backend)
 
 
 if __name__ == "__main__":

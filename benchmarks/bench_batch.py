@@ -26,7 +26,6 @@ Without a C compiler the kernel's lines are left out.
 """
 import argparse
 import os
-import platform
 import time
 
 import numpy as np
@@ -34,7 +33,7 @@ import numpy as np
 from driftfmu.models import drift
 from driftfmu.simulations import batch, sweep
 
-from machine import cpu
+import figures
 
 P = dict(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4)
 #: The general sensor (issue 16): a quartic term in the sensor, the filter and the estimators.
@@ -139,6 +138,8 @@ def main(argv=None):
     ap.add_argument("--filterpy-n", type=int, default=20000, help="samples of the filterpy run")
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--fmu-dir", default="build/fmus")
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
     from driftfmu.simulations.gaussian import fmu_paths
     fmu_paths(args.fmu_dir)
@@ -155,9 +156,7 @@ def main(argv=None):
     t_fmu, t_fmu_step = bench_fmu(args.fmu_n, args.fmu_dir, args.repeats)
     t_fp, diff = bench_filterpy(args.filterpy_n, args.repeats)
 
-    print("machine: %s, %s, %d cores, Python %s, NumPy %s"
-          % (platform.machine(), cpu(), os.cpu_count() or 0, platform.python_version(),
-             np.__version__))
+    print("machine: %s" % figures.machine())
     print("load average before: %s" % " ".join("%.2f" % v for v in load))
     print("%-58s %12s" % ("", "ns/sample-run"))
     print("%-58s %12.1f" % ("batch engine, NumPy, 1 process (%d runs x %d samples)"
@@ -187,6 +186,33 @@ def main(argv=None):
     print("load average after: %s" % " ".join("%.2f" % v for v in os.getloadavg()))
     print("FMU (per additional sample) / batch (1 process): %.0f x;  filterpy and the batch "
           "engine agree on the final drift estimates to %.1e V" % (t_fmu_step / t_batch, diff))
+    numpy_engine = "the batch engine, NumPy, 1 process"
+    fastest = t_batch if t_kernel is None else t_kernel
+    rows = [figures.row("the batch engine, NumPy, 1 process (%d runs x %d samples)"
+                        % (args.runs, args.n), t_batch * 1e9, "ns a sample-run"),
+            figures.row("the same with the general sensor (a4 = %g)" % P4["a4"],
+                        t_batch4 * 1e9, "ns a sample-run", numpy_engine, t_batch4 / t_batch)]
+    if t_kernel is not None:
+        rows.append(figures.row("the batch engine, compiled kernel, 1 process (same bits)",
+                                t_kernel * 1e9, "ns a sample-run", numpy_engine,
+                                t_kernel / t_batch))
+    rows.append(figures.row(
+        "filterpy's ExtendedKalmanFilter in a Python loop (%d samples)" % args.filterpy_n,
+        t_fp * 1e9, "ns a sample", "the batch engine's fastest path, 1 process", t_fp / fastest,
+        ">= 1000", t_fp / fastest >= 1000))
+    rows.append(figures.row("one FMU co-simulation, per additional sample", t_fmu_step * 1e9,
+                            "ns a sample", numpy_engine, t_fmu_step / t_batch))
+    for on, (t, per, wall) in sweeps.items():
+        rows.append(figures.row("the default sweep's runs (3e7 sample-runs), %s, %d cores"
+                                % ("kernel" if on else "NumPy", batch.workers_default()), t,
+                                "s"))
+    for on in commands:
+        rows.append(figures.row("the command `driftfmu sweep` (start-up, runs, files, figures), "
+                                "%s" % ("kernel" if on else "NumPy"), commands[on], "s",
+                                None if not on else "the same command with NumPy",
+                                None if not on else commands[on] / commands[False],
+                                "<= 1 s" if on else None, commands[on] <= 1.0 if on else None))
+    figures.record(__file__, argv, rows, load, "Best of %d." % args.repeats)
 
 
 if __name__ == "__main__":

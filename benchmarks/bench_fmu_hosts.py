@@ -27,7 +27,6 @@ and after in one run.
 """
 import argparse
 import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -46,7 +45,7 @@ from driftfmu.simulations.cosim import cosimulate  # noqa: E402
 from driftfmu.simulations.gaussian import CONNECTIONS, fmu_paths, start_values  # noqa: E402
 
 from bench_step import RECORD, build_baseline  # noqa: E402
-from machine import cpu  # noqa: E402
+import figures  # noqa: E402
 
 
 def behind_shim(fmu, dest, loader):
@@ -113,13 +112,16 @@ def main(argv=None):
     ap.add_argument("--fmu-dir", default="build/fmus")
     ap.add_argument("--compare-shim", metavar="OLD.c",
                     help="also run the driftfmu FMUs with the loader shim compiled from OLD.c")
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
+    load = figures.load()
     ours = {k: str(v) for k, v in fmu_paths(args.fmu_dir, "python").items()}
     shim_env = chain.python_fmu_env()
     libpython = os.path.join(shim_env["LD_LIBRARY_PATH"].split(":")[0],
                              builder.libpython_soname())
     stock_env = dict(shim_env, LD_PRELOAD=libpython)
-    figures = {}
+    measured = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         host = chain.compile_host(tmp / "chain_host")
@@ -150,14 +152,13 @@ def main(argv=None):
             for i, (label, measure) in enumerate(sets):
                 work = tmp / ("r%d_%d" % (r, i))
                 work.mkdir()
-                figures.setdefault(label, []).append(measure(work))
-    print("machine: %s, %d cores, %s, Python %s; load average %s"
-          % (cpu(), os.cpu_count(), platform.platform(), platform.python_version(),
-             " ".join("%.1f" % x for x in os.getloadavg())))
+                measured.setdefault(label, []).append(measure(work))
+    print("machine: %s; load average %s"
+          % (figures.machine(), " ".join("%.1f" % x for x in os.getloadavg())))
     print("%d steps per run; median of %d runs; us per step of all three FMUs"
           % (args.steps, args.repeats))
-    wall = {k: statistics.median(w for w, _ in v) for k, v in figures.items()}
-    cpu_ = {k: statistics.median(c for _, c in v) for k, v in figures.items()}
+    wall = {k: statistics.median(w for w, _ in v) for k, v in measured.items()}
+    cpu_ = {k: statistics.median(c for _, c in v) for k, v in measured.items()}
     print("  %-30s %9s %9s" % ("", "wall", "CPU"))
     for label, _ in sets:
         print("  %-30s %9.1f %9.1f" % (label, wall[label] / 1e3, cpu_[label] / 1e3))
@@ -179,6 +180,32 @@ def main(argv=None):
     if args.compare_shim:
         print("C host, driftfmu FMUs, OLD.c shim / this:   %s"
               % ratio("C host, driftfmu, OLD.c shim", "C host, driftfmu FMUs"))
+    against = {
+        "C host, driftfmu FMUs": ("fmpy master, driftfmu FMUs", "the same FMUs in fmpy's master",
+                                  "<= 1.2"),
+        "C host, driftfmu, OLD.c shim": ("C host, driftfmu FMUs", "this loader shim", None),
+        "C host, pass-through + shim": (None, None, None),
+        "C host, pass-through stock": ("C host, pass-through + shim",
+                                       "the same FMUs behind the loader shim", None),
+        "fmpy master, driftfmu FMUs": ("fmpy master, pass-through",
+                                       "the pass-through FMUs (the floor) in fmpy's master",
+                                       "<= 1.3"),
+        "fmpy master, pass-through": (None, None, None),
+    }
+    rows = []
+    for label, _ in sets:
+        base, text, goal = against[label]
+        r = wall[label] / wall[base] if base else None
+        rows.append(figures.row("one step of the three FMUs: %s" % label, wall[label] / 1e3,
+                                "µs", text, r, goal, None if goal is None else
+                                r <= float(goal.split()[-1])))
+    rows.append(figures.row("the driftfmu FMUs in the C host, over the floor in the C host",
+                            wall["C host, driftfmu FMUs"] / wall["C host, pass-through + shim"],
+                            "×", "the pass-through FMUs behind the shim in the C host"))
+    figures.record(__file__, argv, rows, load,
+                   "Median of %d alternating runs of %d steps; the Python FMUs; pass-through: "
+                   "pythonfmu FMUs with the driftfmu FMUs' variables and no model."
+                   % (args.repeats, args.steps))
 
 
 if __name__ == "__main__":

@@ -18,7 +18,6 @@ of a shared machine hit all of them.
 """
 import argparse
 import os
-import platform
 import statistics
 import sys
 import tempfile
@@ -34,7 +33,7 @@ from driftfmu.simulations.cosim import cosimulate  # noqa: E402
 from driftfmu.simulations.fastcosim import cosimulate_fast  # noqa: E402
 from driftfmu.simulations.gaussian import CONNECTIONS, fmu_paths, start_values  # noqa: E402
 
-from machine import cpu  # noqa: E402
+import figures  # noqa: E402
 
 RECORD = {"Excitation": ["x"], "Accelerometer": ["z"],
           "DriftEstimator": ["x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp"]}
@@ -65,12 +64,15 @@ def main(argv=None):
                     help="steps of the runs with the Python FMUs")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--fmu-dir", default="build/fmus")
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
+    load = figures.load()
     python = {k: str(v) for k, v in fmu_paths(args.fmu_dir, "python").items()}
     native = {2: {k: str(p) for k, p in fmu_paths(args.fmu_dir, "native").items()}}
     from driftfmu.fmu_src.native_build import native_fmu_paths
     native[3] = {k: str(p) for k, p in native_fmu_paths(args.fmu_dir, 3).items()}
-    figures = {}
+    measured = {}
     with tempfile.TemporaryDirectory() as tmp:
         tmp = Path(tmp)
         host = chain.compile_host(tmp / "chain_host")
@@ -94,16 +96,15 @@ def main(argv=None):
             for i, (label, measure) in enumerate(sets):
                 work = tmp / ("r%d_%d" % (r, i))
                 work.mkdir()
-                figures.setdefault(label, []).append(measure(work))
-    print("machine: %s, %d cores, %s, Python %s; load average %s"
-          % (cpu(), os.cpu_count(), platform.platform(), platform.python_version(),
-             " ".join("%.1f" % x for x in os.getloadavg())))
+                measured.setdefault(label, []).append(measure(work))
+    print("machine: %s; load average %s"
+          % (figures.machine(), " ".join("%.1f" % x for x in os.getloadavg())))
     print("steps: %d (native), %d (Python FMUs); median of %d runs"
           % (args.steps, args.python_steps, args.repeats))
-    median = {label: statistics.median(v) for label, v in figures.items()}
+    median = {label: statistics.median(v) for label, v in measured.items()}
     for label, _ in sets:
         print("  %-30s %10.1f ns per step of all three   (runs: %s)"
-              % (label, median[label], ", ".join("%.0f" % x for x in figures[label])))
+              % (label, median[label], ", ".join("%.0f" % x for x in measured[label])))
     goal = median["C host, native FMI 2.0"] <= 1000.0
     print("native in the C host: %.3f us per step (goal <= 1 us: %s)"
           % (median["C host, native FMI 2.0"] / 1e3, "met" if goal else "NOT met"))
@@ -113,6 +114,25 @@ def main(argv=None):
           % (median["fmpy master, Python FMUs"] / median["fmpy master, native FMI 2.0"]))
     print("ratio fmpy master / fast master, native FMI 2.0: %.1f"
           % (median["fmpy master, native FMI 2.0"] / median["fast master, native FMI 2.0"]))
+    native2 = "the native FMI 2.0 FMUs in the same host"
+    rows = []
+    for label, _ in sets:
+        host, kind = label.split(", ", 1)
+        against = None
+        if kind == "Python FMUs":
+            against = native2
+        elif host != "C host" and kind == "native FMI 2.0":
+            against = "the same FMUs in the C host"
+        base = {native2: "%s, native FMI 2.0" % host,
+                "the same FMUs in the C host": "C host, %s" % kind}.get(against)
+        rows.append(figures.row("one step of the three FMUs: %s, %s" % (host, kind),
+                                median[label] / 1e3, "µs", against,
+                                median[label] / median[base] if base else None,
+                                "<= 1 µs" if label == "C host, native FMI 2.0" else None,
+                                goal if label == "C host, native FMI 2.0" else None))
+    figures.record(__file__, argv, rows, load,
+                   "Median of %d alternating runs; %d steps of the native FMUs, %d of the "
+                   "Python FMUs." % (args.repeats, args.steps, args.python_steps))
 
 
 if __name__ == "__main__":

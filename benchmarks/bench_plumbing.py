@@ -24,7 +24,6 @@ result would be refused here.
 """
 import argparse
 import os
-import platform
 import statistics
 import subprocess
 import sys
@@ -38,7 +37,7 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
 
-from machine import cpu  # noqa: E402
+import figures  # noqa: E402
 
 from driftfmu.fmu_src import native_build  # noqa: E402
 from driftfmu.models import adxl203 as adxl203_model  # noqa: E402
@@ -115,35 +114,38 @@ def main(argv=None):
     ap.add_argument("--samples", type=int, default=60000)
     ap.add_argument("--repeats", type=int, default=7)
     ap.add_argument("--fmi", type=int, choices=(2, 3), default=2)
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
+    load = figures.load()
     with tempfile.TemporaryDirectory(prefix="bench_plumbing_") as tmp:
         tmp = Path(tmp)
         base_dir = tmp / "baseline_native"
         baseline_plumbing(args.baseline, base_dir)
         builds = {"baseline (%s)" % args.baseline: build(base_dir, tmp / "base", args.fmi),
                   "this tree": build(native_build.NATIVE_DIR, tmp / "new", args.fmi)}
-        figures = {}
+        measured = {}
         for chain in chains(args.samples):
             for r in range(args.repeats):
                 outs = {}
                 for label, fmus in builds.items():
                     wall, cpu_ns, outs[label] = run(fmus, chain, args.samples)
-                    figures.setdefault((chain[0], label), []).append((wall, cpu_ns))
+                    measured.setdefault((chain[0], label), []).append((wall, cpu_ns))
                 a, b = outs.values()
                 for key in a:
                     if not np.array_equal(a[key], b[key], equal_nan=True) or \
                             a[key].tobytes() != b[key].tobytes():
                         raise SystemExit("%s: %s differs between the builds" % (chain[0], key))
-    print("machine: %s, %d cores, %s, Python %s; load average %s"
-          % (cpu(), os.cpu_count(), platform.platform(), platform.python_version(),
-             " ".join("%.1f" % x for x in os.getloadavg())))
+    print("machine: %s; load average %s"
+          % (figures.machine(), " ".join("%.1f" % x for x in os.getloadavg())))
     print("native FMI %d.0 FMUs through the fast master, %d samples; median of %d runs; the "
           "builds' recorded columns equal bit for bit" % (args.fmi, args.samples, args.repeats))
     labels = list(builds)
+    rows = []
     for chain in chains(args.samples):
         stats = {}
         for label in labels:
-            runs = figures[(chain[0], label)]
+            runs = measured[(chain[0], label)]
             walls, cpus = [w for w, _ in runs], [c for _, c in runs]
             stats[label] = (statistics.median(walls), min(walls), statistics.median(cpus))
             print("  %-24s %-16s %7.3f us per sample of all three (best %.3f; CPU %.3f)   "
@@ -152,6 +154,14 @@ def main(argv=None):
         (m0, b0, c0), (m1, b1, c1) = stats[labels[0]], stats[labels[1]]
         print("  %-24s ratio baseline / this tree: %.2f (best %.2f, CPU %.2f)"
               % (chain[0], m0 / m1, b0 / b1, c0 / c1))
+        rows.append(figures.row("%s, native FMI %d.0 FMUs, fast master" % (chain[0], args.fmi),
+                                m1 / 1e3, "µs a sample of all three",
+                                "the same FMUs with the plumbing of %s" % args.baseline,
+                                m1 / m0))
+    figures.record(__file__, argv, rows, load,
+                   "Median of %d alternating runs of %d samples; the two builds' recorded "
+                   "columns are equal bit for bit." % (args.repeats, args.samples))
+
 
 if __name__ == "__main__":
     main()

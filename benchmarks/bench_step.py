@@ -11,7 +11,6 @@ too.  (Instruction counts under callgrind were tried as a steadier measure, but 
     python benchmarks/bench_step.py [--steps 5000] [--repeats 9]
 """
 import argparse
-import platform
 import statistics
 import tempfile
 import time
@@ -22,7 +21,7 @@ from pythonfmu import FmuBuilder
 from driftfmu.simulations.cosim import cosimulate
 from driftfmu.simulations.gaussian import CONNECTIONS, fmu_paths
 
-from machine import cpu
+import figures
 
 HERE = Path(__file__).parent
 RECORD = {"Excitation": ["x"], "Accelerometer": ["z"],
@@ -52,8 +51,11 @@ def main(argv=None):
     ap.add_argument("--steps", type=int, default=5000)
     ap.add_argument("--repeats", type=int, default=9)
     ap.add_argument("--fmu-dir", default="build/fmus")
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
     ours = fmu_paths(args.fmu_dir)
+    load = figures.load()
     with tempfile.TemporaryDirectory() as tmp:
         base = build_baseline(tmp)
         times = {"base": [], "ours": []}
@@ -64,7 +66,7 @@ def main(argv=None):
     o = statistics.median(w for w, _ in times["ours"])
     bc = statistics.median(c for _, c in times["base"])
     oc = statistics.median(c for _, c in times["ours"])
-    print("machine: %s, %s, Python %s" % (platform.machine(), cpu(), platform.python_version()))
+    print("machine: %s" % figures.machine())
     print("wall time per co-simulation step (median of %d runs of %d steps):"
           % (args.repeats, args.steps))
     print("  pass-through pythonfmu FMUs: %8.1f us (CPU %.1f us)" % (b * 1e6, bc * 1e6))
@@ -72,6 +74,13 @@ def main(argv=None):
     print("  ratio driftfmu / pass-through: %.2f wall, %.2f CPU (goal <= 1.3); per-run ratios %s"
           % (o / b, oc / bc, " ".join("%.2f" % (x[0] / y[0])
                                       for x, y in zip(times["ours"], times["base"]))))
+    floor = "three pass-through pythonfmu FMUs (the floor: pythonfmu's calls, no model)"
+    figures.record(__file__, argv, [
+        figures.row("one step of the three pass-through FMUs, fmpy's master", b * 1e6, "µs"),
+        figures.row("one step of the three driftfmu Python FMUs, fmpy's master", o * 1e6, "µs",
+                    floor, o / b, "<= 1.3", o / b <= 1.3),
+        figures.row("the same, CPU time", oc * 1e6, "µs", floor + ", CPU time", oc / bc),
+    ], load, "Median of %d alternating runs of %d steps." % (args.repeats, args.steps))
 
 
 if __name__ == "__main__":

@@ -19,7 +19,6 @@ the first timed run.  Not a pytest test:
 """
 import argparse
 import os
-import platform
 import re
 import statistics
 import subprocess
@@ -27,7 +26,7 @@ import sys
 import tempfile
 import time
 
-from machine import cpu
+import figures
 
 
 def timed(command, env):
@@ -46,6 +45,8 @@ def runs_seconds(stdout):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
     from driftfmu.simulations import kernel
     if kernel.library() is None:
@@ -54,22 +55,20 @@ def main(argv=None):
     env.pop("DRIFTFMU_KERNEL", None)
     numpy_env = dict(env, DRIFTFMU_KERNEL="numpy")
     load = os.getloadavg()
-    figures = {"start-up": [], "kernel": [], "kernel runs": [], "numpy": [], "numpy runs": []}
+    measured = {"start-up": [], "kernel": [], "kernel runs": [], "numpy": [], "numpy runs": []}
     with tempfile.TemporaryDirectory() as tmp:
         sweep = [sys.executable, "-m", "driftfmu", "sweep", "--out", os.path.join(tmp, "s")]
         start = [sys.executable, "-c", "import driftfmu.simulations.cli, driftfmu.simulations.sweep"]
         for _ in range(args.repeats):
-            figures["start-up"].append(timed(start, env)[0])
+            measured["start-up"].append(timed(start, env)[0])
             wall, out = timed(sweep, env)
-            figures["kernel"].append(wall)
-            figures["kernel runs"].append(runs_seconds(out))
+            measured["kernel"].append(wall)
+            measured["kernel runs"].append(runs_seconds(out))
             wall, out = timed(sweep, numpy_env)
-            figures["numpy"].append(wall)
-            figures["numpy runs"].append(runs_seconds(out))
-    med = {k: statistics.median(v) for k, v in figures.items()}
-    print("machine: %s, %s, %d cores, Python %s" % (platform.machine(), cpu(),
-                                                    os.cpu_count() or 0,
-                                                    platform.python_version()))
+            measured["numpy"].append(wall)
+            measured["numpy runs"].append(runs_seconds(out))
+    med = {k: statistics.median(v) for k, v in measured.items()}
+    print("machine: %s" % figures.machine())
     print("load average before: %s, after: %s" % (" ".join("%.2f" % v for v in load),
                                                   " ".join("%.2f" % v for v in os.getloadavg())))
     print("default `driftfmu sweep` (6 x 5 grid, 1000 runs x 1000 samples, files and figures), "
@@ -80,9 +79,19 @@ def main(argv=None):
               "figures) %.2f s   (runs: %s)"
               % ("compiled kernel" if engine == "kernel" else "NumPy engine (baseline)",
                  med[engine], med[engine + " runs"], med["start-up"],
-                 rest - med["start-up"], " ".join("%.2f" % v for v in figures[engine])))
+                 rest - med["start-up"], " ".join("%.2f" % v for v in measured[engine])))
     print("kernel / NumPy command: %.2f x faster; goal: the command in <= 1 s wall (%s here)"
           % (med["numpy"] / med["kernel"], "met" if med["kernel"] <= 1.0 else "NOT met"))
+    figures.record(__file__, argv, [
+        figures.row("`driftfmu sweep`, the compiled kernel: the whole command", med["kernel"],
+                    "s", "the same command with the NumPy engine", med["kernel"] / med["numpy"],
+                    "<= 1 s", med["kernel"] <= 1.0),
+        figures.row("of it, the runs (3e7 sample-runs)", med["kernel runs"], "s",
+                    "the NumPy engine's runs", med["kernel runs"] / med["numpy runs"]),
+        figures.row("of it, the start-up (interpreter, NumPy, the command's modules)",
+                    med["start-up"], "s"),
+        figures.row("the same command with the NumPy engine", med["numpy"], "s"),
+    ], load[0], "Median of %d." % args.repeats)
 
 
 if __name__ == "__main__":

@@ -3,8 +3,8 @@
 Chorti, Karatzas, White and Harris, "Use of the EKF for State Dependent Drift Estimation in
 Weakly Nonlinear Sensors", Sensor Letters 4(4):377-379, 2006.
 
-Subpackages: :mod:`driftfmu.models` (the math, once), :mod:`driftfmu.fmu_src` (the pythonfmu
-slaves and the FMU builder) and :mod:`driftfmu.simulations` (fmpy masters, experiments and the
+Subpackages: ``driftfmu.models`` (the math, once), ``driftfmu.fmu_src`` (the pythonfmu
+slaves and the FMU builder) and ``driftfmu.simulations`` (fmpy masters, experiments and the
 ``driftfmu`` command).  In the source tree they are the top-level folders ``models/``,
 ``fmu_src/`` and ``simulations/``; an installed distribution has them under ``driftfmu/``.
 """

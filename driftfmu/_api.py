@@ -1,7 +1,7 @@
-"""The public Python API of driftfmu (re-exported by :mod:`driftfmu`).
+"""The public Python API of driftfmu (re-exported by ``driftfmu``).
 
-Small and in the style of FMPy's ``simulate_fmu``: :func:`build_fmus` builds the FMUs,
-:func:`simulate` co-simulates any subset of them and returns a structured NumPy array whose
+Small and in the style of FMPy's ``simulate_fmu``: ``build_fmus`` builds the FMUs,
+``simulate`` co-simulates any subset of them and returns a structured NumPy array whose
 first field is ``time``, and one function per experiment of the letter returns its results.
 Everything else in the package (``driftfmu.models``, ``driftfmu.simulations``,
 ``driftfmu.fmu_src``) is internal: it may change between versions.
@@ -24,7 +24,7 @@ PathLike = Union[str, Path]
 FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
 
 #: The default wiring of the chain: (source FMU, output, destination FMU, input).  Of these,
-#: :func:`simulate` uses the connections whose two FMUs are both simulated.
+#: ``simulate`` uses the connections whose two FMUs are both simulated.
 CONNECTIONS = (
     ("Excitation", "x", "Accelerometer", "x"),
     ("Excitation", "y", "Accelerometer", "y"),
@@ -65,7 +65,7 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
     ----------
     out_dir : str or pathlib.Path
         Folder of the Python FMUs (``<out_dir>/<Name>.fmu``); the native FMUs go to
-        ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where :func:`simulate` looks for them
+        ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where [`simulate`][driftfmu.simulate] looks for them
         (and, with an ARM compiler, the FMI 2.0 FMUs for ARM to ``native/fmi2-aarch64/``).
         Created if missing.  All or nothing: every output of the call (FMUs, ``cross_check``,
         ``ssp``) is built in a hidden staging folder and moved into place only once the whole
@@ -78,7 +78,8 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         FMI version of the native FMUs, or several (``(2, 3)``, as ``driftfmu build
         --native``); the Python FMUs are FMI 2.0 only.
     names : sequence of str, optional
-        Which FMUs (default: all four, :data:`FMU_NAMES`).
+        Which FMUs, of ``"Excitation"``, ``"Accelerometer"``, ``"DriftEstimator"`` and
+        ``"DualDriftEstimator"`` (default: all four).
     log : callable, optional
         Receives one progress line per FMU (and per cross-check folder and SSP archive); by
         default progress is silent and build warnings (e.g. no C compiler for the loader
@@ -116,9 +117,11 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
     Examples
     --------
     >>> import driftfmu
-    >>> paths = driftfmu.build_fmus("build/fmus")                      # doctest: +SKIP
-    >>> sorted(paths)                                                  # doctest: +SKIP
+    >>> paths = driftfmu.build_fmus("build/fmus")
+    >>> sorted(paths)
     ['Accelerometer', 'DriftEstimator', 'DualDriftEstimator', 'Excitation']
+    >>> paths["Excitation"].as_posix()
+    'build/fmus/Excitation.fmu'
     """
     from driftfmu.simulations.errors import UsageError
     _check_choice("backend", backend, BACKENDS)
@@ -239,7 +242,7 @@ def _is_number(value: Any) -> bool:
 
 def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
     """Why ``value`` is not allowed as the start value of the FMU's parameter ``variable``
-    (an fmpy model variable), or None: the rule of :mod:`driftfmu.models.parameters` where it
+    (an fmpy model variable), or None: the rule of ``driftfmu.models.parameters`` where it
     has one (what the FMU checks too), else the declared type, min and max."""
     import math
     from driftfmu.models import parameters
@@ -278,7 +281,9 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     """Co-simulate the chain, or any subset of its FMUs, and return the results.
 
     The FMUs are stepped Gauss-Seidel in the order Excitation -> Accelerometer ->
-    DriftEstimator -> DualDriftEstimator along :data:`CONNECTIONS` (no lag: row ``k`` holds
+    DriftEstimator -> DualDriftEstimator, wired Excitation ``x, y`` -> Accelerometer ``x, y``,
+    Accelerometer ``z`` -> DriftEstimator ``z``, Accelerometer ``z, z_y`` -> DualDriftEstimator
+    ``z_x, z_y`` and Excitation ``u`` -> DriftEstimator ``u`` (no lag: row ``k`` holds
     ``x_k``, its measurement ``z_k`` and the estimator's ``k``-th update; the Excitation's
     known input ``u`` reaches the DriftEstimator, which uses it when ``B != 0``).  Sample ``k`` of an
     FMU sits at ``start_time + (k - 1) Ts``; any ``step_size > 0`` is allowed (several samples
@@ -287,7 +292,9 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     Parameters
     ----------
     fmus : sequence of str
-        The FMUs to simulate, a subset of :data:`FMU_NAMES` (default: the letter's chain).
+        The FMUs to simulate, a subset of ``"Excitation"``, ``"Accelerometer"``,
+        ``"DriftEstimator"`` and ``"DualDriftEstimator"`` (default: the letter's chain, the
+        first three).
     stop_time : float, optional
         End of the simulation [s]; default 2.0 s, the FMUs' default experiment.
     step_size : float, optional
@@ -315,7 +322,8 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     fmi_version : {2, 3}
         FMI version of the native FMUs (the Python FMUs are FMI 2.0).
     fmu_dir : str or pathlib.Path
-        Where the FMUs are (as :func:`build_fmus` writes them); missing ones are built.
+        Where the FMUs are (as [`build_fmus`][driftfmu.build_fmus] writes them); missing ones
+        are built.
     start_time : float
         Start of the simulation [s].
 
@@ -346,9 +354,12 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     --------
     >>> import driftfmu
     >>> result = driftfmu.simulate(stop_time=0.5, start_values={"a2": 0.02, "seed": 3})
-    ...                                                                # doctest: +SKIP
-    >>> result.dtype.names[:3]                                         # doctest: +SKIP
-    ('time', 'x', 'z')
+    >>> result.dtype.names[:4]
+    ('time', 'x', 'y', 'u')
+    >>> len(result), float(result["time"][-1])
+    (501, 0.5)
+    >>> print("EKF1's drift estimate after 0.5 s: %.3g V" % result["dc_ekf1"][-1])
+    EKF1's drift estimate after 0.5 s: 0.00021 V
     """
     import math
 
@@ -590,7 +601,8 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
     Returns
     -------
     dict
-        ``"columns"`` (the results table) and ``"summary"``, as :func:`run_gaussian`.
+        ``"columns"`` (the results table) and ``"summary"``, as
+        [`run_gaussian`][driftfmu.run_gaussian].
 
     Raises
     ------
@@ -633,7 +645,8 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
         not every trajectory) and the engine's options (``workers``, ``scheduler`` (a Dask
         address), ``client``, ``backend``, ``fmu_dir``).  The general sensor (docs/method.md
         section 9), off by default: for ``"gaussian"`` ``a3, a4, B, drive, Qu, Xu, fu`` as in
-        :func:`run_gaussian`; for ``"sinusoidal"`` ``a3, a4`` (batch engine only).  The
+        [`run_gaussian`][driftfmu.run_gaussian]; for ``"sinusoidal"`` ``a3, a4`` (batch
+        engine only).  The
         realised and expected drifts then count the ``a3``, ``a4`` terms; the batch engine
         runs the general model in NumPy (the compiled kernel has the letter's sensor only).
 
@@ -677,7 +690,7 @@ def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = N
         ``scheduler`` (a Dask address), ``client``, ``chunk``, ``fmu_dir``) and the general
         sensor, off by default: ``a4``, one value for every grid point or several, which make
         the grid ``(a4, R)`` at one ``a2`` (Fig. 2 over ``a4``), and ``a3, B, drive, Qu, Xu,
-        fu`` as in :func:`run_gaussian`, shared by every grid point.
+        fu`` as in [`run_gaussian`][driftfmu.run_gaussian], shared by every grid point.
 
     Returns
     -------

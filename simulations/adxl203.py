@@ -26,7 +26,7 @@ in C) for both backends, loading each FMU's library once and instantiating it an
 Every held-out set's FMU outputs are checked against :func:`driftfmu.models.adxl203.simulate`
 with the same seeds, computed by its C port in the compiled batch kernel
 (:mod:`driftfmu.simulations.kernel`), or by models/ itself without a C compiler.  Where the time
-goes is in the summary's ``timing`` and on the command line (docs/performance-jobs.md).
+goes is in the summary's ``timing`` and on the command line (docs/performance.md).
 """
 import functools
 import math
@@ -431,9 +431,8 @@ def plot_fig4(path, per, traces, train, n, Ts):
     caption(fig, "Fig. 4 of the letter on the ADXL203 stand-in: EKF1 drift estimate against "
                  "the empirical drift on the held-out sets, %d samples per set at fs = %g kHz"
                  % (n, 1e-3 / Ts), width=120)
-    fig.tight_layout()
-    from driftfmu.simulations.output import savefig
-    savefig(fig, path, dpi=120)
+    output.layout(fig)
+    output.savefig(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -473,9 +472,8 @@ def plot_fig5(path, per):
     caption(fig, "Fig. 5 of the letter on the ADXL203 stand-in: drift and estimation "
                  "difference against frequency, in dB re 1 V (10 log10(v / 1 V)); labelled, the "
                  "margin (the letter claims at least %g dB)" % CLAIM_DB, width=80)
-    fig.tight_layout()
-    from driftfmu.simulations.output import savefig
-    savefig(fig, path, dpi=120)
+    output.layout(fig)
+    output.savefig(fig, path, dpi=120)
     plt.close(fig)
 
 
@@ -679,12 +677,39 @@ def add_cli(groups):
     i.set_defaults(func=_cmd_identify)
 
 
+#: Seconds of one worker per co-simulation step of a set, identification and validation
+#: included, by backend (measured about 40 us and 1.5 us on a shared 2-core machine, rounded
+#: up), and the command's own seconds (start-up, figures, files): for the estimate a long run
+#: announces.
+STEP_SECONDS = {"python": 5e-5, "native": 2e-6}
+COMMAND_SECONDS = 5.0
+#: Memory of one worker (its Python, NumPy, the FMUs loaded), bytes.
+WORKER_MEMORY = 150e6
+
+
+def check_size(freqs, sets, n, workers, backend, out):
+    """The estimate of ``driftfmu experiment adxl203`` (:func:`budget.check`): announced on
+    standard error when the run is long."""
+    from driftfmu.simulations import budget
+    workers = max(1, min(workers or os.cpu_count() or 1, len(freqs) * sets))
+    steps = len(freqs) * sets * n
+    return budget.check(
+        "experiment adxl203, %d frequencies x %d sets x %d samples, %s FMUs on %d worker(s)"
+        % (len(freqs), sets, n, backend, workers), WORKER_MEMORY * workers,
+        2e6 if out else 0, STEP_SECONDS[backend] * steps / workers + COMMAND_SECONDS, out,
+        "fewer --sets or --workers")
+
+
 def _cmd_experiment(args):
     """``driftfmu experiment adxl203``: :func:`driftfmu.experiment_adxl203`."""
     import driftfmu
     from driftfmu.simulations import cli
     total = len(args.freqs) * args.sets
     held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
+    # the settings' usage errors first: a run that cannot start announces nothing
+    check_settings(tuple(float(f) for f in args.freqs), args.sets, held_out, args.n, args.Ts,
+                   args.order)
+    check_size(args.freqs, args.sets, args.n, args.workers, args.backend, args.out)
     with cli.progress(total, "sets", "set") as update:
         s = driftfmu.experiment_adxl203(
                         out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
@@ -694,8 +719,10 @@ def _cmd_experiment(args):
     print("wrote %s/adxl203.csv, adxl203.json, adxl203.npz, fig4.png, fig5.png" % args.out)
     for p in s["per_frequency"]:
         m = p["model"]
-        more = "".join(" a%d %.5f" % (i, m["a%d" % i]) for i in (3, 4) if "a%d" % i in m)
-        print("%6g Hz: model a0 %.5f a1 %.5f a2 %.5f%s R %.3g | drift %.3f mV, rms difference "
+        more = "".join(", a%d %.5f V/g^%d" % (i, m["a%d" % i], i) for i in (3, 4)
+                       if "a%d" % i in m)
+        print("%6g Hz: model a0 %.5f V, a1 %.5f V/g, a2 %.5f V/g^2%s, R %.3g V^2 | drift %.3f mV, "
+              "rms difference "
               "%.4f mV, margin %.1f dB" % (p["frequency"], m["a0"], m["a1"], m["a2"], more,
                                            m["R"], 1e3 * p["drift_mean"],
                                            1e3 * p["difference_rms"], p["margin_db"]))

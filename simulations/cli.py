@@ -111,6 +111,9 @@ def add_params(parser, names, **defaults):
 #: Seconds between the plain progress lines written when standard error is not a terminal
 #: (a CI log, a file); the environment variable ``DRIFTFMU_PROGRESS_EVERY`` overrides it.
 PROGRESS_EVERY = 30.0
+#: Seconds into a phase from which a long one writes its first line (not waiting for the
+#: first interval): the first seconds of the run say that it runs and how long it will take.
+FIRST_LINE = 3.0
 
 
 class Progress:
@@ -118,8 +121,11 @@ class Progress:
     current phase, and ``update.phase(desc, total, unit)`` when a new phase starts (for
     example the validation after the runs), so that no long phase sits at 100 %.
 
-    On a terminal a tqdm bar; otherwise one plain line on standard error every ``every``
-    seconds (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``).
+    On a terminal a tqdm bar; otherwise plain lines on standard error
+    (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``): the first
+    at the first update from :data:`FIRST_LINE` seconds into a phase that looks long (more than
+    ``every`` seconds to go at its pace), so that a long run shows within seconds that it runs
+    and how long it will take, then one every ``every`` seconds; a short phase stays silent.
     The time left is the rate since the phase's first update that reported work done, so what
     came before it (building the FMUs, starting workers) does not count as that work; a line
     before a second such update has no estimate.
@@ -132,6 +138,7 @@ class Progress:
         self.done = 0
         self.started = self.phase_started = self.last = clock()
         self.first = None  # (time, done) of the phase's first update with done > 0
+        self.spoke = False  # a line of this phase written
 
     def __call__(self, done):
         self.done = done
@@ -141,9 +148,20 @@ class Progress:
         now = self.clock()
         if self.first is None and done > 0:
             self.first = (now, done)
-        if now - self.last >= self.every:
+        if now - self.last >= self.every or self._early(now, done):
             self.last = now
+            self.spoke = True
             self.write(now)
+
+    def _early(self, now, done):
+        """The phase's first line, before its first interval: from ``FIRST_LINE`` seconds on,
+        when the rest of the phase looks longer than an interval."""
+        elapsed = now - self.phase_started
+        if self.spoke or self.first is None or not 0 < done < (self.total or 0) \
+                or elapsed < min(FIRST_LINE, self.every):
+            return False
+        t0, done0 = self.first if done > self.first[1] else (self.phase_started, 0)
+        return (now - t0) * (self.total - done) / (done - done0) > self.every
 
     def phase(self, desc, total, unit=None):
         """Start a new phase of ``total`` units (``unit``: the last one's by default)."""
@@ -151,6 +169,7 @@ class Progress:
         self.done = 0
         self.phase_started = self.clock()
         self.first = None
+        self.spoke = False
         if self.bar is not None:
             self.bar.reset(total=total)
             self.bar.set_description(desc)
@@ -286,7 +305,7 @@ def cmd_run_gaussian(args):
     s = res["summary"]
     f = s["final"]
     print("wrote %s/results.csv, summary.json, drift.png" % args.out)
-    print("final drift: EKF1 %.4g, EKF2 %.4g, EKF3 %.4g | realised %.4g, empirical %.4g, "
+    print("final drift [V]: EKF1 %.4g, EKF2 %.4g, EKF3 %.4g | realised %.4g, empirical %.4g, "
           "expected %.4g" % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"], f["dc_realised"],
                              f["dc_empirical"], f["dc_expected"]))
     line = "EKF1-EKF2 gap %.4f dB" % s["ekf1_ekf2_gap_db"]

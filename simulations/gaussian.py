@@ -190,7 +190,8 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
     cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
         cols["x"], cols["z"], a0, a2, dc_expected, general["a3"], general["a4"])
     diffs, bad = compare(cols, ref)
-    summary = summarise(cols, params, a1=a1, Q=Q, R=R, A=A)
+    # the gap's closed form is the letter's quadratic sensor's, without an input
+    summary = summarise(cols, params, a1=a1, Q=Q, R=R, A=A if general == GENERAL_OFF else None)
     summary["estimator"] = estimator
     summary["validation"] = {"reference": "models.chain.simulate, same seed",
                              "tolerance": TOLERANCE, "max_abs_diff": diffs,
@@ -204,16 +205,28 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
             output.write_csv(stage / "results.csv", cols, chain.COLUMNS)
             output.write_json(stage / "summary.json", summary)
             if plot:
-                output.plot_drift(stage / "drift.png", cols,
-                                  "Drift estimates of one co-simulation (the letter's Fig. 1): "
-                                  "Gaussian state, a1 = %g V/g, a2 = %g V/g², Q = %g g², "
-                                  "R = %g V², A = %g, n = %d, seed %d"
-                                  % (a1, a2, Q, R, A, n, seed))
+                on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
+                output.plot_drift(stage / "drift.png", cols, plot_title(
+                    "Drift estimates of one co-simulation", on, a1=a1, a2=a2, Q=Q, R=R, A=A,
+                    n=n, seed=seed), general=on)
     return {"columns": cols, "summary": summary}
 
 
+def plot_title(what, general, a1, a2, Q, R, A, n, seed=None, runs=None):
+    """The caption of a Gaussian run's figure: the letter's Fig. 1 for the letter's sensor;
+    for the general sensor, its parameters instead of the letter's name."""
+    sensor = "%s, %s" % (output.value_text("a1", a1), output.value_text("a2", a2))
+    more = output.general_text(general)
+    head = ("%s, the general sensor (%s, method §9)" % (what, more) if more
+            else "%s (the letter's Fig. 1%s)" % (what, " as a population" if runs else ""))
+    return "%s: Gaussian state, %s, %s, %s, A = %g, n = %d%s" % (
+        head, sensor, output.value_text("Q", Q), output.value_text("R", R), A, n,
+        "" if seed is None else ", seed %d" % seed)
+
+
 def summarise(cols, params, a1, Q, R, A):
-    """Final drifts, the EKF1-EKF2 gap and when each estimator settles (vs. realised drift)."""
+    """Final drifts, the EKF1-EKF2 gap and when each estimator settles (vs. realised drift);
+    the gap's closed form for ``A = 0`` (None: no closed form, the general sensor)."""
     final = {c: cols[c][-1] for c in ("dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_empirical",
                                       "dc_realised", "dc_expected")}
     gap = drift.gap_db(final["dc_ekf1"], final["dc_ekf2"])
@@ -223,7 +236,8 @@ def summarise(cols, params, a1, Q, R, A):
         summary["ekf1_ekf2_gap_db_expected"] = expected
         summary["ekf1_ekf2_gap_rel_error"] = gap / expected - 1.0 if expected else math.nan
     summary["settled_from_sample"] = {
-        "reference": "realised drift a2 mean(x^2), band %g %%" % (100 * SETTLE_BAND),
+        "reference": "realised drift %s, band %g %%" % (
+            output.drift_labels(params)[0], 100 * SETTLE_BAND),
         "ekf1": settled_from(cols["dc_ekf1"], cols["dc_realised"]),
         "ekf2": settled_from(cols["dc_ekf2"], cols["dc_realised"]),
         "ekf3": settled_from(cols["dc_ekf3"], cols["dc_realised"]),

@@ -23,7 +23,7 @@ import numpy as np
 
 from driftfmu.models import chain, drift, excitation
 from driftfmu.simulations import batch, output
-from driftfmu.simulations.gaussian import GENERAL_OFF, SETTLE_BAND, settle_hold
+from driftfmu.simulations.gaussian import GENERAL_OFF, SETTLE_BAND, plot_title, settle_hold
 from driftfmu.simulations.errors import UsageError
 
 #: The letter's claim: EKF1 and EKF2 settle in under 250 samples.
@@ -198,10 +198,9 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     summary["trajectories_kept"] = int(result["fig1_dc1"].shape[0])
     result["summary"] = summary
     if out is not None:
-        _write(out, result, GAUSSIAN_KEYS, "fig1.png",
-               "Drift estimation error over %s (the letter's Fig. 1 as a population): "
-               "Gaussian state, a1 = %g V/g, a2 = %g V/g², Q = %g g², R = %g V², A = %g, "
-               "n = %d" % (_runs_text(runs, summary), a1, a2, Q, R, A, n), plot)
+        _write(out, result, GAUSSIAN_KEYS, "fig1.png", plot_title(
+            "Drift estimation error over %s" % _runs_text(runs, summary), on, a1=a1, a2=a2,
+            Q=Q, R=R, A=A, n=n, runs=runs), plot, on)
     return result
 
 
@@ -253,9 +252,12 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
     if out is not None:
         _write(out, result, SINE_KEYS, "sine.png",
                "Drift estimation error over %s: sinusoidal state X = %g g at f = %g Hz "
-               "(random phase per run), a1 = %g V/g, a2 = %g V/g², R = %g V², n = %d at "
-               "Ts = %g s; Gauss-Markov filter A = %g, Q = %g g²"
-               % (_runs_text(runs, summary), X, f, a1, a2, R, n, Ts, A, Q), plot)
+               "(random phase per run), %s, %s%s, R = %g V², n = %d at Ts = %g s; "
+               "Gauss-Markov filter A = %g, Q = %g g²"
+               % (_runs_text(runs, summary), X, f, output.value_text("a1", a1),
+                  output.value_text("a2", a2),
+                  "".join(", " + output.value_text(k, on[k]) for k in ("a3", "a4") if k in on),
+                  R, n, Ts, A, Q), plot, on)
     return result
 
 
@@ -274,17 +276,17 @@ def _runs_text(runs, summary):
             else "%d runs (the figure: the first %d of them)" % (runs, kept))
 
 
-def _write(out, result, keys, figure, title, plot=True):
+def _write(out, result, keys, figure, title, plot=True, general=None):
     arrays = {k: v for k, v in result.items() if isinstance(v, np.ndarray)}
     with output.staged(out) as stage:
         np.savez(stage / "montecarlo.npz", **arrays)
         output.write_json(stage / "summary.json", result["summary"])
         prefix = next(iter(keys)).split("_")[0]
         if plot:
-            plot_population(stage / figure, result, prefix, title)
+            plot_population(stage / figure, result, prefix, title, general)
 
 
-def plot_population(path, result, prefix, title):
+def plot_population(path, result, prefix, title, general=None):
     """The letter's Fig. 1 over a population: per sample, the median (thick) and the 5 % and
     95 % points (thin, same colour and dash) over the runs of each estimator's error against
     the realised drift in percent (top; grey: the 10 % band of "settled"); EKF1 over the
@@ -292,7 +294,8 @@ def plot_population(path, result, prefix, title):
     on top, so both show); the empirical drift ``z̄ - a0`` in mV on its own linear scale
     (bottom: for a Gaussian state its spread is the linear term ``a1 x̄``, far larger than the
     drift).  Sample axis logarithmic; the dotted line is k = 250, the
-    letter's "converged in under 250 samples"; legends beside the axes."""
+    letter's "converged in under 250 samples"; legends beside the axes.  ``general``: the
+    general sensor's parameters that are on (``a3, a4``: the realised drift's terms)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -356,15 +359,16 @@ def plot_population(path, result, prefix, title):
         labels.append("thin: 5 % and 95 % of runs")
         ax.legend(handles, labels, loc="upper left", bbox_to_anchor=(1.01, 1.0), fontsize=9,
                   frameon=False)
-    middle.set_title("EKF1 beside the realised drift a2·mean(x²), linear", fontsize=10)
-    top.set_title("estimation error against the realised drift a2·mean(x²) (simulation only)",
-                  fontsize=10)
+    realised_label = output.drift_labels(general)[0]
+    middle.set_title("EKF1 beside the realised drift %s, linear" % realised_label, fontsize=10)
+    top.set_title("estimation error against the realised drift %s (simulation only)"
+                  % realised_label, fontsize=10)
     bottom.set_title("the empirical drift z̄ − a0 (the letter's reference), on its own linear "
                      "scale", fontsize=10)
     axes[-1].set_xlabel("sample k (log scale)")
     axes[-1].set_xlim(1, max(n, 2))
     output.caption(fig, title)
-    fig.tight_layout()
+    output.layout(fig)
     output.savefig(fig, path, dpi=120)
     plt.close(fig)
 

@@ -178,7 +178,44 @@ def _limits(values, pad=0.08, include=()):
     return lo - pad * span, hi + pad * span
 
 
-def plot_drift(path, cols, title):
+#: Units for people: the parameters' units as models.parameters writes them ("V/g2").
+_UNIT_TEXT = {"V/g2": "V/g²", "V/g3": "V/g³", "V/g4": "V/g⁴", "g2": "g²", "V2": "V²"}
+
+
+def value_text(name, value):
+    """``"a4 = 0.05 V/g⁴"``: a parameter with its unit (none for a unit of 1)."""
+    from driftfmu.models import parameters
+    unit = parameters.PARAMETERS[name].unit
+    return "%s = %g%s" % (name, value, "" if unit == "1" else " " + _UNIT_TEXT.get(unit, unit))
+
+
+def general_text(general):
+    """The general model's parameters that are not off (``a3, a4, B`` and the known input
+    ``drive, Qu, Xu, fu``), for a title: ``"a4 = 0.05 V/g⁴, B = 1, known input u: sinusoidal,
+    Xu = 1 g, fu = 5 Hz"``; ``""`` for the letter's sensor."""
+    from driftfmu.models import excitation
+    general = {k: v for k, v in (general or {}).items() if v}
+    parts = [value_text(k, general[k]) for k in ("a3", "a4", "B") if k in general]
+    drive = general.get("drive", excitation.DRIVE_OFF)
+    if drive != excitation.DRIVE_OFF:
+        parts.append("known input u: %s" % excitation.DRIVES.get(drive, drive))
+        parts += [value_text(k, general[k]) for k in ("Qu", "Xu", "fu") if k in general]
+    return ", ".join(parts)
+
+
+def drift_labels(general=None):
+    """(realised, expected): how the realised and the expected drift are computed, for labels:
+    ``a2·mean(x²)`` and ``a2·E[x²]`` for the letter's sensor, ``mean(a2 x² + a4 x⁴)`` and
+    ``E[a2 x² + a4 x⁴]`` with the general sensor's terms that are on."""
+    general = general or {}
+    terms = ["a2 x²"] + ["a%d x%s" % (i, "³⁴"[i - 3]) for i in (3, 4)
+                         if general.get("a%d" % i)]
+    if len(terms) == 1:
+        return "a2·mean(x²)", "a2·E[x²]"
+    return "mean(%s)" % " + ".join(terms), "E[%s]" % " + ".join(terms)
+
+
+def plot_drift(path, cols, title, general=None, labels=None):
     """The letter's Fig. 1, done right (one run): EKF1-3 against the realised and the expected
     drift (top) and EKF1 against the empirical drift ``z̄ - a0``, the letter's reference, whose
     linear term ``a1 x̄`` dwarfs the drift for a Gaussian state (bottom).
@@ -186,7 +223,9 @@ def plot_drift(path, cols, title):
     Drifts in mV over the sample number on a log axis (the start-up and the settled estimate
     both visible); the y range of the top panel is that of its curves after the first 1 % of
     the samples (at least 10), of the bottom one after the first 10 %, so a start-up transient
-    does not flatten the rest; legends sit beside the axes, off the curves.
+    does not flatten the rest; legends sit beside the axes, off the curves.  ``general``: the
+    general model's parameters (``a3, a4``: the realised and expected drift's terms);
+    ``labels``: (realised, expected), how the two are computed, instead.
     """
     import matplotlib
     matplotlib.use("Agg")
@@ -199,9 +238,10 @@ def plot_drift(path, cols, title):
     start = min(n - 1, max(10, n // 100))
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(10, 7), sharex=True,
                                       gridspec_kw={"height_ratios": [3, 2]})
+    realised, expected = labels or drift_labels(general)
     top.plot(k, mv["dc_realised"], color="0.55", lw=3.2, alpha=0.6,
-             label="realised  a2·mean(x²)")
-    top.plot(k, mv["dc_expected"], color="k", lw=1.0, ls=":", label="expected  a2·E[x²]")
+             label="realised  %s" % realised)
+    top.plot(k, mv["dc_expected"], color="k", lw=1.0, ls=":", label="expected  %s" % expected)
     top.plot(k, mv["dc_ekf3"], color="C2", lw=1.3, label="EKF3")
     top.plot(k, mv["dc_ekf1"], color="C0", lw=2.0, label="EKF1")
     top.plot(k, mv["dc_ekf2"], color="C1", lw=1.1, ls=(0, (3, 3)),
@@ -225,7 +265,7 @@ def plot_drift(path, cols, title):
     bottom.set_xlim(1, max(n, 2))
     bottom.set_xlabel("sample k (log scale)")
     caption(fig, title)
-    fig.tight_layout()
+    layout(fig)
     savefig(fig, path, dpi=120)
     plt.close(fig)
 
@@ -272,6 +312,10 @@ def mark_clipping(ax):
             notes.append("%s off the scale %s at %s = %s (to %.3g%s)"
                          % (label.split("  ")[0].split(" (")[0], side, xname, where, far,
                             unit))
+    title = ax.title
+    if any(" above " in t for t in notes) and title.get_text():
+        # the marks sit on the top edge: lift the axes' title clear of them
+        ax.set_title(title.get_text(), fontsize=title.get_fontsize(), pad=11)
     if notes:
         ax.text(0.99, 0.02, "\n".join("%s %s" % ("▲" if " above " in t else "▼", t)
                                       for t in notes),
@@ -280,12 +324,26 @@ def mark_clipping(ax):
     return notes
 
 
-def savefig(fig, path, dpi=120):
-    """Lay out and save ``fig``: first every axes' curves that leave its y range are marked
-    (:func:`mark_clipping`)."""
+def mark_figure(fig):
+    """:func:`mark_clipping` on every axes of ``fig`` not marked yet."""
     for ax in fig.axes:  # get_ylim() autoscales what is still stale
-        if ax.get_visible() and ax.get_lines():
+        if ax.get_visible() and ax.get_lines() and not getattr(ax, "_driftfmu_marked", False):
             mark_clipping(ax)
+            ax._driftfmu_marked = True
+
+
+def layout(fig, **kw):
+    """``fig.tight_layout(**kw)`` after the curves that leave their axes are marked
+    (:func:`mark_figure`), so that the layout makes room for what the marks move (a title
+    lifted clear of the marks on the top edge)."""
+    mark_figure(fig)
+    fig.tight_layout(**kw)
+
+
+def savefig(fig, path, dpi=120):
+    """Save ``fig``: first every axes' curves that leave its y range are marked
+    (:func:`mark_clipping`), where :func:`layout` has not done it."""
+    mark_figure(fig)
     skip_layout_draw(fig)
     fig.savefig(path, dpi=dpi)
 

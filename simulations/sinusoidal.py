@@ -220,10 +220,18 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
             if plot:
                 output.plot_drift(stage / "drift.png", cols,
                                   "Drift estimates of one co-simulation: sinusoidal state "
-                                  "X = %g g at f = %g Hz, %s filter%s, n = %d at Ts = %g s, "
-                                  "seed %d" % (X, f, harmonic.PROCESSES[process],
-                                               ", %s stand-in" % preset if preset else "",
-                                               n, Ts, seed))
+                                  "X = %g g at f = %g Hz, %s, %s%s, %s filter%s%s, n = %d at "
+                                  "Ts = %g s, seed %d" % (
+                                      X, f, output.value_text("a1", cfg.a1),
+                                      output.value_text("a2", cfg.a2),
+                                      ", %s" % output.value_text("a3", cfg.a3) if cfg.a3
+                                      else "", harmonic.PROCESSES[process],
+                                      ", %s stand-in" % preset if preset else "",
+                                      ", %s" % output.general_text(inputs) if inputs else "",
+                                      n, Ts, seed),
+                                  labels=None if not cfg.cross else (
+                                      "a2·mean(u²), u = x + %g·y sensed" % cfg.cross,
+                                      "a2·E[u²]"))
     return {"columns": cols, "summary": summary}
 
 
@@ -277,7 +285,7 @@ def _cmd(args):
     emp = ("empirical over %d whole periods %.5g" % (wp["periods"],
                                                      f["dc_empirical_whole_periods"])
            if wp["samples"] else "empirical: none (not one whole period)")
-    print("final drift: EKF1 %.5g, EKF2 %.5g, EKF3 %.5g | expected %.5g, %s, realised %.5g"
+    print("final drift [V]: EKF1 %.5g, EKF2 %.5g, EKF3 %.5g | expected %.5g, %s, realised %.5g"
           % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"], f["dc_expected"], emp, f["dc_realised"]))
     e = s["ekf1_rel_error"]
 

@@ -235,13 +235,15 @@ def write(out, result, plot=True):
                          A4_CSV_COLUMNS if axis == "a4" else CSV_COLUMNS)
         if plot:
             p = result["parameters"]
-            subtitle = "a1 = %g, Q = %g, A = %g; %d runs of n = %d samples per point" % (
-                p["a1"], p["Q"], p["A"], p["runs"], p["n"])
-            fixed = [k for k in ("a2", "a3", "a4", "B", "drive", "Qu", "Xu", "fu")
-                     if k in p and k != axis]
+            subtitle = "%s, %s, A = %g; %d runs of n = %d samples per point" % (
+                output.value_text("a1", p["a1"]), output.value_text("Q", p["Q"]), p["A"],
+                p["runs"], p["n"])
+            fixed = output.general_text({k: p[k] for k in ("a3", "a4", "B", "drive", "Qu", "Xu",
+                                                           "fu") if k in p and k != axis})
+            if axis != "a2":
+                fixed = ", ".join([output.value_text("a2", p["a2"])] + ([fixed] if fixed else []))
             if fixed:
-                subtitle = "%s, %s" % (", ".join("%s = %g" % (k, p[k]) for k in fixed),
-                                       subtitle)
+                subtitle = "%s, %s" % (fixed, subtitle)
             figures = [(stage / "fig2.png", "ekf1"), (stage / "fig3.png", "ekf3")]
             # one scale for both figures: EKF1 against EKF3 at a glance
             ylim = grid_limits(result)
@@ -317,7 +319,8 @@ def plot_grid(path, result, estimator, subtitle, ylim=None):
         ax.set_xlabel("a2 [V/g²]" if axis == "a2" else "a4 [V/g⁴]")
         ax.set_ylabel("mean |%s − %s drift| [V]" % (estimator.upper(), ref))
         ax.set_title("%s against the %s drift%s" % (
-            estimator.upper(), ref, (" a2·mean(x²)" if axis == "a2" else " mean(h(x)−a0−a1x)")
+            estimator.upper(), ref, " " + output.drift_labels(
+                dict(result.get("parameters", {}), **({"a4": 1} if axis == "a4" else {})))[0]
             if ref == "realised" else " z̄ − a0 (the letter's)"), fontsize=10)
         if ylim is not None:
             ax.set_ylim(*ylim)
@@ -401,8 +404,11 @@ def print_table(res):
     """Mean absolute error of EKF1 and EKF3 per grid point against the three references."""
     t = res["table"]
     axis = res.get("axis", "a2")
-    print("%9s %9s %10s | %-30s | %-30s" % (axis, "R", "drift", "EKF1 MAE vs real/emp/exp",
-                                            "EKF3 MAE vs real/emp/exp"))
+    print("%9s %9s %10s | %-30s | %-30s" % (axis, "R", "expected", "EKF1 mean |error| [V] vs",
+                                            "EKF3 mean |error| [V] vs"))
+    print("%9s %9s %10s | %9s %9s %9s  | %9s %9s %9s"
+          % ("[V/g^2]" if axis == "a2" else "[V/g^4]", "[V^2]", "drift [V]", "realised",
+             "empirical", "expected", "realised", "empirical", "expected"))
     for i in range(len(t[axis])):
         print("%9.3g %9.3g %10.3g | %9.3g %9.3g %9.3g  | %9.3g %9.3g %9.3g"
               % (t[axis][i], t["R"][i], t["dc_expected"][i],

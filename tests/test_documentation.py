@@ -111,6 +111,40 @@ def test_site_builds_in_strict_mode(tmp_path):
     api = (tmp_path / "site" / "api" / "index.html").read_text()
     for name in API:
         assert 'id="driftfmu.%s"' % name in api, name
+    # offline: no script or style sheet from another host (highlight.js came from a CDN)
+    for page in (tmp_path / "site").rglob("*.html"):
+        text = page.read_text(encoding="utf-8")
+        remote = re.findall(r'<(?:script|link)\b[^>]*(?:src|href)="(?:https?:)?//[^"]*"', text)
+        assert not remote, (page.relative_to(tmp_path), remote)
+    assert "css/pygments.css" in api
+    # code highlighted at build time: Pygments' token classes in the code blocks
+    home = (tmp_path / "site" / "index.html").read_text(encoding="utf-8")
+    assert re.search(r'<div class="language-bash highlight"><pre>.*<span class="', home, re.S)
+    # signatures formatted one parameter a line, not one long line
+    signature = re.search(r'<div class="language-python doc-signature highlight">(.*?)</div>',
+                          api, re.S).group(1)
+    assert signature.count("\n") > 3, signature[:300]
+    # cross-references resolved: no Sphinx role left as text, autorefs turned into links
+    text = re.sub(r"<[^>]+>", "", api)
+    assert not re.findall(r":(?:data|func|mod|class|meth|attr):", text)
+    assert "[driftfmu." not in text
+    assert '<a class="autorefs autorefs-internal" title="driftfmu.simulate"' in api or \
+        'href="#driftfmu.simulate"' in api
+
+
+@docs_only
+def test_the_home_page_sets_up_as_the_readme_does():
+    """docs/index.md's set-up commands are the README's, the same lines in the same order."""
+    def bash_lines(text):
+        blocks = re.findall(r"```bash\n(.*?)```", text, re.S)
+        return [line.split("#")[0].strip() for b in blocks for line in b.splitlines()
+                if line.split("#")[0].strip()]
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    setup = readme[readme.index("## Two commands"):]
+    setup = setup[:setup.index("\n## ", 3)]
+    home = (DOCS / "index.md").read_text(encoding="utf-8")
+    assert bash_lines(setup), "README.md: no set-up commands found"
+    assert bash_lines(home) == bash_lines(setup), (bash_lines(home), bash_lines(setup))
 
 
 def _package_modules():

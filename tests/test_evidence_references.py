@@ -344,7 +344,8 @@ def test_adxl203_experiment_prints_the_documented_table(native_fmus, tmp_path, c
                  "--workers", "2", "--out", str(out)]) == 0
     printed = capsys.readouterr().out
     for f, (a0, a1, a2, R, dc, rms, db) in ADXL203_TABLE.items():
-        line = ("%6g Hz: model a0 %s a1 %s a2 %s R %s | drift %s mV, rms difference %s mV, "
+        line = ("%6g Hz: model a0 %s V, a1 %s V/g, a2 %s V/g^2, R %s V^2 | drift %s mV, "
+                "rms difference %s mV, "
                 "margin %s dB" % (f, a0, a1, a2, R, dc, rms, db))
         assert line in printed, line
     assert "claim (difference at least 5 dB below the drift at every frequency): holds" in printed

@@ -27,17 +27,48 @@ def test_plain_lines_come_at_intervals_with_percent_and_time_left():
     p = cli.Progress(1000, "runs", "run", every=10.0, stream=out, clock=clock)
     clock.t = 5.0
     p(100)
-    assert out.getvalue() == ""  # not yet 10 s
+    # the first work done, and 900 runs more at this pace are 45 s: a long phase says so at
+    # once, not after its first interval
+    assert out.getvalue() == "driftfmu: progress: runs 10 % (100/1000 runs), 5 s\n"
     clock.t = 10.0
     p(250)
-    # 150 runs in the 5 s since the first update: 750 more take 25 s
-    assert out.getvalue() == "driftfmu: progress: runs 25 % (250/1000 runs), 10 s, about 25 s left\n"
-    clock.t = 12.0
-    p(300)
     assert out.getvalue().count("\n") == 1  # one line per interval
+    clock.t = 15.0
+    p(400)
+    # 300 runs in the 10 s since the first update: 600 more take 20 s
+    assert out.getvalue().splitlines()[-1] == (
+        "driftfmu: progress: runs 40 % (400/1000 runs), 15 s, about 20 s left")
     clock.t = 20.0
     p(500)
     assert out.getvalue().count("\n") == 2
+    clock.t = 25.0
+    p(600)
+    assert out.getvalue().count("\n") == 3
+
+
+def test_a_short_phase_stays_silent_and_a_long_one_speaks_at_its_first_work_done():
+    clock, out = Clock(), io.StringIO()
+    p = cli.Progress(1000, "runs", "run", every=30.0, stream=out, clock=clock)
+    clock.t = 0.02
+    p(10)  # 990 more at this pace: 2 s, less than a line's interval
+    clock.t = 1.9
+    p(1000)
+    assert out.getvalue() == ""
+    p = cli.Progress(1000, "sets", "set", every=30.0, stream=out, clock=clock)
+    clock.t = 3.0
+    p(1)  # in the first seconds: not yet
+    assert out.getvalue() == ""
+    clock.t = 5.0
+    p(2)  # 3.1 s into the phase, and 998 more sets at a set a 2 s: a long phase speaks
+    assert out.getvalue() == "driftfmu: progress: sets 0 % (2/1000 sets), 3 s, about 33.3 min left\n"
+    clock.t = 7.0
+    p(3)
+    assert out.getvalue().count("\n") == 1  # then one line an interval
+    clock.t = 100.0
+    p = cli.Progress(1, "co-simulation", "sample", every=30.0, stream=out, clock=clock)
+    clock.t = 110.0
+    p(1)  # done within its interval: nothing to announce
+    assert out.getvalue().count("\n") == 1
 
 
 def test_a_new_phase_restarts_the_count_and_is_announced_in_a_long_run():
@@ -130,3 +161,51 @@ def test_the_dual_axis_validation_is_a_phase_of_its_own(built_fmus):
     assert desc.startswith("validation") and unit == "point"
     assert seen[i - 1] == total * 1  # the runs: 2 sweeps x 2 points x 1 run
     assert seen[i + 1:] == list(range(1, total + 1))  # then the validation, point by point
+
+
+def _stderr_lines(proc, lines):
+    """Read ``proc``'s standard error into the queue ``lines``, line by line, until it ends."""
+    for line in proc.stderr:
+        lines.put(line.rstrip("\n"))
+    lines.put(None)
+
+
+@pytest.mark.integration
+def test_a_long_experiment_says_how_long_it_will_take_and_shows_its_first_set(python_fmus,
+                                                                             tmp_path):
+    """``experiment adxl203`` sized to take minutes says so at its start (an estimate from its
+    sizes) and writes its first progress line as its first set is done, not after the
+    interval of 30 s: the test waits for the two lines (not for a time), then stops it."""
+    import queue
+    import signal
+    import threading
+    env = {k: v for k, v in os.environ.items() if k != "DRIFTFMU_PROGRESS_EVERY"}
+    env["PYTHONPATH"] = str(ROOT)
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "driftfmu", "experiment", "adxl203", "--freqs", "100",
+         "--sets", "1000", "--n", "2000", "--workers", "1",
+         "--fmu-dir", str(python_fmus["Excitation"].parent), "--out", str(tmp_path / "res")],
+        cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    lines = queue.Queue()
+    threading.Thread(target=_stderr_lines, args=(proc, lines), daemon=True).start()
+    seen = []
+    try:
+        while not any(line.startswith("driftfmu: progress: ") for line in seen):
+            line = lines.get(timeout=300)  # a generous bound for a busy machine
+            assert line is not None, "ended without a progress line: %s" % seen
+            seen.append(line)
+    finally:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=120)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            proc.wait()
+    note, progress = seen[0], seen[-1]
+    assert note.startswith("driftfmu: note: experiment adxl203, 1 frequencies x 1000 sets x "
+                           "2000 samples, python FMUs on 1 worker(s): about "), seen
+    assert note.endswith(" (estimates)") and (" min " in note or " s " in note), note
+    import re
+    assert re.fullmatch(r"driftfmu: progress: sets \d+ % \(\d+/1000 sets\), \d+ s, about "
+                        r"[0-9.]+ (s|min) left", progress), progress
+    assert len(seen) == 2, seen
