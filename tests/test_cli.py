@@ -31,13 +31,6 @@ def _one_error_line(err):
     return lines[0]
 
 
-def _interrupted_line(err):
-    """The one line of a stopped command, after the notes it printed at its start (a long
-    run's estimate)."""
-    return _one_error_line("\n".join(line for line in err.splitlines()
-                                      if not line.startswith("driftfmu: note:")))
-
-
 # -- usage errors: 2 ----------------------------------------------------------------------------
 
 @pytest.mark.parametrize("argv,words", [
@@ -379,7 +372,7 @@ def test_ctrl_c_stops_the_experiment_and_its_workers(built_fmus, tmp_path):
         wait_for_workers=2)
     assert workers >= 2  # it was interrupted while the sets ran on the workers
     assert rc == 130, err  # within the bound, of hours of work: stopped by the signal
-    assert "interrupted" in _interrupted_line(err)
+    assert "interrupted" in _one_error_line(err)
     assert left == [] and files == []
     assert not (tmp_path / "res").exists()
 
@@ -404,7 +397,7 @@ def test_ctrl_c_early_is_one_line_and_130(tmp_path, after):
     rc, err, left, files, _ = _interrupt(HOURS_OF_SWEEP, tmp_path, after=after,
                                          wait_for_main=True)
     assert rc == 130, err
-    assert "interrupted" in _interrupted_line(err)
+    assert "interrupted" in _one_error_line(err)
     assert left == [] and files == []
     assert not (tmp_path / "res").exists()
 
@@ -437,7 +430,7 @@ def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path
         wait_for_workers=2, send=lambda pid: os.kill(pid, signal.SIGTERM))
     assert workers >= 2
     assert rc == 130, err
-    assert "interrupted" in _interrupted_line(err)
+    assert "interrupted" in _one_error_line(err)
     assert left == [] and files == []
 
 
