@@ -10,7 +10,7 @@ handler for it) cannot: its folders stay, and the next process removes them.  Wh
 and only that:
 
 - **Where.**  The work folders (``driftfmu_*``) live in one private folder per user,
-  ``driftfmu-<uid>`` in the temporary folder (:func:`parent`), which driftfmu makes with mode
+  ``driftfmu-<uid>`` in the temporary folder, which driftfmu makes with mode
   0700 and uses only while it is a real folder (not a symbolic link) owned by the user with no
   permission for anyone else; otherwise it refuses, in one line.  Staging folders
   (``.driftfmu-stage-*``, simulations/output.py) live beside their destinations.  Nothing else
@@ -79,18 +79,6 @@ def checkpoint(what):
     there (tests/test_folders.py, tests/test_commit.py)."""
 
 
-def parent():
-    """The private folder of this user's work folders, ``driftfmu-<uid>`` in the temporary
-    folder, made with mode 0700 where none is.  A UsageError (one line) when it is a symbolic
-    link, not a folder, another user's, or open to others.  Without ``flock`` (Windows): the
-    temporary folder, as before."""
-    if fcntl is None:
-        return tempfile.gettempdir()
-    path = _parent_path()
-    os.close(_open_parent(path))
-    return path
-
-
 def _parent_path():
     return os.path.join(tempfile.gettempdir(), "driftfmu-%d" % os.geteuid())
 
@@ -139,7 +127,8 @@ def _same(path, fd):
 
 
 def make(prefix, dir=None):
-    """A new folder ``prefix*`` in ``dir`` (by default the private folder :func:`parent`),
+    """A new folder ``prefix*`` in ``dir`` (by default the private folder ``driftfmu-<uid>``
+    of the temporary folder, made where missing, refused in one line where unsafe),
     locked for as long as this process (or a child forked or exec'd from it) lives, or until
     :func:`remove`."""
     if fcntl is None:
@@ -323,6 +312,20 @@ def claim(folder):
     return fd
 
 
+def made_here(folder):
+    """(True, record) when ``folder``'s lock file records this very folder (made by
+    :func:`make` at this path on this host: the original, not a copy, a moved folder or another
+    view of it), (False, record or None) otherwise; its lock is not looked at."""
+    try:
+        st = os.lstat(folder)
+        with open(os.path.join(folder, LOCK), "rb",
+                  opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW)) as fh:
+            record = json.loads(fh.read(65536) or b"null")
+    except (OSError, ValueError):
+        return False, None
+    return _matches(record, folder, st), record if isinstance(record, dict) else None
+
+
 def _half_made(folder):
     """(True, descriptor or None) when ``folder`` is what a process killed inside :func:`make`
     left: empty, or holding only :data:`PART` that no process locks (its descriptor, locked,
@@ -373,12 +376,14 @@ def stale(folder):
     return True
 
 
-def sweep(prefixes, dir=None, dead=None):
-    """Remove the folders of ``dir`` (by default the private folder :func:`parent`) named
+def sweep(prefixes, dir=None, dead=None, other=None):
+    """Remove the folders of ``dir`` (by default the private folder of :func:`make`) named
     with one of ``prefixes`` that are provably left by a process that is gone (:func:`claim`)
     or half made (:func:`_half_made`).  With ``dead``, ``dead(path)`` is called for each of the
-    former instead, its lock held, and removes it or not (returning True when it did).  Once
-    per process and place; returns the paths removed."""
+    former instead, its lock held, and removes it or not (returning True when it did); with
+    ``other``, ``other(path)`` is called for each folder of theirs that is neither (in use, or
+    not provably made there: :func:`made_here`).  Once per process and place; returns the paths
+    removed."""
     if fcntl is None:
         return []
     if dir is None:
@@ -417,6 +422,8 @@ def sweep(prefixes, dir=None, dead=None):
         else:
             half, fd = _half_made(entry.path)
             if not half:
+                if other is not None:
+                    other(entry.path)
                 continue
             try:
                 if fd is not None:

@@ -378,7 +378,22 @@ def recover(place):
     place = Path(place).absolute()
     for folder in [place, *place.parents]:
         if folder.is_dir():
-            folders.sweep((STAGE,), dir=folder, dead=_recover_stage)
+            folders.sweep((STAGE,), dir=folder, dead=_recover_stage, other=_elsewhere)
+
+
+def _elsewhere(stage):
+    """A staging folder that is not provably a dead process's: says so when it holds an
+    unfinished commit that is not this place's to finish (made elsewhere: moved or copied here
+    since, or made on another host); it is left as it is."""
+    names = set(_listdir(stage))
+    if not names & {JOURNAL, MEMBER}:
+        return
+    here, record = folders.made_here(stage)
+    if here or record is None:  # in use by a live process, or not driftfmu's
+        return
+    _say("left %s as it is: it holds an unfinished results commit made as %s on %s (moved or "
+         "copied since), which only a run there can finish; its files are kept"
+         % (stage, record.get("path"), record.get("host")))
 
 
 def _recover_stage(stage):

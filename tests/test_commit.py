@@ -285,6 +285,32 @@ def test_a_commit_that_cannot_be_completed_keeps_every_file_and_says_so(server, 
     assert list(base.rglob(output.JOURNAL))
 
 
+def test_an_unfinished_commit_moved_or_copied_elsewhere_is_left_as_it_is_and_said(server,
+                                                                                  tmp_path):
+    """A results folder holding an unfinished commit (its staging folder inside), copied
+    (``cp -a``) and moved by the user after the kill: a run there says so and touches nothing
+    (the journal names the place it was made); the copy's original, where a run finishes it,
+    is completed."""
+    first_in = counted(server, tmp_path, "existing").index("in")
+    base, out, ssp, old, new = setup(tmp_path, "existing")
+    assert server("commit", out, ssp, kill_at=first_in + 1)[0] == -signal.SIGKILL
+    copy, moved = out.parent / "copy", out.parent / "moved"
+    subprocess.run(["cp", "-a", str(out), str(copy)], check=True)
+    before = {p: texts(p) for p in (copy, out)}
+    for place in (copy, moved):
+        if place == moved:
+            out.rename(moved)
+        status, _, said = server("next run", place, None)
+        assert status == 0 and len(said) == 1, said
+        assert said[0].startswith("left %s/%s" % (place, output.STAGE)), said
+        assert "made as %s/%s" % (out, output.STAGE) in said[0]
+        assert texts(place) == before[copy if place == copy else out]
+        assert list(place.glob(output.STAGE + "*/" + output.JOURNAL))
+    moved.rename(out)  # back where it was made: the next run there completes it
+    status, _, said = server("next run", out, None)
+    assert said and said[0].startswith("completed") and tree(out) == new
+
+
 def test_the_commit_writes_to_disk_what_each_step_needs_before_it(tmp_path, monkeypatch):
     """fsync: the staged files and the staging folders' records before the journal is named,
     the journal and its folder before the first move, every folder a move changed before the
