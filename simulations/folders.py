@@ -66,7 +66,7 @@ UNLOCKED = ".driftfmu-unlocked"
 #: descriptor.
 _HELD = {}
 
-#: Folders made by this process in :func:`parent` (which goes when its last folder does).
+#: Folders made by this process in the private folder (which goes when its last folder does).
 _PRIVATE = set()
 
 #: (process, folder, prefixes) already swept by this process: once is enough.

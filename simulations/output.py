@@ -268,20 +268,13 @@ def _back(steps):
                 folders.checkpoint("rmdir")
                 with contextlib.suppress(OSError):  # only while empty: anything else stays
                     os.rmdir(step[1])
-        elif step[0] == "aside":
-            _, dest, aside, inode = step
-            if _is(aside, inode):
-                if os.path.lexists(dest):
-                    raise _Conflict("%s is in the way of the file it replaced" % dest)
+        else:  # a file moved aside returns, one moved in goes back to its staging folder
+            _, was, now, inode = step
+            if _is(now, inode):
+                if os.path.lexists(was):
+                    raise _Conflict("%s is in the way of the file that was there" % was)
                 folders.checkpoint("back")
-                os.rename(aside, dest)
-        else:
-            _, staged, dest, inode = step
-            if _is(dest, inode):
-                if os.path.lexists(staged):
-                    raise _Conflict("%s is in the way" % staged)
-                folders.checkpoint("out")
-                os.rename(dest, staged)
+                os.rename(now, was)
 
 
 def _sync(fd):
