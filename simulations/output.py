@@ -3,13 +3,41 @@
 Writing results whole or not at all, and the plots.
 
 Files are written into a hidden staging folder beside the destination and moved into place only
-when every file of the set has been written (:class:`Staging`, :func:`staged`); on any error or
-Ctrl-C, also during the moves, the destination is left as it was.
+when every file of the set has been written (:class:`Staging`, :func:`staged`).  The moves are
+one commit: after an error or Ctrl-C during them the destination is as it was, and after a
+SIGKILL at any instant the next run that stages results there completes the commit
+(:func:`recover`), so the destination holds its complete old files or its complete new ones.
+
+The commit, step by step (each step one rename, write or removal; :func:`folders.checkpoint`
+before each):
+
+1. every staged file is written to disk (``fsync``), and so is each staging folder's record;
+2. each staging folder but the first gets :data:`MEMBER`, naming the commit and its first
+   folder;
+3. the first staging folder gets :data:`JOURNAL`: every folder to make, every file in the way
+   to move aside into its staging folder (``.replaced-N``) and every staged file to move in,
+   each with the device and inode it has.  From here on the commit is decided;
+4. the moves, in the journal's order;
+5. the journal becomes :data:`DONE`: every file is in place;
+6. the staging folders go, the first one last, each with its bookkeeping files last.
+
+A process killed before step 3 leaves staging folders without a journal: the next run removes
+them (they hold only the staged files of a run that never committed), and the destination has
+its old files.  Killed in steps 3 to 4: the next run completes the moves from the journal,
+each one only where the file is still the one the journal names (a rename keeps the inode;
+anything else stops the recovery, keeps every folder and says so); then steps 5 and 6.  Killed
+in 5 or 6: the next run removes what is left.  An error or Ctrl-C in step 4 rolls the moves
+back at once (the journal first says so, so that a kill during the roll-back is rolled back
+by the next run too).  Each recovery says what it did in one line (a :class:`CommitRecovered`
+warning: ``driftfmu: warning: ...`` from the command line).  A staging folder is removed only
+when :func:`folders.claim` proves it a dead process's, and never while it holds a file that a
+commit still needs.
 """
 import contextlib
 import json
 import os
-import shutil
+import secrets
+import warnings
 from pathlib import Path
 
 from driftfmu.simulations import folders
@@ -17,6 +45,28 @@ from driftfmu.simulations.errors import UsageError
 
 #: The prefix of the hidden staging folders.
 STAGE = ".driftfmu-stage-"
+
+#: In the first staging folder of a commit, from the moment it is decided until every file is
+#: in place: the commit's steps (JSON).
+JOURNAL = ".driftfmu-journal"
+
+#: The journal once every file is in place: what the staging folders still hold is not needed.
+DONE = ".driftfmu-done"
+
+#: In each other staging folder of a commit: the commit and its first folder (JSON).
+MEMBER = ".driftfmu-commit"
+
+#: The bookkeeping files, removed after the rest of a staging folder.
+BOOKKEEPING = (MEMBER, JOURNAL, DONE)
+
+
+class CommitRecovered(UserWarning):
+    """A results commit that a killed process left unfinished was completed or rolled back,
+    or could not be and its staging folders are kept (the message says which)."""
+
+
+class _Conflict(OSError):
+    """A file of a commit is not the one its journal names: the commit stops there."""
 
 
 def nearest_existing(path):
@@ -28,40 +78,36 @@ def nearest_existing(path):
     return path
 
 
-def _holds_replaced(stage):
-    """True when the staging folder ``stage`` holds files that were in place before (its
-    process was killed while it moved its files in): they are not removed with it."""
-    return any(name.startswith(".replaced-") for name in os.listdir(stage))
-
-
 class Staging:
     """All the outputs of one job, or none of them (``driftfmu build``: FMUs, native FMUs,
     cross-check folders, the SSP archive; a master's result folder, through :func:`staged`).
 
     :meth:`path` hands out a staged stand-in for each destination, a hidden folder
     ``.driftfmu-stage-*`` in the destination's nearest existing folder (the same file system,
-    so the move is a rename); the job writes there.  Leaving the ``with`` block normally moves
-    every staged file into place, a file that was there kept aside until all have moved; an
-    exception or interrupt in the block or during the moves removes the staged files, puts
-    back what was replaced and removes the folders made for the destinations.  Either way the
-    hidden folders go.  Those of a process killed outright (SIGKILL) stay until the next
-    staging in the same folder removes them (:func:`driftfmu.simulations.folders.sweep`), unless
-    they hold a file that was in place before.
+    so the move is a rename); the job writes there.  Leaving the ``with`` block normally commits
+    every staged file into place (the module's steps); an exception or interrupt in the block
+    removes the staged files, and one during the moves rolls them back: the files moved in go
+    back, those they replaced return, the folders made for them go when empty.  A process
+    killed outright leaves its staging folders to the next :meth:`path` in or above the same
+    place (:func:`recover`).
     """
 
     def __init__(self):
         self._pairs = []  # (hidden folder, staged path, destination)
         self._shown = []  # (staged path, destination as given): for the log's lines
         self._held = []   # (log, line) of the lines about written files, until the commit
+        self._open = False  # a journal is written and the commit neither done nor rolled back
 
     def path(self, target, folder=True):
-        """The staged stand-in for ``target`` (a folder, or with ``folder=False`` a file)."""
+        """The staged stand-in for ``target`` (a folder, or with ``folder=False`` a file).
+        First the commits that killed processes left unfinished in the places of ``target``
+        (its folder and the folders above it) are completed or rolled back (:func:`recover`)."""
         shown = Path(target)
         target = shown.absolute()
+        recover(target if folder else target.parent)
         anchor = target if folder else target.parent
         while not anchor.is_dir() and anchor != anchor.parent:
             anchor = anchor.parent
-        folders.sweep((STAGE,), dir=anchor, keep=_holds_replaced)
         stage = Path(folders.make(STAGE, dir=anchor))
         staged = stage / target.name
         self._pairs.append((stage, staged, target))
@@ -91,52 +137,366 @@ class Staging:
             if kind is None:
                 self._commit()
         finally:
-            for stage, _, _ in self._pairs:
-                folders.remove(stage)
+            stages = [str(stage) for stage, _, _ in self._pairs]
+            if self._open:  # left for the next run, which finishes the commit
+                for stage in stages:
+                    folders.release(stage)
+            else:  # the first one last: while it is there, so is the commit's record
+                for stage in stages[1:] + stages[:1]:
+                    folders.remove(stage, last=BOOKKEEPING)
         if kind is None:  # (and the commit did not raise): every output is in place
             for log, line in self._held:
                 log(line)
         return False
 
+    def _plan(self):
+        """The commit's steps: ("mkdir", folder), ("aside", file in the way, where it goes,
+        its [device, inode]), ("in", staged file, destination, its [device, inode])."""
+        steps, made, asides = [], set(), {}
+        for stage, staged, target in self._pairs:
+            if staged.is_dir() and not staged.is_symlink():
+                files = sorted(p for p in staged.rglob("*") if p.is_symlink() or not p.is_dir())
+            else:
+                files = [staged] if os.path.lexists(staged) else []
+            for f in files:
+                dest = target / f.relative_to(staged) if f != staged else target
+                missing = []
+                top = dest.parent
+                while not os.path.lexists(top) and top != top.parent:
+                    missing.append(top)
+                    top = top.parent
+                for d in reversed(missing):
+                    if d not in made:
+                        made.add(d)
+                        steps.append(["mkdir", str(d)])
+                if os.path.lexists(dest):
+                    n = asides.get(stage, 0)
+                    asides[stage] = n + 1
+                    steps.append(["aside", str(dest), str(stage / (".replaced-%d" % n)),
+                                  _inode(dest)])
+                steps.append(["in", str(f), str(dest), _inode(f)])
+        return steps
+
     def _commit(self):
-        placed, kept, made = [], [], []
+        steps = self._plan()
+        if not steps:
+            return
+        stages = [str(stage) for stage, _, _ in self._pairs]
+        for stage in stages:  # the staged files and the records that prove the folders ours
+            _sync_tree(stage)
+            fd = folders._HELD.get(stage)  # noqa: SLF001 (the lock this process holds)
+            if fd is not None:
+                _sync(fd)
+        commit = {"commit of": [str(t) for _, _, t in self._pairs], "id": secrets.token_hex(8),
+                  "stages": [os.path.realpath(s) for s in stages], "state": "forward",
+                  "steps": steps}
+        for stage in stages[1:]:
+            _write_json(os.path.join(stage, MEMBER),
+                        {"id": commit["id"], "first": commit["stages"][0]})
+        journal = os.path.join(stages[0], JOURNAL)
+        _write_json(journal, commit)
+        self._open = True
         try:
-            for stage, staged, target in self._pairs:
-                if staged.is_dir():
-                    files = sorted(p for p in staged.rglob("*") if not p.is_dir())
-                else:
-                    files = [staged] if staged.exists() else []
-                for f in files:
-                    dest = target / f.relative_to(staged) if f != staged else target
-                    top = dest.parent
-                    while not top.parent.exists():
-                        top = top.parent
-                    if not top.exists():
-                        made.append(top)
-                        dest.parent.mkdir(parents=True)
-                    if dest.exists() or dest.is_symlink():
-                        aside = stage / (".replaced-%d" % len(kept))
-                        os.replace(dest, aside)
-                        kept.append((aside, dest))
-                    os.replace(f, dest)
-                    placed.append(dest)
+            _forward(steps)
         except BaseException:
-            for dest in reversed(placed):
-                with contextlib.suppress(OSError):
-                    dest.unlink()
-            for aside, dest in reversed(kept):
-                with contextlib.suppress(OSError):
-                    os.replace(aside, dest)
-            for d in reversed(made):
-                shutil.rmtree(d, ignore_errors=True)
+            commit["state"] = "back"
+            _write_json(journal, commit)
+            _back(steps)
+            self._open = False
             raise
+        _sync_moved(steps)
+        folders.checkpoint("journal done")
+        os.rename(journal, os.path.join(stages[0], DONE))
+        _sync_dir(stages[0])
+        self._open = False
+
+
+def _inode(path):
+    st = os.lstat(path)
+    return [st.st_dev, st.st_ino]
+
+
+def _is(path, inode):
+    """True when ``path`` (not followed) is the file with ``inode`` ([device, inode])."""
+    try:
+        return _inode(path) == list(inode)
+    except OSError:
+        return False
+
+
+def _forward(steps):
+    """Do the steps not done yet (each only where its file is the one named): the number
+    done now.  A file that is not the one named raises :class:`_Conflict`."""
+    done = 0
+    for step in steps:
+        if step[0] == "mkdir":
+            if not os.path.isdir(step[1]):
+                folders.checkpoint("mkdir")
+                os.mkdir(step[1])
+                done += 1
+        elif step[0] == "aside":
+            _, dest, aside, inode = step
+            if _is(aside, inode) or not os.path.lexists(dest):
+                continue  # moved aside before (or gone: nothing to keep)
+            if not _is(dest, inode):
+                if any(s[0] == "in" and s[2] == dest and _is(dest, s[3]) for s in steps):
+                    continue  # the new file is in place already
+                raise _Conflict("%s is not the file that was there" % dest)
+            folders.checkpoint("aside")
+            os.replace(dest, aside)
+            done += 1
+        else:
+            _, staged, dest, inode = step
+            if _is(dest, inode):
+                continue
+            if not _is(staged, inode):
+                raise _Conflict("the staged file %s is gone" % staged)
+            if os.path.lexists(dest):
+                raise _Conflict("%s is in the way" % dest)
+            folders.checkpoint("in")
+            os.replace(staged, dest)
+            done += 1
+    return done
+
+
+def _back(steps):
+    """Undo the steps done (each only where its file is the one named), last first.  A move
+    back goes to a free name (checked), so it is a rename."""
+    for step in reversed(steps):
+        if step[0] == "mkdir":
+            if os.path.isdir(step[1]):
+                folders.checkpoint("rmdir")
+                with contextlib.suppress(OSError):  # only while empty: anything else stays
+                    os.rmdir(step[1])
+        else:  # a file moved aside returns, one moved in goes back to its staging folder
+            _, was, now, inode = step
+            if _is(now, inode):
+                if os.path.lexists(was):
+                    raise _Conflict("%s is in the way of the file that was there" % was)
+                folders.checkpoint("back")
+                os.rename(now, was)
+
+
+def _sync(fd):
+    """Write the file open as ``fd`` to disk (``fsync``): what a commit needs after a power
+    loss; a process killed outright loses nothing that the kernel has."""
+    os.fsync(fd)
+
+
+def _sync_dir(path):
+    """Write the folder ``path``'s entries to disk (where folders can be opened: not
+    Windows)."""
+    with contextlib.suppress(OSError):
+        fd = os.open(path, os.O_RDONLY)
+        try:
+            _sync(fd)
+        finally:
+            os.close(fd)
+
+
+def _sync_tree(path):
+    """Write every file and folder under ``path`` to disk."""
+    for top, dirs, files in os.walk(path):
+        for name in files:
+            f = os.path.join(top, name)
+            if not os.path.islink(f):
+                with open(f, "rb" if os.name == "posix" else "r+b") as fh:
+                    _sync(fh.fileno())
+        _sync_dir(top)
+
+
+def _sync_moved(steps):
+    """Write to disk the folders the moves changed."""
+    changed = set()
+    for step in steps:
+        if step[0] == "mkdir":
+            changed.update((step[1], os.path.dirname(step[1])))
+        else:
+            changed.update(os.path.dirname(p) for p in step[1:3])
+    for d in sorted(changed):
+        _sync_dir(d)
+
+
+def _write_json(path, obj):
+    """Write ``obj`` to ``path`` whole or not at all, to disk."""
+    part = path + ".part"
+    folders.checkpoint("write " + os.path.basename(path))
+    fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0),
+                 0o600)
+    try:
+        os.write(fd, json.dumps(obj, indent=1).encode())
+        _sync(fd)
+    finally:
+        os.close(fd)
+    folders.checkpoint("name " + os.path.basename(path))
+    os.rename(part, path)
+    _sync_dir(os.path.dirname(path))
+
+
+def _read_json(path):
+    try:
+        with open(path, "rb") as fh:
+            return json.loads(fh.read(1 << 24))
+    except (OSError, ValueError):
+        return None
+
+
+def _valid(commit):
+    """True when ``commit`` (read from a journal) has the form :meth:`Staging._commit`
+    writes."""
+    def inode(v):
+        return isinstance(v, list) and len(v) == 2 and all(isinstance(i, int) for i in v)
+    try:
+        return (isinstance(commit["id"], str) and commit["state"] in ("forward", "back")
+                and all(isinstance(s, str) for s in commit["stages"]) and commit["stages"]
+                and all(isinstance(t, str) for t in commit["commit of"])
+                and all((s[0] == "mkdir" and len(s) == 2 and isinstance(s[1], str))
+                        or (s[0] in ("aside", "in") and len(s) == 4
+                            and isinstance(s[1], str) and isinstance(s[2], str)
+                            and inode(s[3]))
+                        for s in commit["steps"]))
+    except (KeyError, TypeError, IndexError):
+        return False
+
+
+def _say(text):
+    warnings.warn(text, CommitRecovered, stacklevel=2)
+
+
+def recover(place):
+    """Complete or roll back the commits that processes killed outright left unfinished in
+    ``place`` and the folders above it, and remove their staging folders and the other
+    staging folders of dead processes there (:func:`folders.sweep`; once per process and
+    folder).  Says what it did, one line a commit (:class:`CommitRecovered`)."""
+    place = Path(place).absolute()
+    for folder in [place, *place.parents]:
+        if folder.is_dir():
+            folders.sweep((STAGE,), dir=folder, dead=_recover_stage, other=_elsewhere)
+
+
+def _elsewhere(stage):
+    """A staging folder that is not provably a dead process's: says so when it holds an
+    unfinished commit that is not this place's to finish (made elsewhere: moved or copied here
+    since, or made on another host); it is left as it is."""
+    names = set(_listdir(stage))
+    if not names & {JOURNAL, MEMBER}:
+        return
+    here, record = folders.made_here(stage)
+    if here or record is None:  # in use by a live process, or not driftfmu's
+        return
+    _say("left %s as it is: it holds an unfinished results commit made as %s on %s (moved or "
+         "copied since), which only a run there can finish; its files are kept"
+         % (stage, record.get("path"), record.get("host")))
+
+
+def _recover_stage(stage):
+    """A staging folder of a dead process (its lock held by the sweep): its commit resolved
+    and the folder removed where that is safe.  True when it is removed."""
+    names = set(_listdir(stage))
+    if names & {JOURNAL, DONE}:
+        return _resolve(stage, {os.path.realpath(stage)})
+    if MEMBER in names:
+        member = _read_json(os.path.join(stage, MEMBER))
+        first = member.get("first") if isinstance(member, dict) else None
+        if isinstance(first, str) and os.path.lexists(first):
+            fd = folders.claim(first)
+            if fd is not None:
+                try:
+                    _resolve(first, {os.path.realpath(stage), first}, member.get("id"))
+                finally:
+                    os.close(fd)
+                if not os.path.lexists(stage):
+                    return True
+                if os.path.lexists(first):
+                    return False  # kept, and said why
+                # the commit was undecided: its first folder is gone, so goes this one
+            elif not folders.stale(first):  # in use, or not provably a dead process's
+                return False
+            # else the first folder half removed: its commit is resolved
+    if any(n.startswith(".replaced-") for n in names):
+        # files that were in place before, and no journal (its first folder gone): kept
+        _say("kept %s: it holds files that a results commit moved aside, and its journal is "
+             "gone; they may be the only copies" % stage)
+        return False
+    # no commit decided: the staged files of a run that never committed
+    folders.discard(stage, last=BOOKKEEPING)
+    return True
+
+
+def _listdir(path):
+    try:
+        return os.listdir(path)
+    except OSError:
+        return []
+
+
+def _resolve(first, held, member_id=None):
+    """Finish the commit whose journal is in its first staging folder ``first`` (locked, as
+    are the folders in ``held``, real paths, by the caller), then remove its staging folders.
+    True when they are removed."""
+    names = set(_listdir(first))
+    record = os.path.join(first, DONE if DONE in names else JOURNAL)
+    if not names & {JOURNAL, DONE}:  # undecided (killed before the journal): nothing moved
+        folders.discard(first, last=BOOKKEEPING)
+        return True
+    commit = _read_json(record)
+    if (not _valid(commit) or commit["stages"][0] != os.path.realpath(first)
+            or (member_id is not None and commit["id"] != member_id)):
+        _say("kept %s: its results commit journal cannot be read" % first)
+        return False
+    claimed = []
+    try:
+        for stage in commit["stages"][1:]:
+            if stage in held or not os.path.lexists(stage):
+                continue
+            fd = folders.claim(stage)
+            if fd is None:
+                if folders.stale(stage):  # emptied (half removed): nothing in it
+                    continue
+                return False  # in use, or not provably a dead process's: later
+            claimed.append(fd)
+        what = ", ".join(commit["commit of"])
+        if DONE not in names:
+            try:
+                if commit["state"] == "forward":
+                    left = _forward(commit["steps"])
+                    _sync_moved(commit["steps"])
+                else:
+                    _back(commit["steps"])
+            except _Conflict as exc:
+                _say("kept the staging folders of an unfinished results commit of %s (%s): %s"
+                     % (what, ", ".join(commit["stages"]), exc))
+                return False
+            folders.checkpoint("journal done")
+            os.rename(record, os.path.join(first, DONE))
+            _sync_dir(first)
+            if commit["state"] == "forward":
+                moves = sum(s[0] != "mkdir" for s in commit["steps"])
+                _say("completed the results commit of %s that a killed process left "
+                     "unfinished: %d of its %d moves were left; every new file is in place"
+                     % (what, left, moves) if left else
+                     "completed the results commit of %s that a killed process left "
+                     "unfinished: every new file was in place already" % what)
+            else:
+                _say("rolled back the results commit of %s that a killed process left "
+                     "unfinished: the files of before are back in place" % what)
+        for stage in commit["stages"][1:]:
+            folders.discard(stage, last=BOOKKEEPING)
+        if any(os.path.lexists(s) for s in commit["stages"][1:]):
+            return False  # the first folder goes last
+        folders.discard(first, last=BOOKKEEPING)
+        return True
+    finally:
+        for fd in claimed:
+            os.close(fd)
 
 
 @contextlib.contextmanager
 def staged(out_dir):
     """Yield a folder for the files of ``out_dir``; when the block succeeds they are moved into
     ``out_dir`` (created if missing), all of them or none (:class:`Staging`: on an error or an
-    interrupt in the block or during the moves, ``out_dir`` is left as it was).
+    interrupt in the block or during the moves, ``out_dir`` is left as it was; after a kill
+    during the moves the next run completes them).
 
     ``out_dir`` naming an existing file, or a path under one, is a UsageError (one line, raised
     before the block runs, nothing written)."""

@@ -1,8 +1,12 @@
 """Work folders of a process killed outright (SIGKILL, or SIGTERM to a script without a handler)
-are removed by the next process that makes one in the same place, and only those: a live
-process's folders, folders without driftfmu's lock, other users' and other names stay
+are removed by the next process that makes one in the same place, and only those that are
+provably its: a live process's folders (also one an exec'd child still uses, or one seen through
+an overlay's layer), copies and renamed folders, folders without driftfmu's lock, other users'
+and other names stay; folders half made or half removed by a killed process go
 (simulations/folders.py)."""
+import json
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -14,26 +18,66 @@ from driftfmu.simulations import folders, output
 
 pytestmark = pytest.mark.skipif(folders.fcntl is None, reason="no flock on this platform")
 
-#: A child that makes a folder, prints it and then dies by SIGKILL ("die") or waits for its
-#: standard input to close ("live").
+#: A child that makes a folder (in argv[2], or "-": the private folder of TMPDIR), prints it
+#: and then: "die" (SIGKILL), "live" (waits for its standard input to close), "exec" (starts a
+#: program with exec that waits for that input, then SIGKILL), "make N" (SIGKILL at the N-th
+#: checkpoint of make), "remove N" (writes a file, then SIGKILL at the N-th checkpoint of the
+#: folder's removal).
 CHILD = """
-import os, signal, sys
+import os, signal, subprocess, sys
 from driftfmu.simulations import folders
-print(folders.make(sys.argv[1], dir=sys.argv[2]), flush=True)
-if sys.argv[3] == "die":
+prefix, where, mode = sys.argv[1:4]
+
+def stop_at(n):
+    count = [n]
+    def checkpoint(what):
+        count[0] -= 1
+        if count[0] < 0:
+            os.kill(os.getpid(), signal.SIGKILL)
+    folders.checkpoint = checkpoint
+
+if mode.startswith("make "):
+    stop_at(int(mode.split()[1]))
+folder = folders.make(prefix, dir=None if where == "-" else where)
+print(folder, flush=True)
+if mode == "exec":  # a program of its own (exec), inheriting the descriptors
+    subprocess.Popen([sys.executable, "-c", "import sys; sys.stdin.read()"], close_fds=False)
+if mode.startswith("remove "):
+    os.mkdir(os.path.join(folder, "sub"))
+    for name in ("a.txt", "sub/b.txt"):
+        with open(os.path.join(folder, name), "w") as fh:
+            fh.write("work")
+    stop_at(int(mode.split()[1]))
+    folders.remove(folder)
+if mode in ("die", "exec") or mode.startswith(("make ", "remove ")):
     os.kill(os.getpid(), signal.SIGKILL)
 sys.stdin.read()
 """
 
 
-def killed(prefix, where):
-    """The folder made by a child killed outright."""
-    r = subprocess.run([sys.executable, "-c", CHILD, prefix, str(where), "die"],
-                       capture_output=True, text=True, timeout=60)
+def run_child(prefix, where, mode, tmp_path=None):
+    """Run CHILD to its SIGKILL; the folder it printed (None if it printed none)."""
+    env = dict(os.environ, TMPDIR=str(tmp_path)) if tmp_path is not None else None
+    r = subprocess.run([sys.executable, "-c", CHILD, prefix, str(where), mode],
+                       capture_output=True, text=True, timeout=60, env=env)
     assert r.returncode == -signal.SIGKILL, r.stderr
-    folder = r.stdout.strip()
+    return r.stdout.strip() or None
+
+
+def killed(prefix, where="-", tmp_path=None):
+    """The folder made by a child killed outright ("-": in the private folder of TMPDIR =
+    ``tmp_path``)."""
+    folder = run_child(prefix, where, "die", tmp_path)
     assert os.path.isfile(os.path.join(folder, folders.LOCK))
     return folder
+
+
+@pytest.fixture
+def private(tmp_path, monkeypatch):
+    """The temporary folder is ``tmp_path``: its private folder of work folders."""
+    monkeypatch.setattr(folders.tempfile, "tempdir", str(tmp_path))
+    monkeypatch.setattr(folders, "_SWEPT", set())
+    return tmp_path / ("driftfmu-%d" % os.geteuid())
 
 
 @pytest.fixture
@@ -57,8 +101,9 @@ def test_sweep_removes_the_folders_of_killed_processes_and_only_those(tmp_path, 
     dead = [killed(prefix, tmp_path) for prefix in ("driftfmu_fmu_", "driftfmu_fast_",
                                                     "driftfmu_kernel_", "driftfmu_Excitation_")]
     running, child = live("driftfmu_fmu_")
-    unlocked = tmp_path / "driftfmu_fmu_without_lock"  # being made, or not made by make()
+    unlocked = tmp_path / "driftfmu_fmu_without_lock"  # not made by make(), a file inside
     unlocked.mkdir()
+    (unlocked / "notes.txt").write_text("mine")
     other = killed("someone_else_", tmp_path)
     assert folders.stale(dead[0]) and not folders.stale(running)
     assert not folders.stale(str(unlocked))
@@ -68,20 +113,225 @@ def test_sweep_removes_the_folders_of_killed_processes_and_only_those(tmp_path, 
     assert sorted(removed) == sorted(dead)
     assert not any(os.path.exists(d) for d in dead)
     assert os.path.isdir(running) and unlocked.is_dir() and os.path.isdir(other)
+    assert (unlocked / "notes.txt").read_text() == "mine"
     assert folders.sweep(folders.TEMPORARY, dir=tmp_path) == []  # once per process and place
     child.stdin.close()
     child.wait(timeout=60)
     assert folders.stale(running)  # its process has ended: the next process removes it
 
 
-def test_temporary_sweeps_first_and_removes_its_folder_at_the_end(tmp_path, monkeypatch):
-    monkeypatch.setattr(folders.tempfile, "tempdir", str(tmp_path))
-    dead = killed("driftfmu_doctor_", tmp_path)
+def test_temporary_sweeps_first_and_removes_its_folder_at_the_end(tmp_path, private):
+    dead = killed("driftfmu_doctor_", tmp_path=tmp_path)
+    assert os.path.dirname(dead) == str(private)
     with folders.temporary("driftfmu_doctor_") as folder:
-        assert os.path.dirname(folder) == str(tmp_path) and not folders.stale(folder)
+        assert os.path.dirname(folder) == str(private) and not folders.stale(folder)
         assert not os.path.exists(dead)
     assert not os.path.exists(folder) and folder not in folders._HELD
-    assert list(tmp_path.iterdir()) == []
+    assert list(tmp_path.iterdir()) == []  # the private folder goes with its last folder
+
+
+def test_work_folders_live_in_a_private_folder_of_the_user(tmp_path, private):
+    """Made by driftfmu with mode 0700 (also under a umask that would take the owner's bits),
+    owned by the user; nothing else of the temporary folder is swept."""
+    beside = tmp_path / "driftfmu_fmu_beside"  # a dead work folder's look-alike, elsewhere
+    beside.mkdir()
+    old = os.umask(0o777)
+    try:
+        folder = folders.make("driftfmu_fmu_")
+    finally:
+        os.umask(old)
+    st = private.stat()
+    assert os.path.dirname(folder) == str(private)
+    assert (st.st_mode & 0o777, st.st_uid) == (0o700, os.geteuid())
+    assert folders.sweep(folders.TEMPORARY) == [] and beside.is_dir()
+    folders.remove(folder)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["driftfmu_fmu_beside"]
+
+
+@pytest.mark.parametrize("case", ["symbolic link", "file", "mode 0755", "another user's"])
+def test_an_unsafe_private_folder_is_refused_in_one_line(case, tmp_path, private):
+    from driftfmu.simulations.errors import UsageError
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir(mode=0o700)
+    if case == "symbolic link":
+        private.symlink_to(elsewhere)
+    elif case == "file":
+        private.write_text("a file")
+    else:
+        private.mkdir(mode=0o700)
+        if case == "mode 0755":
+            private.chmod(0o755)
+        else:
+            if os.geteuid() != 0:
+                pytest.skip("only root can give a folder to another user")
+            os.chown(private, 4242, 4242)
+    want = {"symbolic link": "is a symbolic link", "file": "is not a folder",
+            "mode 0755": "has mode 0755", "another user's": "is owned by uid 4242"}[case]
+    for call in (lambda: folders.make("driftfmu_fmu_"),
+                 lambda: folders.sweep(folders.TEMPORARY)):
+        with pytest.raises(UsageError) as err:
+            call()
+        text = str(err.value)
+        assert "\n" not in text and want in text and "allowed: a folder of this user's" in text
+    assert list(elsewhere.iterdir()) == []
+
+
+def test_a_copy_or_a_rename_of_a_work_folder_is_never_removed(tmp_path, private):
+    """A user's ``cp -a`` copy and a renamed work folder of a killed process, each with a file
+    of the user's inside, stay; the original of the copy goes.  (Before: both were removed, as
+    any ``driftfmu_*`` folder holding a lock file that nobody locked.)"""
+    copied, renamed = (killed("driftfmu_fmu_", tmp_path=tmp_path) for _ in range(2))
+    where = os.path.dirname(copied)  # the private folder
+    copy = os.path.join(where, "driftfmu_fmu_kept")
+    subprocess.run(["cp", "-a", copied, copy], check=True)
+    moved = os.path.join(where, "driftfmu_fmu_mine")
+    os.rename(renamed, moved)
+    for folder in (copy, moved):
+        with open(os.path.join(folder, "notes.txt"), "w") as fh:
+            fh.write("my notes")
+    assert not folders.stale(copy) and not folders.stale(moved) and folders.stale(copied)
+
+    removed = folders.sweep(folders.TEMPORARY)
+
+    assert removed == [copied]
+    for folder in (copy, moved):
+        with open(os.path.join(folder, "notes.txt")) as fh:
+            assert fh.read() == "my notes"
+
+
+def test_the_sweep_leaves_other_users_folders_alone(tmp_path, private):
+    """A dead work folder given to another user, in this user's private folder, and another
+    user's private folder with a dead work folder: both stay (issue 32)."""
+    if os.geteuid() != 0:
+        pytest.skip("only root can give a folder to another user")
+    theirs = killed("driftfmu_fmu_", tmp_path=tmp_path)
+    mine = killed("driftfmu_fmu_", tmp_path=tmp_path)
+    other_private = tmp_path / "driftfmu-4242"
+    other_private.mkdir(mode=0o700)
+    other = killed("driftfmu_fmu_", other_private)
+    for folder in (theirs, other, str(other_private)):
+        for top, dirs, files in os.walk(folder):
+            for path in [top] + [os.path.join(top, f) for f in files]:
+                os.chown(path, 4242, 4242)
+
+    removed = folders.sweep(folders.TEMPORARY)
+
+    assert removed == [mine]
+    assert os.path.isfile(os.path.join(theirs, folders.LOCK))
+    assert os.path.isfile(os.path.join(other, folders.LOCK))
+    assert folders.sweep(folders.TEMPORARY, dir=other_private) == []
+
+
+def test_a_program_started_with_exec_keeps_the_folder_of_its_killed_parent(tmp_path, private):
+    """The lock is inherited by a program its process starts with ``exec``: killed, the
+    process leaves a folder that is still in use and stays until that program ends.
+    (Before: the lock's descriptor was closed on exec, and the folder went under it.)"""
+    maker = subprocess.Popen([sys.executable, "-c", CHILD, "driftfmu_fmu_", "-", "exec"],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                             env=dict(os.environ, TMPDIR=str(tmp_path)))
+    try:
+        folder = maker.stdout.readline().strip()
+        assert maker.wait(timeout=60) == -signal.SIGKILL
+        assert not folders.stale(folder)
+        assert folders.sweep(folders.TEMPORARY) == [] and os.path.isdir(folder)
+    finally:
+        maker.stdin.close()  # the program ends
+    maker.stdout.read()  # until the program has closed its descriptors
+    deadline = time.monotonic() + 60
+    while not folders.stale(folder) and time.monotonic() < deadline:
+        time.sleep(0.01)
+    assert folders.stale(folder)
+
+
+#: The checkpoints of folders.make: before the folder, before the lock file, before its
+#: record, before its name.
+MAKE_STEPS = 4
+
+
+@pytest.mark.parametrize("step", range(MAKE_STEPS))
+def test_a_folder_left_by_a_process_killed_inside_make_is_swept(step, tmp_path, private):
+    assert run_child("driftfmu_fmu_", "-", "make %d" % step, tmp_path) is None
+    left = sorted(os.listdir(private))
+    assert len(left) == (step > 0)  # killed before the folder: none
+    removed = folders.sweep(folders.TEMPORARY)
+    assert len(removed) == len(left) and os.listdir(private) == []
+
+
+@pytest.mark.parametrize("content", ["empty", "an unlocked half-made lock file"])
+def test_a_half_made_folder_is_swept(content, tmp_path):
+    """What a process killed inside make leaves, made directly; a folder being made by a
+    live process (its half-made lock file locked) stays.  (Before: neither was swept.)"""
+    part = folders.LOCK + ".part"
+    half = tmp_path / "driftfmu_fmu_half"
+    half.mkdir()
+    if content != "empty":
+        (half / part).write_bytes(b"")
+    busy = tmp_path / "driftfmu_fmu_busy"
+    busy.mkdir()
+    fd = os.open(busy / part, os.O_RDWR | os.O_CREAT, 0o600)
+    try:
+        folders.fcntl.flock(fd, folders.fcntl.LOCK_EX)
+        assert folders.stale(str(half)) and not folders.stale(str(busy))
+        assert folders.sweep(folders.TEMPORARY, dir=tmp_path) == [str(half)]
+    finally:
+        os.close(fd)
+    assert busy.is_dir() and not half.exists()
+
+
+def test_a_folder_half_removed_by_a_killed_process_is_swept(tmp_path, private):
+    """Killed at any point of removing its folder (files, lock file last, then the folder),
+    a process leaves one that the next sweep removes."""
+    for steps in range(50):
+        folder = run_child("driftfmu_fmu_", "-", "remove %d" % steps, tmp_path)
+        if not os.path.exists(folder):
+            break  # removed before the step: every step is tried
+        folders._SWEPT.clear()
+        assert folders.sweep(folders.TEMPORARY) == [folder], steps
+    assert 4 <= steps < 50  # a.txt, sub, the lock file, the folder
+
+
+OVERLAY = """
+import json, os, subprocess, sys, tempfile
+base = sys.argv[1]
+for d in ("lower", "upper", "work", "merged"):
+    os.mkdir(os.path.join(base, d))
+subprocess.run(["mount", "-t", "overlay", "overlay", "-o",
+                "lowerdir={0}/lower,upperdir={0}/upper,workdir={0}/work".format(base),
+                os.path.join(base, "merged")], check=True)
+from driftfmu.simulations import folders
+seen = {}
+for made, swept in (("merged", "upper"), ("upper", "merged")):
+    child = subprocess.Popen([sys.executable, "-c", sys.argv[2], "driftfmu_fmu_", "-", "live"],
+                             stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True,
+                             env=dict(os.environ, TMPDIR=os.path.join(base, made)))
+    folder = child.stdout.readline().strip()
+    there = os.path.join(base, swept, os.path.relpath(folder, os.path.join(base, made)))
+    tempfile.tempdir = os.path.join(base, swept)
+    seen[made] = [os.path.isdir(there), there in folders.sweep(folders.TEMPORARY),
+                  os.path.isdir(folder)]
+    child.stdin.close()
+    child.wait()
+print(json.dumps(seen))
+"""
+
+
+def test_a_live_folder_seen_through_another_layer_of_an_overlay_stays(tmp_path):
+    """A live process's folder in an overlay file system, swept through its upper layer (and
+    the other way round): flock does not see the other view's lock there, so the folder's
+    record (its path and device) tells it is not this view's.  (Before: removed.)"""
+    if os.geteuid() != 0 or shutil.which("unshare") is None:
+        pytest.skip("needs root and unshare(1) to mount an overlay in a mount namespace")
+    probe = subprocess.run(["unshare", "--mount", "true"], capture_output=True)
+    if probe.returncode != 0:
+        pytest.skip("no mount namespace here: %s" % probe.stderr.decode().strip())
+    r = subprocess.run(["unshare", "--mount", sys.executable, "-c", OVERLAY, str(tmp_path),
+                        CHILD], capture_output=True, text=True, timeout=120)
+    if "mount" in r.stderr and r.returncode != 0 and "overlay" in r.stderr:
+        pytest.skip("no overlay file system here: %s" % r.stderr.strip().splitlines()[-1])
+    assert r.returncode == 0, r.stderr
+    seen = json.loads(r.stdout)
+    # seen through the other view, swept there, still in place for its live process
+    assert seen == {"merged": [True, False, True], "upper": [True, False, True]}
 
 
 def test_a_forked_child_keeps_its_parents_folder_locked(tmp_path):
@@ -111,14 +361,36 @@ def test_a_staging_folder_of_a_killed_master_goes_with_the_next_staging(tmp_path
     holding = killed(output.STAGE, tmp_path)  # killed while it moved results into place
     (tmp_path / holding / ".replaced-0").write_text("the only copy of a file of before")
 
-    with output.staged(tmp_path / "results") as stage:
-        (stage / "a.csv").write_text("1\n")
+    with pytest.warns(output.CommitRecovered, match="kept .*%s: it holds files that a "
+                      "results commit moved aside" % os.path.basename(holding)):
+        with output.staged(tmp_path / "results") as stage:
+            (stage / "a.csv").write_text("1\n")
 
     assert not os.path.exists(dead)
     assert (tmp_path / holding / ".replaced-0").read_text().startswith("the only copy")
     assert (tmp_path / "results" / "a.csv").read_text() == "1\n"
     left = sorted(p.name for p in tmp_path.iterdir())
     assert left == sorted([os.path.basename(holding), "results"])
+
+
+def test_a_copy_or_a_rename_of_a_staging_folder_is_never_removed(tmp_path):
+    """A staging folder of a killed run that a user copied or renamed, with a file of theirs
+    inside, stays; the original of the copy goes with the next staging there.  (Before: every
+    one was removed.)"""
+    copied, renamed = killed(output.STAGE, tmp_path), killed(output.STAGE, tmp_path)
+    copy, moved = tmp_path / ".driftfmu-stage-copy", tmp_path / ".driftfmu-stage-mine"
+    subprocess.run(["cp", "-a", copied, str(copy)], check=True)
+    os.rename(renamed, moved)
+    for folder in (copy, moved):
+        (folder / "notes.txt").write_text("my notes")
+
+    with output.staged(tmp_path / "results") as stage:
+        (stage / "a.csv").write_text("1\n")
+
+    assert not os.path.exists(copied)
+    assert [(f / "notes.txt").read_text() for f in (copy, moved)] == ["my notes"] * 2
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        ".driftfmu-stage-copy", ".driftfmu-stage-mine", "results"]
 
 
 SCRIPT = """
@@ -137,8 +409,8 @@ def test_an_api_script_stopped_by_sigterm_leaves_nothing_for_good(python_fmus, t
     script = subprocess.Popen([sys.executable, "-c", SCRIPT, "1000", fmu_dir], env=env,
                               stdout=subprocess.PIPE, stderr=subprocess.PIPE)
 
-    def extracted():
-        return sorted(p for p in tmp_path.glob("driftfmu_fmu_*")
+    def extracted():  # in the private folder of the temporary folder
+        return sorted(p for p in tmp_path.glob("driftfmu-%d/driftfmu_fmu_*" % os.geteuid())
                       if (p / "modelDescription.xml").exists())
 
     deadline = time.monotonic() + 120
@@ -155,4 +427,4 @@ def test_an_api_script_stopped_by_sigterm_leaves_nothing_for_good(python_fmus, t
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == 0 and r.stdout.strip() == "done", r.stderr
     assert not any(p.exists() for p in left)
-    assert not list(tmp_path.glob("driftfmu_*")), list(tmp_path.iterdir())
+    assert not list(tmp_path.glob("driftfmu*")), list(tmp_path.iterdir())
