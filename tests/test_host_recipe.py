@@ -208,3 +208,26 @@ def test_inputs_command_refuses_a_result_that_skips_samples(fmus_in_build_layout
     assert lines[1:] == ["0.0,0.5,0.0", "0.00025,0.5,0.0", "0.00025,0.25,0.0",
                          "0.00125,0.25,0.0", "0.00125,0.125,0.0"]
     assert "y held at its start value" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize("kind", ["python", "native/fmi2", "native/fmi3"])
+def test_a_refused_call_tells_its_reason_without_fmi_logging(kind, fmus_in_build_layout,
+                                                             tmp_path):
+    """fmpy's command line as a tool user runs it (no --fmi-logging, no --debug-logging): an
+    input file with a non-finite value and a start value out of range stop the run, and the
+    FMU's own reason is on the terminal (the FMUs log errors whatever ``loggingOn`` says)."""
+    folder = fmus_in_build_layout if kind == "python" else fmus_in_build_layout / kind
+    fmu = str(folder / "Accelerometer.fmu")
+    bad = tmp_path / "bad_in.csv"
+    bad.write_text("time,x,y\n0.0,0.5,0.0\n0.00025,0.5,0.0\n0.00025,inf,0.0\n")
+    for extra, reason in ((["--input-file", str(bad)],
+                           "x = inf is not finite; input accepts finite values only"),
+                          (["--start-values", "R", "-1"], "R = -1.0 is out of range; allowed: "
+                                                          "R > 0")):
+        done = subprocess.run([sys.executable, "-m", "fmpy", "simulate", fmu, "--stop-time",
+                               "0.002", "--output-interval", "0.001", "--output-file",
+                               str(tmp_path / "out.csv")] + extra,
+                              capture_output=True, text=True, timeout=300)
+        assert done.returncode != 0, (kind, extra)
+        errors = [line for line in done.stdout.splitlines() if line.startswith("[ERROR]")]
+        assert len(errors) == 1 and reason in errors[0], (kind, extra, done.stdout)
