@@ -8,9 +8,18 @@ SSD declares each FMU's outputs, its connected inputs and its bound parameters a
 connections of the master (``Excitation.x -> Accelerometer.x``, ``Accelerometer.z ->
 DriftEstimator.z``) and, when the DriftEstimator's ``B != 0``, the known input's
 ``Excitation.u -> DriftEstimator.u`` (eq. 1, :func:`connections`), the start values of the letter's Gaussian run as an inline parameter set
-on each component (SSV 1.0), and the default experiment (``stopTime = (n - 1) Ts``).  SSP has no
-standard element for the communication step: use ``Ts`` (the ``description`` of the system
-says so).
+on each component (SSV 1.0; every set has the system's name, so ecos, which applies one named
+set per run, applies all of them with ``init(0, "DriftChain")``), and the default experiment
+(``stopTime = (n - 1) Ts``).  SSP has no standard element for the communication step: use ``Ts``
+(the ``description`` of the system says so).  OpenModelica's vendor annotation
+(:func:`_oms_annotation`) gives it to OMSimulator, whose importer needs it to make the system at
+all.
+
+OMSimulator's fixed-step master (``oms-ma``) steps every FMU, then copies the outputs along the
+connections in their order (Gauss-Seidel at the communication point, as our master) and records
+each point before and after that copy: its second row of each point is our master's row, bit for
+bit (tests/test_ssp.py).  Its command line takes the stop time from ``--stopTime`` (default
+1 s), not from the default experiment.
 
 Stepping in an SSP master.  fmpy's ``fmpy.ssp.simulation.simulate_ssp`` (like libcosim's and
 Ecos' fixed-step algorithms) is a Jacobi master: every FMU is stepped with the inputs copied at
