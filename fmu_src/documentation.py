@@ -139,6 +139,13 @@ INPUT_USE = {
     ("DualDriftEstimator", "z_y"): "always: the second axis's measurement",
 }
 
+def input_use(name, row):
+    """When FMU ``name`` uses its input ``row`` (:func:`variable_rows`): :data:`INPUT_USE`, or
+    for a model of another table its description."""
+    return INPUT_USE.get((name, row["name"])) or "as described: %s" % _without_unit(
+        row["description"], row["unit"])
+
+
 #: What each kind of FMU needs and where it is tested.
 KINDS = {
     "python": (
@@ -294,8 +301,8 @@ def index_html(name, kind, fmi_version, archive_names=(), slave=None):
             e(_anchor(unit)), e(unit), e(reads),
             e(unit_definition_text(unit, reads, factor, exponents)))
         for unit, reads, factor, exponents in unit_rows(rows))
-    inputs = "\n".join("<tr><td>%s</td><td>%s</td></tr>" % (e(r["name"]), e(INPUT_USE[
-        name, r["name"]])) for r in rows if r["causality"] == "input")
+    inputs = "\n".join("<tr><td>%s</td><td>%s</td></tr>" % (e(r["name"]), e(input_use(
+        name, r))) for r in rows if r["causality"] == "input")
     links = ['<a href="../modelDescription.xml">modelDescription.xml</a> (its variables, '
              'units, dependencies)']
     if "documentation/binaries.txt" in names:
@@ -410,8 +417,8 @@ def reference_markdown():
         slave = slave_class(name)
         lines += ["## %s" % name, "", slave.DESCRIPTION.rstrip(".") + ".", "", "```text",
                   EQUATIONS[name], "```", ""]
-        lines += ["Input `%s`: %s." % (spec["name"], INPUT_USE[name, spec["name"]])
-                  for spec in slave.VARIABLES if spec["causality"] == "input"]
+        lines += ["Input `%s`: %s." % (r["name"], input_use(name, r))
+                  for r in variable_rows(name, slave) if r["causality"] == "input"]
         lines += ["", "| " + " | ".join(COLUMNS) + " |",
                   "|" + "---|" * len(COLUMNS)]
         for r in variable_rows(name):
