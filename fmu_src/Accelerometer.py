@@ -47,8 +47,9 @@ class Accelerometer(SlaveBase):
         var("a4", "parameter"),
     )
     DEPENDENCIES = {"z": ["x", "y"], "z_y": ["x", "y"]}
-    DESCRIPTION = ("Weakly nonlinear accelerometer z_k = a0 + a1 x_k + a2 x_k^2 + v_k, "
-                   "v_k ~ N(0, R); optional ADXL203-like extras (cubic term, cross-axis, output "
+    DESCRIPTION = ("Weakly nonlinear accelerometer z_k = a0 + a1 x_k + a2 x_k^2 + a3 x_k^3 "
+                   "+ a4 x_k^4 + v_k, "
+                   "v_k ~ N(0, R); optional ADXL203-like extras (cross-axis, output "
                    "low-pass, ratiometric supply, ADC, noise density, second axis); or (dual = 1) the "
                    "dual-axis bilinear sensor z_x = a0 + a1 x + a2 x^2 + bx x y + v_x, "
                    "z_y = a0y + a1y y + a2y y^2 + by x y + v_y")

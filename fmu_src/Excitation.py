@@ -49,7 +49,8 @@ class Excitation(SlaveBase):
     )
     #: x (through B u_k) and u follow the host's u_in at the same communication point.
     DEPENDENCIES = {"x": ["u_in"], "u": ["u_in"]}
-    DESCRIPTION = ("True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + w_k, w_k ~ N(0, Q), "
+    DESCRIPTION = ("True acceleration x_k: Gauss-Markov x_k = A x_{k-1} + B u_k + w_k, "
+                   "w_k ~ N(0, Q), with the known input u_k, "
                    "or X sin(2 pi f t + phi); second axis y_k = Xy sin(2 pi f t_k + phiy), or "
                    "Gauss-Markov y_k = A y_{k-1} + w_y,k with corr(w_x, w_y) = rho when Qy > 0")
     #: x_{k-1} and y_{k-1}, the excitation before the next sample (x0 and 0 before sample 1).

@@ -170,6 +170,13 @@ def config_h(slave, token, fmi_version):
 
 # -- model descriptions -----------------------------------------------------------------------
 
+#: The FMI 3.0 independent variable, after the table's variables (value reference
+#: len(VARIABLES)).
+TIME_VARIABLE = {"name": "time", "valueReference": None, "causality": "independent",
+                 "variability": "continuous",
+                 "description": "simulation time: start time plus the accepted steps [s]",
+                 "unit": "s"}
+
 LOG_CATEGORIES = (
     ("logStatusWarning", "Log messages with status warning."),
     ("logStatusDiscard", "Log messages with status discard."),
@@ -273,10 +280,8 @@ def fmi3_model_description(slave, token, log=print):
             attrib["start"] = builder._number(spec["start"], spec["type"])
         ET.SubElement(variables, tag, attrib)
     # FMI 3.0 wants exactly one independent variable; its value reference follows the table's
-    ET.SubElement(variables, "Float64", name="time", valueReference=str(len(slave.VARIABLES)),
-                  causality="independent", variability="continuous",
-                  description="simulation time: start time plus the accepted steps [s]",
-                  unit="s")
+    ET.SubElement(variables, "Float64", dict(TIME_VARIABLE, name="time",
+                                             valueReference=str(len(slave.VARIABLES))))
     structure = ET.SubElement(root, "ModelStructure")
     exact = [vr for vr, s in enumerate(slave.VARIABLES) if s["causality"] == "parameter"]
     outputs = [(vr, s) for vr, s in enumerate(slave.VARIABLES) if s["causality"] == "output"]
@@ -564,8 +569,11 @@ def binaries_text(name, fmi_version, files, missing):
               "gives the bits of driftfmu's models/)." % " ".join(CFLAGS[1:4])]
     if missing:
         lines.append("Not built on this machine (no compiler for them): %s." % ", ".join(missing))
-    lines += ["For any other platform, compile sources/ (see sources/buildDescription.xml or the "
-              "model description's SourceFiles).", ""]
+    # (only the FMI 3.0 FMUs carry sources/buildDescription.xml; FMI 2.0 lists its sources in
+    # the model description)
+    lines += ["For any other platform, compile sources/ (see %s)." % (
+        "sources/buildDescription.xml" if fmi_version == 3
+        else "the SourceFiles of modelDescription.xml"), ""]
     return "\n".join(lines)
 
 

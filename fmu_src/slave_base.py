@@ -191,8 +191,9 @@ def var(name, causality, start=None, unit=None, description=None, type="Real",
         declared = parameters.declared_range(name)
         low = declared[0] if low is None else low
         high = declared[1] if high is None else high
-    if variability is None:
-        variability = "fixed" if causality == "parameter" else "continuous"
+    if variability is None:  # inputs are sampled: held between communication points (FMI's
+        # discrete), so that a host reading an input file holds them instead of interpolating
+        variability = {"parameter": "fixed", "input": "discrete"}.get(causality, "continuous")
     if type == "Integer" and unit == "1":
         unit = None
     return {"name": name, "type": type, "causality": causality, "variability": variability,

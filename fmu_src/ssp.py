@@ -8,9 +8,18 @@ SSD declares each FMU's outputs, its connected inputs and its bound parameters a
 connections of the master (``Excitation.x -> Accelerometer.x``, ``Accelerometer.z ->
 DriftEstimator.z``) and, when the DriftEstimator's ``B != 0``, the known input's
 ``Excitation.u -> DriftEstimator.u`` (eq. 1, :func:`connections`), the start values of the letter's Gaussian run as an inline parameter set
-on each component (SSV 1.0), and the default experiment (``stopTime = (n - 1) Ts``).  SSP has no
-standard element for the communication step: use ``Ts`` (the ``description`` of the system
-says so).
+on each component (SSV 1.0; every set has the system's name, so ecos, which applies one named
+set per run, applies all of them with ``init(0, "DriftChain")``), and the default experiment
+(``stopTime = (n - 1) Ts``).  SSP has no standard element for the communication step: use ``Ts``
+(the ``description`` of the system says so).  OpenModelica's vendor annotation
+(:func:`_oms_annotation`) gives it to OMSimulator, whose importer needs it to make the system at
+all.
+
+OMSimulator's fixed-step master (``oms-ma``) steps every FMU, then copies the outputs along the
+connections in their order (Gauss-Seidel at the communication point, as our master) and records
+each point before and after that copy: its second row of each point is our master's row, bit for
+bit (tests/test_ssp.py).  Its command line takes the stop time from ``--stopTime`` (default
+1 s), not from the default experiment.
 
 Stepping in an SSP master.  fmpy's ``fmpy.ssp.simulation.simulate_ssp`` (like libcosim's and
 Ecos' fixed-step algorithms) is a Jacobi master: every FMU is stepped with the inputs copied at
@@ -52,7 +61,18 @@ NS = {
     "ssd": "http://ssp-standard.org/SSP1/SystemStructureDescription",
     "ssc": "http://ssp-standard.org/SSP1/SystemStructureCommon",
     "ssv": "http://ssp-standard.org/SSP1/SystemStructureParameterValues",
+    # OpenModelica's vendor annotation (OMSimulator's importer reads the prefixed names)
+    "oms": "https://raw.githubusercontent.com/OpenModelica/OMSimulator/master/schema/oms.xsd",
 }
+#: The ``type`` of OpenModelica's vendor annotation (``ssc:Annotation``).
+OMS_ANNOTATION = "org.openmodelica"
+#: OMSimulator's relative tolerance in the annotation (its default; our FMUs are discrete-time
+#: and do not use it).
+OMS_TOLERANCE = 1e-4
+#: The result file OMSimulator writes (its own default name; MAT keeps every double whole).
+OMS_RESULT_FILE = "DriftChain_res.mat"
+#: Rows OMSimulator buffers before it writes them (its own default).
+OMS_BUFFER_SIZE = 10
 SYSTEM = "DriftChain"
 FMU_NAMES = ("Excitation", "Accelerometer", "DriftEstimator")
 CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
@@ -108,8 +128,10 @@ def system_structure(fmus, start_values, n, Ts):
         if starts:
             binding = ET.SubElement(ET.SubElement(comp, _q("ssd", "ParameterBindings")),
                                     _q("ssd", "ParameterBinding"))
+            # every component's set has the system's name: a host that applies one named
+            # parameter set (ecos: the sets of one name over all components) applies them all
             pset = ET.SubElement(ET.SubElement(binding, _q("ssd", "ParameterValues")),
-                                 _q("ssv", "ParameterSet"), {"version": "1.0", "name": name})
+                                 _q("ssv", "ParameterSet"), {"version": "1.0", "name": SYSTEM})
             params = ET.SubElement(pset, _q("ssv", "Parameters"))
             for var, value in starts.items():
                 p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": var})
@@ -119,9 +141,32 @@ def system_structure(fmus, start_values, n, Ts):
     for s, o, d, i in wiring:
         ET.SubElement(conns, _q("ssd", "Connection"), {
             "startElement": s, "startConnector": o, "endElement": d, "endConnector": i})
-    ET.SubElement(root, _q("ssd", "DefaultExperiment"),
-                  {"startTime": "0.0", "stopTime": repr((n - 1) * Ts)})
+    _oms_annotation(system, {"FixedStepMaster": {
+        "description": "oms-ma", "stepSize": repr(Ts), "relativeTolerance": repr(OMS_TOLERANCE)}})
+    experiment = ET.SubElement(root, _q("ssd", "DefaultExperiment"),
+                               {"startTime": "0.0", "stopTime": repr((n - 1) * Ts)})
+    # (all three, as OMSimulator exports them: a bufferSize it reads as 0 corrupts its heap)
+    _oms_annotation(experiment, {}, {"resultFile": OMS_RESULT_FILE, "loggingInterval": "0.0",
+                                     "bufferSize": str(OMS_BUFFER_SIZE)})
     return ET.ElementTree(root)
+
+
+def _oms_annotation(parent, children, attributes=None):
+    """OpenModelica's vendor annotation under ``parent`` (SSP 1.0 allows vendor annotations):
+    ``ssd:Annotations/ssc:Annotation[@type=org.openmodelica]/oms:Annotations/
+    oms:SimulationInformation`` with ``attributes`` and the elements ``children`` (name ->
+    attributes).  OMSimulator's importer needs it on the system, where ``oms:FixedStepMaster``
+    makes the system a weakly coupled one stepped at ``stepSize`` by its fixed-step master
+    ``oms-ma`` (without it the import aborts: ``[NewSystem] internal error``); on the default
+    experiment it names the result file (without it OMSimulator warns of "deprecated content").
+    Other hosts ignore it."""
+    annotation = ET.SubElement(ET.SubElement(parent, _q("ssd", "Annotations")),
+                               _q("ssc", "Annotation"), {"type": OMS_ANNOTATION})
+    info = ET.SubElement(ET.SubElement(annotation, _q("oms", "Annotations")),
+                         _q("oms", "SimulationInformation"), attributes or {})
+    for name, attrs in children.items():
+        ET.SubElement(info, _q("oms", name), attrs)
+    return annotation
 
 
 def build_ssp(fmus, out="build/DriftChain.ssp", start_values=None, n=2000, Ts=1e-3):

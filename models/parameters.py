@@ -47,7 +47,8 @@ PARAMETERS = {p.name: p for p in (
        "y = Xy sin(2 pi f t + phiy)"),
     _p("phiy", 0.0, unit="rad", description="phase of the second-axis acceleration"),
     _p("a3", 0.0, unit="V/g3", description="third-order coefficient a3 of the sensor "
-       "h(x) = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 (0: off; no drift of its own)"),
+       "h(x) = a0 + a1 x + a2 x^2 + a3 x^3 + a4 x^4 (0: off); its drift a3 E[x^3] is 0 for a "
+       "zero-mean symmetric state"),
     _p("cross", 0.0, -1.0, 1.0, description="cross-axis coupling: each axis senses its own "
        "acceleration plus cross times the other's (0: off)"),
     _p("fc", 0.0, 0.0, unit="Hz", description="output low-pass bandwidth f-3dB = 5 uF / C "

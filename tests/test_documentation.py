@@ -1,6 +1,7 @@
 """The documentation: the FMU reference page and each FMU's documentation/index.html are what the
 VARIABLES tables say; every public API function has a docstring and is in the API reference."""
 import html
+import html.parser
 import inspect
 import re
 import zipfile
@@ -30,49 +31,182 @@ def test_reference_has_every_variable_of_every_fmu():
             assert "| `%s` |" % spec["name"] in text, (name, spec["name"])
 
 
-def _fmus(python_fmus, native_fmus):
+def _fmus(python_fmus, native_fmus_all):
+    """(name, kind, FMI version, path) of every FMU as the build ships it: the Python FMUs, the
+    native FMI 2.0 and 3.0 FMUs and the FMI 2.0 FMUs for ARM (when zig built them)."""
+    from driftfmu.fmu_src import native_build
     for name, path in python_fmus.items():
         yield name, "python", 2, path
-    for v, paths in native_fmus.items():
+    for v, paths in native_fmus_all.items():
         for name, path in paths.items():
             yield name, "native", v, path
+    arm = next(iter(native_fmus_all[2].values())).parent.parent / native_build.FMI2_ARM
+    for path in sorted(arm.glob("*.fmu")):
+        yield path.stem, "native", 2, path
+
+
+class _Page(html.parser.HTMLParser):
+    """What a test reads of a page: its text, every link (href/src), every id, and the rows of
+    its tables (cells' text, and the link of each cell)."""
+
+    def __init__(self, text):
+        super().__init__()
+        self.links, self.ids, self.rows, self.text = [], set(), [], []
+        self._row = self._cell = None
+        self.feed(text)
+
+    def handle_starttag(self, tag, attrs):
+        attrs = dict(attrs)
+        if "id" in attrs:
+            self.ids.add(attrs["id"])
+        for key in ("href", "src"):
+            if key in attrs:
+                self.links.append(attrs[key])
+                if self._cell is not None:
+                    self._cell["link"] = attrs[key]
+        if tag == "tr":
+            self._row = []
+        elif tag in ("td", "th") and self._row is not None:
+            self._cell = {"text": "", "link": None}
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._row.append(self._cell)
+            self._cell = None
+        elif tag == "tr" and self._row is not None:
+            self.rows.append(self._row)
+            self._row = None
+
+    def handle_data(self, data):
+        self.text.append(data)
+        if self._cell is not None:
+            self._cell["text"] += data
+
+
+#: Absolute URLs a page may link to (none: the page stands alone inside the FMU).
+ALLOWED_URLS = ()
+#: A file path in running text: a folder, a name and an extension (sources/config.h), or a
+#: Markdown page.
+PATH = re.compile(r"(?<![\w/.-])((?:[\w.-]+/)+[\w.-]*\.[A-Za-z]{1,4}|[\w.-]+\.md)(?![\w/])")
+
+
+def _in_archive(target, names):
+    """The archive file a link of documentation/index.html (or a path named in its text)
+    means, if the archive has it."""
+    import posixpath
+    for base in ("documentation", ""):
+        path = posixpath.normpath(posixpath.join(base, target))
+        if path in names:
+            return path
+    return None
+
+
+def check_page(page, names, md, name):
+    """Every check of one FMU's documentation/index.html against its archive (``names``) and
+    its model description ``md``; returns the number of variables checked."""
+    doc = _Page(page)
+    text = "".join(doc.text)
+    # the general sensor: the 4th-order characteristic and the known input
+    for term in ("a3 x^3", "a4 x^4", "B u_k", "a2 E[x^2] + a3 E[x^3] + a4 E[x^4]"):
+        assert term in text, (name, term)
+    # no dead link: an anchor of the page, a file of the archive, or an allowed URL
+    for link in doc.links:
+        if link.startswith("#"):
+            assert link[1:] in doc.ids, (name, link)
+        elif re.match(r"^[a-z][a-z0-9+.-]*:", link):
+            assert link in ALLOWED_URLS, (name, link)
+        else:
+            assert _in_archive(link, names), (name, link)
+    # no file the FMU does not carry is named
+    for path in PATH.findall(text):
+        assert _in_archive(path, names), (name, path)
+    # every variable of the model description, with its value reference, causality,
+    # variability and unit, the unit as its UnitDefinitions entry defines it
+    rows = {r[1]["text"]: r for r in doc.rows if len(r) == 10 and r[0]["text"].isdigit()}
+    units = {r[0]["text"]: r for r in doc.rows if len(r) == 3}
+    definitions = {u.name: u for u in md.unitDefinitions}
+    for v in md.modelVariables:
+        row = rows.pop(v.name)
+        assert (int(row[0]["text"]), row[2]["text"], row[3]["text"], row[4]["text"]) == \
+            (v.valueReference, v.causality, v.variability, v.type), (name, v.name)
+        if not v.unit:
+            assert row[5]["text"] == "" and row[5]["link"] is None, (name, v.name)
+            continue
+        assert row[5]["link"] == "#" + documentation._anchor(v.unit), (name, v.name)
+        assert row[5]["text"] == documentation.unit_text(v.unit), (name, v.name)
+        declared, reads, definition = (c["text"] for c in units[v.unit])
+        assert (declared, reads) == (v.unit, documentation.unit_text(v.unit))
+        base = definitions[v.unit].baseUnit
+        if base is None:
+            assert definition.startswith("no base-unit form"), (name, v.unit)
+            continue
+        exponents = {b: getattr(base, b) for b in ("kg", "m", "s", "A", "K", "mol", "cd",
+                                                   "rad") if getattr(base, b)}
+        assert definition == documentation.unit_definition_text(
+            v.unit, reads, base.factor, exponents), (name, v.unit, definition)
+    assert rows == {}, (name, "rows the model description does not have", sorted(rows))
+    # each input says for which settings it matters
+    inputs = {r[0]["text"] for r in doc.rows if len(r) == 2 and r[0]["text"] != "input"}
+    assert inputs == {v.name for v in md.modelVariables if v.causality == "input"}, name
+    return len(md.modelVariables)
 
 
 @pytest.mark.qualification
 @pytest.mark.integration
-def test_every_fmu_carries_its_generated_documentation(python_fmus, native_fmus_all):
-    native_fmus = native_fmus_all  # as the build ships them: every platform's binaries
-    from fmpy import read_model_description
-    from fmpy.validation import validate_fmu
-    seen = 0
-    for name, kind, v, path in _fmus(python_fmus, native_fmus):
+def test_every_fmu_documents_itself_whole(python_fmus, native_fmus_all, report):
+    """Every FMU's documentation/index.html (Python, native FMI 2.0 and 3.0, FMI 2.0 for ARM)
+    is the generated one and agrees with its model description: every variable with its value
+    reference, causality, variability and unit, each unit as the UnitDefinitions define it;
+    the general sensor's a3, a4 and B u; links that resolve inside the archive and no file the
+    FMU does not carry; binaries.txt names only files that are there."""
+    from driftfmu.fmu_src.schemas import read_model_description, validate_fmu
+    seen = variables = 0
+    kinds = set()
+    for name, kind, v, path in _fmus(python_fmus, native_fmus_all):
         with zipfile.ZipFile(path) as archive:
-            names = archive.namelist()
+            names = set(archive.namelist())
             page = archive.read("documentation/index.html").decode("utf-8")
-            assert page == documentation.index_html(name, kind, v,
-                                                    documentation.platforms_of(names)), path
+            binaries = (archive.read("documentation/binaries.txt").decode("utf-8")
+                        if "documentation/binaries.txt" in names else None)
             if v == 3:
                 assert archive.read("documentation/licenses/LICENSE.txt") == \
                     (ROOT / "LICENSE").read_bytes()
-        # the page's table agrees with the FMU's model description, row by row
-        md = {var.name: var for var in read_model_description(str(path)).modelVariables}
-        rows = re.findall(r"<tr><td>(\d+)</td><td>([^<]*)</td><td>([^<]*)</td>", page)
-        assert len(rows) == len(documentation.slave_class(name).VARIABLES)
-        for vr, var, causality in rows:
-            var = html.unescape(var)
-            assert md[var].valueReference == int(vr), (path, var)
-            assert md[var].causality == causality, (path, var)
+        assert page == documentation.index_html(name, kind, v, names), path
+        variables += check_page(page, names, read_model_description(path), "%s (%s)" % (
+            name, path))
+        if kind == "native":
+            assert binaries is not None, path
+            named = PATH.findall(binaries)
+            assert named and all(_in_archive(p, names) for p in named), (path, named)
         assert validate_fmu(str(path)) == [], path
+        kinds.add((kind, v, path.parent.name))
         seen += 1
-    assert seen == len(python_fmus) + sum(len(p) for p in native_fmus.values())
+    assert seen == len(python_fmus) + sum(len(p) for p in native_fmus_all.values()) + \
+        (len(python_fmus) if any(k[2] == "fmi2-aarch64" for k in kinds) else 0)
+    report("FMU documentation: %d FMUs (%s), %d variables checked against their model "
+           "descriptions, every link resolved" % (seen, ", ".join(sorted(
+               "%s FMI %d.0 %s" % k for k in kinds)), variables))
 
 
-def test_index_html_states_equations_variables_and_the_letter():
-    page = documentation.index_html("DriftEstimator", "python", 2, ["linux64"])
+def test_index_html_states_the_general_model_the_host_rules_and_the_letter():
+    page = documentation.index_html("DriftEstimator", "python", 2, ["binaries/linux64/x.so"])
     for text in ("K = P- H / (H^2 P- + R)", "<td>dc_ekf1</td>", "Sensor Letters 4(4)",
-                 "Tested here: linux64 only", "binaries: linux64"):
+                 "D. Karatzas", "Tested here: linux64 only", "binaries: linux64",
+                 "x- = A x+_{k-1} + B u_k", "3 a3 x-^2 + 4 a4 x-^3", "E[x^3] = 0",
+                 "a quarter period after", "whatever loggingOn says",
+                 "only when B != 0 and process = 1", '<a href="#unit-V/g2">V/g²</a>',
+                 "1 V/g² = 0.010398211550100477 kg·s·A⁻¹"):
         assert text in page, text
+    assert "docs/" not in page and "V/g2</td>" not in page.replace("<code>V/g2</code>", "")
     assert "licenses/LICENSE.txt" in documentation.index_html("Excitation", "native", 3)
+    assert 'href="binaries.txt"' not in page   # (only a native FMU carries it)
+
+
+def test_every_input_of_every_fmu_says_when_it_matters():
+    for name in documentation.NAMES:
+        for spec in documentation.slave_class(name).VARIABLES:
+            if spec["causality"] == "input":
+                assert documentation.INPUT_USE.get((name, spec["name"])), (name, spec["name"])
 
 
 API = [n for n in driftfmu.__all__ if n != "__version__"]

@@ -5,6 +5,7 @@ fmu_src/ssp.py); its rows are compared to 1e-12 with :func:`driftfmu.fmu_src.ssp
 the signal no connection feeds (the excitation) with our master's rows shifted by one.
 """
 import shutil
+import subprocess
 import time
 import zipfile
 from pathlib import Path
@@ -191,3 +192,103 @@ def test_libcosim_runs_the_archive_with_the_input(general_archive, tmp_path, rep
     report("SSP libcosim with B = 0.8 (Excitation.u -> DriftEstimator.u): %d steps, max |diff| "
            "vs the Jacobi reference = %.3g" % (N, max(diffs.values())))
     assert max(diffs.values()) == 0.0, diffs
+
+
+# -- OpenModelica's OMSimulator and ecos ------------------------------------------------------
+def _oms(node, tag):
+    return node.find("%s" % "/".join("{%s}%s" % (ssp.NS[p], t) for p, t in
+                                      (part.split(":") for part in tag.split("/"))))
+
+
+def test_archive_carries_openmodelicas_annotation_and_one_parameter_set_name(general_archive):
+    """What OMSimulator's importer needs (its vendor annotation on the system: a weakly coupled
+    system stepped at Ts by its fixed-step master; on the default experiment its result file
+    with a buffer size it can use) and what ecos needs (the components' start values in one
+    named parameter set), in a schema-valid archive."""
+    import xml.etree.ElementTree as ET
+    from fmpy.ssp.ssd import read_ssd
+    read_ssd(str(general_archive))                      # validates against the SSP 1.0 schema
+    with zipfile.ZipFile(general_archive) as z:
+        root = ET.fromstring(z.read("SystemStructure.ssd"))
+    for parent, info in ((_oms(root, "ssd:System"), {}),
+                         (_oms(root, "ssd:DefaultExperiment"),
+                          {"resultFile": "DriftChain_res.mat", "loggingInterval": "0.0",
+                           "bufferSize": "10"})):
+        annotation = _oms(parent, "ssd:Annotations/ssc:Annotation")
+        assert annotation.get("type") == "org.openmodelica"
+        simulation = _oms(annotation, "oms:Annotations/oms:SimulationInformation")
+        assert simulation.attrib == info
+    master = _oms(root, "ssd:System/ssd:Annotations/ssc:Annotation/oms:Annotations/"
+                        "oms:SimulationInformation/oms:FixedStepMaster")
+    assert master.attrib == {"description": "oms-ma", "stepSize": "0.001",
+                             "relativeTolerance": "0.0001"}
+    sets = root.iter("{%s}ParameterSet" % ssp.NS["ssv"])
+    assert [s.get("name") for s in sets] == [ssp.SYSTEM] * 3
+
+
+def _ssp_archives(built_fmus, native_fmus, tmp_path):
+    fmus = {"python": built_fmus, "native FMI 2.0": native_fmus[2]}
+    return {kind: ssp.build_ssp({n: f[n] for n in ssp.FMU_NAMES}, tmp_path / kind.split()[0] /
+                                "DriftChain.ssp", n=N, start_values=ssp.chain_start_values(
+                                    **GENERAL)) for kind, f in fmus.items()}
+
+
+def test_omsimulator_command_line_runs_the_archive_with_our_masters_numbers(
+        built_fmus, native_fmus, tmp_path, report):
+    """``OMSimulator --stopTime=... DriftChain.ssp`` (OpenModelica's importer, as its editor uses
+    it) loads both archives as they are, applies every component's start values and gives our
+    master's rows bit for bit: its fixed-step master copies the outputs along the connections
+    in their order after every step (our Gauss-Seidel timing) and records each point after
+    that."""
+    try:
+        exe = drivers.omsimulator()
+    except drivers.ImporterMissing as exc:
+        pytest.skip(str(exc))
+    version = subprocess.run([exe, "--version"], capture_output=True, text=True).stdout.strip()
+    master = run_gaussian(n=N, fmu_dir=built_fmus["Excitation"].parent, plot=False,
+                          **GENERAL)["columns"]
+    columns = {"Excitation.x": "x", "Accelerometer.z": "z"}
+    columns.update({"DriftEstimator.%s" % c: c for c in ("x_hat", "P", "dc_ekf1", "dc_ekf2",
+                                                         "dc_ekf3", "z_comp")})
+    for kind, archive in _ssp_archives(built_fmus, native_fmus, tmp_path).items():
+        proc, cols = drivers.run_omsimulator_ssp(archive, archive.parent / "run",
+                                                 (N - 1) * 1e-3, ssp.OMS_RESULT_FILE)
+        lines = (proc.stdout + proc.stderr).splitlines()
+        assert proc.returncode == 0 and cols is not None, (kind, proc.returncode, lines[-20:])
+        complaints = [line for line in lines if line.startswith(("error", "warning"))
+                      and "could not load the ssd schema file" not in line]  # (an install quirk)
+        assert complaints == [], (kind, complaints)
+        assert len(cols["time"]) == N, (kind, len(cols["time"]))
+        for col, name in columns.items():
+            assert list(cols[col]) == list(master[name]), (kind, col)
+        report("SSP OMSimulator command line (%s): the %s archive, rc 0, %d points, %d outputs "
+               "equal to our master bit for bit" % (version, kind, N, len(columns)))
+
+
+def test_ecos_applies_every_components_start_values(built_fmus, native_fmus, tmp_path, report):
+    """ecos applies one named parameter set per run; the archive gives every component's set
+    the system's name, so one ``init(0, "DriftChain")`` applies them all: the excitation is the
+    run's (A, Q, seed), the sensor's z is the run's (a2, R, a3, a4, seed) and the estimator
+    selects EKF2 (``estimator = 2``)."""
+    try:
+        drivers.ecos()
+    except drivers.ImporterMissing as exc:
+        pytest.skip(str(exc))
+    params = dict(GENERAL, estimator=2)
+    master = run_gaussian(n=N + 1, fmu_dir=built_fmus["Excitation"].parent, plot=False,
+                          **params)["columns"]
+    record = {"Excitation": ["x"], "Accelerometer": ["z"], "DriftEstimator": ["dc", "dc_ekf2"]}
+    for kind, archive in {k: ssp.build_ssp({n: f[n] for n in ssp.FMU_NAMES},
+                                           tmp_path / (k + ".ssp"), n=N,
+                                           start_values=ssp.chain_start_values(**params))
+                          for k, f in (("python", built_fmus),
+                                       ("native", native_fmus[2]))}.items():
+        cols, ok = drivers.run_ecos_ssp(archive, N, 1e-3, ssp.SYSTEM, record)
+        assert ok, "ecos refused the parameter set %r of the %s archive" % (ssp.SYSTEM, kind)
+        # ecos reads an output after the connections set the inputs: x and z are our master's
+        # next row (the memory-less sensor follows its input at once)
+        assert cols["Excitation.x"] == list(master["x"][1:]), kind
+        assert cols["Accelerometer.z"] == list(master["z"][1:]), kind
+        assert cols["DriftEstimator.dc"] == cols["DriftEstimator.dc_ekf2"], kind
+        report("SSP ecos (ecospy): the %s archive, one parameter set %r applied to all three "
+               "components, %d steps" % (kind, ssp.SYSTEM, N))

@@ -1,4 +1,5 @@
-"""Drive the FMUs from independent FMI importers: JavaFMI (JVM) and libcosim (C++, via libcosimpy).
+"""Drive the FMUs from independent FMI importers: JavaFMI (JVM), libcosim (C++, via libcosimpy),
+and the SSP hosts OMSimulator (OpenModelica's command line) and ecos (C++, via ecospy).
 
 Both are installed from the package registries: JavaFMI from Maven Central by the Maven project
 in ``javafmi/`` (``org.siani.javafmi:fmu-wrapper``), libcosim from PyPI (``libcosimpy``, which
@@ -205,3 +206,108 @@ def run_libcosim_ssp(ssp, workdir, steps, step, record):
 def _real_type():
     from libcosimpy.CosimEnums import CosimVariableType
     return CosimVariableType.REAL
+
+
+# -- OMSimulator (OpenModelica's co-simulation engine, its command line) ----------------------
+#: The environment variable that names the OMSimulator executable (else it is looked up on PATH).
+OMSIMULATOR_ENV = "DRIFTFMU_OMSIMULATOR"
+
+
+def omsimulator():
+    """The OMSimulator executable: ``$DRIFTFMU_OMSIMULATOR``, else ``OMSimulator`` on PATH;
+    raises ImporterMissing saying where to get it."""
+    path = os.environ.get(OMSIMULATOR_ENV) or shutil.which("OMSimulator")
+    if not path or not os.access(path, os.X_OK):
+        raise ImporterMissing(
+            "OMSimulator not found (%s): put OMSimulator's bin/ on PATH or set %s to the "
+            "OMSimulator executable; get it with OpenModelica's installers or build it from "
+            "its repository (docs/development.md)" % (
+                "%s=%s is not an executable" % (OMSIMULATOR_ENV, path) if path else
+                "not on PATH and %s not set" % OMSIMULATOR_ENV, OMSIMULATOR_ENV))
+    return path
+
+
+def run_omsimulator_ssp(ssp, workdir, stop_time, result_file):
+    """``OMSimulator --stopTime=<stop_time> <ssp>`` in ``workdir`` (the result file the archive
+    names, ``result_file``, and OMSimulator's temporary folders go there); return ``(proc,
+    columns)``: the finished process and the result's ``{"time", "<Component>.<var>": numpy
+    array}`` with one row per communication point (OMSimulator records every point twice,
+    before and after it copies the outputs along the connections: the second, our master's
+    timing, is kept), None when there is no result file."""
+    import numpy as np
+    exe = omsimulator()
+    workdir = Path(workdir)
+    workdir.mkdir(parents=True, exist_ok=True)
+    result = workdir / result_file
+    proc = subprocess.run([exe, "--stopTime=%r" % stop_time, str(Path(ssp).resolve())],
+                          cwd=workdir, capture_output=True, text=True, timeout=600)
+    if proc.returncode or not result.is_file():
+        return proc, None
+    raw = read_oms_mat(result)
+    time = raw["time"]
+    last = {}
+    for i, t in enumerate(time):
+        last[t] = i                  # the last row of each time point
+    rows = np.array(sorted(last.values()))
+    cols = {"time": time[rows]}
+    for name, values in raw.items():
+        parts = name.split(".")      # <model>.<system>.<Component>.<var>
+        if len(parts) == 4:
+            cols["%s.%s" % (parts[2], parts[3])] = values[rows]
+    return proc, cols
+
+
+def read_oms_mat(path):
+    """The signals of an OpenModelica result file (MAT v4, ``Aclass`` ``binTrans``): name ->
+    numpy array over the rows of ``data_2`` (parameters, from ``data_1``, repeated)."""
+    import numpy as np
+    import scipy.io
+    m = scipy.io.loadmat(str(path))
+    chars = [str(row) for row in m["name"]]          # transposed: one name per column
+    width = max(len(row) for row in chars)
+    chars = [row.ljust(width) for row in chars]
+    names = ["".join(row[j] for row in chars).strip().strip("\x00") for j in range(width)]
+    info = m["dataInfo"]
+    rows = m["data_2"].shape[1]
+    out = {}
+    for j, name in enumerate(names):
+        table, column = int(info[0, j]), int(info[1, j])
+        data = m["data_1"] if table == 1 else m["data_2"]
+        values = np.sign(column) * data[abs(column) - 1, :] if column else data[0, :]
+        out[name] = values if table != 1 else np.full(rows, values[0])
+    return out
+
+
+# -- ecos (ecospy) ----------------------------------------------------------------------------
+def ecos():
+    """ecospy's EcosSimulation; raises ImporterMissing when it cannot be imported."""
+    try:
+        from ecospy import EcosSimulation
+    except ImportError as exc:  # (OSError: its library needs libtbb.so.12)
+        raise ImporterMissing("ecospy is not installed (pip install ecospy): %s" % exc)
+    except OSError as exc:
+        raise ImporterMissing("ecospy's library does not load (Debian: apt-get install "
+                              "libtbb12): %s" % exc)
+    return EcosSimulation
+
+
+def run_ecos_ssp(ssp, steps, step, parameter_set, record):
+    """Load an SSP archive with ecos' own SSP parser, initialise it with the named
+    ``parameter_set`` (ecos applies one), step it ``steps`` times and read ``record``
+    (component -> variables) after each step; return ``{"<Component>.<var>": [...]}`` and
+    whether ``init`` succeeded."""
+    EcosSimulation = ecos()
+    sim = EcosSimulation(ssp_path=str(ssp), step_size=step)
+    cols = {"%s.%s" % (c, v): [] for c, names in record.items() for v in names}
+    try:
+        if not sim.init(0.0, parameter_set):
+            return cols, False
+        for _ in range(steps):
+            sim.step()
+            for c, names in record.items():
+                for v in names:
+                    cols["%s.%s" % (c, v)].append(sim.get_real("%s::%s" % (c, v)))
+        sim.terminate()
+    finally:
+        sim.free()
+    return cols, True
