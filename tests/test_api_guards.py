@@ -65,8 +65,10 @@ def huge(tmp_path_factory):
         fh.truncate(50 * 10 ** 9)
     script = (
         "import json, resource, sys\n"
-        "resource.setrlimit(resource.RLIMIT_AS, (3 * 10**9, resource.RLIM_INFINITY))\n"
-        "resource.setrlimit(resource.RLIMIT_CPU, (120, resource.RLIM_INFINITY))\n"
+        "for limit, value in ((resource.RLIMIT_AS, 3 * 10**9), (resource.RLIMIT_CPU, 120)):\n"
+        "    hard = resource.getrlimit(limit)[1]\n"
+        "    resource.setrlimit(limit, (value if hard == resource.RLIM_INFINITY\n"
+        "                               else min(value, hard), hard))\n"
         "import driftfmu\n"
         "out = {}\n"
         "for name, call in json.loads(sys.argv[1]).items():\n"
