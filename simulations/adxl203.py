@@ -668,7 +668,9 @@ def _cmd_experiment(args):
     total = len(args.freqs) * args.sets
     held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
     check_settings(args.freqs, args.sets, held_out, args.n, args.Ts, args.order)
-    budget.check_adxl203(args.freqs, args.sets, args.n, args.workers, args.out, args.backend)
+    # refused when it cannot fit; not announced (its progress lines say how it goes)
+    budget.check_adxl203(args.freqs, args.sets, args.n, args.workers, args.out, args.backend,
+                         announce=False)
     with cli.progress(total, "sets", "set") as update:
         s = driftfmu.experiment_adxl203(
                         out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
@@ -705,7 +707,7 @@ def _cmd_identify(args):
     """``driftfmu identify``: :func:`driftfmu.identify`."""
     import driftfmu
     from driftfmu.simulations import budget
-    budget.check_identify(args.files, args.out)
+    budget.check_identify(args.files, args.out, announce=False)
     s = driftfmu.identify(args.files, args.f, held_out=args.held_out, out=args.out,
                           order=args.order)
     m = s["model"]

@@ -453,7 +453,7 @@ def _cmd(args):
                                               "a2", "bx", "R", "a2y", "by", "Ry")}
     check_settings(dict(DEFAULTS, **settings), args.points, runs, args.engine)
     budget.check_dual_axis(args.points, runs, args.n, args.engine, args.workers, args.out,
-                           args.backend)
+                           args.backend, announce=False)
     with cli.progress(total, "runs", "run", monitor=False) as update:
         s = driftfmu.experiment_dual_axis(
                           out=args.out, points=args.points, runs=runs, engine=args.engine,
