@@ -442,10 +442,10 @@ def _cli_line(argv, capsys):
     return lines[0]
 
 
-@pytest.mark.parametrize("argv, name, kwargs", SAME, ids=[" ".join(c[0]) for c in SAME])
-def test_the_command_line_and_the_api_refuse_a_setting_with_the_same_line(
-        argv, name, kwargs, tmp_path, capsys):
-    rec = str(_recording(tmp_path / "rec.csv"))
+def _both(argv, name, kwargs, tmp_path, capsys):
+    """The command line's error line and the API's ValueError for one bad setting; ``{rec}``
+    stands for a recording.  Neither may have made its out or FMU folder."""
+    rec = str(_recording(tmp_path / "rec.csv"))  # 2000 rows, about 110 kB
     fill = lambda v: [fill(x) for x in v] if isinstance(v, list) else (  # noqa: E731
         rec if v == "{rec}" else v)
     out, fmus = tmp_path / "out", tmp_path / "fmus"
@@ -456,9 +456,15 @@ def test_the_command_line_and_the_api_refuse_a_setting_with_the_same_line(
         kwargs["fmu_dir"] = fmus
     with pytest.raises(ValueError) as info:
         getattr(driftfmu, name)(out=out, **kwargs)
-    message = re.sub(r"^driftfmu: error: (argument --[\w-]+: )?", "", line)
-    assert message == str(info.value)
     assert not out.exists() and not fmus.exists()
+    return line, info.value
+
+
+@pytest.mark.parametrize("argv, name, kwargs", SAME, ids=[" ".join(c[0]) for c in SAME])
+def test_the_command_line_and_the_api_refuse_a_setting_with_the_same_line(
+        argv, name, kwargs, tmp_path, capsys):
+    line, error = _both(argv, name, kwargs, tmp_path, capsys)
+    assert re.sub(r"^driftfmu: error: (argument --[\w-]+: )?", "", line) == str(error)
 
 
 def _as_keywords(text):
@@ -495,17 +501,8 @@ def test_the_command_line_and_the_api_refuse_a_size_with_the_same_estimate(
         argv, name, kwargs, tmp_path, capsys, monkeypatch):
     """Each is refused by both, with the same figures and the same advice."""
     _small_machine(monkeypatch)
-    rec = str(_recording(tmp_path / "rec.csv"))  # 2000 rows, about 110 kB: 1.3 MB to read
-    fill = lambda v: rec if v == "{rec}" else v  # noqa: E731
-    out, fmus = tmp_path / "out", tmp_path / "fmus"
-    line = _cli_line([fill(a) for a in argv] + ["--out", str(out)]
-                     + ([] if argv[0] == "identify" else ["--fmu-dir", str(fmus)]), capsys)
-    kwargs = {k: fill(v) for k, v in kwargs.items()}
-    if name != "identify":
-        kwargs["fmu_dir"] = fmus
-    with pytest.raises(UsageError) as info:
-        getattr(driftfmu, name)(out=out, **kwargs)
+    line, error = _both(argv, name, kwargs, tmp_path, capsys)
+    assert isinstance(error, UsageError)
     cli_tail = line.split(" needs about ", 1)[1]
-    api_tail = str(info.value).split(" needs about ", 1)[1]
+    api_tail = str(error).split(" needs about ", 1)[1]
     assert _as_keywords(cli_tail) == api_tail and "--" not in api_tail
-    assert not out.exists() and not fmus.exists()
