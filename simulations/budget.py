@@ -261,9 +261,16 @@ def check_simulate(n_steps, columns, fmus, stop_time, step_size, backend="python
 #: Bytes of memory per sample of one set of ``experiment adxl203`` in a worker (the recorded
 #: columns, the reference and the comparison; measured ~250).
 ADXL203_MEMORY = 300
-#: Seconds per sample of one set of ``experiment adxl203`` (the Python FMUs; measured ~2e-5
-#: for a set that is fitted, ~5e-5 for one held out and validated).
-ADXL203_SECONDS = 3e-5
+#: Memory of one worker of ``experiment adxl203`` (its Python, NumPy, the FMUs loaded), bytes.
+ADXL203_WORKER_MEMORY = 150e6
+#: Seconds of one worker per co-simulation step of a set of ``experiment adxl203``,
+#: identification and validation included, by backend (measured about 40 us and 1.5 us on a
+#: shared 2-core machine, rounded up), and the command's own seconds (start-up, figures,
+#: files).
+ADXL203_SECONDS = {"python": 5e-5, "native": 2e-6}
+ADXL203_COMMAND_SECONDS = 5.0
+#: Bytes ``experiment adxl203`` writes (tables, summary, figures).
+ADXL203_DISK = 2e6
 
 
 def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, announce=True):
@@ -279,8 +286,10 @@ def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, ann
     what = ("experiment_adxl203(sets=%d, n=%d) at %d frequencies" % (sets, n, len(freqs))
             if api else "experiment adxl203 --sets %d --n %d at %d frequencies"
             % (sets, n, len(freqs)))
-    return check(what, ADXL203_MEMORY * at_once * n, 0,
-                 ADXL203_SECONDS * total * n / at_once / (5 if backend == "native" else 1),
+    return check(what, (ADXL203_WORKER_MEMORY + ADXL203_MEMORY * n) * at_once,
+                 ADXL203_DISK if out else 0,
+                 ADXL203_SECONDS.get(backend, ADXL203_SECONDS["python"]) * total * n / at_once
+                 + ADXL203_COMMAND_SECONDS,
                  out, "a smaller %s or fewer %s" % (_name("n", api), _name("workers", api)),
                  fit, announce=announce)
 
@@ -288,14 +297,15 @@ def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, ann
 #: Bytes of memory per run and sweep point of ``experiment dual-axis``'s batch engine (the
 #: finals of every run gathered; measured ~400).
 DUAL_BATCH_MEMORY = 500
-#: Seconds per run and sample of ``experiment dual-axis``'s batch engine on one core
-#: (measured ~4e-7).
-DUAL_BATCH_SECONDS = 5e-7
 #: Bytes of memory per sample of each run of ``experiment dual-axis``'s FMU engine (every
 #: run's recorded columns are kept for the check against models/; measured ~900).
 DUAL_FMU_MEMORY = 1000
-#: Seconds per sample of each run of the FMU engine (the Python FMUs; measured ~3.5e-4).
-DUAL_FMU_SECONDS = 4e-4
+#: Seconds per run and sample of ``experiment dual-axis`` on one core: the FMU engine by
+#: backend (five FMU instances and the check against models/), the batch engine (the compiled
+#: kernel; NumPy is about ten times slower).
+DUAL_SECONDS = {"python": 1.5e-3, "native": 3e-4, "batch": 5e-7}
+#: Bytes ``experiment dual-axis`` writes (table, summary, figure).
+DUAL_DISK = 1e6
 
 
 def check_dual_axis(points, runs, n, engine, workers, out, backend="python", api=False,
@@ -305,12 +315,9 @@ def check_dual_axis(points, runs, n, engine, workers, out, backend="python", api
     ``n`` samples."""
     cores = max(1, workers or os.cpu_count() or 1)
     total = 2 * points * runs
-    if engine == "batch":
-        memory = DUAL_BATCH_MEMORY * total
-        seconds = DUAL_BATCH_SECONDS * total * n / cores
-    else:
-        memory = DUAL_FMU_MEMORY * total * n
-        seconds = DUAL_FMU_SECONDS * total * n / cores / (20 if backend == "native" else 1)
+    memory = DUAL_BATCH_MEMORY * total if engine == "batch" else DUAL_FMU_MEMORY * total * n
+    seconds = DUAL_SECONDS.get("batch" if engine == "batch" else backend,
+                               DUAL_SECONDS["python"]) * total * n / cores
 
     def fit(share):
         if runs * share >= 1:
@@ -324,7 +331,7 @@ def check_dual_axis(points, runs, n, engine, workers, out, backend="python", api
                                                                            engine)
             if api else "experiment dual-axis --points %d --runs %d --n %d --engine %s"
             % (points, runs, n, engine))
-    return check(what, memory, 0, seconds, out, "fewer %s or %s%s" % (
+    return check(what, memory, DUAL_DISK if out else 0, seconds, out, "fewer %s or %s%s" % (
         _name("points", api), _name("runs", api),
         "" if engine == "batch" else ", or a smaller %s" % _name("n", api)), fit,
         announce=announce)
