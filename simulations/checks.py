@@ -137,24 +137,24 @@ DASK_EXTRA = "pip install 'driftfmu[dask]'"
 
 
 def scheduler_problem(value):
-    """Why ``value`` is not the address of a Dask scheduler, by its form only (whether
-    something answers there is the run's to find out), or Dask is not installed."""
+    """Why ``value`` is not the address of a Dask scheduler, by its form first (the same line
+    with or without Dask; whether something answers there is the run's to find out), then
+    that Dask is installed."""
     import importlib.util
     import re
     if value is None:
         return None
     if not isinstance(value, str):
         return "scheduler = %r is not allowed; allowed: %s" % (value, SCHEDULER_ALLOWED)
+    text = value.strip()
+    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
+                     r"(\d{1,5})", text)
+    inproc = text.startswith("inproc://") and len(text) > len("inproc://")
+    if not inproc and (m is None or not 0 < int(m.group(3)) < 65536):
+        return "scheduler = %r is not allowed; allowed: %s" % (value, SCHEDULER_ALLOWED)
     if importlib.util.find_spec("distributed") is None:
         return ("scheduler = %r needs Dask, which is not installed; install the extra: %s"
                 % (value, DASK_EXTRA))
-    text = value.strip()
-    if text.startswith("inproc://") and len(text) > len("inproc://"):
-        return None
-    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
-                     r"(\d{1,5})", text)
-    if m is None or not 0 < int(m.group(3)) < 65536:
-        return "scheduler = %r is not allowed; allowed: %s" % (value, SCHEDULER_ALLOWED)
     return None
 
 
