@@ -6,6 +6,14 @@ first field is ``time``, and one function per experiment of the letter returns i
 Everything else in the package (``driftfmu.models``, ``driftfmu.simulations``,
 ``driftfmu.fmu_src``) is internal: it may change between versions.
 
+Every function checks its arguments before anything is built, run or written, by the rules
+and in the words of the ``driftfmu`` command's checks of the same options: a keyword it does
+not take is a ``TypeError`` (also a ``ValueError``) naming the function and every keyword it
+takes; a value of the wrong type (text and ``True``/``False`` are not numbers, a count is an
+``int``), out of its range or not one of its choices, an ``out`` that is a file, and a run too
+large for this machine's memory or disk (with the estimate and the largest size that fits) are
+a ``ValueError`` of one line naming the value and what is allowed.
+
 Heavy imports (NumPy, fmpy, the masters) happen inside the functions, so ``import driftfmu``
 stays cheap.
 """
@@ -40,10 +48,89 @@ BACKENDS = ("python", "native")
 
 
 def _check_choice(name: str, value: Any, allowed: Sequence[Any]) -> None:
-    if value not in allowed:
-        from driftfmu.simulations.errors import UsageError
-        raise UsageError("%s = %r is not allowed; allowed: %s"
-                         % (name, value, ", ".join(repr(a) for a in allowed)))
+    from driftfmu.simulations import checks
+    checks.refuse([checks.choice_problem(name, value, allowed)])
+
+
+def _keywords_checked(function: Callable) -> Callable:
+    """``function`` with a keyword it does not take refused in one line that names it and
+    every keyword it takes (Python's own TypeError names neither the allowed ones nor a
+    close match).  Its signature, name and docstring stay the function's."""
+    import functools
+    import inspect
+    signature = inspect.signature(function)
+    named = [n for n, p in signature.parameters.items()
+             if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY)]
+    takes_any = any(p.kind == p.VAR_KEYWORD for p in signature.parameters.values())
+
+    @functools.wraps(function)
+    def checked(*args: Any, **kwargs: Any) -> Any:
+        if not takes_any:
+            from driftfmu.simulations import checks
+            checks.check_keywords("%s()" % function.__name__, kwargs, named)
+        return function(*args, **kwargs)
+    return checked
+
+
+def _allowed(public: Callable, *inner: Callable, extra: Sequence[str] = (),
+             internal: Sequence[str] = ("plot", "validate")) -> tuple:
+    """Every keyword of a public function that passes ``**parameters`` on: its own named
+    parameters, then those of the ``inner`` functions it passes them to (less their
+    ``internal`` ones), then ``extra``."""
+    import inspect
+    names: list = []
+    for fn in (public,) + inner:
+        for n, p in inspect.signature(fn).parameters.items():
+            if p.kind in (p.POSITIONAL_OR_KEYWORD, p.KEYWORD_ONLY) and n not in names \
+                    and n not in internal:
+                names.append(n)
+    return tuple(names) + tuple(n for n in extra if n not in names)
+
+
+def _settings_problems(values: Mapping[str, Any], counts: Mapping[str, int] = {},
+                       choices: Mapping[str, Sequence[Any]] = {},
+                       flags: Sequence[str] = (), optional: Sequence[str] = ()) -> list:
+    """Why the given settings are not allowed, by the rules the command line applies to the
+    same options: ``counts`` (name -> least value), ``choices``, ``flags`` (True or False),
+    the model parameters of :mod:`driftfmu.models.parameters` (an integer one an integer),
+    ``f`` a drive frequency, ``scheduler`` an address, ``fmu_dir`` and ``out`` paths,
+    ``progress`` and ``log`` callables; ``optional`` names may also be None."""
+    from driftfmu.models import parameters
+    from driftfmu.simulations import checks
+    problems = []
+    for name, value in values.items():
+        if value is None and (name in optional or name in ("out", "progress", "log",
+                                                             "scheduler", "workers")):
+            continue
+        if name in counts:
+            problems.append(checks.count_problem(name, value, counts[name]))
+        elif name in choices:
+            problems.append(checks.choice_problem(name, value, choices[name]))
+        elif name in flags:
+            problems.append(checks.flag_problem(name, value))
+        elif name == "f":
+            problems.append(checks.frequency_problem(value))
+        elif name == "scheduler":
+            problems.append(checks.scheduler_problem(value))
+        elif name in ("out", "fmu_dir"):
+            problems.append(checks.path_problem(name, value, optional=name == "out",
+                                                example="results/run1" if name == "out"
+                                                else "build/fmus"))
+        elif name in ("progress", "log"):
+            problems.append(checks.callback_problem(name, value))
+        elif name in parameters.PARAMETERS:
+            problems.append(checks.number_problem(name, value))
+    return [p for p in problems if p]
+
+
+def _check_folders(out: Any, fmu_dir: Any = None) -> None:
+    """The command line's checks of ``--out`` and ``--fmu-dir`` (before anything runs): an
+    existing file where a folder is meant, a folder that cannot be created or written."""
+    from driftfmu.simulations.cli import check_folder
+    if out is not None:
+        check_folder("out =", str(out))
+    if fmu_dir is not None:
+        check_folder("fmu_dir =", str(fmu_dir), writable=False)
 
 
 def _quiet_log(line: str) -> None:
@@ -52,6 +139,13 @@ def _quiet_log(line: str) -> None:
         warnings.warn(line, stacklevel=3)
 
 
+def _is_sequence(value: Any) -> bool:
+    """True for a list, tuple, array or other iterable that is not text or a mapping."""
+    from collections.abc import Iterable
+    return isinstance(value, Iterable) and not isinstance(value, (str, bytes, Mapping))
+
+
+@_keywords_checked
 def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                fmi_version: Union[int, Sequence[int]] = 2,
                names: Optional[Sequence[str]] = None,
@@ -109,8 +203,10 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
     Raises
     ------
     ValueError
-        ``backend``, ``fmi_version``, a name or an export is not allowed (the message says
-        what is).
+        ``backend``, ``fmi_version``, a name, a path or an export is not allowed (the message
+        says what is).
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     RuntimeError
         An FMU could not be built or does not validate.
 
@@ -123,14 +219,27 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
     >>> paths["Excitation"].as_posix()
     'build/fmus/Excitation.fmu'
     """
+    from driftfmu.simulations import checks
     from driftfmu.simulations.errors import UsageError
+    checks.refuse([checks.path_problem("out_dir", out_dir, optional=False,
+                                       example="build/fmus")]
+                  + [checks.path_problem(k, v) for k, v in (("cross_check", cross_check),
+                                                            ("ssp", ssp), ("cache", cache))]
+                  + [checks.callback_problem("log", log)])
     _check_choice("backend", backend, BACKENDS)
-    several = not isinstance(fmi_version, int)
+    several = not checks.is_integer(fmi_version)
+    if several and (isinstance(fmi_version, (str, bytes)) or not _is_sequence(fmi_version)):
+        raise UsageError("fmi_version = %r is not allowed; allowed: %s" % (
+            fmi_version, "2" if backend == "python" else "2, 3 or a sequence of them"))
     versions = tuple(fmi_version) if several else (fmi_version,)
     if not versions:
         raise UsageError("fmi_version = () is not allowed; allowed: 2, 3 or a sequence of them")
     for v in versions:
         _check_choice("fmi_version", v, (2,) if backend == "python" else (2, 3))
+    if names is not None and (isinstance(names, (str, bytes)) or not _is_sequence(names)):
+        raise UsageError("names = %r is not allowed; allowed: a sequence of FMU names (one or "
+                         "more of %s), e.g. [%r], or None (all)" % (names, ", ".join(FMU_NAMES),
+                                                                    FMU_NAMES[0]))
     names = tuple(FMU_NAMES if names is None else names)
     for name in names:
         _check_choice("FMU name", name, FMU_NAMES)
@@ -211,29 +320,6 @@ def _variables(path: Path) -> Dict[str, Any]:
     return {v.name: v for v in read_model_description(str(path)).modelVariables}
 
 
-#: Bytes a recorded value may take while a master runs (a Python float in a list, then its
-#: place in the result array).
-_BYTES_PER_VALUE = 40
-
-
-def _check_memory(n_steps: int, columns: int, stop_time: float, step_size: float) -> None:
-    """UsageError when recording ``columns`` values at ``n_steps`` communication points
-    cannot fit in the memory this process may use (checked before any FMU runs, as the
-    command line does; a run that would fill the memory is refused, not left to fail)."""
-    from driftfmu.simulations import budget
-    from driftfmu.simulations.errors import UsageError
-    need = _BYTES_PER_VALUE * float(columns) * n_steps
-    have = budget.available_memory()
-    if have is not None and need > budget.MEMORY_SHARE * have:
-        raise UsageError("stop_time = %r with step_size = %r makes %d communication points: "
-                         "recording %d values at each needs about %s of memory, this machine "
-                         "has %s available; allowed: at most about %d points (an earlier "
-                         "stop_time, a longer step_size) or fewer output variables" % (
-                             stop_time, step_size, n_steps, columns, budget.size(need),
-                             budget.size(have),
-                             budget.MEMORY_SHARE * have / (_BYTES_PER_VALUE * columns)))
-
-
 def _is_number(value: Any) -> bool:
     """True for an int or float (NumPy's too), False for bool, str and the rest."""
     import numbers
@@ -272,6 +358,7 @@ def _split_name(name: str, names: Sequence[str]) -> tuple:
     return None, name
 
 
+@_keywords_checked
 def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimator"),
              stop_time: Optional[float] = None, step_size: Optional[float] = None,
              start_values: Optional[Mapping[str, float]] = None,
@@ -341,10 +428,13 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     ValueError
         An FMU, variable, backend, step, time, input value or start value is not allowed
         (one line naming it and what is allowed; a start value is checked against its
-        parameter's rule and declared type and range before any FMU runs).
+        parameter's rule and declared type and range before any FMU runs), or recording the
+        outputs at every communication point would not fit the memory.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     RuntimeError
-        An FMU call failed, e.g. a combination of parameters an FMU refuses (the message holds
-        the FMUs' log).
+        An FMU call failed, e.g. a combination of parameters an FMU refuses (the first line
+        says the FMU's reason; the lines after hold the rest of the FMUs' log).
 
     See Also
     --------
@@ -371,9 +461,12 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     if isinstance(fmus, (str, bytes)) or not isinstance(fmus, Iterable):
         raise UsageError("fmus = %r is not allowed; allowed: a sequence of FMU names (one or "
                          "more of %s), e.g. [%r]" % (fmus, ", ".join(FMU_NAMES), FMU_NAMES[0]))
-    if isinstance(fmu_dir, str) and not fmu_dir.strip():
-        raise UsageError("fmu_dir = %r is empty; allowed: a folder path, e.g. 'build/fmus'"
-                         % (fmu_dir,))
+    from driftfmu.simulations import budget, checks
+    checks.refuse([checks.path_problem("fmu_dir", fmu_dir, optional=False,
+                                       example="build/fmus")])
+    if output is not None and (isinstance(output, (str, bytes)) or not _is_sequence(output)):
+        raise UsageError("output = %r is not allowed; allowed: a sequence of variable names, "
+                         "e.g. ['z', 'dc_ekf1'], or None (every output)" % (output,))
     for label, value in (("stop_time", stop_time), ("step_size", step_size),
                          ("start_time", start_time)):
         if value is not None and not _is_number(value):
@@ -405,7 +498,12 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     if not (math.isfinite(start_time) and math.isfinite(stop_time) and stop_time >= start_time):
         raise UsageError("start_time = %r, stop_time = %r are not allowed; allowed: finite, "
                          "stop_time >= start_time" % (start_time, stop_time))
-    n_steps = int(round((stop_time - start_time) / step_size)) + 1
+    steps = (stop_time - start_time) / step_size
+    if not math.isfinite(steps):  # (a step too small for the span to count its points)
+        raise UsageError("stop_time = %r with step_size = %r makes more communication points "
+                         "than can be counted; allowed: a longer step_size or an earlier "
+                         "stop_time" % (stop_time, step_size))
+    n_steps = int(round(steps)) + 1
 
     paths = _fmu_paths(names, backend, fmi_version, fmu_dir)
     variables = {n: _variables(paths[n]) for n in names}
@@ -415,6 +513,9 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     # start values: plain names go to every FMU that has the parameter
     per_fmu = {n: {} for n in names}
     for key, value in start_values.items():
+        if not isinstance(key, str):
+            raise UsageError("start value %r is not a parameter name; allowed: names such as "
+                             "'a2' or 'Accelerometer.a2'" % (key,))
         fmu, var = _split_name(key, names)
         targets = [fmu] if fmu else [n for n in names if var in variables[n]]
         targets = [t for t in targets if var in variables[t]
@@ -474,6 +575,9 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
     else:
         record = {n: [] for n in names}
         for key in output:
+            if not isinstance(key, str):
+                raise UsageError("output %r is not a variable name; allowed: names such as "
+                                 "'z' or 'Accelerometer.z'" % (key,))
             fmu, var = _split_name(key, names)
             if fmu:
                 owners = [fmu] if var in variables[fmu] else []
@@ -482,12 +586,16 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
                            and variables[n][var].causality == "output"]
                           or [n for n in names if var in variables[n]])
             if not owners:
-                raise UsageError("output %r is not a variable of %s" % (key, " or ".join(names)))
+                raise UsageError("output %r is not a variable of %s; allowed: %s" % (
+                    key, " or ".join(names), ", ".join(sorted({v for n in names
+                                                               for v in variables[n]}))))
             for o in owners:
                 if var not in record[o]:
                     record[o].append(var)
     record = {n: vs for n, vs in record.items() if vs}
-    _check_memory(n_steps, 1 + sum(len(vs) for vs in record.values()), stop_time, step_size)
+    # before any FMU runs: a run that would fill the memory is refused, not left to fail
+    budget.check_simulate(n_steps, 1 + sum(len(vs) for vs in record.values()), len(names),
+                          stop_time, step_size, backend)
 
     from driftfmu.simulations.cosim import cosimulate
     if backend == "native" and not feeds:
@@ -558,13 +666,24 @@ def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str 
     Raises
     ------
     ValueError
-        A parameter is out of range (the message names it and what is allowed).
+        A parameter is out of range or of the wrong type, or ``n`` samples would not fit the
+        memory (the message names it and what is allowed).
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     RuntimeError
         An FMU output differs from the models/ reference, or an FMU call failed.
     """
-    from driftfmu.simulations.gaussian import run_gaussian as _run
-    return _run(out=out, n=n, backend=backend, fmu_dir=fmu_dir, plot=out is not None,
-                progress=progress, **parameters)
+    from driftfmu.simulations import budget, checks, gaussian
+    checks.check_keywords("run_gaussian()", parameters,
+                          _allowed(run_gaussian, gaussian.run_gaussian,
+                                   extra=tuple(gaussian.GENERAL_OFF)))
+    checks.refuse(_settings_problems(
+        dict(parameters, n=n, backend=backend, fmu_dir=fmu_dir, out=out, progress=progress),
+        choices={"backend": BACKENDS, "estimator": (1, 2, 3)}, optional=("P0",)))
+    _check_folders(out, fmu_dir)
+    budget.check_run("gaussian", n, out, backend, api=True, announce=False)
+    return gaussian.run_gaussian(out=out, n=n, backend=backend, fmu_dir=fmu_dir,
+                                 plot=out is not None, progress=progress, **parameters)
 
 
 def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: str = "python",
@@ -589,8 +708,9 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
         ``X, f, phi, Ts, seed, a0, a1, a2, R``, the filter's ``process`` (1 Gauss-Markov,
         2 harmonic at ``f``, the default), ``Qh, A, Q, P0, x0, estimator``,
         ``preset="adxl203"`` for the ADXL203 stand-in, ``sensor`` (a dict of further
-        accelerometer parameters: ``a3``, ``cross``, ``fc``, ``Vs``, ``bits``, ``density``,
-        ``axes``; the filter keeps its 2nd-order model), ``Xy, phiy`` for a second axis
+        accelerometer parameters: ``a3``, ``a4``, ``cross``,
+        ``fc``, ``Vs``, ``bits``, ``density``, ``axes``, or ``a0``, ``a1``, ``a2``, ``R``
+        unlike the filter's; the filter keeps its 2nd-order model), ``Xy, phiy`` for a second axis
         (defaults: ``X = 1 g``, ``f = 150 Hz``, the letter's sensor).  The known input ``u``
         of eq. 1, off by default: the Excitation's ``drive, Qu, Xu, fu`` make ``u_k`` (it
         does not move the sinusoid) and ``B != 0`` (Gauss-Markov filter only, ``process=1``)
@@ -607,13 +727,46 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
     Raises
     ------
     ValueError
-        A parameter is out of range, e.g. ``f`` at or above the Nyquist rate ``1/(2 Ts)``.
+        A parameter is out of range or of the wrong type, e.g. ``f`` at or above the Nyquist
+        rate ``1/(2 Ts)``, or ``n`` samples would not fit the memory.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     RuntimeError
         An FMU output differs from the models/ reference, or an FMU call failed.
     """
-    from driftfmu.simulations.sinusoidal import run_sinusoidal as _run
-    return _run(out=out, n=n, backend=backend, fmu_dir=fmu_dir, plot=out is not None,
-                progress=progress, **parameters)
+    from driftfmu.models import adxl203
+    from driftfmu.simulations import budget, checks, sinusoidal
+    checks.check_keywords("run_sinusoidal()", parameters,
+                          _allowed(run_sinusoidal, sinusoidal.run_sinusoidal,
+                                   extra=tuple(sinusoidal.INPUT_OFF)))
+    problems = _settings_problems(
+        dict(parameters, n=n, backend=backend, fmu_dir=fmu_dir, out=out, progress=progress),
+        choices={"backend": BACKENDS, "estimator": (1, 2, 3),
+                 "preset": tuple(sorted(adxl203.PRESETS))},
+        optional=("Q", "P0", "Qh", "preset"))
+    sensor = parameters.get("sensor")
+    if sensor is not None:
+        if not isinstance(sensor, Mapping):
+            problems.append("sensor = %r is not a mapping; allowed: a dict of accelerometer "
+                            "parameters (%s), or None" % (sensor, ", ".join(SENSOR_PARAMETERS)))
+        else:
+            unknown = [k for k in sensor if k not in SENSOR_PARAMETERS]
+            if unknown:
+                problems.append("sensor has %s; allowed: %s" % (
+                    ", ".join(repr(k) for k in unknown), ", ".join(SENSOR_PARAMETERS)))
+            else:
+                problems += _settings_problems(sensor)
+    checks.refuse(problems)
+    _check_folders(out, fmu_dir)
+    budget.check_run("sinusoidal", n, out, backend, api=True, announce=False)
+    return sinusoidal.run_sinusoidal(out=out, n=n, backend=backend, fmu_dir=fmu_dir,
+                                     plot=out is not None, progress=progress, **parameters)
+
+
+#: What :func:`run_sinusoidal`'s ``sensor`` may set: the Accelerometer's model (over the
+#: quadratic one the filter runs with, or over the preset).
+SENSOR_PARAMETERS = ("a0", "a1", "a2", "a3", "a4", "R", "cross", "fc", "Vs", "bits", "density",
+                     "axes")
 
 
 def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
@@ -660,11 +813,29 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
     Raises
     ------
     ValueError
-        ``kind`` or a parameter is not allowed.
+        ``kind`` or a parameter is not allowed, or ``runs`` trajectories of ``n`` samples
+        would not fit the memory (the message names the largest ``runs`` that fits, and
+        ``summary_only``).
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     """
     _check_choice("kind", kind, ("gaussian", "sinusoidal"))
+    from driftfmu.simulations import budget, checks
     from driftfmu.simulations import montecarlo as _mc
-    fn = _mc.montecarlo_gaussian if kind == "gaussian" else _mc.montecarlo_sinusoidal
+    if kind == "gaussian":
+        fn, general = _mc.montecarlo_gaussian, tuple(_mc.GENERAL_OFF)
+    else:
+        fn, general = _mc.montecarlo_sinusoidal, _mc.SINE_GENERAL
+    checks.check_keywords("montecarlo(%r)" % kind, parameters,
+                          _allowed(montecarlo, fn, extra=general))
+    checks.refuse(_settings_problems(
+        dict(parameters, runs=runs, n=n, out=out, engine=engine, progress=progress),
+        choices={"engine": ("batch", "fmu"), "backend": BACKENDS}, flags=("summary_only",),
+        counts={"workers": 1}, optional=("P0", "Q", "client")))
+    _check_folders(out, parameters.get("fmu_dir"))
+    budget.check_montecarlo(kind, runs, n, parameters.get("workers"), out,
+                            summary_only=parameters.get("summary_only", False), api=True,
+                            announce=False)
     return fn(runs=runs, n=n, out=out, engine=engine, plot=out is not None, progress=progress,
               **parameters)
 
@@ -706,9 +877,20 @@ def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = N
     Raises
     ------
     ValueError
-        A grid value or parameter is not allowed.
+        A grid value or parameter is not allowed, or the grid's runs would not fit the memory.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     """
+    from driftfmu.simulations import checks
     from driftfmu.simulations import sweep as _sweep
+    checks.check_keywords("sweep()", parameters,
+                          _allowed(sweep, _sweep.sweep, extra=tuple(_sweep.GENERAL_OFF)))
+    checks.refuse(_settings_problems(
+        dict({k: v for k, v in parameters.items() if k != "a4"}, runs=runs, n=n, out=out,
+             progress=progress),
+        choices={"engine": ("batch", "fmu")}, counts={"workers": 1, "chunk": 1},
+        optional=("client", "chunk")))
+    _check_folders(out, parameters.get("fmu_dir"))
     if a2 is not None:
         parameters["a2"] = a2
     if R is not None:
@@ -734,7 +916,8 @@ def experiment_adxl203(out: Optional[PathLike] = None, *,
         Called as the experiment goes with the number of sets done so far (of
         ``len(freqs) * sets``).
     **settings
-        ``freqs`` (Hz, default 100..200 by 25), ``sets`` (30), ``held_out`` (``sets // 6``),
+        ``freqs`` (Hz, default 100..200 by 25), ``sets`` (30), ``held_out`` (a sixth of
+        ``sets``, rounded, at least 1),
         ``n`` (60,000 samples per set), ``Ts``, ``seed``, ``workers``, ``backend``,
         ``fmu_dir`` and ``order`` (2, 3 or 4: the order of the model fitted and run by the
         filter; the stand-in has a cubic term).  The full size takes minutes; ``sets=6,
@@ -750,10 +933,39 @@ def experiment_adxl203(out: Optional[PathLike] = None, *,
     Raises
     ------
     ValueError
-        A setting is not allowed (e.g. more held-out sets than the fit can spare).
+        A setting is not allowed (e.g. more held-out sets than the fit can spare), or the
+        sets' samples would not fit the memory.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     """
-    from driftfmu.simulations.adxl203 import run_adxl203
-    return run_adxl203(out=out, plot=out is not None, progress=progress, **settings)
+    from driftfmu.simulations import adxl203, budget, checks
+    checks.check_keywords("experiment_adxl203()", settings,
+                          _allowed(experiment_adxl203, adxl203.run_adxl203))
+    problems = _settings_problems(
+        dict({k: v for k, v in settings.items() if k != "freqs"}, out=out, progress=progress),
+        counts={"sets": 1, "held_out": 1, "workers": 1},
+        choices={"backend": BACKENDS, "order": adxl203.ORDERS})
+    freqs = settings.get("freqs", adxl203.FREQS)
+    if checks.is_number(freqs):
+        freqs = (freqs,)  # one frequency
+    elif isinstance(freqs, (str, bytes)) or not _is_sequence(freqs):
+        problems.append("freqs = %r is not allowed; allowed: a sequence of %s"
+                        % (freqs, checks.FREQS_ALLOWED))
+        freqs = None
+    if freqs is not None:
+        freqs = list(freqs)
+        problems.append(checks.freqs_problem(freqs))
+    checks.refuse(problems)
+    settings = dict(settings, freqs=[float(f) for f in freqs])
+    sets = settings.get("sets", adxl203.SETS)
+    settings.setdefault("held_out", adxl203.default_held_out(sets))
+    n, Ts = settings.get("n", adxl203.N), settings.get("Ts", adxl203.TS)
+    adxl203.check_settings(settings["freqs"], sets, settings["held_out"], n, Ts,
+                           settings.get("order", 2))
+    _check_folders(out, settings.get("fmu_dir"))
+    budget.check_adxl203(settings["freqs"], sets, n, settings.get("workers"), out,
+                         settings.get("backend", "python"), api=True, announce=False)
+    return adxl203.run_adxl203(out=out, plot=out is not None, progress=progress, **settings)
 
 
 def experiment_dual_axis(out: Optional[PathLike] = None, *,
@@ -783,12 +995,33 @@ def experiment_dual_axis(out: Optional[PathLike] = None, *,
     Raises
     ------
     ValueError
-        A setting is not allowed.
+        A setting is not allowed, or the sweeps' runs would not fit the memory.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     """
-    from driftfmu.simulations.dual_axis import run_dual_axis
-    return run_dual_axis(out=out, plot=out is not None, progress=progress, **settings)
+    from driftfmu.simulations import budget, checks, dual_axis
+    checks.check_keywords("experiment_dual_axis()", settings,
+                          _allowed(experiment_dual_axis, dual_axis.run_dual_axis,
+                                   extra=tuple(dual_axis.DEFAULTS)))
+    checks.refuse(_settings_problems(
+        dict(settings, out=out, progress=progress),
+        counts={"points": 2, "workers": 1},
+        choices={"engine": tuple(dual_axis.RUNS), "backend": BACKENDS}, optional=("runs",)))
+    engine = settings.get("engine", "fmu")
+    runs = settings.get("runs")
+    runs = dual_axis.RUNS[engine] if runs is None else runs
+    points = settings.get("points", dual_axis.POINTS)
+    s = dict(dual_axis.DEFAULTS, **{k: v for k, v in settings.items()
+                                    if k in dual_axis.DEFAULTS})
+    dual_axis.check_settings(s, points, runs, engine)
+    _check_folders(out, settings.get("fmu_dir"))
+    budget.check_dual_axis(points, runs, s["n"], engine, settings.get("workers"), out,
+                           settings.get("backend", "python"), api=True, announce=False)
+    return dual_axis.run_dual_axis(out=out, plot=out is not None, progress=progress,
+                                   **settings)
 
 
+@_keywords_checked
 def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
              out: Optional[PathLike] = None, *, order: int = 2) -> Dict[str, Any]:
     """Fit the sensor ``a0, a1, ..., a_order`` and ``R`` from recordings driven by a sinusoid
@@ -802,9 +1035,10 @@ def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
 
     Parameters
     ----------
-    files : sequence of str or pathlib.Path
+    files : str, pathlib.Path or sequence of them
         CSV recordings with a header row and the columns ``time, x, z`` (``x`` the known
-        drive [g], ``z`` the sensor output [V]), uniformly sampled.
+        drive [g], ``z`` the sensor output [V]), uniformly sampled; one path is one recording
+        (enough for a fit; the spread of the coefficients needs two or more).
     f : float
         Drive frequency [Hz].
     held_out : int
@@ -831,10 +1065,40 @@ def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
     ------
     ValueError
         The data cannot support the fit (fewer than 2 whole periods, a drive that is not a
-        sinusoid at ``f``, an order that aliases), or a setting is not allowed.
+        sinusoid at ``f``), or a setting is not allowed (an ``order`` other than 2, 3, 4,
+        checked before any file is read; an order that aliases at the recordings' sample
+        period), or the recordings would not fit the memory.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
     """
+    import os
+    from driftfmu.models import identify as _identify
+    from driftfmu.simulations import budget, checks
     from driftfmu.simulations.adxl203 import run_identify
-    return run_identify([str(p) for p in files], f, held_out=held_out, out=out, order=order)
+    from driftfmu.simulations.errors import UsageError
+    if isinstance(files, (str, os.PathLike)):
+        files = [files]  # one recording
+    elif not _is_sequence(files):
+        raise UsageError("files = %r is not allowed; allowed: the path of a recording (str or "
+                         "os.PathLike) or a sequence of them" % (files,))
+    files = list(files)
+    problems = [checks.path_problem("files[%d]" % i, p, optional=False, example="run1.csv")
+                for i, p in enumerate(files)]
+    if not files:
+        problems.append("files = [] is empty; allowed: one or more recordings (CSV paths)")
+    problems += _settings_problems(dict(f=f, held_out=held_out, order=order, out=out),
+                                   counts={"held_out": 0}, choices={"order": _identify.ORDERS})
+    checks.refuse(problems)
+    _check_folders(out)
+    files = [os.fspath(p) for p in files]
+    budget.check_identify(files, out, api=True, announce=False)
+    import warnings
+    with warnings.catch_warnings(record=True) as caught:  # said at the caller's line,
+        warnings.simplefilter("always")                   # not at one of driftfmu's own
+        summary = run_identify(files, f, held_out=held_out, out=out, order=order)
+    for w in caught:
+        warnings.warn(w.message, w.category, stacklevel=3)
+    return summary
 
 
 __all__ = ["build_fmus", "simulate", "run_gaussian", "run_sinusoidal", "montecarlo", "sweep",

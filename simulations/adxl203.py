@@ -206,11 +206,8 @@ ORDERS = identify.ORDERS
 
 def check_settings(freqs, sets, held_out, n, Ts, order=2):
     """ValueError (value and what is allowed) for bad experiment settings."""
-    if isinstance(order, bool) or order not in ORDERS:
-        raise UsageError("order = %r is not allowed; allowed: %s"
-                         % (order, ", ".join(map(str, ORDERS))))
-    if not freqs:
-        raise UsageError("freqs is empty; allowed: one or more frequencies")
+    from driftfmu.simulations import checks
+    checks.refuse([checks.choice_problem("order", order, ORDERS), checks.freqs_problem(freqs)])
     twice = sorted({f for f in freqs if list(freqs).count(f) > 1})
     if twice:
         raise UsageError("freqs = %s names %s more than once; allowed: distinct frequencies"
@@ -223,11 +220,11 @@ def check_settings(freqs, sets, held_out, n, Ts, order=2):
         except identify.IdentificationError as exc:
             raise UsageError(str(exc)) from None
     if held_out < 1 or sets - held_out < 2:
-        raise UsageError("sets = %r with %r held out is not allowed; allowed: held_out >= 1 and "
-                         "at least 2 sets to fit (sets >= held_out + 2): %s"
-                         % (sets, held_out, "add --sets %d or more" % (held_out + 2)
-                            if sets < 3 or held_out < 1 else "lower --held-out to at most %d "
-                            "or add --sets %d or more" % (sets - 2, held_out + 2)))
+        raise UsageError("sets = %r with held_out = %r is not allowed; allowed: held_out >= 1 "
+                         "and at least 2 sets to fit (sets >= held_out + 2): %s"
+                         % (sets, held_out, "sets >= %d" % (max(1, held_out) + 2)
+                            if sets < 3 or held_out < 1 else "held_out <= %d, or sets >= %d"
+                            % (sets - 2, held_out + 2)))
     skip = adxl203.settling_samples(adxl203.ADXL203["fc"], Ts)
     need = skip + math.ceil(identify.MIN_PERIODS / (min(freqs) * Ts))  # MIN_PERIODS = 2
     if n < need:
@@ -508,6 +505,8 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0, order=2):
     Every file is read and checked before anything is fitted; with ``out``, ``identify.json``
     (and ``identify.csv`` of the held-out sets) are written, all or none.
     """
+    from driftfmu.simulations import checks
+    checks.refuse([checks.choice_problem("order", order, identify.ORDERS)])
     files = [str(p) for p in files]
     if len(files) - held_out < 1 or held_out < 0:
         raise UsageError("%d file(s) with %d held out; allowed: 0 <= held_out < number of files"
@@ -521,6 +520,10 @@ def run_identify(files, f, held_out=0, out=None, Qh=QH, P0=P0, order=2):
         except ValueError as exc:
             raise DataError("%s: %s" % (p, exc)) from None
         check_frequency(f, ts)
+        try:  # a setting the recordings' sampling cannot resolve, not a file's fault
+            identify.check_order(order, f, ts)
+        except identify.IdentificationError as exc:
+            raise UsageError(str(exc)) from None
         Ts = ts if Ts is None else Ts
     train = len(files) - held_out
     fits, doubts = [], []
@@ -582,50 +585,25 @@ def _fit_file(path, t, x, z, f, doubts, order=2):
 # -- command line -------------------------------------------------------------------------------
 
 def _freq_list(text):
+    """argparse type of ``--freqs F1,F2,...``: the frequencies, each a number > 0 [Hz]."""
     import argparse
-    try:
-        freqs = [float(v) for v in text.split(",") if v.strip()]
-    except ValueError:
-        raise argparse.ArgumentTypeError("freqs = %r is not a comma-separated list of numbers"
-                                         % text)
-    if not freqs or not all(math.isfinite(v) and v > 0 for v in freqs):
-        raise argparse.ArgumentTypeError("freqs = %r; allowed: positive frequencies in Hz, "
-                                         "e.g. 100,125,150" % text)
+    from driftfmu.simulations import checks
+
+    def number(item):
+        try:
+            return float(item)
+        except ValueError:
+            return item.strip()
+    freqs = [number(v) for v in text.split(",") if v.strip()]
+    problem = checks.freqs_problem(freqs)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
     return freqs
-
-
-def _count(name):
-    """argparse type: an integer >= 0."""
-    import argparse
-
-    def parse(text):
-        try:
-            v = int(text)
-        except ValueError:
-            v = -1
-        if v < 0:
-            raise argparse.ArgumentTypeError("%s = %r; allowed: an integer >= 0" % (name, text))
-        return v
-    return parse
-
-
-def _positive_int(name):
-    import argparse
-
-    def parse(text):
-        try:
-            v = int(text)
-        except ValueError:
-            v = 0
-        if v < 1:
-            raise argparse.ArgumentTypeError("%s = %r; allowed: a positive integer" % (name, text))
-        return v
-    return parse
 
 
 def add_cli(groups):
     """``driftfmu experiment adxl203`` and ``driftfmu identify``."""
-    from driftfmu.simulations import cli
+    from driftfmu.simulations import checks, cli
     top = groups["top"]
     exp = top.add_parser("experiment", help="the letter's experiments on the FMUs")
     sub = exp.add_subparsers(dest="experiment", metavar="EXPERIMENT",
@@ -636,20 +614,22 @@ def add_cli(groups):
                        "25 sets, EKF1 on 5 held out, per frequency")
     g.add_argument("--freqs", type=_freq_list, default=list(FREQS), metavar="F1,F2,...",
                    help="drive frequencies [Hz] (default: %s)" % ",".join("%g" % f for f in FREQS))
-    g.add_argument("--sets", type=_positive_int("sets"), default=SETS,
+    g.add_argument("--sets", type=checks.count_option("sets", 1), default=SETS,
                    help="sets per frequency; allowed: sets >= held-out + 2 (default: %d)"
                         % SETS)
-    g.add_argument("--held-out", type=_positive_int("held-out"), default=None, metavar="K",
+    g.add_argument("--held-out", type=checks.count_option("held_out", 1), default=None,
+                   metavar="K",
                    help="of the sets, the last K are held out for EKF1, the others fit the "
                         "model; allowed: 1 <= K <= sets - 2 (default: sets / 6 rounded, at "
                         "least 1: %d of %d)" % (HELD_OUT, SETS))
-    g.add_argument("--n", type=_positive_int("n"), default=N,
+    g.add_argument("--n", type=checks.count_option("n", 1), default=N,
                    help="samples per set; allowed: at least two periods of the lowest "
                         "frequency (default: %d)" % N)
     cli.add_params(g, ("Ts", "seed"), Ts=TS, seed=SEED)
-    g.add_argument("--workers", type=_positive_int("workers"), default=None,
+    g.add_argument("--workers", type=checks.count_option("workers", 1), default=None,
                    help="parallel processes (default: the number of cores)")
-    g.add_argument("--order", type=int, choices=ORDERS, default=2,
+    g.add_argument("--order", type=checks.choice_option("order", ORDERS), choices=ORDERS,
+                   default=2,
                    help="order of the model fitted on the training sets and run by the filter: "
                         "2, the letter's a0 + a1 x + a2 x^2; 3, with the identified cubic "
                         "term a3 (the stand-in has one); 4, also a4 (default: 2)")
@@ -664,12 +644,14 @@ def add_cli(groups):
     i.add_argument("--f", type=cli.frequency_type, required=True,
                    help="drive frequency [Hz] of the recordings; allowed: %s of the "
                         "recordings' sample period; checked against the recorded drive x"
-                        % cli.FREQUENCY_ALLOWED)
-    i.add_argument("--held-out", type=_count("held-out"), default=0, metavar="K",
+                        % checks.FREQUENCY_ALLOWED)
+    i.add_argument("--held-out", type=checks.count_option("held_out", 0), default=0,
+                   metavar="K",
                    help="the last K files are held out: the model is fitted on the others "
                         "and EKF1 runs on these (z only), with the margin against their "
                         "empirical drift; allowed: 0 <= K < number of files (default: 0)")
-    i.add_argument("--order", type=int, choices=identify.ORDERS, default=2,
+    i.add_argument("--order", type=checks.choice_option("order", identify.ORDERS),
+                   choices=identify.ORDERS, default=2,
                    help="order of the characteristic a0 + a1 x + ... + a_order x^order to fit "
                         "from the harmonics 0..order (with standard errors); an order whose "
                         "harmonics reach the Nyquist rate is refused (default: 2)")
@@ -677,39 +659,16 @@ def add_cli(groups):
     i.set_defaults(func=_cmd_identify)
 
 
-#: Seconds of one worker per co-simulation step of a set, identification and validation
-#: included, by backend (measured about 40 us and 1.5 us on a shared 2-core machine, rounded
-#: up), and the command's own seconds (start-up, figures, files): for the estimate a long run
-#: announces.
-STEP_SECONDS = {"python": 5e-5, "native": 2e-6}
-COMMAND_SECONDS = 5.0
-#: Memory of one worker (its Python, NumPy, the FMUs loaded), bytes.
-WORKER_MEMORY = 150e6
-
-
-def check_size(freqs, sets, n, workers, backend, out):
-    """The estimate of ``driftfmu experiment adxl203`` (:func:`budget.check`): announced on
-    standard error when the run is long."""
-    from driftfmu.simulations import budget
-    workers = max(1, min(workers or os.cpu_count() or 1, len(freqs) * sets))
-    steps = len(freqs) * sets * n
-    return budget.check(
-        "experiment adxl203, %d frequencies x %d sets x %d samples, %s FMUs on %d worker(s)"
-        % (len(freqs), sets, n, backend, workers), WORKER_MEMORY * workers,
-        2e6 if out else 0, STEP_SECONDS[backend] * steps / workers + COMMAND_SECONDS, out,
-        "fewer --sets or --workers")
-
-
 def _cmd_experiment(args):
     """``driftfmu experiment adxl203``: :func:`driftfmu.experiment_adxl203`."""
     import driftfmu
-    from driftfmu.simulations import cli
+    from driftfmu.simulations import budget, cli
     total = len(args.freqs) * args.sets
     held_out = default_held_out(args.sets) if args.held_out is None else args.held_out
-    # the settings' usage errors first: a run that cannot start announces nothing
-    check_settings(tuple(float(f) for f in args.freqs), args.sets, held_out, args.n, args.Ts,
-                   args.order)
-    check_size(args.freqs, args.sets, args.n, args.workers, args.backend, args.out)
+    check_settings(args.freqs, args.sets, held_out, args.n, args.Ts, args.order)
+    # refused when it cannot fit; announced when it takes long
+    budget.check_adxl203(args.freqs, args.sets, args.n, args.workers, args.out, args.backend,
+                         announce=True)
     with cli.progress(total, "sets", "set") as update:
         s = driftfmu.experiment_adxl203(
                         out=args.out, freqs=args.freqs, sets=args.sets, held_out=held_out,
@@ -747,6 +706,8 @@ def timing_line(t):
 def _cmd_identify(args):
     """``driftfmu identify``: :func:`driftfmu.identify`."""
     import driftfmu
+    from driftfmu.simulations import budget
+    budget.check_identify(args.files, args.out, announce=False)
     s = driftfmu.identify(args.files, args.f, held_out=args.held_out, out=args.out,
                           order=args.order)
     m = s["model"]

@@ -27,6 +27,7 @@ from concurrent.futures import ProcessPoolExecutor
 import numpy as np
 
 from driftfmu.models import _ops, chain, drift, excitation, harmonic, noise, parameters, sensor
+from driftfmu.simulations import checks
 from driftfmu.simulations.errors import UsageError
 
 #: Largest FMU seed (the FMUs' ``seed`` parameter is a 32-bit Integer).
@@ -78,8 +79,7 @@ def run_seeds(seed, runs):
 
 def check_runs(runs):
     """Raise ValueError unless ``runs`` is an integer >= 1."""
-    if isinstance(runs, bool) or not isinstance(runs, (int, np.integer)) or runs < 1:
-        raise UsageError("runs = %r is not allowed; allowed: an integer runs >= 1" % (runs,))
+    checks.refuse([checks.count_problem("runs", runs, 1)])
 
 
 def check_parameters(values):
@@ -330,9 +330,8 @@ def fmu_simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0
     (Gaussian runs; with ``B != 0`` the master wires ``Excitation.u -> DriftEstimator.u``).
     """
     from driftfmu.simulations import gaussian
-    unknown = set(general) - set(gaussian.GENERAL_OFF)
-    if unknown:
-        raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
+    checks.check_keywords("fmu_simulate()", general,
+                          checks.keywords_of(fmu_simulate, gaussian.GENERAL_OFF))
     on = sorted(k for k, v in general.items() if v != gaussian.GENERAL_OFF[k])
     if on and kind != excitation.GAUSSIAN:
         raise UsageError("the FMU engine runs %s with the Gaussian excitation only (its "
@@ -463,7 +462,7 @@ def connect(scheduler, timeout=CONNECT_TIMEOUT):
 
 
 #: How to get what ``--scheduler`` needs.
-DASK_EXTRA = "pip install 'driftfmu[dask]'"
+DASK_EXTRA = checks.DASK_EXTRA
 
 
 def dask_client_class():
@@ -739,49 +738,31 @@ def gather(results):
 # -- command line ---------------------------------------------------------------------------
 def add_engine_options(p):
     """``--engine``, ``--scheduler`` and ``--workers`` (shared with ``driftfmu montecarlo``)."""
-    p.add_argument("--engine", choices=("batch", "fmu"), default="batch",
+    from driftfmu.simulations import checks
+    p.add_argument("--engine", type=checks.choice_option("engine", ENGINES), choices=ENGINES,
+                   default="batch",
                    help="batch: many runs at once through models/ (default); fmu: every run "
                         "co-simulated with the three FMUs")
     p.add_argument("--scheduler", default=None, metavar="ADDRESS", type=scheduler_address,
                    help="run on the Dask distributed cluster at ADDRESS (e.g. "
                         "tcp://host:8786; needs the extra driftfmu[dask]); default: local "
                         "workers")
-    p.add_argument("--workers", type=_positive_int, default=None, metavar="N",
+    p.add_argument("--workers", type=checks.count_option("workers", 1), default=None,
+                   metavar="N",
                    help="local workers (default: one per core): threads for runs in the "
                         "compiled kernel, worker processes otherwise")
 
 
-#: What ``--scheduler`` accepts.
-SCHEDULER_ALLOWED = ("the address of a Dask scheduler, [tcp:// | tls:// | ws:// | wss:// | "
-                     "ucx://]HOST:PORT (e.g. tcp://127.0.0.1:8786) or inproc://NAME")
+#: The engines of ``montecarlo`` and ``sweep``.
+ENGINES = ("batch", "fmu")
 
 
 def scheduler_address(text):
     """argparse type of ``--scheduler``: an address a Dask client can connect to, checked by
-    its form first (the same message with or without Dask), then that Dask is installed
-    (whether something answers there is the run's to find out)."""
+    its form only (:func:`driftfmu.simulations.checks.scheduler_problem`)."""
     import argparse
-    import importlib.util
-    import re
-    m = re.fullmatch(r"(?:(tcp|tls|ws|wss|ucx)://)?(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9_.-]+):"
-                     r"(\d{1,5})", text.strip())
-    inproc = text.strip().startswith("inproc://") and len(text.strip()) > len("inproc://")
-    if not inproc and (m is None or not 0 < int(m.group(3)) < 65536):
-        raise argparse.ArgumentTypeError("scheduler = %r is not allowed; allowed: %s"
-                                         % (text, SCHEDULER_ALLOWED))
-    if importlib.util.find_spec("distributed") is None:
-        raise argparse.ArgumentTypeError("%r: --scheduler needs Dask, which is not installed; "
-                                         "install the extra: %s" % (text, DASK_EXTRA))
+    from driftfmu.simulations import checks
+    problem = checks.scheduler_problem(text)
+    if problem:
+        raise argparse.ArgumentTypeError(problem)
     return text.strip()
-
-
-def _positive_int(text):
-    import argparse
-    try:
-        v = int(text)
-    except ValueError:
-        v = 0
-    if v < 1:
-        raise argparse.ArgumentTypeError("workers = %r is not allowed; allowed: an integer "
-                                         ">= 1" % text)
-    return v

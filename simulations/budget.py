@@ -103,7 +103,7 @@ def size(n):
     """Bytes for people: ``"56 GB"``, ``"120 MB"``."""
     for unit, scale in (("TB", 1e12), ("GB", 1e9), ("MB", 1e6), ("kB", 1e3)):
         if n >= scale:
-            return "%.3g %s" % (n / scale, unit)
+            return ("%.3g %s" if n < 999.5 * scale else "%.0f %s") % (n / scale, unit)
     return "%d B" % n
 
 
@@ -147,13 +147,33 @@ def check(what, memory, disk, seconds, out, proceed, fit=None, announce=True):
     return {"memory": memory, "disk": disk, "seconds": seconds}
 
 
-def check_montecarlo(command, runs, n, workers, out, summary_only=False):
-    """The size check of ``driftfmu montecarlo``: every trajectory of every run is kept, or
+def _setting(name, value, api):
+    """A setting as its caller writes it: ``runs=1000`` (the Python API) or ``--runs 1000``
+    (the command line)."""
+    if api:
+        return "%s=%r" % (name, value)
+    return "--%s %s" % (name.replace("_", "-"), value)
+
+
+def _name(name, api):
+    """A setting's name as its caller writes it: ``summary_only`` or ``--summary-only``."""
+    return name if api else "--" + name.replace("_", "-")
+
+
+def check_montecarlo(command, runs, n, workers, out, summary_only=False, api=False,
+                     announce=True):
+    """The size check of ``driftfmu montecarlo`` (``api``: of :func:`driftfmu.montecarlo`,
+    its settings named as keywords): every trajectory of every run is kept, or
     (``summary_only``) per-run summaries and the figure's runs' trajectories."""
     cores = max(1, workers or os.cpu_count() or 1)
-    what = "montecarlo %s --runs %d --n %d%s" % (command, runs, n,
-                                                " --summary-only" if summary_only else "")
+    if api:
+        what = "montecarlo(%r, runs=%d, n=%d%s)" % (command, runs, n, ", summary_only=True"
+                                                   if summary_only else "")
+    else:
+        what = "montecarlo %s --runs %d --n %d%s" % (command, runs, n, " --summary-only"
+                                                    if summary_only else "")
     seconds = MONTECARLO_SECONDS * runs * n / cores
+    runs_, n_ = _name("runs", api), _name("n", api)
     if summary_only:
         from driftfmu.simulations.montecarlo import FIGURE_RUNS
         kept = min(runs, FIGURE_RUNS)
@@ -163,44 +183,178 @@ def check_montecarlo(command, runs, n, workers, out, summary_only=False):
         disk = (MONTECARLO_DISK * kept * n + SUMMARY_BYTES * runs) if out else 0
 
         def fit_summaries(share):
-            # the trajectories kept grow with --n, the summaries with --runs: name the largest
-            # --runs at this --n when it is the runs that do not fit
+            # the trajectories kept grow with n, the summaries with runs: name the largest
+            # runs at this n when it is the runs that do not fit
             room = share * memory - MONTECARLO_MEMORY * (kept + chunk) * n
             if room >= SUMMARY_BYTES:
-                return "at most --runs %d at --n %d" % (room // SUMMARY_BYTES, n)
-            return "a smaller --n"
-        return check(what, memory, disk, seconds, out, "fewer --runs or a smaller --n",
-                     fit_summaries)
+                return "at most %s at %s" % (_setting("runs", int(room // SUMMARY_BYTES), api),
+                                             _setting("n", n, api))
+            return "a smaller %s" % n_
+        return check(what, memory, disk, seconds, out, "fewer %s or a smaller %s"
+                     % (runs_, n_), fit_summaries, announce=announce)
 
     def fit(share):
-        return "at most --runs %d at --n %d" % (max(1, int(runs * share)), n)
+        if runs * share >= 1:
+            return "at most %s at %s" % (_setting("runs", int(runs * share), api),
+                                         _setting("n", n, api))
+        return "at most %s at %s" % (_setting("n", max(1, int(n * runs * share)), api),
+                                     _setting("runs", 1, api))
     return check(what, MONTECARLO_MEMORY * runs * n, MONTECARLO_DISK * runs * n if out else 0,
                  seconds, out,
-                 "--summary-only, which keeps per-run summaries instead of trajectories; or "
-                 "fewer --runs or a smaller --n", fit)
+                 "%s, which keeps per-run summaries instead of trajectories; or fewer %s or a "
+                 "smaller %s" % ("summary_only=True" if api else "--summary-only", runs_, n_),
+                 fit, announce=announce)
 
 
-def check_sweep(points, runs, n, workers, out, announce=True):
-    """The size check of ``driftfmu sweep`` (and :func:`driftfmu.sweep`): ``points`` grid
-    points of ``runs`` runs of ``n`` samples; each run keeps its final estimates only, so the
-    memory grows with the runs, not with ``n``."""
+def check_sweep(points, runs, n, workers, out, announce=True, api=False):
+    """The size check of ``driftfmu sweep`` (``api``: of :func:`driftfmu.sweep`): ``points``
+    grid points of ``runs`` runs of ``n`` samples; each run keeps its final estimates only, so
+    the memory grows with the runs, not with ``n``."""
     cores = max(1, workers or os.cpu_count() or 1)
     total = points * runs
 
     def fit(share):
-        return "at most --runs %d for the %d grid points" % (max(1, int(runs * share)), points)
-    return check("sweep of %d grid points x --runs %d --n %d" % (points, runs, n),
-                 SWEEP_MEMORY * total, SWEEP_DISK * total if out else 0,
+        if runs * share < 1:
+            return "at most %d grid points at %s" % (max(1, int(points * runs * share)),
+                                                     _setting("runs", 1, api))
+        return "at most %s for the %d grid points" % (_setting("runs", int(runs * share), api),
+                                                      points)
+    what = ("sweep(runs=%d, n=%d) of %d grid points" % (runs, n, points) if api
+            else "sweep of %d grid points x --runs %d --n %d" % (points, runs, n))
+    return check(what, SWEEP_MEMORY * total, SWEEP_DISK * total if out else 0,
                  SWEEP_SECONDS * total * n / cores, out, "fewer grid points", fit,
                  announce=announce)
 
 
-def check_run(command, n, out, backend="python"):
-    """The size check of ``driftfmu run``: one co-simulation of ``n`` samples, every sample
+def check_run(command, n, out, backend="python", api=False, announce=True):
+    """The size check of ``driftfmu run`` (``api``: of :func:`driftfmu.run_gaussian` and
+    :func:`driftfmu.run_sinusoidal`): one co-simulation of ``n`` samples, every sample
     recorded (results.csv)."""
     def fit(share):
-        return "at most --n %d" % max(1, int(n * share))
-    return check("run %s --n %d" % (command, n), RUN_MEMORY * n, RUN_DISK * n if out else 0,
+        return "at most %s" % _setting("n", max(1, int(n * share)), api)
+    what = "run_%s(n=%d)" % (command, n) if api else "run %s --n %d" % (command, n)
+    return check(what, RUN_MEMORY * n, RUN_DISK * n if out else 0,
                  RUN_SECONDS * n / (20 if backend == "native" else 1), out,
-                 "a smaller --n",
-                 fit)
+                 "a smaller %s" % _name("n", api), fit, announce=announce)
+
+
+#: Bytes a recorded value of :func:`driftfmu.simulate` takes while the master runs (a Python
+#: float in a list, then its place in the result array).
+SIMULATE_VALUE = 40
+#: Seconds per communication point of :func:`driftfmu.simulate` (per FMU; the Python FMUs).
+SIMULATE_SECONDS = 3e-4
+
+
+def check_simulate(n_steps, columns, fmus, stop_time, step_size, backend="python"):
+    """The size check of :func:`driftfmu.simulate`: ``columns`` values recorded at each of
+    ``n_steps`` communication points of ``fmus`` FMUs."""
+    def fit(share):
+        return "at most about %d communication points (an earlier stop_time or a longer " \
+               "step_size)" % max(1, int(n_steps * share))
+    return check("simulate(stop_time=%r, step_size=%r), recording %d values at each of %d "
+                 "communication points," % (stop_time, step_size, columns, n_steps),
+                 SIMULATE_VALUE * float(columns) * n_steps, 0,
+                 SIMULATE_SECONDS * fmus * n_steps / (20 if backend == "native" else 1), None,
+                 "fewer output variables or FMUs", fit, announce=False)
+
+
+#: Bytes of memory per sample of one set of ``experiment adxl203`` in a worker (the recorded
+#: columns, the reference and the comparison; measured ~250).
+ADXL203_MEMORY = 300
+#: Memory of one worker of ``experiment adxl203`` (its Python, NumPy, the FMUs loaded), bytes.
+ADXL203_WORKER_MEMORY = 150e6
+#: Seconds of one worker per co-simulation step of a set of ``experiment adxl203``,
+#: identification and validation included, by backend (measured about 40 us and 1.5 us on a
+#: shared 2-core machine, rounded up), and the command's own seconds (start-up, figures,
+#: files).
+ADXL203_SECONDS = {"python": 5e-5, "native": 2e-6}
+ADXL203_COMMAND_SECONDS = 5.0
+#: Bytes ``experiment adxl203`` writes (tables, summary, figures).
+ADXL203_DISK = 2e6
+
+
+def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, announce=True):
+    """The size check of ``driftfmu experiment adxl203`` (``api``: of
+    :func:`driftfmu.experiment_adxl203`): ``sets`` sets of ``n`` samples at each of
+    ``freqs`` frequencies, as many at once as there are workers."""
+    cores = max(1, workers or os.cpu_count() or 1)
+    total = len(freqs) * sets
+    at_once = min(cores, total)
+
+    def fit(share):
+        return "at most %s" % _setting("n", max(1, int(n * share)), api)
+    what = ("experiment_adxl203(sets=%d, n=%d) at %d frequencies" % (sets, n, len(freqs))
+            if api else "experiment adxl203 --sets %d --n %d at %d frequencies"
+            % (sets, n, len(freqs)))
+    return check(what, (ADXL203_WORKER_MEMORY + ADXL203_MEMORY * n) * at_once,
+                 ADXL203_DISK if out else 0,
+                 ADXL203_SECONDS.get(backend, ADXL203_SECONDS["python"]) * total * n / at_once
+                 + ADXL203_COMMAND_SECONDS,
+                 out, "a smaller %s or fewer %s" % (_name("n", api), _name("workers", api)),
+                 fit, announce=announce)
+
+
+#: Bytes of memory per run and sweep point of ``experiment dual-axis``'s batch engine (the
+#: finals of every run gathered; measured ~400).
+DUAL_BATCH_MEMORY = 500
+#: Bytes of memory per sample of each run of ``experiment dual-axis``'s FMU engine (every
+#: run's recorded columns are kept for the check against models/; measured ~900).
+DUAL_FMU_MEMORY = 1000
+#: Seconds per run and sample of ``experiment dual-axis`` on one core: the FMU engine by
+#: backend (five FMU instances and the check against models/), the batch engine (the compiled
+#: kernel; NumPy is about ten times slower).
+DUAL_SECONDS = {"python": 1.5e-3, "native": 3e-4, "batch": 5e-7}
+#: Bytes ``experiment dual-axis`` writes (table, summary, figure).
+DUAL_DISK = 1e6
+
+
+def check_dual_axis(points, runs, n, engine, workers, out, backend="python", api=False,
+                    announce=True):
+    """The size check of ``driftfmu experiment dual-axis`` (``api``: of
+    :func:`driftfmu.experiment_dual_axis`): two sweeps of ``points`` points of ``runs`` runs of
+    ``n`` samples."""
+    cores = max(1, workers or os.cpu_count() or 1)
+    total = 2 * points * runs
+    memory = DUAL_BATCH_MEMORY * total if engine == "batch" else DUAL_FMU_MEMORY * total * n
+    seconds = DUAL_SECONDS.get("batch" if engine == "batch" else backend,
+                               DUAL_SECONDS["python"]) * total * n / cores
+
+    def fit(share):
+        if runs * share >= 1:
+            return "at most %s" % _setting("runs", int(runs * share), api)
+        if engine == "batch":
+            return "at most %s at %s" % (_setting("points", max(1, int(points * runs * share)),
+                                                  api), _setting("runs", 1, api))
+        return "at most %s at %s" % (_setting("n", max(1, int(n * runs * share)), api),
+                                     _setting("runs", 1, api))
+    what = ("experiment_dual_axis(points=%d, runs=%d, n=%d, engine=%r)" % (points, runs, n,
+                                                                           engine)
+            if api else "experiment dual-axis --points %d --runs %d --n %d --engine %s"
+            % (points, runs, n, engine))
+    return check(what, memory, DUAL_DISK if out else 0, seconds, out, "fewer %s or %s%s" % (
+        _name("points", api), _name("runs", api),
+        "" if engine == "batch" else ", or a smaller %s" % _name("n", api)), fit,
+        announce=announce)
+
+
+#: Bytes of memory per byte of the CSV recordings ``identify`` reads (the rows as text, then
+#: as numbers; measured ~10).
+IDENTIFY_MEMORY = 12
+#: Seconds per byte of the recordings (reading and fitting; measured ~2e-7).
+IDENTIFY_SECONDS = 3e-7
+
+
+def check_identify(files, out, api=False, announce=True):
+    """The size check of ``driftfmu identify`` (``api``: of :func:`driftfmu.identify`): every
+    recording is read whole before anything is fitted.  Files that cannot be read count 0
+    (reading them says why)."""
+    total = 0
+    for f in files:
+        try:
+            total += os.path.getsize(f)
+        except (OSError, ValueError):
+            pass
+    what = ("identify() of %d recording(s), %s of CSV," if api
+            else "identify of %d recording(s), %s of CSV,") % (len(files), size(total))
+    return check(what, IDENTIFY_MEMORY * total, 0, IDENTIFY_SECONDS * total, out,
+                 "fewer or shorter recordings", announce=announce)

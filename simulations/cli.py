@@ -14,7 +14,6 @@ line, worker processes stopped and temporary files removed.
 """
 import argparse
 import contextlib
-import math
 import os
 import re
 import signal
@@ -24,6 +23,7 @@ import warnings
 from pathlib import Path
 
 from driftfmu.models import parameters
+from driftfmu.simulations import checks
 from driftfmu.simulations.errors import (DataError, EXIT_FAILED, EXIT_INTERRUPTED,  # noqa: F401
                                          EXIT_USAGE, UsageError)
 
@@ -58,40 +58,27 @@ class _Parser(argparse.ArgumentParser):
 
 
 def param_type(name):
-    """argparse type that parses a number and checks it against the parameter's range."""
+    """argparse type that parses a number and checks it against the parameter's range (the
+    check of the API's keyword of the same name, :func:`checks.number_problem`)."""
     integer = isinstance(parameters.PARAMETERS[name].default, int)
 
     def parse(text):
-        try:
-            value = int(text) if integer else float(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(
-                "%s = %r is not %s; allowed: %s" % (name, text, "an integer" if integer
-                                                    else "a number", parameters.allowed(name)))
-        msg = parameters.problem(name, value)
-        if msg:
-            raise argparse.ArgumentTypeError(msg)
-        return value
-    parse.__name__ = name
-    return parse
+        if integer:
+            try:
+                return int(text)
+            except ValueError:
+                pass  # 2.5 or 2.0: a number, not an integer (as the API's n=2.0 is not)
+        return float(text)
+    return checks.option(name, lambda v: checks.number_problem(name, v), parse)
 
 
 #: What the command line accepts for a drive frequency (the FMU parameter allows f = 0, a
 #: constant; a run needs a drive below the Nyquist rate).
-FREQUENCY_ALLOWED = "0 < f < 1/(2 Ts), the Nyquist rate"
+FREQUENCY_ALLOWED = checks.FREQUENCY_ALLOWED
 
-
-def frequency_type(text):
-    """argparse type of a drive frequency: a finite number > 0 (the upper bound, the Nyquist
-    rate, depends on ``--Ts`` and is checked by the run before it starts)."""
-    try:
-        value = float(text)
-    except ValueError:
-        value = None
-    if value is None or not math.isfinite(value) or value <= 0.0:
-        raise argparse.ArgumentTypeError("f = %r is not allowed; allowed: %s"
-                                         % (text, FREQUENCY_ALLOWED))
-    return value
+#: argparse type of a drive frequency: a finite number > 0 (the upper bound, the Nyquist rate,
+#: depends on ``--Ts`` and is checked by the run before it starts).
+frequency_type = checks.option("f", checks.frequency_problem, float)
 
 
 def add_params(parser, names, **defaults):
@@ -382,7 +369,8 @@ def make_parser():
     add_params(g, GENERAL)
     g.add_argument("--P0", type=param_type("P0"), default=None, metavar="P0",
                    help="initial error variance of the filter [g2] (default: Q / (1 - A^2))")
-    g.add_argument("--estimator", type=int, choices=(1, 2, 3), default=1,
+    g.add_argument("--estimator", type=checks.choice_option("estimator", (1, 2, 3)),
+                   choices=(1, 2, 3), default=1,
                    help="estimator whose drift is subtracted in z_comp (default: 1, EKF1)")
     add_out(g, "results/gaussian")
     add_fmu_dir(g)
@@ -409,9 +397,14 @@ def add_fmu_dir(parser):
                         help="folder of the FMUs, built there if missing (default: build/fmus)")
 
 
+#: The FMUs a run can use (``--backend``).
+BACKENDS = ("python", "native")
+
+
 def add_backend(parser, what=None):
     """The common ``--backend python|native`` option."""
-    parser.add_argument("--backend", choices=("python", "native"), default="python",
+    parser.add_argument("--backend", type=checks.choice_option("backend", BACKENDS),
+                        choices=BACKENDS, default="python",
                         help=(what or "the FMUs to run: python, the pythonfmu FMUs in FMU_DIR "
                               "(need a libpython), or native, their C twins in "
                               "FMU_DIR/native/fmi2 (need nothing; same bits); built there if "

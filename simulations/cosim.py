@@ -181,15 +181,31 @@ class CoSimulationError(RuntimeError):
 def failed(exc, insts):
     """The CoSimulationError of a master over ``insts`` (name -> Instance) that met ``exc``:
     its message, with the last error an FMU logged on its first line (what a one-line report
-    shows: why the call failed, not only that it did), and, one per line, what the FMUs
-    logged."""
+    shows: why the call failed, not only that it did), and, one per line, what else the FMUs
+    logged.  The reason is said once: the error on the first line is not repeated on a line of
+    its own, and neither the FMU's name nor the failed function is said twice in it."""
     log = [m for inst in insts.values() for m in inst.messages]
     text = str(exc)
     errors = [m for m in log if " [error] " in m or " [fatal] " in m]
     if errors:
         first, _, rest = text.partition("\n")
-        text = "%s: %s%s" % (first.rstrip("."), errors[-1], _ + rest)
+        text = "%s: %s%s" % (first.rstrip("."), _reason(errors[-1], first), _ + rest)
+        log.remove(errors[-1])
     return CoSimulationError("%s%s" % (text, "".join("\n  " + m for m in log)))
+
+
+def _reason(entry, call):
+    """A logged error (``"<instance> [error] <message>"``) as the reason of the failed
+    ``call`` (fmpy's ``"fmi2GetReal failed with status 3 (error)"``): ``"<instance>:
+    <message>"``, without the instance's name or the function's that the message repeats."""
+    inst, _, rest = entry.partition(" [")
+    message = rest.partition("] ")[2]
+    for prefix in (inst, call.split(" ", 1)[0]):
+        if prefix and message.startswith(prefix + ": "):
+            message = message[len(prefix) + 2:]
+    if call.startswith(inst + ": "):  # the call names the instance already
+        return message
+    return "%s: %s" % (inst, message)
 
 
 def free_all(insts):

@@ -118,16 +118,13 @@ def moments(sweep, value, s):
 
 
 def check_settings(s, points, runs, engine):
-    """ValueError naming every bad setting and what is allowed."""
-    problems = parameters.check({k: v for k, v in s.items()})
-    if engine not in RUNS:
-        problems.append("engine = %r is not allowed; allowed: %s" % (engine, ", ".join(RUNS)))
-    if not isinstance(points, int) or points < 2:
-        problems.append("points = %r is not allowed; allowed: an integer points >= 2" % (points,))
-    if not isinstance(runs, int) or runs < 1:
-        problems.append("runs = %r is not allowed; allowed: an integer runs >= 1" % (runs,))
-    if problems:
-        raise ValueError("; ".join(problems))
+    """UsageError naming every bad setting and what is allowed."""
+    from driftfmu.simulations import checks
+    checks.refuse([checks.number_problem(k, v) for k, v in s.items()
+                   if k in parameters.PARAMETERS]
+                  + [checks.choice_problem("engine", engine, tuple(RUNS)),
+                     checks.count_problem("points", points, 2),
+                     checks.count_problem("runs", runs, 1)])
     check_frequency(s["f"], s["Ts"])
 
 
@@ -213,8 +210,9 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
     """
     unknown = set(settings) - set(DEFAULTS)
     if unknown:
-        raise ValueError("unknown setting(s) %s; allowed: %s"
-                         % (", ".join(sorted(unknown)), ", ".join(DEFAULTS)))
+        from driftfmu.simulations import checks
+        checks.check_keywords("run_dual_axis()", settings,
+                              checks.keywords_of(run_dual_axis, DEFAULTS))
     s = dict(DEFAULTS, **settings)
     runs = RUNS.get(engine, 1) if runs is None else runs
     check_settings(s, points, runs, engine)
@@ -415,16 +413,17 @@ def plot_dual_axis(path, summary):
 
 def add_cli(groups):
     """``driftfmu experiment dual-axis``."""
-    from driftfmu.simulations import cli
+    from driftfmu.simulations import checks, cli
     g = groups["experiment"].add_parser(
         "dual-axis", help="drift from axis cross-correlation: dual-axis vs single-axis EKF1 "
         "over a dphi sweep (sinusoids) and a rho sweep (Gaussian)")
-    g.add_argument("--points", type=_int_at_least(2, "points"), default=POINTS,
+    g.add_argument("--points", type=checks.count_option("points", 2), default=POINTS,
                    help="points of each sweep, ends included (default: %d)" % POINTS)
-    g.add_argument("--runs", type=_int_at_least(1, "runs"), default=None,
+    g.add_argument("--runs", type=checks.count_option("runs", 1), default=None,
                    help="runs per sweep point (default: %d with the fmu engine, %d with the "
                         "batch engine)" % (RUNS["fmu"], RUNS["batch"]))
-    g.add_argument("--engine", choices=tuple(RUNS), default="fmu",
+    g.add_argument("--engine", type=checks.choice_option("engine", tuple(RUNS)),
+                   choices=tuple(RUNS), default="fmu",
                    help="fmu: every run co-simulated through the FMUs and checked against "
                         "models/ bit for bit (default); batch: many runs at once through "
                         "models/, for Monte-Carlo error bars")
@@ -432,7 +431,7 @@ def add_cli(groups):
                        "a2y", "by", "Ry", "seed"),
                    **{k: DEFAULTS[k] for k in ("n", "Ts", "f", "X", "Xy", "phi", "A", "Q", "Qy",
                                                "a2", "bx", "R", "a2y", "by", "Ry")})
-    g.add_argument("--workers", type=_int_at_least(1, "workers"), default=None,
+    g.add_argument("--workers", type=checks.count_option("workers", 1), default=None,
                    help="parallel processes (default: the number of cores)")
     g.add_argument("--scheduler", default=None, metavar="ADDRESS", type=batch.scheduler_address,
                    help="batch engine: run on the Dask distributed cluster at ADDRESS (e.g. "
@@ -444,44 +443,17 @@ def add_cli(groups):
     g.set_defaults(func=_cmd)
 
 
-def _int_at_least(low, name):
-    import argparse
-
-    def parse(text):
-        try:
-            v = int(text)
-        except ValueError:
-            v = low - 1
-        if v < low:
-            raise argparse.ArgumentTypeError("%s = %r; allowed: an integer >= %d"
-                                             % (name, text, low))
-        return v
-    return parse
-
-
-#: Seconds per run and sample on one core, for the estimate a long run announces: the FMU
-#: engine by backend (five FMU instances and the check against models/), the batch engine
-#: (the compiled kernel; NumPy is about ten times slower).
-SAMPLE_SECONDS = {"python": 1.5e-3, "native": 3e-4, "batch": 5e-7}
-
-
 def _cmd(args):
     """``driftfmu experiment dual-axis``: :func:`driftfmu.experiment_dual_axis`."""
-    import os
-
     import driftfmu
     from driftfmu.simulations import budget, cli
     runs = RUNS[args.engine] if args.runs is None else args.runs
     total = 2 * args.points * runs
-    workers = max(1, args.workers or os.cpu_count() or 1)
-    per = SAMPLE_SECONDS["batch" if args.engine == "batch" else args.backend]
-    budget.check("experiment dual-axis, 2 sweeps x %d points x %d runs x %d samples, %s engine%s"
-                 % (args.points, runs, args.n, args.engine,
-                    "" if args.engine == "batch" else ", %s FMUs" % args.backend),
-                 0, 1e6 if args.out else 0, per * total * args.n / workers, args.out,
-                 "fewer --points or --runs")
     settings = {k: getattr(args, k) for k in ("n", "Ts", "f", "X", "Xy", "phi", "A", "Q", "Qy",
                                               "a2", "bx", "R", "a2y", "by", "Ry")}
+    check_settings(dict(DEFAULTS, **settings), args.points, runs, args.engine)
+    budget.check_dual_axis(args.points, runs, args.n, args.engine, args.workers, args.out,
+                           args.backend, announce=True)
     with cli.progress(total, "runs", "run", monitor=False) as update:
         s = driftfmu.experiment_dual_axis(
                           out=args.out, points=args.points, runs=runs, engine=args.engine,

@@ -160,6 +160,9 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
     ValidationError
         An FMU output differs from models/ by more than ``TOLERANCE`` (nothing is written).
     """
+    from driftfmu.simulations import checks
+    checks.check_keywords("run_gaussian()", general, checks.keywords_of(run_gaussian,
+                                                                        GENERAL_OFF))
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, x0=x0)
     if P0 is None:
         P0 = Q / (1.0 - A * A)

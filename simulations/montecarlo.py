@@ -22,8 +22,9 @@ import time
 import numpy as np
 
 from driftfmu.models import chain, drift, excitation
-from driftfmu.simulations import batch, output
+from driftfmu.simulations import batch, checks, output
 from driftfmu.simulations.gaussian import GENERAL_OFF, SETTLE_BAND, plot_title, settle_hold
+from driftfmu.simulations.sinusoidal import check_frequency
 from driftfmu.simulations.errors import UsageError
 
 #: The letter's claim: EKF1 and EKF2 settle in under 250 samples.
@@ -117,14 +118,15 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
 SINE_GENERAL = ("a3", "a4")
 
 
-def general_on(general, allowed=tuple(GENERAL_OFF)):
+def general_on(general, allowed=tuple(GENERAL_OFF), function=None):
     """The general model's parameters given and not off (``a3, a4, B, drive, Qu, Xu, fu``, as
-    ``driftfmu run gaussian`` takes them), checked; UsageError for an unknown name or a value
-    out of range."""
-    unknown = sorted(set(general) - set(allowed))
-    if unknown:
-        raise UsageError("unknown parameter(s) %s; allowed: %s"
-                         % (", ".join(unknown), ", ".join(allowed)))
+    ``driftfmu run gaussian`` takes them), checked; UsageError for an unknown name (naming
+    every keyword of ``function`` too) or a value out of range."""
+    if function is None:
+        checks.check_keywords("montecarlo()", general, tuple(allowed))
+    else:
+        checks.check_keywords("%s()" % function.__name__, general,
+                              checks.keywords_of(function, allowed))
     on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
     batch.check_parameters(on)
     return on
@@ -134,8 +136,7 @@ def _run(n, runs, seed, per_run, common, engine, scheduler, client, workers, fmu
          progress, backend="python", summary_only=False):
     seeds = batch.run_seeds(seed, runs)
     per_run = {k: v(seeds) if callable(v) else v for k, v in per_run.items()}
-    if engine not in ("batch", "fmu"):
-        raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+    checks.refuse([checks.choice_problem("engine", engine, batch.ENGINES)])
     if engine == "fmu":
         from driftfmu.simulations.gaussian import fmu_paths
         fmu_paths(fmu_dir, backend)
@@ -181,7 +182,7 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     batch.check_runs(runs)
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, x0=x0, P0=P0)
     batch.check_parameters(params)
-    on = general_on(general)
+    on = general_on(general, function=montecarlo_gaussian)
     common = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, Ts=Ts, x0=x0, P0=P0, **on)
     res, seconds = _run(n, runs, seed, {}, common, engine, scheduler, client, workers,
                         fmu_dir, progress, backend, summary_only)
@@ -225,15 +226,13 @@ def montecarlo_sinusoidal(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, R=1e-4, X=
         Q = excitation.stationary_variance(excitation.SINUSOIDAL, X=X)
     params = dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, n=n, seed=seed, Ts=Ts, X=X, f=f)
     batch.check_parameters(params)
-    on = general_on(general, SINE_GENERAL)
+    on = general_on(general, SINE_GENERAL, montecarlo_sinusoidal)
     if on and engine == "fmu":  # before anything is built or run
         raise UsageError("the FMU engine runs the sinusoidal state with the letter's sensor "
                          "only, not with %s; allowed: engine 'batch' for these, or %s = 0"
                          % (", ".join("%s = %r" % kv for kv in sorted(on.items())),
                             " = ".join(sorted(on))))
-    if not f < 0.5 / Ts:
-        raise UsageError("f = %r Hz is at or above the Nyquist rate 1/(2 Ts) = %r Hz; allowed: "
-                         "f < %r Hz" % (f, 0.5 / Ts, 0.5 / Ts))
+    check_frequency(f, Ts)
     common = dict(a0=a0, a1=a1, a2=a2, R=R, Ts=Ts, X=X, f=f, kind=excitation.SINUSOIDAL,
                   filter_A=A, filter_Q=Q, **on)
     res, seconds = _run(n, runs, seed, {"phi": batch.sine_phase}, common, engine, scheduler,

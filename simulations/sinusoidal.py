@@ -129,9 +129,9 @@ def run_sinusoidal(out=None, X=1.0, f=150.0, phi=0.0, Ts=1e-3, n=2000, seed=1, a
     ValidationError
         An FMU output differs from models/ by more than ``TOLERANCE``; nothing is written.
     """
-    unknown = set(inputs) - set(INPUT_OFF)
-    if unknown:
-        raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
+    from driftfmu.simulations import checks
+    checks.check_keywords("run_sinusoidal()", inputs, checks.keywords_of(run_sinusoidal,
+                                                                         INPUT_OFF))
     inputs = {k: v for k, v in inputs.items() if v != INPUT_OFF[k]}
     B = inputs.get("B", 0.0)
     if B != 0.0 and process != harmonic.GAUSS_MARKOV:
@@ -243,7 +243,7 @@ INPUT_OPTIONS = ("B", "drive", "Qu", "Xu", "fu")
 
 def add_cli(groups):
     """``driftfmu run sinusoidal``."""
-    from driftfmu.simulations import cli
+    from driftfmu.simulations import checks, cli
     g = groups["run"].add_parser("sinusoidal", help="sinusoidal excitation (the letter's Sec. IV "
                                  "drive), Gauss-Markov or harmonic filter, optional ADXL203")
     cli.add_params(g, ("X", "f", "phi", "a0", "a1", "a2", "R", "n", "seed", "Ts", "process",
@@ -252,9 +252,11 @@ def add_cli(groups):
                    help="process noise of the Gauss-Markov filter [g2] (default: X^2 / 2)")
     g.add_argument("--P0", type=cli.param_type("P0"), default=None, metavar="P0",
                    help="initial error variance of the filter [g2] (default: X^2 / 2)")
-    g.add_argument("--estimator", type=int, choices=(1, 2, 3), default=1,
+    g.add_argument("--estimator", type=checks.choice_option("estimator", (1, 2, 3)),
+                   choices=(1, 2, 3), default=1,
                    help="estimator whose drift is subtracted in z_comp (default: 1, EKF1)")
-    g.add_argument("--preset", choices=sorted(adxl203.PRESETS), default=None,
+    g.add_argument("--preset", type=checks.choice_option("preset", tuple(sorted(
+                   adxl203.PRESETS))), choices=sorted(adxl203.PRESETS), default=None,
                    help="accelerometer preset (the filter then uses its nominal model; "
                         "a0, a1, a2, R are ignored)")
     cli.add_params(g, ("Xy", "phiy"))

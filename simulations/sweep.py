@@ -28,7 +28,7 @@ import time
 import numpy as np
 
 from driftfmu.models import chain, excitation, parameters
-from driftfmu.simulations import batch, budget, output
+from driftfmu.simulations import batch, budget, checks, output
 from driftfmu.simulations.errors import UsageError
 
 DEFAULT_A2 = tuple(np.logspace(-3, -0.5, 6))
@@ -47,7 +47,12 @@ GENERAL_OFF = dict(a3=0.0, a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu
 
 
 def check_grid(name, values):
-    """The grid of ``name`` as a 1-D float array; ValueError when empty or out of range."""
+    """The grid of ``name`` as a 1-D float array; ValueError when empty, not numbers (text
+    and True/False are not, though NumPy reads them as such) or out of range."""
+    items = values if isinstance(values, np.ndarray) else np.asarray(values, dtype=object)
+    for v in np.ravel(items):
+        if not checks.is_number(v):
+            checks.refuse([checks.number_problem(name, v)])
     arr = np.atleast_1d(np.asarray(values, dtype=float))
     if arr.ndim != 1 or arr.size == 0:
         raise UsageError("the %s grid is empty; allowed: one or more values of %s"
@@ -100,10 +105,7 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
         ``"a4"``), ``table`` (CSV columns -> arrays of one value per grid point) and
         ``seconds`` (wall time of the runs).
     """
-    unknown = sorted(set(general) - set(GENERAL_OFF))
-    if unknown:
-        raise UsageError("unknown parameter(s) %s; allowed: %s"
-                         % (", ".join(unknown), ", ".join(GENERAL_OFF)))
+    checks.check_keywords("sweep()", general, checks.keywords_of(sweep, GENERAL_OFF))
     a4s = check_grid("a4", a4)
     axis = "a4" if a4s.size > 1 else "a2"
     if a2 is None:
@@ -118,12 +120,11 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
     batch.check_parameters(dict(a0=a0, a1=a1, Q=Q, A=A, n=n, Ts=Ts))
     on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
     batch.check_parameters(on)
-    if engine not in ("batch", "fmu"):
-        raise UsageError("engine = %r is not allowed; allowed: 'batch' or 'fmu'" % (engine,))
+    checks.refuse([checks.choice_problem("engine", engine, batch.ENGINES)])
     xs = a4s if axis == "a4" else a2
     points = len(xs) * len(R)
     # before anything is allocated: a sweep too large for the machine is refused, not killed
-    budget.check_sweep(points, runs, n, workers, out, announce=False)
+    budget.check_sweep(points, runs, n, workers, out, announce=False, api=True)
     seeds1 = batch.run_seeds(seed, runs)
     seeds = np.tile(seeds1, points)
     per_run = {axis: np.repeat(xs, len(R) * runs), "R": np.tile(np.repeat(R, runs), len(xs))}

@@ -148,9 +148,11 @@ def test_a_run_that_cannot_fit_in_memory_is_refused_before_it_starts(fmu_dir):
         driftfmu.simulate(stop_time=1e12, fmu_dir=fmu_dir)
     text = str(info.value)
     assert "\n" not in text
-    assert text.startswith("stop_time = 1000000000000.0 with step_size = 0.001 makes "
-                           "1000000000000001 communication points: recording")
-    assert "of memory, this machine has" in text and "allowed: at most about" in text
+    assert text.startswith("simulate(stop_time=1000000000000.0, step_size=0.001), recording "
+                           "13 values at each of 1000000000000001 communication points, needs "
+                           "about "), text
+    assert "of memory; this machine has" in text and "allowed: a run that fits: at most " \
+        "about" in text, text
 
 
 def test_an_empty_fmu_dir_is_refused_not_the_current_folder(tmp_path, monkeypatch):

@@ -106,7 +106,7 @@ def test_step_that_is_not_finite_is_an_error(built_fmus, report):
 # -- the command line ---------------------------------------------------------------------------
 @pytest.mark.parametrize("argv,text", [
     (["run", "gaussian", "--R", "-1"], "argument --R: R = -1.0 is out of range; allowed: R > 0"),
-    (["run", "gaussian", "--n", "many"], "argument --n: n = 'many' is not an integer"),
+    (["run", "gaussian", "--n", "many"], "argument --n: n = 'many' is not a number"),
     (["run", "gaussian", "--A", "1"], "allowed: A > -1 and A < 1"),
     (["run", "gaussian", "--bogus"], "unrecognized arguments: --bogus"),
     (["frobnicate"], "invalid choice: 'frobnicate'"),

@@ -133,13 +133,15 @@ def test_cli_identify_order_writes_the_order_and_refuses_an_aliased_one(tmp_path
         assert abs(out["model"]["a%d" % i] - TRUE["a%d" % i]) <= 5 * se, i
     printed = capsys.readouterr().out
     assert "order 4: a3" in printed and "standard errors" in printed
-    # at 150 Hz and Ts = 1 ms the 4th harmonic aliases: exit 1, one line, nothing written
+    # at 150 Hz and Ts = 1 ms the 4th harmonic aliases: a usage error (exit 2, as a drive
+    # frequency above the recording's Nyquist rate), one line, nothing written
     _csv(tmp_path / "fast.csv", *_record(1, 0.002, f=150.0))
     rc = main(["identify", str(tmp_path / "fast.csv"), "--f", "150", "--order", "4",
                "--out", str(tmp_path / "p")])
     err = capsys.readouterr().err
-    assert rc == 1 and "order 4 needs harmonic 4" in err and "allowed: order <= 3" in err
+    assert rc == 2 and "order 4 needs harmonic 4" in err and "allowed: order <= 3" in err
     assert not (tmp_path / "p").exists()
     with pytest.raises(SystemExit) as exc:  # a usage error
         main(["identify", str(tmp_path / "fast.csv"), "--f", "150", "--order", "5"])
-    assert exc.value.code == 2 and "invalid choice: 5" in capsys.readouterr().err
+    assert exc.value.code == 2 and "order = 5 is not allowed; allowed: 2, 3, 4" in \
+        capsys.readouterr().err

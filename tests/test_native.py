@@ -737,7 +737,8 @@ def test_command_line_takes_the_backend(native_fmus, tmp_path, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["run", "gaussian", "--backend", "java"])
     assert exc.value.code == 2
-    assert "invalid choice: 'java'" in capsys.readouterr().err
+    assert "backend = 'java' is not allowed; allowed: 'python', 'native'" in \
+        capsys.readouterr().err
 
 
 def test_montecarlo_fmu_engine_and_adxl203_experiment_on_the_native_fmus(native_fmus,
