@@ -283,9 +283,9 @@ def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, ann
 
     def fit(share):
         return "at most %s" % _setting("n", max(1, int(n * share)), api)
-    what = ("experiment_adxl203(sets=%d, n=%d) at %d frequencies" % (sets, n, len(freqs))
-            if api else "experiment adxl203 --sets %d --n %d at %d frequencies"
-            % (sets, n, len(freqs)))
+    at = "%d frequenc%s" % (len(freqs), "y" if len(freqs) == 1 else "ies")
+    what = ("experiment_adxl203(sets=%d, n=%d) at %s" % (sets, n, at) if api
+            else "experiment adxl203 --sets %d --n %d at %s" % (sets, n, at))
     return check(what, (ADXL203_WORKER_MEMORY + ADXL203_MEMORY * n) * at_once,
                  ADXL203_DISK if out else 0,
                  ADXL203_SECONDS.get(backend, ADXL203_SECONDS["python"]) * total * n / at_once

@@ -310,12 +310,32 @@ def _group(pgid, python_only=False):
     return live
 
 
-#: Work that lasts hours, far beyond :data:`waiting.BOUND`: a command that ends within the bound
-#: after the signal ended because of it.  The experiment: sets of 50 million samples (about half
-#: an hour each on the Python FMUs); the sweep: its own estimate is 50 h.
-HOURS_OF_EXPERIMENT = ["experiment", "adxl203", "--freqs", "100", "--sets", "3", "--held-out",
-                       "1", "--n", "50000000", "--workers", "2", "--out", "res"]
+#: Work that lasts far beyond :data:`waiting.BOUND`: a command that ends within the bound after
+#: the signal ended because of it.  The experiment's sets never end (:data:`SETS_FOREVER`: each
+#: worker runs its real set, co-simulation and all, again and again); the sweep's own estimate
+#: is 50 h.
+ENDLESS_EXPERIMENT = ["experiment", "adxl203", "--freqs", "100", "--sets", "6", "--held-out",
+                      "1", "--workers", "2", "--out", "res"]
 HOURS_OF_SWEEP = ["sweep", "--runs", "20000", "--n", "6000000", "--out", "res"]
+
+#: A module on the command's PYTHONPATH (so that a worker, forked or started by a fork server,
+#: finds it by name) whose set runs for ever, and the command with it in place.
+SETS_FOREVER = """
+from driftfmu.simulations import adxl203
+real_run_set = adxl203._run_set
+
+def run_set_forever(task):
+    while True:
+        real_run_set(task)
+"""
+ENDLESS_COMMAND = """
+import sys
+import sets_forever
+from driftfmu.simulations import adxl203, cli
+adxl203._run_set = sets_forever.run_set_forever
+sys.argv[0] = "driftfmu"
+cli.run_program()
+"""
 
 
 def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_main=False):
@@ -328,9 +348,14 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
     effect."""
     tmp = tmp_path / "tmp"
     tmp.mkdir()
-    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT),
+    modules = tmp_path / "modules"
+    modules.mkdir()
+    (modules / "sets_forever.py").write_text(SETS_FOREVER)
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=os.pathsep.join([str(modules), str(ROOT)]),
                DRIFTFMU_PROGRESS_EVERY="3600")  # stderr: the interrupt's line only
-    p = subprocess.Popen([sys.executable, "-m", "driftfmu", *argv], cwd=tmp_path, env=env,
+    command = (["-c", ENDLESS_COMMAND] if argv[:2] == ENDLESS_EXPERIMENT[:2]
+               else ["-m", "driftfmu"])
+    p = subprocess.Popen([sys.executable, *command, *argv], cwd=tmp_path, env=env,
                          start_new_session=True, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     try:
@@ -368,7 +393,7 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
 def test_ctrl_c_stops_the_experiment_and_its_workers(built_fmus, tmp_path):
     fmu_dir = Path(built_fmus["Excitation"]).parent
     rc, err, left, files, workers = _interrupt(
-        HOURS_OF_EXPERIMENT + ["--fmu-dir", str(fmu_dir)], tmp_path, after=0.5,
+        ENDLESS_EXPERIMENT + ["--fmu-dir", str(fmu_dir)], tmp_path, after=0.5,
         wait_for_workers=2)
     assert workers >= 2  # it was interrupted while the sets ran on the workers
     assert rc == 130, err  # within the bound, of hours of work: stopped by the signal
@@ -426,7 +451,7 @@ def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path
     # what `timeout` or `kill PID` do: SIGTERM to the main process, not to the group
     fmu_dir = Path(built_fmus["Excitation"]).parent
     rc, err, left, files, workers = _interrupt(
-        HOURS_OF_EXPERIMENT + ["--fmu-dir", str(fmu_dir)], tmp_path, after=0.5,
+        ENDLESS_EXPERIMENT + ["--fmu-dir", str(fmu_dir)], tmp_path, after=0.5,
         wait_for_workers=2, send=lambda pid: os.kill(pid, signal.SIGTERM))
     assert workers >= 2
     assert rc == 130, err

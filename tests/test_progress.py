@@ -10,6 +10,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations import cli
+from waiting import BOUND
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -191,19 +192,19 @@ def test_a_long_experiment_says_how_long_it_will_take_and_shows_its_first_set(py
     seen = []
     try:
         while not any(line.startswith("driftfmu: progress: ") for line in seen):
-            line = lines.get(timeout=300)  # a generous bound for a busy machine
+            line = lines.get(timeout=BOUND)
             assert line is not None, "ended without a progress line: %s" % seen
             seen.append(line)
     finally:
         proc.send_signal(signal.SIGINT)
         try:
-            proc.wait(timeout=120)
+            proc.wait(timeout=BOUND)
         except subprocess.TimeoutExpired:
             proc.kill()
             proc.wait()
     note, progress = seen[0], seen[-1]
-    assert note.startswith("driftfmu: note: experiment adxl203, 1 frequencies x 1000 sets x "
-                           "2000 samples, python FMUs on 1 worker(s): about "), seen
+    assert note.startswith("driftfmu: note: experiment adxl203 --sets 1000 --n 2000 at 1 "
+                           "frequency: about "), seen
     assert note.endswith(" (estimates)") and (" min " in note or " s " in note), note
     import re
     assert re.fullmatch(r"driftfmu: progress: sets \d+ % \(\d+/1000 sets\), \d+ s, about "
