@@ -112,7 +112,7 @@ class Excitation(SlaveBase):
         self.x, self.y, self.u = outputs
 
     #: the hidden x is the output x, which the base class checks
-    hidden_finite = None
+    hidden_valid = None
 
     def hold(self, hidden, k0, n, first):
         x, y = hidden["_x"], hidden["_y"]
