@@ -34,9 +34,9 @@ class Excitation(SlaveBase):
         var("Qy", "parameter"),
         var("rho", "parameter"),
         var("B", "parameter"),
-        var("drive", "parameter", description="known input u_k: 0 from the host (the input "
-            "u_in; 0 unless set), 1 Gaussian "
-            "white N(0, Qu), 2 sinusoid Xu sin(2 pi fu t)"),
+        var("drive", "parameter", type="Integer", description="known input u_k: 0 from the "
+            "host (the input u_in; 0 unless set), 1 Gaussian white N(0, Qu), 2 sinusoid "
+            "Xu sin(2 pi fu t)"),
         var("Qu", "parameter"),
         var("Xu", "parameter"),
         var("fu", "parameter"),

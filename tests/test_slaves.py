@@ -214,7 +214,8 @@ def test_variables_table_is_complete():
     (Excitation, "Ts", 0.0, "Ts = 0.0 is out of range; allowed: Ts >= 1e-09"),
     (Excitation, "rho", -1.5, "rho = -1.5 is out of range; allowed: rho >= -1 and rho <= 1"),
     (Accelerometer, "a1y", 0.0, "a1y = 0.0 is out of range; allowed: a1y != 0"),
-    (Accelerometer, "dual", 2, "dual = 2 is out of range; allowed: dual >= 0 and dual <= 1"),
+    (Accelerometer, "dual", 2, "dual = 2 is out of range; allowed: an integer dual >= 0 and "
+     "dual <= 1"),
     (DualDriftEstimator, "R", -1.0, "R = -1.0 is out of range; allowed: R > 0"),
     (DualDriftEstimator, "Qy", -0.5, "Qy = -0.5 is out of range; allowed: Qy >= 0"),
     (DualDriftEstimator, "estimator", 0,
