@@ -12,19 +12,17 @@ from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, check_est
 from driftfmu.models import chain, covariance, drift, dualaxis, harmonic
 
 
-def _names(outputs, prefix):
-    """The filters' covariance entries as the refusals name them: an output where the entry is
-    one (``outputs``: field -> output), else ``prefix`` and the field."""
-    return {process: tuple(tuple(outputs.get(n, prefix + n) for n in row) for row in rows)
-            for process, rows in dualaxis.COVARIANCE_NAMES.items()}
-
-
-_FIELDS = {dualaxis.GAUSS_MARKOV: ("Pxx", "Pxy", "Pyy"), dualaxis.HARMONIC: ("P11", "P13", "P33")}
-#: Names of the covariance entries in a step's refusal (the outputs P_xx, P_xy, P_yy where an
-#: entry is one) and in a state's (all hidden), and of the matrix as a whole.
-COVARIANCE_NAMES = {p: _names(dict(zip(f, ("P_xx", "P_xy", "P_yy"))), "hidden state _state.")[p]
-                    for p, f in _FIELDS.items()}
-STATE_COVARIANCE_NAMES = _names({}, "hidden state _state.")
+_HIDDEN = "hidden state _state."
+#: The filters' covariance entries as a refused sample names them (the outputs P_xx, P_xy, P_yy
+#: where an entry is one), per process model in the shape of dualaxis.covariance_of; the same
+#: in a state being restored (all hidden); and the matrix as a whole.
+COVARIANCE_NAMES = {
+    dualaxis.GAUSS_MARKOV: (("P_xx",), ("P_xy", "P_yy")),
+    dualaxis.HARMONIC: (("P_xx",), (_HIDDEN + "P12", _HIDDEN + "P22"),
+                        ("P_xy", _HIDDEN + "P23", "P_yy"),
+                        (_HIDDEN + "P14", _HIDDEN + "P24", _HIDDEN + "P34", _HIDDEN + "P44"))}
+STATE_COVARIANCE_NAMES = {p: tuple(tuple(_HIDDEN + n for n in row) for row in rows)
+                          for p, rows in dualaxis.COVARIANCE_NAMES.items()}
 COVARIANCE_LISTING = {p: "the covariance (%s) of hidden state _state"
                       % ", ".join(n for row in rows for n in row)
                       for p, rows in dualaxis.COVARIANCE_NAMES.items()}
