@@ -102,20 +102,28 @@ def _valid_floats(lower):
                 c[i, j] = 0.0
             else:
                 c[i, j] = lower[i][j] / s[j] / s[i]
+    for dj in _pivots(c, n):
+        if not dj > 0.0:
+            return False  # (before the next pivot divides by it)
+    return True
+
+
+def _pivots(c, n):
+    """The pivots ``d_j`` of the ``L D L^T`` factorisation of the correlation matrix (below the
+    diagonal ``c[i, j]``, on it ``BOUND``), one after the other (floats or arrays): ``u_ij =
+    l_ij d_j``; the rows after ``d_j`` are computed only when the next pivot is asked for."""
     d, u = [], {}
-    for j in range(n):  # L D L^T, u_ij = l_ij d_j
+    for j in range(n):
         dj = BOUND
         for k in range(j):
             dj = dj - u[j, k] * (u[j, k] / d[k])
-        if not dj > 0.0:
-            return False
+        yield dj
         d.append(dj)
         for i in range(j + 1, n):
             v = c[i, j]
             for k in range(j):
                 v = v - u[i, k] * (u[j, k] / d[k])
             u[i, j] = v
-    return True
 
 
 def _valid_arrays(np, lower):
@@ -132,18 +140,8 @@ def _valid_arrays(np, lower):
             ok = ok & ~(zero & (lower[i][j] != 0.0))
             c[i, j] = np.where(zero, 0.0, lower[i][j] / np.where(zero, 1.0, s[j])
                                / np.where(zero, 1.0, s[i]))
-    d, u = [], {}
-    for j in range(n):
-        dj = BOUND
-        for k in range(j):
-            dj = dj - u[j, k] * (u[j, k] / d[k])
+    for dj in _pivots(c, n):
         ok = ok & (dj > 0.0)
-        d.append(dj)
-        for i in range(j + 1, n):
-            v = c[i, j]
-            for k in range(j):
-                v = v - u[i, k] * (u[j, k] / d[k])
-            u[i, j] = v
     return ok
 
 
