@@ -117,7 +117,7 @@ class Accelerometer(SlaveBase):
 
     #: the filter state e of an axis reaches its output z = Q(a0 + e): a non-finite e makes z
     #: non-finite, or the ADC raises, both refused by the base class
-    hidden_finite = None
+    hidden_valid = None
 
     def hold(self, hidden, k0, n, first):
         if n > 1:  # the samples before the last change only the filter state: adxl203.hold

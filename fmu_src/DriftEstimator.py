@@ -6,7 +6,15 @@ oscillator at a known frequency; the sensor's characteristic up to 4th order (a3
 
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, check_estimator_plain, var
-from driftfmu.models import chain, drift, harmonic
+from driftfmu.models import chain, covariance, drift, harmonic
+
+#: The covariance of the harmonic filter as the refusals name it: the output P and the hidden
+#: P12, P22 (rows of the lower triangle), and the matrix as a whole.
+COVARIANCE_NAMES = (("P",), ("hidden state _state.P12", "hidden state _state.P22"))
+COVARIANCE_LISTING = "the covariance (P, P12, P22) of hidden state _state"
+#: The same in a state being restored, where all are hidden.
+STATE_COVARIANCE_NAMES = (("hidden state _state.P",),
+                          ("hidden state _state.P12", "hidden state _state.P22"))
 
 
 class DriftEstimator(SlaveBase):
@@ -73,13 +81,14 @@ class DriftEstimator(SlaveBase):
         self._step_args = (self.a0, self.a1, self.a2, self.R, m["process"], m["A"], m["Q"],
                            m["C"], m["S"], m["Qh"], self.a3, self.a4, m["B"])
         self._predict_args = (m["process"], m["A"], m["Q"], m["C"], m["S"], m["Qh"], m["B"])
-        # the check after each sample (see hidden_finite): the class's for the harmonic model;
-        # none for the Gauss-Markov one, whose numbers all reach the outputs (it would answer
-        # True); the state's kind follows process wherever a sample is computed
+        # the check after each sample (see hidden_valid): the class's for the harmonic model;
+        # none for the Gauss-Markov one, whose numbers all reach the outputs and whose scalar P
+        # stays >= 0 (it would answer True); the state's kind follows process wherever a
+        # sample is computed
         if self.process == harmonic.HARMONIC:
-            self.__dict__.pop("hidden_finite", None)
+            self.__dict__.pop("hidden_valid", None)
         else:
-            self.hidden_finite = None
+            self.hidden_valid = None
 
     def initial_hidden(self):
         return {"_state": harmonic.estimator_init(self.process, self.x0, self.P0)}
@@ -106,20 +115,39 @@ class DriftEstimator(SlaveBase):
         if n > 1:
             state = hidden["_state"]
             args, u = self._predict_args, self.u
-            for _ in range(n - 1):
+            check = type(state) is harmonic.HarmonicState  # (the scalar P stays >= 0)
+            for k in range(k0, k0 + n - 1):
+                if check and not covariance.valid2(state.P, state.P12, state.P22):
+                    self._refuse_covariance(state, k)
                 state = harmonic.estimator_predict(state, *args, u)
             hidden, outputs = {"_state": state}, self._outputs(state)
-        return hidden, outputs
+        return hidden, outputs  # (the state after the last sample: the base class checks it)
 
-    def hidden_finite(self, hidden):
+    def _refuse_covariance(self, state, k):
+        """Refuse sample ``k`` (not the last of a step) whose harmonic state's covariance is not
+        valid, when its entries are finite (a non-finite one stays so, and the check of the
+        last sample refuses it as an overflow)."""
+        zero = 0.0 * state.P + 0.0 * state.P12 + 0.0 * state.P22
+        if zero == 0.0:
+            self._fail(self.covariance_refusal({"_state": state}, k))
+
+    def hidden_valid(self, hidden):
         # x, P and the drift sums reach the outputs (x_hat, P, dc_ekf1 = a2 s1, dc_ekf2 = dc2,
         # dc_ekf3 from a2 s3 and dc3), so a non-finite one makes an output non-finite, which the
-        # base class refuses first; the harmonic model's d, P12 and P22 do not reach them
+        # base class refuses first; the harmonic model's d, P12 and P22 do not reach them, and
+        # its covariance (P, P12, P22) must be valid (models/covariance.py)
         state = hidden["_state"]
         if type(state) is harmonic.HarmonicState:
             zero = 0.0 * state.d + 0.0 * state.P12 + 0.0 * state.P22  # 0, or nan if any is not
-            return zero == 0.0                                          # finite (no overflow)
+            return zero == 0.0 and covariance.valid2(state.P, state.P12, state.P22)
         return True
+
+    def covariance_refusal(self, hidden, k):
+        lower = harmonic.covariance_of(hidden["_state"])
+        if lower is None or covariance.valid(lower):
+            return None
+        return covariance.refusal(COVARIANCE_NAMES, lower, k, self._sample_time(k),
+                                  COVARIANCE_LISTING)
 
     def parse_hidden(self, name, value):
         if value is None:
@@ -134,4 +162,6 @@ class DriftEstimator(SlaveBase):
         harmonic_state = isinstance(state, harmonic.HarmonicState)
         if harmonic_state != (self.process == harmonic.HARMONIC):
             return ["the estimator state does not belong to process = %r" % (self.process,)]
-        return []
+        lower = harmonic.covariance_of(state) or ((state.P,),)
+        names = STATE_COVARIANCE_NAMES[:len(lower)]
+        return covariance.state_problems(names, lower, COVARIANCE_LISTING)

@@ -9,7 +9,23 @@ value references) stays exactly as it is, and this one has a measurement vector 
 
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, check_estimator_plain, var
-from driftfmu.models import chain, drift, dualaxis, harmonic
+from driftfmu.models import chain, covariance, drift, dualaxis, harmonic
+
+
+_HIDDEN = "hidden state _state."
+#: The filters' covariance entries as a refused sample names them (the outputs P_xx, P_xy, P_yy
+#: where an entry is one), per process model in the shape of dualaxis.covariance_of; the same
+#: in a state being restored (all hidden); and the matrix as a whole.
+COVARIANCE_NAMES = {
+    dualaxis.GAUSS_MARKOV: (("P_xx",), ("P_xy", "P_yy")),
+    dualaxis.HARMONIC: (("P_xx",), (_HIDDEN + "P12", _HIDDEN + "P22"),
+                        ("P_xy", _HIDDEN + "P23", "P_yy"),
+                        (_HIDDEN + "P14", _HIDDEN + "P24", _HIDDEN + "P34", _HIDDEN + "P44"))}
+STATE_COVARIANCE_NAMES = {p: tuple(tuple(_HIDDEN + n for n in row) for row in rows)
+                          for p, rows in dualaxis.COVARIANCE_NAMES.items()}
+COVARIANCE_LISTING = {p: "the covariance (%s) of hidden state _state"
+                      % ", ".join(n for row in rows for n in row)
+                      for p, rows in dualaxis.COVARIANCE_NAMES.items()}
 
 #: Outputs, each depending on both inputs.
 OUTPUTS = ("x_hat", "y_hat", "P_xx", "P_xy", "P_yy", "dc_ekf1_x", "dc_ekf2_x", "dc_ekf3_x",
@@ -119,10 +135,31 @@ class DualDriftEstimator(SlaveBase):
         hidden, outputs = self.sample(hidden, k0, first)
         if n > 1:
             state = hidden["_state"]
-            for _ in range(n - 1):
+            for k in range(k0, k0 + n - 1):
+                if not dualaxis.valid(state):
+                    self._refuse_covariance(state, k)
                 state = dualaxis.estimator_predict(state, self._model)
             hidden, outputs = {"_state": state}, self._outputs(state)
-        return hidden, outputs
+        return hidden, outputs  # (the state after the last sample: the base class checks it)
+
+    def _refuse_covariance(self, state, k):
+        """Refuse sample ``k`` (not the last of a step) whose covariance is not valid, when its
+        entries are finite (a non-finite one stays so, and the check of the last sample refuses
+        it as an overflow)."""
+        _, lower = dualaxis.covariance_of(state)
+        if sum(0.0 * v for row in lower for v in row) == 0.0:
+            self._fail(self.covariance_refusal({"_state": state}, k))
+
+    def hidden_valid(self, hidden):
+        # every number finite (the base class's test) and the covariance valid
+        return SlaveBase.hidden_valid(self, hidden) and dualaxis.valid(hidden["_state"])
+
+    def covariance_refusal(self, hidden, k):
+        process, lower = dualaxis.covariance_of(hidden["_state"])
+        if covariance.valid(lower):
+            return None
+        return covariance.refusal(COVARIANCE_NAMES[process], lower, k, self._sample_time(k),
+                                  COVARIANCE_LISTING[process])
 
     def parse_hidden(self, name, value):
         if value is None:
@@ -139,4 +176,6 @@ class DualDriftEstimator(SlaveBase):
         harmonic_state = isinstance(state, dualaxis.DualHarmonicState)
         if harmonic_state != (self.process == harmonic.HARMONIC):
             return ["the estimator state does not belong to process = %r" % (self.process,)]
-        return []
+        process, lower = dualaxis.covariance_of(state)
+        return covariance.state_problems(STATE_COVARIANCE_NAMES[process], lower,
+                                         COVARIANCE_LISTING[process])

@@ -34,9 +34,9 @@ class Excitation(SlaveBase):
         var("Qy", "parameter"),
         var("rho", "parameter"),
         var("B", "parameter"),
-        var("drive", "parameter", description="known input u_k: 0 from the host (the input "
-            "u_in; 0 unless set), 1 Gaussian "
-            "white N(0, Qu), 2 sinusoid Xu sin(2 pi fu t)"),
+        var("drive", "parameter", type="Integer", description="known input u_k: 0 from the "
+            "host (the input u_in; 0 unless set), 1 Gaussian white N(0, Qu), 2 sinusoid "
+            "Xu sin(2 pi fu t)"),
         var("Qu", "parameter"),
         var("Xu", "parameter"),
         var("fu", "parameter"),
@@ -113,7 +113,7 @@ class Excitation(SlaveBase):
         self.x, self.y, self.u = outputs
 
     #: the hidden x is the output x, which the base class checks
-    hidden_finite = None
+    hidden_valid = None
 
     def hold(self, hidden, k0, n, first):
         x, y = hidden["_x"], hidden["_y"]

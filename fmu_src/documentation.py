@@ -96,7 +96,9 @@ STEP_RULE = (
     "so a Gauss-Seidel master (Excitation, Accelerometer, DriftEstimator) has no one-step lag. "
     "One step processes at most 1,000,000 samples. A bad parameter, a non-finite input or an "
     "overflowing output is an error naming the variable, the value and what is allowed, and "
-    "the rejected call changes nothing.")
+    "the rejected call changes nothing. So is a sample after which a filter's covariance would "
+    "have a negative variance or not be positive semi-definite (the numbers exceed what double "
+    "precision can carry; the rule: docs/method.md, section 2).")
 
 #: What a host must do, on every FMU's page: (title, paragraph).
 HOST_RULES = (

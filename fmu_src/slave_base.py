@@ -30,10 +30,12 @@ allowed only those.  One step processes at most :data:`MAX_SAMPLES_PER_STEP` ins
 from the start values and inputs (sample 1), as the InitialUnknowns declare.
 
 Errors: a bad parameter, a non-finite input, a step ``h`` that is not finite and positive or
-spans too many samples, and a computation that would make an output or hidden state non-finite
-from finite values (overflow) are logged with status error, naming the variable, the value and
-what is allowed, and the call changes nothing: a call is validated as a whole before anything is
-assigned, and samples are computed into locals and committed only when all of them are finite.
+spans too many samples, a computation that would make an output or hidden state non-finite
+from finite values (overflow), and one that would leave a filter's covariance negative or not
+positive semi-definite (:mod:`driftfmu.models.covariance`: the numbers exceed what double
+precision can carry) are logged with status error, naming the variable, the value and what is
+allowed, and the call changes nothing: a call is validated as a whole before anything is
+assigned, and samples are computed into locals and committed only when all of them are valid.
 No Python exception leaves an FMI entry point: pythonfmu would turn it into fmi2Fatal and show
 its text only with debug logging on.  The FMU's loader shim (fmu_src/loader) sees the error log
 line and returns fmi2Error for the call, and forwards error lines to the host's logger even when
@@ -232,8 +234,9 @@ class SlaveBase(Fmi2Slave):
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
     #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
     #: before initialisation).  Slaves provide the hooks ``prepare``, ``initial_hidden``,
-    #: ``sample``, ``show`` and optionally ``hold``, ``hidden_finite``, ``parse_hidden`` and
-    #: ``hidden_problems``; the step rule, the checks and the FMU state are this class's.
+    #: ``sample``, ``show`` and optionally ``hold``, ``hidden_valid``, ``covariance_refusal``,
+    #: ``parse_hidden`` and ``hidden_problems``; the step rule, the checks and the FMU state are
+    #: this class's.
     HIDDEN = ()
     #: Names of the outputs a sample computes, in the order of the tuple ``sample`` returns
     #: (which may be a prefix of it: outputs a configuration does not compute keep their value).
@@ -305,7 +308,7 @@ class SlaveBase(Fmi2Slave):
                     total = sum(outputs)  # not finite if any output is not (or they overflow)
                     if total - total != 0.0:
                         self._check_outputs(outputs, k)
-                    check = self.hidden_finite
+                    check = self.hidden_valid
                     if check is not None and not check(pending):
                         self._check_hidden(pending, k)
                     self.show(outputs)
@@ -653,7 +656,7 @@ class SlaveBase(Fmi2Slave):
         total = sum(outputs)  # not finite if any output is not (or if they overflow)
         if total - total != 0.0:
             self._check_outputs(outputs, k0 + n - 1)
-        check = self.hidden_finite
+        check = self.hidden_valid
         if check is not None and not check(hidden):
             self._check_hidden(hidden, k0 + n - 1)
         return hidden, outputs
@@ -671,12 +674,16 @@ class SlaveBase(Fmi2Slave):
                 self._not_finite(name, value, k)
 
     def _check_hidden(self, hidden, k):
-        """Refuse sample ``k`` for the first non-finite number of ``hidden``; called when
-        ``hidden_finite`` says there is one."""
+        """Refuse sample ``k`` for the first non-finite number of ``hidden``, else for a
+        covariance that is not valid (``covariance_refusal``); called when ``hidden_valid`` says
+        there is one."""
         for name, value in hidden.items():
             for part, v in _numbers(name, value):
                 if not math.isfinite(v):
                     self._not_finite("hidden state " + part, v, k)
+        message = self.covariance_refusal(hidden, k)
+        if message is not None:
+            self._fail(message)
 
     # -- hooks for the slaves ---------------------------------------------------------------
     def prepare(self):
@@ -726,10 +733,12 @@ class SlaveBase(Fmi2Slave):
             raise ValueError("not a finite number")
         return value
 
-    def hidden_finite(self, hidden):
-        """Whether every number in ``hidden`` is finite.  Slaves may override this with a
-        faster test of the same meaning, or set it to None where a non-finite hidden value
-        always makes an output non-finite (which is checked first)."""
+    def hidden_valid(self, hidden):
+        """Whether every number in ``hidden`` is finite and every covariance in it valid
+        (:meth:`covariance_refusal` finds none).  Default: the finite test (a slave without a
+        covariance).  Slaves may override this with a faster test of the same meaning, or set
+        it to None where a non-finite hidden value always makes an output non-finite (which is
+        checked first) and there is no covariance to check."""
         for name, value in hidden.items():
             if value is None:
                 continue
@@ -739,6 +748,12 @@ class SlaveBase(Fmi2Slave):
             elif not all(math.isfinite(v) for _, v in _numbers(name, value)):
                 return False
         return True
+
+    def covariance_refusal(self, hidden, k):
+        """The message refusing sample ``k`` whose ``hidden`` state (all finite) holds a
+        covariance that is not valid (:func:`driftfmu.models.covariance.refusal`), or None
+        (hook; a slave without a covariance has none)."""
+        return None
 
     def hidden_problems(self, hidden):
         """Problems of a hidden state read back for the current parameters (hook)."""

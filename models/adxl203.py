@@ -209,7 +209,10 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
     The known input ``u_k`` (the Excitation's ``drive, Qu, Xu, fu``) drives a Gaussian ``x`` by
     the Excitation's ``B``, and reaches the filter's prediction by the DriftEstimator's ``B``
     (the master's connection ``Excitation.u -> DriftEstimator.u``); a sinusoidal ``x`` does not
-    move with it.  Both ``B = 0`` (the defaults) give the letter's chain, same bits.
+    move with it.  Both ``B = 0`` (the defaults) give the letter's chain, same bits.  A sample
+    after which the harmonic filter's covariance is not valid (which the DriftEstimator
+    refuses) raises :class:`driftfmu.models.covariance.CovarianceError`
+    (:func:`driftfmu.models.harmonic.check`).
     """
     from . import drift, harmonic
     ex = dict(kind=excitation.GAUSSIAN, A=0.0, Q=0.01, x0=0.0, X=1.0, f=150.0, phi=0.0,
@@ -228,6 +231,7 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
     inputs = ex["drive"] != excitation.DRIVE_OFF
     u = 0.0
     state = harmonic.estimator_init(es["process"], es["x0"], es["P0"])
+    seeds = sp["seed"] if not _ops.is_scalar(sp["seed"]) else ex["seed"]
     names = ("time", "x", "y", "z", "z_y", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3",
              "z_comp")
     cols = {c: [] for c in names}
@@ -251,6 +255,7 @@ def simulate(n, excitation_values, sensor_values, estimator_values, Ts):
             lpy, zy = measure(lpy, y, x, vy, cfg)
         state = harmonic.estimator_step(state, z, es["a0"], es["a1"], es["a2"], es["R"], u=u,
                                         a3=es["a3"], a4=es["a4"], **model)
+        harmonic.check(state, k, seeds)
         dcs = drift.estimates(state.drift, es["a2"], es["a3"], es["a4"])
         dc = drift.select(dcs, es["estimator"])
         row = ((k - 1) * Ts, x, y, z, zy, state.x, state.P, dcs[0], dcs[1], dcs[2], z - dc)

@@ -55,7 +55,7 @@ and likewise for ``y`` with ``a2y, by``; ``b = 0`` gives :mod:`driftfmu.models.d
 import math
 from collections import namedtuple
 
-from . import _ops, drift, excitation, harmonic, parameters, sensor
+from . import _ops, covariance, drift, excitation, harmonic, parameters, sensor
 from .noise import STREAM_MEASUREMENT, STREAM_MEASUREMENT_Y, normal
 
 GAUSS_MARKOV = harmonic.GAUSS_MARKOV
@@ -326,6 +326,39 @@ def from_plain(values):
     return kind(*head, DualDrift(*d))
 
 
+#: Names of the filters' covariance entries (fields of :class:`DualState` and
+#: :class:`DualHarmonicState`), in the shape :func:`covariance_of` gives them.
+COVARIANCE_NAMES = {GAUSS_MARKOV: (("Pxx",), ("Pxy", "Pyy")),
+                    HARMONIC: (("P11",), ("P12", "P22"), ("P13", "P23", "P33"),
+                               ("P14", "P24", "P34", "P44"))}
+
+
+def covariance_of(st):
+    """``(process, rows)``: the rows of the lower triangle of the filter's covariance, 2x2 over
+    ``(x, y)`` or 4x4 over ``(c_x, d_x, c_y, d_y)``."""
+    if isinstance(st, DualState):
+        return GAUSS_MARKOV, ((st.Pxx,), (st.Pxy, st.Pyy))
+    return HARMONIC, ((st.P11,), (st.P12, st.P22), (st.P13, st.P23, st.P33),
+                      (st.P14, st.P24, st.P34, st.P44))
+
+
+def valid(st):
+    """Whether the filter's covariance is valid (:mod:`driftfmu.models.covariance`); a boolean
+    array for a batch of runs."""
+    _, lower = covariance_of(st)
+    if len(lower) == 2:
+        return covariance.valid2(lower[0][0], lower[1][0], lower[1][1])
+    return covariance.valid(lower)
+
+
+def check(st, k, seeds=None):
+    """Raise :class:`driftfmu.models.covariance.CovarianceError` unless the covariance of the
+    filter state after sample ``k`` is valid (a batch: every run; the message names the first
+    run that is not, and its ``seeds`` entry)."""
+    process, lower = covariance_of(st)
+    covariance.check(COVARIANCE_NAMES[process], lower, k, "the dual-axis filter", seeds)
+
+
 # -- the chain: Excitation -> Accelerometer (dual) -> DualDriftEstimator + two single-axis ones ---
 
 #: Columns of :func:`simulate`, one value per sample.
@@ -376,6 +409,9 @@ def simulate(n, ex, sp, es, Ts, record=COLUMNS):
     The seeds may be ``uint64`` arrays of shape ``(runs,)`` (a batch): every recorded column is
     then an array ``(runs, n)``; otherwise lists of floats.  Always returned: ``final_<c>`` of
     every column and the realised moments ``mean_xx``, ``mean_xy``, ``mean_yy`` over the run.
+    A sample after which a filter's covariance is not valid (:mod:`driftfmu.models.covariance`),
+    which the FMUs refuse, raises :class:`driftfmu.models.covariance.CovarianceError` naming the
+    run (its seed), the sample and the covariance.
     """
     ex, sp, es = excitation_values(**ex), sensor_values(**sp), estimator_values(**es)
     sx, sy = axes(sp)
@@ -391,6 +427,7 @@ def simulate(n, ex, sp, es, Ts, record=COLUMNS):
                                  Qh=s1["Qh"]),
                         harmonic.estimator_init(s1["process"], s1["x0"], s1["P0"])))
     sst = [s[2] for s in singles]
+    seeds = sp["seed"] if not _ops.is_scalar(sp["seed"]) else ex["seed"]
     cols = {c: [] for c in record}
     x, y = ex["x0"], 0.0
     mxx = mxy = myy = 0.0
@@ -405,11 +442,13 @@ def simulate(n, ex, sp, es, Ts, record=COLUMNS):
         vx, vy = noise(sp["seed"], k) if sp["noise"] else (0.0, 0.0)
         zx, zy = measure(x, y, sx, sy, vx, vy)
         st = estimator_step(st, zx, zy, fx, fy, m)
+        check(st, k, seeds)
         dx, dy = estimates(st.drift, fx, fy)
         dcx, dcy = drift.select(dx, es["estimator"]), drift.select(dy, es["estimator"])
         for i, (s1, sm, _) in enumerate(singles):
             sst[i] = harmonic.estimator_step(sst[i], zx if i == 0 else zy, s1["a0"], s1["a1"],
                                              s1["a2"], s1["R"], **sm)
+            harmonic.check(sst[i], k, seeds)
         mxx = drift.running_mean(mxx, x * x, k)
         mxy = drift.running_mean(mxy, x * y, k)
         myy = drift.running_mean(myy, y * y, k)

@@ -26,10 +26,15 @@ Predict ``P^- = F P F^T + Q_h I``; update with ``K = P^- H^T / (H P^- H^T + R)``
 EKF1's drift uses the posterior second moment of the measured component, ``x+^2 + P+_11``
 (:func:`driftfmu.models.drift.update` with ``P = P11``); with this model on a pure sinusoid it converges
 to ``a2 X^2 / 2``.
+
+Joseph's form keeps ``P`` positive semi-definite only while the numbers stay within double
+precision: a huge prior (``P0 = 1e16``) or estimate (``x0 = 3e8``) can make it lose that; a
+state whose covariance is not valid (:mod:`driftfmu.models.covariance`) is refused by the FMU,
+and :func:`check` stops a batch run there.
 """
 from collections import namedtuple
 
-from . import _ops, chain, drift, ekf
+from . import _ops, chain, covariance, drift, ekf
 from .sensor import dh_dx, h
 
 GAUSS_MARKOV = 1
@@ -118,13 +123,46 @@ def from_plain(values):
     return state_type(*head, drift.DriftState(*d))
 
 
+#: Names of the harmonic filter's covariance entries (the fields of :class:`HarmonicState`),
+#: in the shape :func:`covariance_of` gives them.
+COVARIANCE_NAMES = (("P",), ("P12", "P22"))
+
+
+def covariance_of(state):
+    """The rows of the lower triangle of the harmonic filter's covariance, ``((P,), (P12,
+    P22))``; None for the Gauss-Markov state, whose scalar ``P`` stays ``>= 0`` by construction
+    (:mod:`driftfmu.models.covariance`)."""
+    if type(state) is HarmonicState:
+        return (state.P,), (state.P12, state.P22)
+    return None
+
+
+def valid(state):
+    """Whether the state's covariance is valid (:func:`driftfmu.models.covariance.valid2`;
+    always for the Gauss-Markov state); a boolean array for a batch of runs."""
+    if type(state) is not HarmonicState:
+        return True
+    return covariance.valid2(state.P, state.P12, state.P22)
+
+
+def check(state, k, seeds=None):
+    """Raise :class:`driftfmu.models.covariance.CovarianceError` unless the covariance of the
+    state after sample ``k`` is valid (a batch: every run; the message names the first run that
+    is not, and its ``seeds`` entry)."""
+    lower = covariance_of(state)
+    if lower is not None:
+        covariance.check(COVARIANCE_NAMES, lower, k, "the harmonic filter", seeds)
+
+
 def run(zs, a0, a1, a2, R, x0=0.0, P0=1.0, process=HARMONIC, f=150.0, Ts=1e-3, A=0.0, Q=0.0,
         Qh=1e-8, a3=0.0, a4=0.0):
     """Run the estimator over recorded outputs ``zs`` (one measurement per sample, floats or
-    arrays of runs); return the final state.  The same steps as the DriftEstimator FMU."""
+    arrays of runs); return the final state.  The same steps as the DriftEstimator FMU, which
+    refuses a sample whose covariance is not valid: here :func:`check` raises there."""
     C, S = rotation(f, Ts)
     model = dict(process=process, A=A, Q=Q, C=C, S=S, Qh=Qh)
     state = estimator_init(process, x0, P0)
-    for z in zs:
+    for k, z in enumerate(zs, start=1):
         state = estimator_step(state, z, a0, a1, a2, R, a3=a3, a4=a4, **model)
+        check(state, k)
     return state

@@ -97,7 +97,9 @@ NONZERO = ("a1", "a1y")
 
 
 def allowed(name):
-    """Human-readable allowed range of parameter ``name``, e.g. ``'R > 0'``."""
+    """Human-readable allowed range of parameter ``name``, e.g. ``'R > 0'``, ``'an integer
+    drive >= 0 and drive <= 2'`` (a parameter whose default is an int takes whole numbers
+    only: an Integer variable of the FMUs)."""
     p = PARAMETERS[name]
     parts = []
     if p.low is not None:
@@ -106,6 +108,8 @@ def allowed(name):
         parts.append("%s %s %s" % (name, "<" if p.high_open else "<=", _fmt(p.high)))
     if name in NONZERO:
         parts.append("%s != 0" % name)
+    if isinstance(p.default, int):
+        return "an integer " + " and ".join(parts) if parts else "any integer"
     return " and ".join(parts) if parts else ANY_FINITE
 
 

@@ -9,6 +9,7 @@
 
 #include "adxl203.h"
 #include "chain.h"
+#include "covariance.h"
 #include "drift.h"
 #include "dualaxis.h"
 #include "excitation.h"
@@ -227,9 +228,11 @@ enum { D_A0, D_A1, D_A2, D_A, D_Q, D_R, D_X0, D_P0, D_ESTIMATOR, D_PROCESS, D_F,
 enum { C_TIME, C_X, C_Y, C_Z, C_ZY, C_XHAT, C_P, C_DC1, C_DC2, C_DC3, C_ZCOMP, N_COLUMNS };
 
 /* models.adxl203.simulate for one run: Excitation -> Accelerometer -> DriftEstimator, samples
- * k = 1..n.  Returns 0, or 1 for an estimator or process the Python refuses. */
+ * k = 1..n.  Returns 0, 1 for an estimator or process the Python refuses, or 2 when the harmonic
+ * filter's covariance is not valid after a sample (models.harmonic.check): bad[0] is that
+ * sample, bad[1..3] the covariance (P, P12, P22). */
 int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
-                     const double *es, double *const *cols)
+                     const double *es, double *const *cols, double *bad)
 {
     const int64_t kind = (int64_t)ex[E_KIND], ex_seed = (int64_t)ex[E_SEED];
     const int64_t sp_seed = (int64_t)sp[S_SEED], estimator = (int64_t)es[D_ESTIMATOR],
@@ -273,6 +276,13 @@ int driftfmu_adxl203(int64_t n, double Ts, const double *ex, const double *sp,
                                             process, es[D_A], es[D_Q], C, S, es[D_QH]);
             drift_estimates(state.drift, es[D_A2], &dcs[0], &dcs[1], &dcs[2]);
         }
+        if (process == HARMONIC_HARMONIC && !covariance_valid2(state.P, state.P12, state.P22)) {
+            bad[0] = (double)k;
+            bad[1] = state.P;
+            bad[2] = state.P12;
+            bad[3] = state.P22;
+            return 2;
+        }
         dc = drift_select(dcs, estimator);
         row[C_TIME] = (double)(k - 1) * Ts;
         row[C_X] = x;
@@ -309,13 +319,30 @@ enum { DC_TIME, DC_X, DC_Y, DC_ZX, DC_ZY, DC_XHAT, DC_YHAT, DC_PXX, DC_PXY, DC_P
        DC_SINGLE1X, DC_SINGLE1Y, N_DUAL_COLUMNS };
 enum { DM_XX = N_DUAL_COLUMNS, DM_XY, DM_YY, N_DUAL_FINALS };
 
+/* The first covariance of driftfmu_dual that is not valid, in the order the NumPy form
+ * (models.dualaxis.simulate) meets it: the earliest sample, then the filter (0 the dual one,
+ * 1 and 2 the single-axis ones), then the run.  bad: (sample, filter, run, the covariance's
+ * lower triangle packed by rows); bad[0] = 0 while none is found. */
+static void first_bad(double *bad, int64_t k, int filter, int64_t r, int size,
+                      const double *lower)
+{
+    if (bad[0] != 0.0 && (bad[0] < (double)k || (bad[0] == (double)k && bad[1] <= filter)))
+        return; /* (runs go up: an earlier run at the same sample and filter is kept) */
+    bad[0] = (double)k;
+    bad[1] = filter;
+    bad[2] = (double)r;
+    for (int i = 0; i < size * (size + 1) / 2; i++) bad[3 + i] = lower[i];
+}
+
 /* models.dualaxis.simulate for `runs` runs (FMU seed seeds[r] for the Excitation and the
  * Accelerometer), the other start values shared: the recorded columns are (runs, n) arrays
  * (NULL: not recorded), finals[c] (runs,) arrays of every column's last sample and the three
- * realised moments.  Returns 0, or 1 for an estimator or process the Python refuses. */
+ * realised moments.  Returns 0, 1 for an estimator or process the Python refuses, or 2 when a
+ * filter's covariance is not valid after a sample (models.dualaxis.check, harmonic.check): a
+ * run stops there, and bad (13 values) says where first (first_bad). */
 int driftfmu_dual(int64_t n, int64_t runs, const uint64_t *seeds, double Ts, const double *ex,
                   const double *sp, const double *es, const double *single,
-                  double *const *cols, double *const *finals)
+                  double *const *cols, double *const *finals, double *bad)
 {
     const int64_t process = (int64_t)es[DD_PROCESS], estimator = (int64_t)es[DD_ESTIMATOR];
     const int gaussian = (int64_t)ex[DE_KIND] == EXCITATION_GAUSSIAN,
@@ -337,12 +364,14 @@ int driftfmu_dual(int64_t n, int64_t runs, const uint64_t *seeds, double Ts, con
                   es[DD_A1Y], es[DD_A2Y], es[DD_BY], es[DD_RY], &fx, &fy);
     m = dualaxis_model(process, es[DD_A], es[DD_Q], es[DD_QY], es[DD_RHO], es[DD_F], Ts,
                        es[DD_QH]);
+    bad[0] = 0.0;
     for (int64_t r = 0; r < runs; r++) {
         const int64_t seed = (int64_t)seeds[r];
         DualEstimator st = dualaxis_estimator_init(process, es[DD_X0], es[DD_Y0], es[DD_P0],
                                                    es[DD_P0Y]);
         HarmonicState sst[2];
         double x = ex[DE_X0], y = 0.0, mxx = 0.0, mxy = 0.0, myy = 0.0, row[N_DUAL_COLUMNS];
+        int stopped = 0;
         for (int i = 0; i < 2; i++) {
             const double *s1 = single + i * N_SINGLE;
             sst[i] = harmonic_estimator_init((int64_t)s1[D1_PROCESS], s1[D1_X0], s1[D1_P0]);
@@ -359,13 +388,30 @@ int driftfmu_dual(int64_t n, int64_t runs, const uint64_t *seeds, double Ts, con
             if (noise_on) dualaxis_noise(seed, k, &vx, &vy);
             dualaxis_measure(x, y, sx, sy, vx, vy, &zx, &zy);
             st = dualaxis_estimator_step(st, zx, zy, fx, fy, &m);
+            if (!dualaxis_valid(&st, process)) {
+                double lower[10];
+                first_bad(bad, k, 0, r, dualaxis_covariance_of(&st, process, lower), lower);
+                stopped = 1;
+                break;
+            }
             dualaxis_estimates(dualaxis_drift_of(&st, process), fx, fy, dx, dy);
-            for (int i = 0; i < 2; i++) {
+            int stop = 0;
+            for (int i = 0; i < 2 && !stop; i++) {
                 const double *s1 = single + i * N_SINGLE;
                 sst[i] = harmonic_estimator_step(sst[i], i == 0 ? zx : zy, s1[D1_A0],
                                                  s1[D1_A1], s1[D1_A2], s1[D1_R],
                                                  (int64_t)s1[D1_PROCESS], s1[D1_A], s1[D1_Q],
                                                  C[i], S[i], s1[D1_QH]);
+                if ((int64_t)s1[D1_PROCESS] == HARMONIC_HARMONIC &&
+                    !covariance_valid2(sst[i].P, sst[i].P12, sst[i].P22)) {
+                    const double lower[3] = {sst[i].P, sst[i].P12, sst[i].P22};
+                    first_bad(bad, k, 1 + i, r, 2, lower);
+                    stop = 1;
+                }
+            }
+            if (stop) {
+                stopped = 1;
+                break;
             }
             mxx = drift_running_mean(mxx, x * x, k);
             mxy = drift_running_mean(mxy, x * y, k);
@@ -392,10 +438,11 @@ int driftfmu_dual(int64_t n, int64_t runs, const uint64_t *seeds, double Ts, con
             for (int c = 0; c < N_DUAL_COLUMNS; c++)
                 if (cols[c]) cols[c][(size_t)r * (size_t)n + (size_t)(k - 1)] = row[c];
         }
+        if (stopped) continue; /* (the call returns 2: its results are not used) */
         for (int c = 0; c < N_DUAL_COLUMNS; c++) finals[c][r] = row[c];
         finals[DM_XX][r] = mxx;
         finals[DM_XY][r] = mxy;
         finals[DM_YY][r] = myy;
     }
-    return 0;
+    return bad[0] != 0.0 ? 2 : 0;
 }

@@ -31,7 +31,7 @@ HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
 #: The C units of models/ the kernel calls (with their own dependencies).
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c")
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c")
 #: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
 #: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``; the general model's last, ``drive`` as a
 #: float).
@@ -166,9 +166,9 @@ def _load(path):
     lib.driftfmu_batch_run.restype = None
     lib.driftfmu_batch_run.argtypes = [i64, i64, i64, i64, _P, i64, i64, i64, _P, _P, _P]
     lib.driftfmu_adxl203.restype = ctypes.c_int
-    lib.driftfmu_adxl203.argtypes = [i64, d, _P, _P, _P, _P]
+    lib.driftfmu_adxl203.argtypes = [i64, d, _P, _P, _P, _P, _P]
     lib.driftfmu_dual.restype = ctypes.c_int
-    lib.driftfmu_dual.argtypes = [i64, i64, _P, d, _P, _P, _P, _P, _P, _P]
+    lib.driftfmu_dual.argtypes = [i64, i64, _P, d, _P, _P, _P, _P, _P, _P, _P]
     return lib
 
 
@@ -225,7 +225,7 @@ def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values,
                      columns=COLUMNS):
     """:func:`driftfmu.models.adxl203.simulate` for one run (scalar seeds) in the kernel, the same
     defaults filled in; returns the ``columns`` asked for as ``(n,)`` arrays."""
-    from driftfmu.models import adxl203, excitation, harmonic, parameters
+    from driftfmu.models import adxl203, covariance, excitation, harmonic, parameters
     ex = dict(kind=excitation.GAUSSIAN, A=0.0, Q=0.01, x0=0.0, X=1.0, f=150.0, phi=0.0,
               Xy=0.0, phiy=0.0, seed=1)
     ex.update(excitation_values)
@@ -238,7 +238,14 @@ def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values,
                for d, names in ((ex, EXCITATION), (sp, SENSOR), (es, ESTIMATOR))]
     out = {c: np.empty(n) for c in columns}
     ptrs = _pointers([out.get(c) for c in COLUMNS])
-    if lib.driftfmu_adxl203(n, float(Ts), *[v.ctypes.data for v in vectors], ptrs):
+    bad = np.zeros(4)
+    status = lib.driftfmu_adxl203(n, float(Ts), *[v.ctypes.data for v in vectors], ptrs,
+                                  bad.ctypes.data)
+    if status == 2:  # models.harmonic.check's error, from the values the kernel met
+        k, P, P12, P22 = bad.tolist()
+        raise covariance.error(harmonic.COVARIANCE_NAMES, ((P,), (P12, P22)), int(k),
+                               "the harmonic filter")
+    if status:
         raise ValueError("estimator = %r, process = %r; allowed: estimator 1, 2 or 3 and "
                          "process %d or %d" % (es["estimator"], es["process"],
                                                harmonic.GAUSS_MARKOV, harmonic.HARMONIC))
@@ -267,9 +274,14 @@ def dual_simulate(lib, n, seeds, excitation_values, sensor_values, estimator_val
     runs = seeds.shape[0]
     cols = {c: np.empty((runs, n)) for c in record}
     finals = [np.empty(runs) for _ in range(len(dualaxis.COLUMNS) + 3)]
-    if lib.driftfmu_dual(n, runs, seeds.ctypes.data, float(Ts),
-                         *[v.ctypes.data for v in vectors],
-                         _pointers([cols.get(c) for c in dualaxis.COLUMNS]), _pointers(finals)):
+    bad = np.zeros(13)
+    status = lib.driftfmu_dual(n, runs, seeds.ctypes.data, float(Ts),
+                               *[v.ctypes.data for v in vectors],
+                               _pointers([cols.get(c) for c in dualaxis.COLUMNS]),
+                               _pointers(finals), bad.ctypes.data)
+    if status == 2:  # models.dualaxis.simulate's error, from the values the kernel met
+        raise _dual_error(bad, es["process"], seeds)
+    if status:
         raise ValueError("estimator = %r, process = %r; allowed: estimator 1, 2 or 3 and "
                          "process %d or %d" % (es["estimator"], es["process"],
                                                dualaxis.GAUSS_MARKOV, dualaxis.HARMONIC))
@@ -277,3 +289,18 @@ def dual_simulate(lib, n, seeds, excitation_values, sensor_values, estimator_val
     out.update(zip(("mean_xx", "mean_xy", "mean_yy"), finals[len(dualaxis.COLUMNS):]))
     out.update(cols)
     return out
+
+
+def _dual_error(bad, process, seeds):
+    """The CovarianceError of models.dualaxis.simulate (``check`` of the dual filter or
+    ``harmonic.check`` of a single-axis one) from driftfmu_dual's ``bad``: (sample, filter, run,
+    the covariance's lower triangle packed by rows)."""
+    from driftfmu.models import covariance, dualaxis, harmonic
+    k, which, run = int(bad[0]), int(bad[1]), int(bad[2])
+    if which == 0:
+        names, what = dualaxis.COVARIANCE_NAMES[int(process)], "the dual-axis filter"
+    else:
+        names, what = harmonic.COVARIANCE_NAMES, "the harmonic filter"
+    packed = iter(bad[3:].tolist())
+    lower = [[next(packed) for _ in row] for row in names]
+    return covariance.error(names, lower, k, what, run, int(seeds[run]))

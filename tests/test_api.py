@@ -200,7 +200,7 @@ def test_build_fmus_refuses_a_file_in_the_way_before_it_builds(tmp_path, monkeyp
 @pytest.mark.parametrize("n", ["5", True, b"5"])
 def test_a_count_that_is_not_a_number_is_refused(n, tmp_path):
     """``run_gaussian(n="5")`` raised "unsupported operand type(s) for //" from the master."""
-    with pytest.raises(ValueError, match="n = %s is not a number; allowed: n >= 1"
+    with pytest.raises(ValueError, match="n = %s is not a number; allowed: an integer n >= 1"
                        % re.escape(repr(n))):
         driftfmu.run_gaussian(n=n, fmu_dir=tmp_path / "fmus")
     assert os.listdir(tmp_path) == []

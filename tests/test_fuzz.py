@@ -1,7 +1,7 @@
 """Fuzzing the FMUs from a C host (tests/fuzz): no crash, no hang, no fmi2OK with a non-finite
 value, and a rejected call changes nothing; and the differential fuzz (tests/fuzz/differential.py):
 the Python FMU, the native FMI 2.0 FMU and the native FMI 3.0 FMU of each model agree call by
-call.
+call, with extreme parameters too, and no OK carries a negative variance.
 
 Every script runs in its own process with a time limit.  This is the fixed-seed portion CI
 runs; ``python3 -m tests.fuzz.run --seconds 600`` runs random scripts for ten minutes and
@@ -208,6 +208,73 @@ def test_a_state_got_while_sample_1_overflows_restores_in_every_twin(twins):
     assert differential.compare(script, results) == []
     for name, rows in results.items():
         assert [row[0] for row in rows] == [0, 0, 0, 0, 0, 3, 0, 0, 0, 0, 0, 0, 0, 3], name
+
+
+#: Scripts per model with extreme parameters at every initialisation (issue 31), in the loop
+#: and in the release qualification.
+EXTREME_SCRIPTS = 12
+EXTREME_SCRIPTS_QUALIFICATION = 600
+
+
+@pytest.mark.parametrize("name", differential.MODELS)
+def test_extreme_parameters_agree_and_no_ok_carries_a_negative_variance(twins, name, report):
+    """Extreme parameters (near overflow, P0 = 1e154, x0 = 3e8, R = 5e-324, ...) and the harmonic
+    filter at every initialisation: the three twins agree call by call, and no call answered OK
+    reads a negative variance or gives a state whose filter covariance is not valid."""
+    seeds = [_seed("extreme", name, str(i)) for i in range(EXTREME_SCRIPTS)]
+    problems = differential.run(twins[name], seeds, extreme=True)
+    report("FUZZ differential %s, extreme parameters: %d scripts, %d problems"
+           % (name, len(seeds), len(problems)))
+    assert problems == [], "\n".join(problems[:10])
+
+
+@pytest.mark.qualification
+@pytest.mark.parametrize("name", differential.MODELS)
+def test_extreme_parameters_long_run(twins, name, report):
+    seeds = [_seed("extreme-long", name, str(i)) for i in range(EXTREME_SCRIPTS_QUALIFICATION)]
+    problems = differential.run(twins[name], seeds, extreme=True, time_limit=3000)
+    report("FUZZ differential %s, extreme parameters, qualification: %d scripts, %d problems"
+           % (name, len(seeds), len(problems)))
+    assert problems == [], "\n".join(problems[:10])
+
+
+class _Crafted:
+    """A driver whose serialised state is ``data`` (the judge's test below)."""
+
+    def __init__(self, driver, data):
+        self.md, self.dir, self.fmi, self._data = driver.md, driver.dir, driver.fmi, data
+
+    def ser(self, slot):
+        return differential.OK, self._data
+
+
+@pytest.mark.parametrize("backend", differential.BACKENDS)
+def test_the_fuzz_sees_a_negative_variance_answered_ok(twins, backend):
+    """The judge can fail: a variance output read as -1 with OK, and a state got with OK whose
+    hidden P22 is negative (crafted into the serialised bytes of a real state), are reported."""
+    import json
+    from fuzz import native_state as ns
+    drv = differential.Driver(twins["DriftEstimator"][backend], 3 if backend.endswith("3") else 2)
+    try:
+        for call in (["setup", 0.0], ["enter"], ["seti", ["process"], [2]], ["exit"],
+                     ["step", 0.0, 1e-3], ["gst", 0]):
+            assert getattr(drv, call[0])(*call[1:])[0] == differential.OK
+        assert differential.variance_problems(drv, ["gst", 0], differential.OK, None) == []
+        assert differential.variance_problems(drv, ["getr", ["x_hat", "P"]], differential.OK,
+                                              [(0.5).hex(), (-1.0).hex()]) == \
+            ["P = -1.0 is a negative variance"]
+        data = drv.ser(0)[1]
+        if backend == "python":
+            state = json.loads(data)
+            state["_state"][4] = -1.0
+            data = json.dumps(state).encode()
+        else:
+            data = ns.crafted(ns.snapshot_type(drv.dir), data, "h.state.P22", -1.0)
+        found = differential.variance_problems(_Crafted(drv, data), ["gst", 0],
+                                               differential.OK, None)
+        assert len(found) == 1 and "covariance" in found[0], found
+    finally:
+        drv.free()
 
 
 #: Scripts per model with every instance compared around every call.

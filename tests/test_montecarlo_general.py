@@ -85,8 +85,8 @@ def test_sinusoidal_with_a4_expected_drift_and_ekf1():
 
 
 def test_bad_general_parameters_are_refused():
-    with pytest.raises(ValueError, match="drive = 5 is out of range; allowed: drive >= 0 and "
-                                         "drive <= 2"):
+    with pytest.raises(ValueError, match="drive = 5 is out of range; allowed: an integer "
+                                         "drive >= 0 and drive <= 2"):
         montecarlo.montecarlo_gaussian(runs=2, n=5, drive=5)
     with pytest.raises(ValueError, match="unexpected keyword argument 'B'; allowed: runs, n, "
                                          ".*, summary_only, a3, a4$"):

@@ -14,13 +14,13 @@ import subprocess
 import pytest
 
 from driftfmu.fmu_src.native.models import generate
-from driftfmu.models import _ops, adxl203, chain, drift, dualaxis, ekf, excitation, harmonic, \
-    noise, parameters, sensor
+from driftfmu.models import _ops, adxl203, chain, covariance, drift, dualaxis, ekf, excitation, \
+    harmonic, noise, parameters, sensor
 from waiting import BOUND
 
 CC = shutil.which("gcc") or shutil.which("cc")
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c")
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c")
 
 D, I64, U64 = ctypes.c_double, ctypes.c_int64, ctypes.c_uint64
 PD, PI64 = ctypes.POINTER(D), ctypes.POINTER(I64)
@@ -125,6 +125,14 @@ SIGNATURES = {
                      PD),
     "adxl203_problems": (ctypes.c_int, D, D, REPORT, ctypes.c_void_p),
     "parameters_repr_float": (ctypes.c_int, D, ctypes.c_char_p, ctypes.c_size_t),
+    "covariance_valid2": (ctypes.c_int, D, D, D),
+    "covariance_valid": (ctypes.c_int, ctypes.c_int, PD),
+    "covariance_refusal": (None, ctypes.c_int, PD, ctypes.POINTER(ctypes.c_char_p),
+                           ctypes.c_char_p, ctypes.c_longlong, D, ctypes.c_char_p,
+                           ctypes.c_size_t),
+    "covariance_state_problem": (ctypes.c_int, ctypes.c_int, PD,
+                                 ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p,
+                                 ctypes.c_char_p, ctypes.c_size_t),
     "parameters_allowed": (ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t),
     "parameters_problem": (ctypes.c_int, ctypes.c_char_p, D, ctypes.c_int, ctypes.c_char_p,
                            ctypes.c_size_t),
@@ -636,6 +644,58 @@ def test_adxl203_problems_same_messages(c, Vs, fc):
     n, got = collect(c.adxl203_problems, Vs, fc)
     assert got == adxl203.problems(dict(Vs=Vs, fc=fc))
     assert n == len(got)
+
+
+# -- covariance -------------------------------------------------------------------------------
+
+def _random_lower(rng, n):
+    """The lower triangle of a random symmetric n x n matrix near the PSD boundary (rows by
+    rows), now and then with a zero or negative variance, a tiny or huge scale, NaN or inf."""
+    cols = [[rng.gauss(0, 1) for _ in range(rng.randint(1, n))] for _ in range(n)]
+    scale = 10.0 ** rng.uniform(-300, 300)
+    lower = [[sum(a * b for a, b in zip(cols[i], cols[j])) * scale
+              * (1.0 + rng.choice([0.0, 1e-16, 1e-7, 1e-5, 0.3]) * rng.gauss(0, 1))
+              for j in range(i + 1)] for i in range(n)]
+    r = rng.random()
+    if r < 0.1:
+        i = rng.randrange(n)
+        lower[i][i] = rng.choice([0.0, -0.0, -lower[i][i], -5e-324])
+    elif r < 0.13:
+        i = rng.randrange(n)
+        lower[i][rng.randrange(i + 1)] = rng.choice([math.nan, math.inf, -math.inf])
+    return lower
+
+
+def test_covariance_rule_and_messages_equal_models(c):
+    """covariance_valid2, covariance_valid, the refusal of a step and the problem of a restored
+    state: the answers and the texts of models/covariance.py."""
+    rng = random.Random(RNG_SEED + 31)
+    buf = ctypes.create_string_buffer(2048)
+    answers = []
+    for n in (1, 2, 3, 4) * 1500:
+        lower = _random_lower(rng, n)
+        flat = [v for row in lower for v in row]
+        arr = (D * len(flat))(*flat)
+        want = covariance.valid(lower)
+        assert bool(c.covariance_valid(n, arr)) is want, lower
+        if n == 2:
+            assert bool(c.covariance_valid2(*flat)) is want, lower
+        answers.append(want)
+        names = [("N%d%d" % (i, j)) for i in range(n) for j in range(i + 1)]
+        nested = [[names[i * (i + 1) // 2 + j] for j in range(i + 1)] for i in range(n)]
+        cnames = (ctypes.c_char_p * len(names))(*[x.encode() for x in names])
+        listing = rng.choice([None, "the covariance (all) of hidden state _state"])
+        clisting = None if listing is None else listing.encode()
+        k, t = rng.randint(1, 10 ** 6), rng.uniform(-10, 10)
+        if not want:
+            c.covariance_refusal(n, arr, cnames, clisting, k, t, buf, 2048)
+            assert buf.value.decode() == covariance.refusal(nested, lower, k, t, listing)
+        got = c.covariance_state_problem(n, arr, cnames, clisting, buf, 2048)
+        want_lines = covariance.state_problems(nested, lower, listing)
+        assert got == len(want_lines)
+        if want_lines:
+            assert buf.value.decode() == want_lines[0]
+    assert 1000 < sum(answers) < len(answers) - 1000
 
 
 # -- parameters -------------------------------------------------------------------------------

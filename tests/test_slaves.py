@@ -214,7 +214,8 @@ def test_variables_table_is_complete():
     (Excitation, "Ts", 0.0, "Ts = 0.0 is out of range; allowed: Ts >= 1e-09"),
     (Excitation, "rho", -1.5, "rho = -1.5 is out of range; allowed: rho >= -1 and rho <= 1"),
     (Accelerometer, "a1y", 0.0, "a1y = 0.0 is out of range; allowed: a1y != 0"),
-    (Accelerometer, "dual", 2, "dual = 2 is out of range; allowed: dual >= 0 and dual <= 1"),
+    (Accelerometer, "dual", 2, "dual = 2 is out of range; allowed: an integer dual >= 0 and "
+     "dual <= 1"),
     (DualDriftEstimator, "R", -1.0, "R = -1.0 is out of range; allowed: R > 0"),
     (DualDriftEstimator, "Qy", -0.5, "Qy = -0.5 is out of range; allowed: Qy >= 0"),
     (DualDriftEstimator, "estimator", 0,
@@ -421,15 +422,15 @@ def test_the_estimators_hidden_check_follows_the_process_model():
     s = DriftEstimator(instance_name="s")
     s.setup_experiment(0.0)
     s.enter_initialization_mode()
-    assert s.get_real([vr(s, "x_hat")]) == [0.0] and s.hidden_finite is None
+    assert s.get_real([vr(s, "x_hat")]) == [0.0] and s.hidden_valid is None
     set_var(s, "process", harmonic.HARMONIC)
     s.get_real([vr(s, "x_hat")])
-    assert s.hidden_finite.__func__ is DriftEstimator.hidden_finite
+    assert s.hidden_valid.__func__ is DriftEstimator.hidden_valid
     state = harmonic.estimator_init(harmonic.HARMONIC, 0.0, 1.0)
-    assert s.hidden_finite({"_state": state._replace(P12=math.inf)}) is False
+    assert s.hidden_valid({"_state": state._replace(P12=math.inf)}) is False
     set_var(s, "process", harmonic.GAUSS_MARKOV)
     s.exit_initialization_mode()
-    assert s.hidden_finite is None and "hidden_finite" in s.__dict__
+    assert s.hidden_valid is None and "hidden_valid" in s.__dict__
 
 
 # -- Blocks: what depends on k alone, computed for many samples at once ------------------------

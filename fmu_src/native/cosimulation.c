@@ -387,6 +387,10 @@ static Status initialisation_outputs(ModelInstance *comp, const char *function)
             MODEL_VARIABLES[i].type == TYPE_REAL &&
             !isfinite(*(double *)((char *)&computed + MODEL_VARIABLES[i].offset)))
             bad = MODEL_VARIABLES[i].name;
+    if (bad == comp->refusal) { /* the model's own words (a covariance), as the Python FMU's */
+        cs_log(comp, STATUS_ERROR, "%s", bad);
+        return STATUS_ERROR;
+    }
     if (bad) {
         char bt[32];
         cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample 1 (t = %s s): the "
@@ -407,6 +411,10 @@ static NOINLINE Status refused_refresh(ModelInstance *comp, const char *function
                                        const char *bad)
 {
     char b[32];
+    if (bad == comp->refusal) { /* the model's own words (a covariance), as the Python FMU's */
+        cs_log(comp, STATUS_ERROR, "%s", bad);
+        return STATUS_ERROR;
+    }
     cs_log(comp, STATUS_ERROR, "%s: %s would not be finite at sample %lld (t = %s s): the "
            "inputs and parameters overflow the model; allowed: values whose outputs and "
            "state stay finite (nothing was changed)", function, bad, (long long)comp->k,
@@ -699,6 +707,10 @@ static NOINLINE Status refused_span(ModelInstance *comp, double h, double positi
 static NOINLINE Status refused_result(ModelInstance *comp, const char *bad, double h)
 {
     char bh[32], bt[32];
+    if (bad == comp->refusal) { /* the model's own words (a covariance), as the Python FMU's */
+        cs_log(comp, STATUS_ERROR, "%s", bad);
+        return STATUS_ERROR;
+    }
     cs_log(comp, STATUS_ERROR, "%s would not be finite in the step from t = %s s by h = %s "
            "s: the inputs and parameters overflow the model; allowed: values whose outputs "
            "and state stay finite (nothing was changed)", bad, repr_double(comp->time, bt),

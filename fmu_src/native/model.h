@@ -59,6 +59,9 @@ struct ModelInstance;
 typedef void (*HostLogger)(struct ModelInstance *comp, Status status, const char *category,
                            const char *message);
 
+/* The longest message a model writes into ModelInstance.refusal, NUL included. */
+#define MODEL_REFUSAL_MAX 1024
+
 /* The largest number of sample instants one doStep may process (slave_base.STEP_RULE). */
 #define MAX_SAMPLES_PER_STEP 1000000LL
 /* A sample instant is "at" a time within this fraction of a sample period. */
@@ -81,6 +84,8 @@ typedef struct ModelInstance {
     HostLogger hostLog;
     void *hostData[4];          /* the host's callbacks and environment (FMI-version specific) */
     const char *logContext;     /* put before every error message while set (or NULL) */
+    char refusal[MODEL_REFUSAL_MAX]; /* why model_compute or model_advance refused a result that
+                                   is finite (model_refused), as the Python FMU words it */
 } ModelInstance;
 
 /* One doStep, planned by the plumbing from the FMU's time, start time and Ts. */
@@ -108,16 +113,19 @@ void model_start(ModelInstance *comp);
 
 /* Compute the input-dependent outputs of the pending sample comp->k from the inputs set now and
  * the committed hidden state (feedthrough); the result to commit stays in comp->h.  Returns NULL,
- * or the name of an output or hidden value that came out non-finite (the plumbing then restores
- * the state as it was before the call and returns an error naming it). */
+ * the name of an output or hidden value that came out non-finite, or comp->refusal after
+ * writing there the whole message refusing a finite result (a filter's covariance that is not
+ * positive semi-definite, models/covariance.py); the plumbing then restores the state as it
+ * was before the call and returns an error naming it. */
 const char *model_compute(ModelInstance *comp);
 
 /* Process the sample instants of one step (slave_base.STEP_RULE): commit plan->k_first if
  * plan->first_pending, process the other instants with the inputs held from t (zero-order
  * hold), and, if plan->end_pending, make plan->k_end pending (outputs that depend on no input
  * computed; the others are computed by model_compute from the inputs set at t + h).  Otherwise
- * the outputs hold those of the last sample processed.  Returns NULL or the name of a value
- * that came out non-finite (the plumbing restores the state from before the call). */
+ * the outputs hold those of the last sample processed.  Returns NULL, the name of a value
+ * that came out non-finite, or comp->refusal (as model_compute; the plumbing restores the state
+ * from before the call). */
 const char *model_advance(ModelInstance *comp, const StepPlan *plan);
 
 /* Check the hidden state of an FMU state being restored (comp holds the state's variables,

@@ -8,7 +8,12 @@ every call the three must agree on
 - the values a getter returns, bit for bit;
 - the class of log message: whether the call logged an error (every refused call must say why);
 - the state machine: a script mixes calls in and out of order (setup, enter, exit, step, term,
-  reset, get/set in every mode), so a twin in another mode answers one of them differently.
+  reset, get/set in every mode), so a twin in another mode answers one of them differently;
+- no OK carries a negative variance (issue 31): a variance output read with OK is >= 0, and the
+  filter covariances of every state got with OK (the hidden P12, P22, ..., P44 too; read from
+  the serialised state) are valid by models/covariance.py.  Some initialisations set extreme
+  parameters (near overflow, huge priors and estimates, tiny and huge noise) and the harmonic
+  filter (``process = 2``); ``--extreme`` sets them at every one.
 
 Where the standards differ the comparison says so (``FMI3_DIFFERS``): FMI 3.0 has no
 fmi3SetupExperiment (the start time goes with fmi3EnterInitializationMode, so ``setup`` is not
@@ -233,13 +238,47 @@ def model_info(unzipped):
             "start": start, "Ts": start.get("Ts", 1e-3)}
 
 
-def random_script(info, rng, n_calls=60):
+#: Extreme parameter values (issue 31): near overflow, huge priors and estimates, tiny and huge
+#: noise variances; the harmonic filter (process = 2) with them.  A script of
+#: :func:`random_script` sets some of them at an initialisation (always with ``extreme``).
+EXTREMES = {
+    "P0": (1e154, 1e16, 1e300, 1e-300, 5e-324, 0.0), "P0y": (1e154, 1e16, 1e300, 0.0),
+    "x0": (3e8, -3e8, 1e150, -1e300, 1e-300), "y0": (3e8, 1e150),
+    "R": (5e-324, 1e-300, 1e-20, 1e300), "Ry": (5e-324, 1e-20, 1e300),
+    "Q": (0.0, 1e-300, 1e300), "Qy": (0.0, 1e300), "Qh": (0.0, 1e-300, 1e300),
+    "A": (0.9999999999999999, -0.9999999999999999), "rho": (1.0, -1.0),
+    "a2": (1e150, -1e150, 1e-300), "a1": (1e-300, 1e150), "bx": (1e150,), "by": (-1e150,),
+    "X": (1e300,), "Xy": (1e300,), "B": (1e300,), "a3": (1e100,), "a4": (1e75,),
+}
+#: Inputs of extreme size, with :data:`EXTREMES`.
+EXTREME_INPUTS = (0.0, 1e150, -1e150, 1e300, 3e8)
+
+
+def extreme_calls(info, rng):
+    """Calls setting a few parameters of :data:`EXTREMES` (and process = 2 where the model has
+    it, usually), in Initialization Mode."""
+    calls = []
+    if "process" in info["ints"] and rng.random() < 0.8:
+        calls.append(["seti", ["process"], [2]])
+    names = [n for n in EXTREMES if n in info["params"]]
+    for name in rng.sample(names, min(len(names), rng.randint(1, 3))):
+        calls.append(["setr", [name], [rng.choice(EXTREMES[name])]])
+    return calls
+
+
+def random_script(info, rng, n_calls=60, extreme=False):
     """A random call script (a list of calls ``[op, args...]``): mostly a valid run, with calls
     out of order, bad values, refused and retried exits, state round trips and lifecycle calls
-    mixed in."""
+    mixed in; extreme parameters and the harmonic filter at some initialisations (at every one
+    with ``extreme``, and extreme inputs then)."""
     Ts = info["Ts"]
     calls = []
     t = [0.0]
+
+    def input_value():
+        if extreme and rng.random() < 0.3:
+            return rng.choice(EXTREME_INPUTS)
+        return round(rng.gauss(0, 1.5), 9)
 
     def bad_value(base):
         return rng.choice([1e300, -1e308, math.nan, math.inf, -math.inf, 1e-320, -base,
@@ -251,7 +290,9 @@ def random_script(info, rng, n_calls=60):
         calls.extend([["setup", t0], ["enter"]])
         for name in info["inputs"]:
             if rng.random() < 0.7:
-                calls.append(["setr", [name], [round(rng.gauss(0, 1.5), 9)]])
+                calls.append(["setr", [name], [input_value()]])
+        if extreme or rng.random() < 0.1:
+            calls.extend(extreme_calls(info, rng))
         if info["ints"] and rng.random() < 0.3:
             calls.append(["seti", [rng.choice(info["ints"])], [rng.randint(-2, 4)]])
         if rng.random() < 0.3 and info["params"]:
@@ -273,7 +314,7 @@ def random_script(info, rng, n_calls=60):
     for _ in range(n_calls):
         r = rng.random()
         if r < 0.25 and info["inputs"]:
-            value = round(rng.gauss(0, 1.5), 9) if rng.random() < 0.9 else bad_value(1.0)
+            value = input_value() if rng.random() < 0.9 else bad_value(1.0)
             calls.append(["setr", [rng.choice(info["inputs"])], [value]])
         elif r < 0.28 and info["params"]:
             name = rng.choice(info["params"])
@@ -352,8 +393,77 @@ def run_script(driver, script, reals=None):
         errors = any(s >= ERROR for s, _ in driver.logged)
         last = [m for _, m in driver.logged][-1:]
         changed = bool(reals) and status >= ERROR and snapshot(driver, reals) != before
-        out.append([int(status), values, errors, last, changed])
+        out.append([int(status), values, errors, last, changed,
+                    variance_problems(driver, call, status, values)])
     return out
+
+
+#: Outputs that are variances: a value read with OK is >= 0 (issue 31).
+VARIANCE_OUTPUTS = ("P", "P_xx", "P_yy")
+
+
+def variance_problems(driver, call, status, values):
+    """What a call answered OK carries that no covariance may hold: a variance output below 0
+    (``getr``), or a filter covariance of the state just got (``gst``) that the rule of
+    models/covariance.py refuses (the hidden P12, P22, P44, ... included)."""
+    if status > WARNING:
+        return []
+    if call[0] == "getr" and values:
+        return ["%s = %r is a negative variance" % (name, float.fromhex(v))
+                for name, v in zip(call[1], values)
+                if name in VARIANCE_OUTPUTS and not float.fromhex(v) >= 0.0]
+    if call[0] == "gst" and driver.md.modelName in ("DriftEstimator", "DualDriftEstimator"):
+        return hidden_covariance_problems(driver, call[1])
+    return []
+
+
+def hidden_covariance_problems(driver, slot):
+    """The filter covariances of the state in ``slot`` (serialised: the Python FMU's JSON, the
+    native FMUs' snapshot, its committed and its pending filter state) that are not valid."""
+    from driftfmu.models import covariance, dualaxis, harmonic
+    try:
+        from . import native_state as ns
+    except ImportError:  # (run as a script: the child process)
+        sys.path.insert(0, str(Path(__file__).resolve().parent))
+        import native_state as ns
+    status, data = driver.ser(slot)
+    if data is None:
+        return []
+    model = driver.md.modelName
+    found = []
+    try:
+        plain = json.loads(data)
+    except ValueError:
+        plain = None
+    if plain is not None:  # the Python FMU: the committed filter state
+        value = plain.get("_state")
+        if value is None:
+            return []
+        if model == "DriftEstimator":
+            st = harmonic.from_plain(value)
+            lowers = [("_state", harmonic.covariance_of(st) or ((st.P,),))]
+        else:
+            lowers = [("_state", dualaxis.covariance_of(dualaxis.from_plain(value))[1])]
+    else:
+        snap = ns.read(ns.snapshot_type(driver.dir), data)
+        process = snap.v.process
+        lowers = []
+        for which in ("state", "pending"):
+            st = getattr(snap.h, which)
+            if model == "DriftEstimator":
+                lower = (((st.P,), (st.P12, st.P22)) if process == harmonic.HARMONIC
+                         else ((st.P,),))
+            elif process == dualaxis.HARMONIC:
+                h = st.h
+                lower = ((h.P11,), (h.P12, h.P22), (h.P13, h.P23, h.P33),
+                         (h.P14, h.P24, h.P34, h.P44))
+            else:
+                lower = ((st.g.Pxx,), (st.g.Pxy, st.g.Pyy))
+            lowers.append((which, lower))
+    for which, lower in lowers:
+        if all(math.isfinite(v) for row in lower for v in row) and not covariance.valid(lower):
+            found.append("the hidden %s's covariance %s is not valid" % (which, lower))
+    return found
 
 
 def compare(script, results, plant=None):
@@ -364,6 +474,8 @@ def compare(script, results, plant=None):
         rows = {name: results[name][i] for name in names}
         found += ["call %d %s: a refused call changed the %s instance (%s)" % (
             i, json.dumps(call), name, rows[name][3]) for name in names if rows[name][4]]
+        found += ["call %d %s: the %s FMU answered OK with %s" % (i, json.dumps(call), name, p)
+                  for name in names for p in rows[name][5]]
         for name in names[1:]:
             if name == "native-fmi3" and call[0] in FMI3_DIFFERS:
                 continue
@@ -386,14 +498,14 @@ def compare(script, results, plant=None):
 
 # -- the child process: one model, many scripts ------------------------------------------------
 
-def child(dirs, seeds, n_calls, plant, check=False):
+def child(dirs, seeds, n_calls, plant, check=False, extreme=False):
     """Run each seed's script on the three backends (``check``: with :func:`snapshot` around
-    every call); print one JSON line per script."""
+    every call; ``extreme``: :func:`random_script`'s); print one JSON line per script."""
     info = model_info(dirs["native-fmi2"])
     drivers = {"python": Driver(dirs["python"], 2), "native-fmi2": Driver(dirs["native-fmi2"], 2),
                "native-fmi3": Driver(dirs["native-fmi3"], 3)}
     for seed in seeds:
-        script = random_script(info, random.Random(seed), n_calls)
+        script = random_script(info, random.Random(seed), n_calls, extreme)
         results = {}
         for name, driver in drivers.items():
             driver.reset()
@@ -417,10 +529,12 @@ VALGRIND = ["valgrind", "-q", "--undef-value-errors=no", "--error-exitcode=99",
             "--suppressions=%s" % (Path(__file__).resolve().parent / "valgrind.supp")]
 
 
-def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False, check=False):
+def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False, check=False,
+        extreme=False):
     """Run the scripts of ``seeds`` in a child process (under valgrind if asked; ``check``:
-    every refused call must leave its instance unchanged): a list of problem lines (a crash, a
-    hang or a valgrind error of the child is one)."""
+    every refused call must leave its instance unchanged; ``extreme``: extreme parameters at
+    every initialisation): a list of problem lines (a crash, a hang or a valgrind error of the
+    child is one)."""
     command = (VALGRIND if valgrind else []) + [
         sys.executable, str(Path(__file__).resolve()), "--child",
                json.dumps({k: str(v) for k, v in dirs.items()}), "--seeds",
@@ -429,6 +543,8 @@ def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False, che
         command += ["--plant", plant]
     if check:
         command.append("--check")
+    if extreme:
+        command.append("--extreme")
     env = dict(os.environ, PYTHONMALLOC="malloc") if valgrind else None
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=time_limit,
@@ -518,10 +634,14 @@ def main(argv=None):
     parser.add_argument("--check", action="store_true",
                         help="also compare each instance around every call: a refused call "
                              "must change nothing (about three times slower)")
+    parser.add_argument("--extreme", action="store_true",
+                        help="extreme parameters (near overflow, huge priors and estimates, "
+                             "tiny and huge noise) and the harmonic filter at every "
+                             "initialisation")
     args = parser.parse_args(argv)
     if args.child:
         child(json.loads(args.child), [int(s) for s in args.seeds.split(",") if s],
-              args.calls, args.plant, args.check)
+              args.calls, args.plant, args.check, args.extreme)
         return 0
     seed = args.seed if args.seed is not None else random.SystemRandom().randrange(2 ** 31)
     rng = random.Random(seed)
@@ -532,7 +652,8 @@ def main(argv=None):
         while time.monotonic() < end:
             model = rng.choice(sorted(dirs))
             seeds = [rng.randrange(2 ** 31) for _ in range(args.batch)]
-            problems = run(dirs[model], seeds, args.calls, check=args.check)
+            problems = run(dirs[model], seeds, args.calls, check=args.check,
+                           extreme=args.extreme or rng.random() < 0.5)
             scripts += len(seeds)
             failures += len(problems)
             for p in problems:

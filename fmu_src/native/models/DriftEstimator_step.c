@@ -4,6 +4,7 @@
 #include <stdio.h>
 
 #include "chain.h"
+#include "covariance.h"
 #include "drift.h"
 #include "harmonic.h"
 #include "model.h"
@@ -28,8 +29,27 @@ void model_start(ModelInstance *comp)
     h->pending = h->state;
 }
 
-/* DriftEstimator._outputs of a state, and the first value that is not finite (or NULL). */
-static const char *outputs(ModelInstance *comp, const HarmonicState *s)
+/* DriftEstimator's COVARIANCE_NAMES and COVARIANCE_LISTING (the refusal of a step) and
+ * STATE_COVARIANCE_NAMES (of a state being restored). */
+static const char *const COVARIANCE_NAMES[] = {"P", "hidden state _state.P12",
+                                               "hidden state _state.P22"};
+static const char *const STATE_COVARIANCE_NAMES[] = {
+    "hidden state _state.P", "hidden state _state.P12", "hidden state _state.P22"};
+#define COVARIANCE_LISTING "the covariance (P, P12, P22) of hidden state _state"
+
+/* DriftEstimator.covariance_refusal of the harmonic state s after sample k: comp->refusal. */
+static const char *refuse_covariance(ModelInstance *comp, const HarmonicState *s, int64_t k)
+{
+    const double lower[3] = {s->P, s->P12, s->P22};
+    covariance_refusal(2, lower, COVARIANCE_NAMES, COVARIANCE_LISTING, (long long)k,
+                       comp->startTime + (double)(k - 1) * comp->v.Ts, comp->refusal,
+                       sizeof comp->refusal);
+    return comp->refusal;
+}
+
+/* DriftEstimator._outputs of the state s after sample k, and the first value that is not
+ * finite, else the refusal of a covariance that is not valid (or NULL). */
+static const char *outputs(ModelInstance *comp, const HarmonicState *s, int64_t k)
 {
     ModelVariables *v = &comp->v;
     double dcs[3];
@@ -57,17 +77,25 @@ static const char *outputs(ModelInstance *comp, const HarmonicState *s)
     if (!isfinite(s->drift.dc2)) return "hidden state _state.drift.dc2";
     if (!isfinite(s->drift.s3)) return "hidden state _state.drift.s3";
     if (!isfinite(s->drift.dc3)) return "hidden state _state.drift.dc3";
+    if (comp->v.process == HARMONIC_HARMONIC && !covariance_valid2(s->P, s->P12, s->P22))
+        return refuse_covariance(comp, s, k);
     return NULL;
 }
 
 /* DriftEstimator.hold: n >= 1 samples from k0; the first takes z as its measurement if
- * `first`, every other one is predict-only. */
-static const char *hold(ModelInstance *comp, HarmonicState *s, int64_t n, int first)
+ * `first`, every other one is predict-only.  The harmonic state after each sample but the last
+ * is refused when its covariance is not valid and finite (DriftEstimator._refuse_covariance);
+ * the last is checked by outputs. */
+static const char *hold(ModelInstance *comp, HarmonicState *s, int64_t k0, int64_t n,
+                        int first)
 {
     const ModelVariables *v = &comp->v;
     const ModelHidden *h = &comp->h;
     int64_t i;
     for (i = 0; i < n; i++) {
+        if (i > 0 && v->process == HARMONIC_HARMONIC && !covariance_valid2(s->P, s->P12, s->P22)
+            && isfinite(0.0 * s->P + 0.0 * s->P12 + 0.0 * s->P22))
+            return refuse_covariance(comp, s, k0 + i - 1);
         if (first && i == 0)
             *s = harmonic_estimator_step_general(*s, v->z, v->a0, v->a1, v->a2, v->R, v->process,
                                                  v->A, v->Q, h->C, h->S, v->Qh, v->a3, v->a4,
@@ -76,13 +104,13 @@ static const char *hold(ModelInstance *comp, HarmonicState *s, int64_t n, int fi
             *s = harmonic_estimator_predict_general(*s, v->process, v->A, v->Q, h->C, h->S,
                                                     v->Qh, v->B, v->u);
     }
-    return outputs(comp, s);
+    return outputs(comp, s, k0 + n - 1);
 }
 
 const char *model_compute(ModelInstance *comp)
 {
     comp->h.pending = comp->h.state;
-    return hold(comp, &comp->h.pending, 1, 1);
+    return hold(comp, &comp->h.pending, comp->k, 1, 1);
 }
 
 const char *model_advance(ModelInstance *comp, const StepPlan *plan)
@@ -97,7 +125,7 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
             first = 0;
         }
         if (plan->k_first + plan->n > start) { /* the other instants: z held from t */
-            const char *bad = hold(comp, &s, plan->k_first + plan->n - start, first);
+            const char *bad = hold(comp, &s, start, plan->k_first + plan->n - start, first);
             if (bad) return bad;
         }
     }
@@ -123,7 +151,18 @@ static int harmonic_state_problems(ModelInstance *comp, const char *which, const
     n += SLAVE_HIDDEN_REAL(comp, which, s, drift.t3, 0);
     n += SLAVE_HIDDEN_REAL(comp, which, s, drift.q3, 0);
     snprintf(name, sizeof name, "%s.drift.k", which);
-    return n + slave_hidden_count(comp, name, s->drift.k);
+    n += slave_hidden_count(comp, name, s->drift.k);
+    if (n == 0) { /* every field finite: the covariance (DriftEstimator.hidden_problems) */
+        const double harmonic[3] = {s->P, s->P12, s->P22};
+        char msg[MODEL_REFUSAL_MAX];
+        if (comp->v.process == HARMONIC_HARMONIC
+                ? covariance_state_problem(2, harmonic, STATE_COVARIANCE_NAMES,
+                                           COVARIANCE_LISTING, msg, sizeof msg)
+                : covariance_state_problem(1, harmonic, STATE_COVARIANCE_NAMES,
+                                           COVARIANCE_LISTING, msg, sizeof msg))
+            n += slave_problem(comp, msg);
+    }
+    return n;
 }
 
 int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)

@@ -5,6 +5,7 @@
 #include <stdio.h>
 
 #include "chain.h"
+#include "covariance.h"
 #include "drift.h"
 #include "dualaxis.h"
 #include "model.h"
@@ -32,14 +33,53 @@ void model_start(ModelInstance *comp)
     h->pending = h->state;
 }
 
+/* DualDriftEstimator's COVARIANCE_NAMES, COVARIANCE_LISTING and STATE_COVARIANCE_NAMES of each
+ * process model (index process - 1), packed as dualaxis_covariance_of packs the matrix. */
+static const char *const COVARIANCE_NAMES[2][10] = {
+    {"P_xx", "P_xy", "P_yy"},
+    {"P_xx", "hidden state _state.P12", "hidden state _state.P22", "P_xy",
+     "hidden state _state.P23", "P_yy", "hidden state _state.P14", "hidden state _state.P24",
+     "hidden state _state.P34", "hidden state _state.P44"}};
+static const char *const STATE_COVARIANCE_NAMES[2][10] = {
+    {"hidden state _state.Pxx", "hidden state _state.Pxy", "hidden state _state.Pyy"},
+    {"hidden state _state.P11", "hidden state _state.P12", "hidden state _state.P22",
+     "hidden state _state.P13", "hidden state _state.P23", "hidden state _state.P33",
+     "hidden state _state.P14", "hidden state _state.P24", "hidden state _state.P34",
+     "hidden state _state.P44"}};
+static const char *const COVARIANCE_LISTING[2] = {
+    "the covariance (Pxx, Pxy, Pyy) of hidden state _state",
+    "the covariance (P11, P12, P22, P13, P23, P33, P14, P24, P34, P44) of hidden state _state"};
+
+/* DualDriftEstimator.covariance_refusal of the state s after sample k: comp->refusal. */
+static const char *refuse_covariance(ModelInstance *comp, const DualEstimator *s, int64_t k)
+{
+    const int64_t process = comp->v.process;
+    double lower[10];
+    const int n = dualaxis_covariance_of(s, process, lower);
+    covariance_refusal(n, lower, COVARIANCE_NAMES[process - 1], COVARIANCE_LISTING[process - 1],
+                       (long long)k, comp->startTime + (double)(k - 1) * comp->v.Ts,
+                       comp->refusal, sizeof comp->refusal);
+    return comp->refusal;
+}
+
+/* Whether every entry of the covariance of s is finite. */
+static int covariance_finite(const DualEstimator *s, int64_t process)
+{
+    double lower[10], zero = 0.0;
+    const int n = dualaxis_covariance_of(s, process, lower);
+    for (int i = 0; i < n * (n + 1) / 2; i++) zero += 0.0 * lower[i];
+    return zero == 0.0;
+}
+
 #define CHECK(value, name) \
     do { \
         if (!isfinite(value)) return name; \
     } while (0)
 
-/* DualDriftEstimator._outputs of a state, and the first value that is not finite (or NULL):
- * the outputs in table order, then the hidden state (slave_base.hidden_finite's order). */
-static const char *outputs(ModelInstance *comp, const DualEstimator *s)
+/* DualDriftEstimator._outputs of the state after sample k, and the first value that is not
+ * finite (the outputs in table order, then the hidden state: slave_base.hidden_valid's order),
+ * else the refusal of a covariance that is not valid (or NULL). */
+static const char *outputs(ModelInstance *comp, const DualEstimator *s, int64_t k)
 {
     ModelVariables *v = &comp->v;
     const ModelHidden *h = &comp->h;
@@ -111,29 +151,35 @@ static const char *outputs(ModelInstance *comp, const DualEstimator *s)
     CHECK(d.s3yy, "hidden state _state.drift.s3yy");
     CHECK(d.dc3x, "hidden state _state.drift.dc3x");
     CHECK(d.dc3y, "hidden state _state.drift.dc3y");
+    if (!dualaxis_valid(s, v->process)) return refuse_covariance(comp, s, k);
     return NULL;
 }
 
-/* DualDriftEstimator.hold: n >= 1 samples; the first takes (z_x, z_y) as its measurement if
- * `first`, every other one is predict-only. */
-static const char *hold(ModelInstance *comp, DualEstimator *s, int64_t n, int first)
+/* DualDriftEstimator.hold: n >= 1 samples from k0; the first takes (z_x, z_y) as its
+ * measurement if `first`, every other one is predict-only.  The state after each sample but
+ * the last is refused when its covariance is not valid and finite
+ * (DualDriftEstimator._refuse_covariance); the last is checked by outputs. */
+static const char *hold(ModelInstance *comp, DualEstimator *s, int64_t k0, int64_t n,
+                        int first)
 {
     const ModelVariables *v = &comp->v;
     const ModelHidden *h = &comp->h;
     int64_t i;
     for (i = 0; i < n; i++) {
+        if (i > 0 && !dualaxis_valid(s, v->process) && covariance_finite(s, v->process))
+            return refuse_covariance(comp, s, k0 + i - 1);
         if (first && i == 0)
             *s = dualaxis_estimator_step(*s, v->z_x, v->z_y, h->ax, h->ay, &h->m);
         else
             *s = dualaxis_estimator_predict(*s, &h->m);
     }
-    return outputs(comp, s);
+    return outputs(comp, s, k0 + n - 1);
 }
 
 const char *model_compute(ModelInstance *comp)
 {
     comp->h.pending = comp->h.state;
-    return hold(comp, &comp->h.pending, 1, 1);
+    return hold(comp, &comp->h.pending, comp->k, 1, 1);
 }
 
 const char *model_advance(ModelInstance *comp, const StepPlan *plan)
@@ -148,7 +194,7 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
             first = 0;
         }
         if (plan->k_first + plan->n > start) { /* the other instants: inputs held from t */
-            const char *bad = hold(comp, &s, plan->k_first + plan->n - start, first);
+            const char *bad = hold(comp, &s, start, plan->k_first + plan->n - start, first);
             if (bad) return bad;
         }
     }
@@ -192,6 +238,17 @@ static int dual_state_problems(ModelInstance *comp, const char *which, const Dua
         }
         snprintf(name, sizeof name, "%s.%s.drift.k", which, i ? "h" : "g");
         n += slave_hidden_count(comp, name, d->k);
+    }
+    if (n == 0 && (comp->v.process == DUALAXIS_GAUSS_MARKOV ||
+                   comp->v.process == DUALAXIS_HARMONIC)) {
+        /* every field finite: the covariance (DualDriftEstimator.hidden_problems) */
+        const int64_t process = comp->v.process;
+        double lower[10];
+        char msg[MODEL_REFUSAL_MAX];
+        const int size = dualaxis_covariance_of(s, process, lower);
+        if (covariance_state_problem(size, lower, STATE_COVARIANCE_NAMES[process - 1],
+                                     COVARIANCE_LISTING[process - 1], msg, sizeof msg))
+            n += slave_problem(comp, msg);
     }
     return n;
 }

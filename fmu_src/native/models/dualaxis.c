@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <string.h>
 
+#include "covariance.h"
 #include "drift.h"
 #include "dualaxis.h"
 #include "harmonic.h"
@@ -347,6 +348,35 @@ void dualaxis_moments(const DualEstimator *st, int64_t process, double out[5])
 DualDrift dualaxis_drift_of(const DualEstimator *st, int64_t process)
 {
     return process == DUALAXIS_GAUSS_MARKOV ? st->g.drift : st->h.drift;
+}
+
+int dualaxis_covariance_of(const DualEstimator *st, int64_t process, double lower[10])
+{
+    if (process == DUALAXIS_GAUSS_MARKOV) {
+        lower[0] = st->g.Pxx;
+        lower[1] = st->g.Pxy;
+        lower[2] = st->g.Pyy;
+        return 2;
+    }
+    lower[0] = st->h.P11;
+    lower[1] = st->h.P12;
+    lower[2] = st->h.P22;
+    lower[3] = st->h.P13;
+    lower[4] = st->h.P23;
+    lower[5] = st->h.P33;
+    lower[6] = st->h.P14;
+    lower[7] = st->h.P24;
+    lower[8] = st->h.P34;
+    lower[9] = st->h.P44;
+    return 4;
+}
+
+int dualaxis_valid(const DualEstimator *st, int64_t process)
+{
+    double lower[10];
+    const int n = dualaxis_covariance_of(st, process, lower);
+    if (n == 2) return covariance_valid2(lower[0], lower[1], lower[2]);
+    return covariance_valid(n, lower);
 }
 
 static void set_harmonic(DualHarmonicState *h, const double s[14])

@@ -97,6 +97,12 @@ DualEstimator dualaxis_estimator_init(int64_t process, double x0, double y0, dou
 void dualaxis_moments(const DualEstimator *st, int64_t process, double out[5]);
 /* The state's drift (of `process`). */
 DualDrift dualaxis_drift_of(const DualEstimator *st, int64_t process);
+/* models.dualaxis.covariance_of: the lower triangle of the filter's covariance packed by rows
+ * into lower ((Pxx, Pxy, Pyy), or (P11, P12, P22, P13, P23, P33, P14, P24, P34, P44)); returns
+ * its size n, 2 or 4. */
+int dualaxis_covariance_of(const DualEstimator *st, int64_t process, double lower[10]);
+/* models.dualaxis.valid: 1 if the filter's covariance is valid (models/covariance.py). */
+int dualaxis_valid(const DualEstimator *st, int64_t process);
 DualEstimator dualaxis_estimator_predict(DualEstimator st, const DualModel *m);
 DualEstimator dualaxis_estimator_step(DualEstimator st, double zx, double zy, Axis ax, Axis ay,
                                       const DualModel *m);

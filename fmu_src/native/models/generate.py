@@ -25,11 +25,11 @@ MATH_UNITS = ("slave.c", "ops.c", "noise.c", "parameters.c")
 UNITS = {
     "Excitation": ("Excitation_step.c", "excitation.c") + MATH_UNITS,
     "Accelerometer": ("Accelerometer_step.c", "adxl203.c", "dualaxis.c", "harmonic.c",
-                      "chain.c", "ekf.c", "drift.c", "sensor.c") + MATH_UNITS,
+                      "chain.c", "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
     "DriftEstimator": ("DriftEstimator_step.c", "harmonic.c", "chain.c", "ekf.c", "drift.c",
-                       "sensor.c") + MATH_UNITS,
+                       "sensor.c", "covariance.c") + MATH_UNITS,
     "DualDriftEstimator": ("DualDriftEstimator_step.c", "dualaxis.c", "harmonic.c", "chain.c",
-                           "ekf.c", "drift.c", "sensor.c") + MATH_UNITS,
+                           "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
 }
 #: Compiler flags that keep the bits of models/ (C99, no FMA contraction, no fast math).
 CFLAGS = ("-std=c99", "-O2", "-ffp-contract=off", "-fno-fast-math")
