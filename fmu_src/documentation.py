@@ -98,7 +98,8 @@ STEP_RULE = (
     "overflowing output is an error naming the variable, the value and what is allowed, and "
     "the rejected call changes nothing. So is a sample after which a filter's covariance would "
     "have a negative variance or not be positive semi-definite (the numbers exceed what double "
-    "precision can carry; the rule: docs/method.md, section 2).")
+    "precision can carry): every variance must be >= 0, a covariance with a variance of 0 must "
+    "be 0, and P + 2^-20 diag(P) must be positive definite on the other rows.")
 
 #: What a host must do, on every FMU's page: (title, paragraph).
 HOST_RULES = (

@@ -676,7 +676,8 @@ class _Pool(ProcessPoolExecutor):
 
 def stop_pool(pool, timeout=2.0):
     """Cancel the queued tasks of ``pool``, SIGTERM its worker processes (each removes its
-    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``.
+    temporary files and exits) and wait for them; SIGKILL any still alive after ``timeout``,
+    and then remove the work folders they left (:func:`folders.sweep`).
 
     Then nothing of the pool may keep this process waiting: the queue feeder thread may be
     blocked writing a task to the pipe that the stopped workers read (this process holds the
@@ -696,11 +697,16 @@ def stop_pool(pool, timeout=2.0):
         with contextlib.suppress(Exception):
             p.terminate()
     deadline = time.monotonic() + timeout
+    killed = False
     for p in procs:
         p.join(max(0.0, deadline - time.monotonic()))
         if p.is_alive():
             p.kill()
             p.join(1.0)
+            killed = True
+    if killed:  # their work folders (FMUs extracted) are left; their locks died with them
+        from driftfmu.simulations import folders
+        folders.sweep(folders.TEMPORARY, again=True)
     if call_queue is not None:
         with contextlib.suppress(Exception):
             call_queue.cancel_join_thread()

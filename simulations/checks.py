@@ -51,9 +51,11 @@ def count_problem(name, value, low):
     if name in parameters.PARAMETERS:
         return number_problem(name, value)
     if not is_integer(value):
-        return "%s = %r is not an integer; allowed: %s >= %d" % (name, value, name, low)
+        return "%s = %r is not an integer; allowed: an integer %s >= %d" % (name, value, name,
+                                                                           low)
     if value < low:
-        return "%s = %r is out of range; allowed: %s >= %d" % (name, value, name, low)
+        return "%s = %r is out of range; allowed: an integer %s >= %d" % (name, value, name,
+                                                                          low)
     return None
 
 

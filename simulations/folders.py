@@ -376,14 +376,15 @@ def stale(folder):
     return True
 
 
-def sweep(prefixes, dir=None, dead=None, other=None):
+def sweep(prefixes, dir=None, dead=None, other=None, again=False):
     """Remove the folders of ``dir`` (by default the private folder of :func:`make`) named
     with one of ``prefixes`` that are provably left by a process that is gone (:func:`claim`)
     or half made (:func:`_half_made`).  With ``dead``, ``dead(path)`` is called for each of the
     former instead, its lock held, and removes it or not (returning True when it did); with
     ``other``, ``other(path)`` is called for each folder of theirs that is neither (in use, or
-    not provably made there: :func:`made_here`).  Once per process and place; returns the paths
-    removed."""
+    not provably made there: :func:`made_here`).  Once per process and place (``again``: once
+    more, after this process's workers were killed: the private folder goes too when that
+    leaves it empty); returns the paths removed."""
     if fcntl is None:
         return []
     if dir is None:
@@ -394,7 +395,7 @@ def sweep(prefixes, dir=None, dead=None, other=None):
         os.close(fd)
     dir = os.path.abspath(dir)
     key = (os.getpid(), dir, tuple(prefixes))
-    if key in _SWEPT:
+    if key in _SWEPT and not again:
         return []
     _SWEPT.add(key)
     removed = []
@@ -439,4 +440,7 @@ def sweep(prefixes, dir=None, dead=None, other=None):
                     os.close(fd)
         if gone:
             removed.append(entry.path)
+    if again and removed and dir == os.path.abspath(_parent_path()):
+        with contextlib.suppress(OSError):  # only while empty: a folder of another stays
+            os.rmdir(dir)
     return removed

@@ -204,8 +204,8 @@ SMALL_ADXL = dict(freqs=[100.0], sets=3, n=600)
 SMALL_DUAL = dict(points=2, runs=1, n=50)
 
 @pytest.mark.parametrize("name, kwargs, said", [
-    ("run_gaussian", dict(n=True), "n = True is not a number; allowed: n >= 1"),
-    ("run_gaussian", dict(n=2.0), "n = 2.0 is not an integer; allowed: n >= 1"),
+    ("run_gaussian", dict(n=True), "n = True is not a number; allowed: an integer n >= 1"),
+    ("run_gaussian", dict(n=2.0), "n = 2.0 is not an integer; allowed: an integer n >= 1"),
     ("run_gaussian", dict(n=10, seed=1.5), "seed = 1.5 is not an integer"),
     ("run_gaussian", dict(n=10, estimator=True), "estimator = True is not allowed; allowed: 1, "
                                                  "2, 3"),
@@ -213,21 +213,21 @@ SMALL_DUAL = dict(points=2, runs=1, n=50)
     ("run_sinusoidal", dict(f="150"), "f = '150' is not a number; allowed: 0 < f < 1/(2 Ts)"),
     ("run_sinusoidal", dict(sensor={"a5": 1.0}), "sensor has 'a5'; allowed: a0, a1, a2, a3"),
     ("run_sinusoidal", dict(sensor={"fc": "x"}), "fc = 'x' is not a number"),
-    ("montecarlo", dict(runs="10"), "runs = '10' is not a number; allowed: runs >= 1"),
+    ("montecarlo", dict(runs="10"), "runs = '10' is not a number; allowed: an integer runs >= 1"),
     ("montecarlo", dict(runs=True), "runs = True is not a number"),
     ("montecarlo", dict(SMALL_MC, summary_only="yes"), "summary_only = 'yes' is not allowed; "
                                                        "allowed: True or False"),
     ("montecarlo", dict(SMALL_MC, workers=0), "workers = 0 is out of range; allowed: "
-                                              "workers >= 1"),
+                                              "an integer workers >= 1"),
     ("montecarlo", dict(SMALL_MC, engine="gpu"), "engine = 'gpu' is not allowed; allowed: "
                                                  "'batch', 'fmu'"),
     ("sweep", dict(SMALL_SWEEP, a2=["0.1"]), "a2 = '0.1' is not a number; allowed: any finite "
                                              "value"),
     ("sweep", dict(SMALL_SWEEP, R=[True]), "R = True is not a number; allowed: R > 0"),
     ("sweep", dict(SMALL_SWEEP, chunk=2.5), "chunk = 2.5 is not an integer; allowed: "
-                                            "chunk >= 1"),
+                                            "an integer chunk >= 1"),
     ("experiment_adxl203", dict(SMALL_ADXL, sets="6"), "sets = '6' is not an integer; "
-                                                       "allowed: sets >= 1"),
+                                                       "allowed: an integer sets >= 1"),
     ("experiment_adxl203", dict(SMALL_ADXL, freqs=["100"]), "freqs has '100', which is not a "
                                                             "number"),
     ("experiment_adxl203", dict(SMALL_ADXL, freqs="100,150"), "freqs = '100,150' is not "

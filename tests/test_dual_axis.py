@@ -429,8 +429,8 @@ def test_failed_validation_writes_nothing(built_fmus, tmp_path, monkeypatch):
 
 
 @pytest.mark.parametrize("kwargs,text", [
-    (dict(points=1), "points = 1 is out of range; allowed: points >= 2"),
-    (dict(runs=0), "runs = 0 is out of range; allowed: runs >= 1"),
+    (dict(points=1), "points = 1 is out of range; allowed: an integer points >= 2"),
+    (dict(runs=0), "runs = 0 is out of range; allowed: an integer runs >= 1"),
     (dict(engine="gpu"), "engine = 'gpu' is not allowed"),
     (dict(Ry=-1.0), "Ry = -1.0 is out of range; allowed: Ry > 0"),
     (dict(f=600.0), "Nyquist"),
@@ -445,7 +445,7 @@ def test_bad_settings_fail_before_anything_runs(tmp_path, kwargs, text):
 
 @pytest.mark.parametrize("argv,text", [
     (["experiment", "dual-axis", "--points", "1"], "points = 1 is out of range; allowed: "
-                                                   "points >= 2"),
+                                                   "an integer points >= 2"),
     (["experiment", "dual-axis", "--rho", "0.5"], "unrecognized arguments: --rho"),
     (["experiment", "dual-axis", "--Ry", "0"], "Ry = 0.0 is out of range; allowed: Ry > 0"),
     (["experiment", "dual-axis", "--engine", "gpu"], "engine = 'gpu' is not allowed; allowed: "

@@ -10,11 +10,13 @@ import shutil
 import signal
 import subprocess
 import sys
+import textwrap
 import time
 
 import pytest
 
 from driftfmu.simulations import folders, output
+from waiting import BOUND
 
 pytestmark = pytest.mark.skipif(folders.fcntl is None, reason="no flock on this platform")
 
@@ -59,7 +61,7 @@ def run_child(prefix, where, mode, tmp_path=None):
     """Run CHILD to its SIGKILL; the folder it printed (None if it printed none)."""
     env = dict(os.environ, TMPDIR=str(tmp_path)) if tmp_path is not None else None
     r = subprocess.run([sys.executable, "-c", CHILD, prefix, str(where), mode],
-                       capture_output=True, text=True, timeout=60, env=env)
+                       capture_output=True, text=True, timeout=BOUND, env=env)
     assert r.returncode == -signal.SIGKILL, r.stderr
     return r.stdout.strip() or None
 
@@ -93,7 +95,7 @@ def live(tmp_path):
     yield make
     for child in children:
         child.stdin.close()
-        child.wait(timeout=60)
+        child.wait(timeout=BOUND)
 
 
 def test_sweep_removes_the_folders_of_killed_processes_and_only_those(tmp_path, live):
@@ -116,7 +118,7 @@ def test_sweep_removes_the_folders_of_killed_processes_and_only_those(tmp_path, 
     assert (unlocked / "notes.txt").read_text() == "mine"
     assert folders.sweep(folders.TEMPORARY, dir=tmp_path) == []  # once per process and place
     child.stdin.close()
-    child.wait(timeout=60)
+    child.wait(timeout=BOUND)
     assert folders.stale(running)  # its process has ended: the next process removes it
 
 
@@ -231,7 +233,7 @@ def test_a_program_started_with_exec_keeps_the_folder_of_its_killed_parent(tmp_p
                              env=dict(os.environ, TMPDIR=str(tmp_path)))
     try:
         folder = maker.stdout.readline().strip()
-        assert maker.wait(timeout=60) == -signal.SIGKILL
+        assert maker.wait(timeout=BOUND) == -signal.SIGKILL
         assert not folders.stale(folder)
         assert folders.sweep(folders.TEMPORARY) == [] and os.path.isdir(folder)
     finally:
@@ -325,7 +327,7 @@ def test_a_live_folder_seen_through_another_layer_of_an_overlay_stays(tmp_path):
     if probe.returncode != 0:
         pytest.skip("no mount namespace here: %s" % probe.stderr.decode().strip())
     r = subprocess.run(["unshare", "--mount", sys.executable, "-c", OVERLAY, str(tmp_path),
-                        CHILD], capture_output=True, text=True, timeout=120)
+                        CHILD], capture_output=True, text=True, timeout=BOUND)
     if "mount" in r.stderr and r.returncode != 0 and "overlay" in r.stderr:
         pytest.skip("no overlay file system here: %s" % r.stderr.strip().splitlines()[-1])
     assert r.returncode == 0, r.stderr
@@ -418,13 +420,53 @@ def test_an_api_script_stopped_by_sigterm_leaves_nothing_for_good(python_fmus, t
         time.sleep(0.05)
     time.sleep(0.5)  # stepping by now
     script.send_signal(signal.SIGTERM)
-    script.communicate(timeout=60)
+    script.communicate(timeout=BOUND)
     assert script.returncode == -signal.SIGTERM
     left = extracted()
     assert len(left) == 3 and all(folders.stale(str(p)) for p in left)
 
     r = subprocess.run([sys.executable, "-c", SCRIPT, "0.01", fmu_dir], env=env,
-                       capture_output=True, text=True, timeout=300)
+                       capture_output=True, text=True, timeout=BOUND)
     assert r.returncode == 0 and r.stdout.strip() == "done", r.stderr
     assert not any(p.exists() for p in left)
     assert not list(tmp_path.glob("driftfmu*")), list(tmp_path.iterdir())
+
+
+#: A pool's worker that makes a work folder and then does not stop on SIGTERM (busy in code
+#: that holds the signal back): stop_pool kills it, and its folder must go with it.
+STUCK_WORKER = textwrap.dedent("""
+    import os, signal, sys, time
+    from pathlib import Path
+    from driftfmu.simulations import batch, folders
+
+    def stuck(note):
+        folder = folders.make("driftfmu_stuck_")
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
+        Path(note).write_text(folder)
+        time.sleep(3600)
+
+    if __name__ == "__main__":
+        note = Path(sys.argv[1])
+        try:
+            with batch.process_pool(1) as pool:
+                pool.submit(stuck, str(note))
+                while not note.exists():
+                    time.sleep(0.01)
+                raise KeyboardInterrupt
+        except KeyboardInterrupt:
+            pass
+        print(note.read_text())
+""")
+
+
+def test_the_folders_of_workers_killed_by_stop_pool_are_removed(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    r = subprocess.run([sys.executable, "-c", STUCK_WORKER, str(tmp_path / "note")],
+                       capture_output=True, text=True, timeout=BOUND,
+                       env=dict(os.environ, TMPDIR=str(tmp)))
+    assert r.returncode == 0, r.stderr
+    folder = r.stdout.strip()
+    assert folder.startswith(str(tmp)) and "driftfmu_stuck_" in folder
+    assert not os.path.exists(folder)
+    assert os.listdir(tmp) == []  # the private folder too, left empty

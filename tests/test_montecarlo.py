@@ -80,7 +80,7 @@ def test_sinusoidal_runs(sine):
 
 
 def test_bad_input():
-    with pytest.raises(ValueError, match="runs = 0 is out of range; allowed: runs >= 1"):
+    with pytest.raises(ValueError, match="runs = 0 is out of range; allowed: an integer runs >= 1"):
         montecarlo.montecarlo_gaussian(runs=0)
     with pytest.raises(ValueError, match="R = 0 is out of range"):
         montecarlo.montecarlo_gaussian(runs=2, n=5, R=0)

@@ -125,7 +125,7 @@ def test_files_are_written(local, tmp_path):
     (dict(R=[]), "R grid is empty"),
     (dict(R=[1e-4, 0.0]), r"R = 0.0 is out of range; allowed: R > 0"),
     (dict(R=[-1e-3]), r"R = -0.001 is out of range"),
-    (dict(runs=0), "runs = 0 is out of range; allowed: runs >= 1"),
+    (dict(runs=0), "runs = 0 is out of range; allowed: an integer runs >= 1"),
     (dict(engine="gpu"), "engine = 'gpu' is not allowed"),
     (dict(seed=2 ** 31 - 10, runs=20), "seed"),
     (dict(a2=[0.01, 0.02, 0.01]), r"the a2 grid has 0.01 more than once; allowed: distinct"),
