@@ -36,6 +36,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -935,11 +936,14 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     return inst;
 }
 
+static void free_states_of(Instance *inst);
+
 void fmi2FreeInstance(fmi2Component c)
 {
     Instance *inst = (Instance *)c;
     if (!inst)
         return;
+    free_states_of(inst); /* every state the instance got or deserialised dies with it */
     if (inst->state != FATAL && to_pool(inst))
         return;
     /* After a fatal error pythonfmu 0.7.0 has released the instance's Python objects already,
@@ -1113,15 +1117,24 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 /* -- FMU states ---------------------------------------------------------------------------- */
 
 /*
- * An FMU state is a shim record around pythonfmu's (a Python object): the model's GUID and the
- * instance's FMI state and time go with it, and every live record is listed, so that a pointer
- * the shim did not hand out (garbage, freed, another FMU's) is refused without reading it.
- * Serialised, a state is the model's bytes (JSON with the model's name, GUID and version, which
- * the model checks when the state is set).
+ * An FMU state is a shim record around pythonfmu's (a Python object): the model's GUID, the
+ * instance that owns it and the instance's FMI state and time go with it.  The host holds a
+ * handle, not the record's address: a number the shim issues once (a serial number, with a tag
+ * of this loaded copy of the library in the high bits and a bit that makes it a non-canonical
+ * address on x86-64), so a freed state's handle never comes back as a live state when memory is
+ * reused.  Every live record is listed: a handle that is not a live state of the calling
+ * instance (garbage, freed, freed with its instance, another instance's, another FMU's or
+ * another loaded copy's) is refused, naming which, without reading anything.  A state belongs
+ * to the instance that got or deserialised it, and fmi2FreeInstance frees every state of the
+ * instance (FMI 2.0: it frees all memory the FMU's functions allocated).  Serialised, a state
+ * is the model's bytes (JSON with the model's name, GUID and version, which the model checks,
+ * with every other field, when the bytes are deserialised and again when the state is set).
  */
 
 typedef struct State {
     struct State *next;
+    uintptr_t handle;
+    const Instance *owner;
     fmi2FMUstate inner;
     char guid[128];
     int state;
@@ -1130,20 +1143,51 @@ typedef struct State {
 
 static pthread_mutex_t states_lock = PTHREAD_MUTEX_INITIALIZER;
 static State *live_states;
+static uint64_t issued; /* handles issued so far (the last serial number) */
 
-static int is_live(const void *p)
+/* The tag of this loaded copy of the library: bits of the page of one of its variables. */
+static uint64_t library_tag(void)
 {
-    int found = 0;
-    pthread_mutex_lock(&states_lock);
-    for (State *s = live_states; s && !found; s = s->next)
-        found = (const void *)s == p;
-    pthread_mutex_unlock(&states_lock);
-    return found;
+    return (uint64_t)((uintptr_t)&issued >> 12);
 }
 
-static void add_live(State *s)
+#if UINTPTR_MAX > 0xFFFFFFFFu
+#define SERIAL_BITS 36
+/* bit 62 set, bit 63 clear: not an address a process can have on x86-64 */
+static uintptr_t handle_of(uint64_t serial)
+{
+    return (uintptr_t)(((uint64_t)1 << 62) | ((library_tag() & 0x3FFFFFFu) << SERIAL_BITS) |
+                       serial);
+}
+#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0x3FFFFFFu)
+#define IS_HANDLE(h) (((uint64_t)(h) >> 62) == 1u)
+#else
+#define SERIAL_BITS 24
+static uintptr_t handle_of(uint64_t serial)
+{
+    return (uintptr_t)(((library_tag() & 0xFFu) << SERIAL_BITS) | serial);
+}
+#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0xFFu)
+#define IS_HANDLE(h) 1
+#endif
+#define SERIAL_OF(h) ((uint64_t)(h) & (((uint64_t)1 << SERIAL_BITS) - 1))
+
+/* The live record of handle h, or NULL (the caller holds the lock). */
+static State *find_locked(const void *h)
+{
+    for (State *s = live_states; s; s = s->next)
+        if ((const void *)s->handle == h)
+            return s;
+    return NULL;
+}
+
+/* Issue a handle for s, owned by inst, and list it. */
+static void add_live(State *s, const Instance *inst)
 {
     pthread_mutex_lock(&states_lock);
+    issued = issued + 1 < ((uint64_t)1 << SERIAL_BITS) ? issued + 1 : 1;
+    s->handle = handle_of(issued);
+    s->owner = inst;
     s->next = live_states;
     live_states = s;
     pthread_mutex_unlock(&states_lock);
@@ -1160,40 +1204,102 @@ static void remove_live(State *s)
     pthread_mutex_unlock(&states_lock);
 }
 
-/* The record behind a state the host passed, or NULL (logged). */
+/* Free every state inst owns: pythonfmu's states too while the instance can still free them
+   (after an fmi2Fatal pythonfmu's instance is left alone, as fmi2FreeInstance leaves it). */
+static void free_states_of(Instance *inst)
+{
+    State *mine = NULL;
+    pthread_mutex_lock(&states_lock);
+    for (State **p = &live_states; *p;) {
+        State *s = *p;
+        if (s->owner == inst) {
+            *p = s->next;
+            s->next = mine;
+            mine = s;
+        } else {
+            p = &s->next;
+        }
+    }
+    pthread_mutex_unlock(&states_lock);
+    while (mine) {
+        State *s = mine;
+        mine = s->next;
+        if (inst->state != FATAL)
+            CALL(inner.FreeFMUstate(inst->inner, &s->inner));
+        free(s);
+    }
+}
+
+/* What a handle that is not a live state of inst is: 1 another instance's, 2 issued by this
+   library and freed since, 0 anything else (never issued here: garbage, another library's);
+   -1 (and *mine set) when it is a live state of inst. */
+static int stranger(const Instance *inst, const void *h, State **mine)
+{
+    pthread_mutex_lock(&states_lock);
+    State *s = find_locked(h);
+    const uint64_t last = issued;
+    pthread_mutex_unlock(&states_lock);
+    *mine = s && s->owner == inst ? s : NULL;
+    if (s)
+        return s->owner == inst ? -1 : 1;
+    const uintptr_t v = (uintptr_t)h;
+    if (IS_HANDLE(v) && TAG_OF(v) == TAG_OF(handle_of(0)) && SERIAL_OF(v) >= 1 &&
+        SERIAL_OF(v) <= last)
+        return 2;
+    return 0;
+}
+
+/* The record behind a state the host passed when it is a live state of inst, or NULL
+   (logged, naming what the handle is). */
 static State *known_state(Instance *inst, const char *function, fmi2FMUstate state)
 {
     if (!state) {
         shim_log(inst, fmi2Error, "%s: FMUstate is NULL; allowed: a state from "
-                 "fmi2GetFMUstate or fmi2DeSerializeFMUstate of this FMU", function);
+                 "fmi2GetFMUstate or fmi2DeSerializeFMUstate of this instance", function);
         return NULL;
     }
-    if (!is_live(state)) {
+    State *s;
+    switch (stranger(inst, state, &s)) {
+    case -1:
+        break;
+    case 1:
+        shim_log(inst, fmi2Error, "%s: FMUstate %p belongs to another instance of this FMU "
+                 "(GUID %s), not to this one: a state is valid only in the instance that made "
+                 "it (to move a state between instances, serialise it and deserialise it in "
+                 "the other); allowed: a live state of this instance", function, state,
+                 inst->guid);
+        return NULL;
+    case 2:
+        shim_log(inst, fmi2Error, "%s: FMUstate %p is freed: by fmi2FreeFMUstate, or with the "
+                 "instance that made it (fmi2FreeInstance frees every state of the instance); "
+                 "allowed: a live state of this instance", function, state);
+        return NULL;
+    default:
         shim_log(inst, fmi2Error, "%s: FMUstate %p is not a live state of this loaded copy of "
                  "the FMU (GUID %s): not made by its fmi2GetFMUstate or "
-                 "fmi2DeSerializeFMUstate, or freed already (a state pointer is valid only in "
-                 "the library that made it; to move a state between copies of an FMU, "
-                 "serialise it); allowed: a live state", function, state, inst->guid);
+                 "fmi2DeSerializeFMUstate (a state pointer is valid only in the library and the "
+                 "instance that made it; to move a state between copies of an FMU, serialise "
+                 "it); allowed: a live state of this instance", function, state, inst->guid);
         return NULL;
     }
-    if (strcmp(((State *)state)->guid, inst->guid)) {
+    if (strcmp(s->guid, inst->guid)) { /* (cannot happen: the owner is this instance) */
         shim_log(inst, fmi2Error, "%s: FMUstate %p is a state of the FMU with GUID %s, not of "
                  "this one (GUID %s); allowed: a live state of this FMU", function, state,
-                 ((State *)state)->guid, inst->guid);
+                 s->guid, inst->guid);
         return NULL;
     }
-    return (State *)state;
+    return s;
 }
 
 /*
- * Put pythonfmu's state `fresh` into *FMUstate: into the record already there (whose old
- * state is freed) or into a new one.
+ * Put pythonfmu's state `fresh` into *FMUstate: into the record already there when it is a live
+ * state of inst (whose old state is freed), or into a new one.
  */
 static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *FMUstate,
                               const State *fields)
 {
-    State *s = (State *)*FMUstate;
-    if (s && is_live(s)) {
+    State *s = NULL;
+    if (*FMUstate && stranger(inst, *FMUstate, &s) == -1) {
         fmi2FMUstate old = s->inner;
         inner.FreeFMUstate(inst->inner, &old);
     } else {
@@ -1203,7 +1309,7 @@ static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *
             shim_log(inst, fmi2Error, "out of memory for an FMU state");
             return fmi2Error;
         }
-        add_live(s);
+        add_live(s, inst);
     }
     s->inner = fresh;
     snprintf(s->guid, sizeof s->guid, "%s", inst->guid);
@@ -1212,17 +1318,18 @@ static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *
     s->time = fields->time;
     s->elapsed = fields->elapsed;
     s->elapsed_c = fields->elapsed_c;
-    *FMUstate = s;
+    *FMUstate = (fmi2FMUstate)s->handle;
     return fmi2OK;
 }
 
-/* A non-NULL *FMUstate that is not a live state: said in a warning, and left alone. */
+/* A non-NULL *FMUstate that is not a live state of inst: said in a warning, and left alone. */
 static fmi2Status check_target(Instance *inst, const char *function, fmi2FMUstate *FMUstate)
 {
-    if (*FMUstate && !is_live(*FMUstate)) {
-        shim_log(inst, fmi2Warning, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
-                 "a new state is returned and the old pointer is left alone", function,
-                 *FMUstate);
+    State *s;
+    if (*FMUstate && stranger(inst, *FMUstate, &s) != -1) {
+        shim_log(inst, fmi2Warning, "%s: *FMUstate = %p is not a live FMU state of this "
+                 "instance; a new state is returned and the old pointer is left alone",
+                 function, *FMUstate);
         *FMUstate = NULL;
         return fmi2Warning;
     }
@@ -1278,7 +1385,8 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     if (!s)
         return fmi2Error;
     remove_live(s);
-    inner.FreeFMUstate(inst->inner, &s->inner);
+    if (inst->state != FATAL)
+        inner.FreeFMUstate(inst->inner, &s->inner);
     free(s);
     *FMUstate = NULL;
     return fmi2OK;

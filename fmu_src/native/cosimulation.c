@@ -241,10 +241,13 @@ ModelInstance *cs_instantiate(const char *instanceName, const char *token, int l
     return comp;
 }
 
+static void free_states_of(const ModelInstance *comp);
+
 void cs_free(ModelInstance *comp)
 {
     if (!comp)
         return;
+    free_states_of(comp);   /* every state the instance got or deserialised dies with it */
     free(comp->instanceName);
     free(comp);
 }
@@ -998,18 +1001,32 @@ verdict:
 }
 #undef STATE_PROBLEM
 
-/* ---- the live states: a state pointer a host passes is looked up before it is read --------- */
+/* ---- the live states: a state handle a host passes is looked up before anything is read ---- */
 
-/* A state handed to the host: the Snapshot, in a list of every live state of this library, so
- * that a pointer the plumbing did not hand out (garbage, freed, another library's) is refused
- * without being read.  The list is guarded by a spin lock (GCC/Clang atomics: no thread
- * library, so the Windows binaries keep needing only system DLLs). */
+/*
+ * A state handed to the host is a StateNode: the Snapshot, the instance that owns it, and the
+ * handle the host holds.  The handle is not the node's address but a number this library
+ * issues once (a serial number, with a tag of this loaded copy of the library in the high bits
+ * and a bit that makes it a non-canonical address on x86-64): a handle is never issued twice,
+ * so a freed state's handle cannot come back as a live state when the memory is reused.
+ *
+ * Every live state of the library is in one list, guarded by a spin lock (GCC/Clang atomics: no
+ * thread library, so the Windows binaries keep needing only system DLLs).  A state belongs to
+ * the instance that got or deserialised it: the instance's free frees all its states (FMI 2.0
+ * and 3.0: fmi2FreeInstance/fmi3FreeInstance free all memory the FMU's functions allocated),
+ * and a handle that is not a live state of the calling instance (garbage, freed, freed with its
+ * instance, another instance's, another library's) is refused, naming which, without being
+ * read.  To move a state between instances, a host serialises it.
+ */
 typedef struct StateNode {
     struct StateNode *next;
+    uintptr_t handle;
+    const ModelInstance *owner;
     Snapshot s;
 } StateNode;
 
 static StateNode *live_states;
+static uint64_t issued;   /* handles issued so far (the last serial number) */
 static char live_lock;
 
 static void lock_states(void)
@@ -1023,19 +1040,49 @@ static void unlock_states(void)
     __atomic_clear(&live_lock, __ATOMIC_RELEASE);
 }
 
-static int is_live(const void *p)
+/* The tag of this loaded copy of the library: bits of the page of one of its variables. */
+static uint64_t library_tag(void)
 {
-    int found = 0;
-    lock_states();
-    for (const StateNode *n = live_states; n && !found; n = n->next)
-        found = (const void *)n == p;
-    unlock_states();
-    return found;
+    return (uint64_t)((uintptr_t)&issued >> 12);
 }
 
-static void add_live(StateNode *node)
+#if UINTPTR_MAX > 0xFFFFFFFFu
+#define SERIAL_BITS 36
+/* bit 62 set, bit 63 clear: not an address a process can have on x86-64 */
+static uintptr_t handle_of(uint64_t serial)
+{
+    return (uintptr_t)(((uint64_t)1 << 62) | ((library_tag() & 0x3FFFFFFu) << SERIAL_BITS) |
+                       serial);
+}
+#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0x3FFFFFFu)
+#define IS_HANDLE(h) (((uint64_t)(h) >> 62) == 1u)
+#else
+#define SERIAL_BITS 24
+static uintptr_t handle_of(uint64_t serial)
+{
+    return (uintptr_t)(((library_tag() & 0xFFu) << SERIAL_BITS) | serial);
+}
+#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0xFFu)
+#define IS_HANDLE(h) 1
+#endif
+#define SERIAL_OF(h) ((uint64_t)(h) & (((uint64_t)1 << SERIAL_BITS) - 1))
+
+/* The live node of handle h, or NULL (the caller holds the lock). */
+static StateNode *find_locked(const void *h)
+{
+    for (StateNode *n = live_states; n; n = n->next)
+        if ((const void *)n->handle == h)
+            return n;
+    return NULL;
+}
+
+/* Issue a handle for node, owned by comp, and list it. */
+static void add_live(StateNode *node, const ModelInstance *comp)
 {
     lock_states();
+    issued = issued + 1 < ((uint64_t)1 << SERIAL_BITS) ? issued + 1 : 1;
+    node->handle = handle_of(issued);
+    node->owner = comp;
     node->next = live_states;
     live_states = node;
     unlock_states();
@@ -1052,22 +1099,74 @@ static void remove_live(StateNode *node)
     unlock_states();
 }
 
-/* The node behind a state pointer a host passed, or NULL (logged). */
+/* Free every state comp owns (its free: nothing the instance's calls allocated outlives it). */
+static void free_states_of(const ModelInstance *comp)
+{
+    lock_states();
+    for (StateNode **p = &live_states; *p;) {
+        StateNode *n = *p;
+        if (n->owner == comp) {
+            *p = n->next;
+            free(n);
+        } else {
+            p = &n->next;
+        }
+    }
+    unlock_states();
+}
+
+/* What a handle that is not a live state of comp is: 1 another instance's, 2 issued by this
+ * library and freed since, 0 anything else (never issued here: garbage, another library's). */
+static int stranger(const ModelInstance *comp, const void *h, StateNode **mine)
+{
+    lock_states();
+    const StateNode *n = find_locked(h);
+    const uint64_t last = issued;
+    unlock_states();
+    *mine = n && n->owner == comp ? (StateNode *)n : NULL;
+    if (n)
+        return n->owner == comp ? -1 : 1;
+    const uintptr_t v = (uintptr_t)h;
+    if (IS_HANDLE(v) && TAG_OF(v) == TAG_OF(handle_of(0)) && SERIAL_OF(v) >= 1 &&
+        SERIAL_OF(v) <= last)
+        return 2;
+    return 0;
+}
+
+/* The node behind a state handle a host passed when it is a live state of comp, or NULL
+ * (logged, naming what the handle is). */
 static StateNode *known_state(ModelInstance *comp, const char *function, const void *state)
 {
     if (!state) {
         cs_log(comp, STATUS_ERROR, "%s: the FMU state is NULL; allowed: a state from this "
-               "FMU's get or deserialise call", function);
+               "instance's get or deserialise call", function);
         return NULL;
     }
-    if (!is_live(state)) {
+    StateNode *node;
+    switch (stranger(comp, state, &node)) {
+    case -1:
+        return node;
+    case 1:
+        cs_log(comp, STATUS_ERROR, "%s: FMU state %p belongs to another instance of %s, not to "
+               "this one: a state is valid only in the instance that made it (to move a state "
+               "between instances, serialise it and deserialise it in the other); allowed: a "
+               "live state of this instance", function, state, MODEL_NAME);
+        return NULL;
+    case 2:
+        cs_log(comp, STATUS_ERROR, "%s: FMU state %p is freed: by %s, or with the instance "
+               "that made it (%s frees every state of the instance); allowed: a live state of "
+               "this instance", function, state,
+               FMI_VERSION == 2 ? "fmi2FreeFMUstate" : "fmi3FreeFMUState",
+               FMI_VERSION == 2 ? "fmi2FreeInstance" : "fmi3FreeInstance");
+        return NULL;
+    default:
         cs_log(comp, STATUS_ERROR, "%s: FMU state %p is not a live state of this loaded copy "
-               "of %s: not made by its get or deserialise call, or freed already (a state "
-               "pointer is valid only in the library that made it; to move a state between "
-               "copies, serialise it); allowed: a live state", function, state, MODEL_NAME);
+               "of %s: not made by its get or deserialise call (a state pointer is valid only "
+               "in the library and the instance that made it; to move a state between copies, "
+               "serialise it); allowed: a live state of this instance", function, state,
+               MODEL_NAME);
         return NULL;
     }
-    return (StateNode *)state;
 }
 
 static void snapshot_of(const ModelInstance *comp, Snapshot *s)
@@ -1088,19 +1187,21 @@ static void snapshot_of(const ModelInstance *comp, Snapshot *s)
     s->checksum = checksum_of(s);
 }
 
-/* The state a host hands in to be written (get, deserialise): `node` when it is a live state
- * of this FMU, else NULL (a new one is made), with a warning for a pointer that is not one. */
-static StateNode *reusable_state(ModelInstance *comp, const char *function, StateNode *node,
+/* The state a host hands in to be written (get, deserialise): its node when it is a live state
+ * of comp, else NULL (a new one is made), with a warning for a handle that is not one (left
+ * alone: another instance's state stays as it is). */
+static StateNode *reusable_state(ModelInstance *comp, const char *function, void *handle,
                                  Status *status)
 {
-    if (node && !is_live(node)) {
-        cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
-               "a new state is returned and the old pointer is left alone", function,
-               (void *)node);
-        *status = STATUS_WARNING;
+    if (!handle)
         return NULL;
-    }
-    return node;
+    StateNode *node;
+    if (stranger(comp, handle, &node) == -1)
+        return node;
+    cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this instance; "
+           "a new state is returned and the old pointer is left alone", function, handle);
+    *status = STATUS_WARNING;
+    return NULL;
 }
 
 Status cs_get_state(ModelInstance *comp, const char *function, void **state)
@@ -1109,7 +1210,7 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
         return STATUS_ERROR;
     if (!state) {
         cs_log(comp, STATUS_ERROR, "%s: the FMU state pointer is NULL; allowed: a pointer to "
-               "NULL or to a live state of this FMU", function);
+               "NULL or to a live state of this instance", function);
         return STATUS_ERROR;
     }
     Status status = STATUS_OK;
@@ -1122,11 +1223,11 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
             return STATUS_ERROR;
         }
         snapshot_of(comp, &node->s);
-        add_live(node);
+        add_live(node, comp);
     } else {
         snapshot_of(comp, &node->s);
     }
-    *state = node;
+    *state = (void *)node->handle;
     return status;
 }
 
@@ -1220,14 +1321,14 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
                (unsigned long)sizeof(Snapshot));
         return STATUS_ERROR;
     }
-    /* into the live state *state points to (as the loader shim does), else into a new one:
-     * a host that deserialises into one state pointer again and again allocates nothing */
-    Status status = STATUS_OK;
-    StateNode *node = reusable_state(comp, function, *state, &status);
     Snapshot s;   /* checked as a whole before it replaces anything */
     memcpy(&s, bytes, sizeof s);
     if (snapshot_problems(comp, function, &s))
         return STATUS_ERROR;
+    /* into the live state *state is (as the loader shim does), else into a new one: a host
+     * that deserialises into one state again and again allocates nothing */
+    Status status = STATUS_OK;
+    StateNode *node = reusable_state(comp, function, *state, &status);
     if (!node) {
         node = malloc(sizeof *node);
         if (!node) {
@@ -1236,10 +1337,10 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
             return STATUS_ERROR;
         }
         node->s = s;
-        add_live(node);
+        add_live(node, comp);
     } else {
         node->s = s;
     }
-    *state = node;
+    *state = (void *)node->handle;
     return status;
 }

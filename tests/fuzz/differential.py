@@ -210,6 +210,13 @@ class Driver:
             self.states[slot] = p.value
         return s, None
 
+    def renew(self):
+        """Free the instance without freeing its states (FreeInstance frees them: the handles
+        the slots keep are stale now) and instantiate a new one in the same library."""
+        getattr(self.fmu, "fmi%dFreeInstance" % self.fmi)(self.c)
+        self.instantiate()
+        return OK, None
+
     def free(self):
         for slot in list(self.states):
             self.fst(slot)
