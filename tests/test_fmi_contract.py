@@ -4,6 +4,7 @@ loader shim), the native FMI 2.0 FMU and the native FMI 3.0 FMU, through raw cal
 
 - a state belongs to the instance that made it: FreeInstance frees it, and a state whose
   instance is gone, another instance's state or a handle never issued is refused with a reason;
+- counts no array can have are refused before any element is read or written;
 """
 import pytest
 
@@ -89,3 +90,82 @@ def test_a_state_lives_only_with_its_instance(dirs, backend):
         b.free()
         a.free()
 
+
+# -- counts checked against what can exist before any array is read or written -------------------
+
+#: Counts no call can have, with one-element arrays: SIZE_MAX, 2^61 (count * 8 wraps), 2^31
+#: (crashed the native FMUs) and the first count over the bound.
+IMPOSSIBLE = (2 ** 64 - 1, 2 ** 61, 2 ** 31, 65537)
+FMI2_CALLS = [("fmi2%s%s" % (op, kind), ctype) for op in ("Get", "Set")
+              for kind, ctype in (("Real", "c_double"), ("Integer", "c_int"),
+                                  ("Boolean", "c_int"), ("String", "c_char_p"))]
+FMI3_CALLS = [("fmi3%s%s" % (op, kind), ctype) for op in ("Get", "Set")
+              for kind, ctype in (("Float64", "c_double"), ("Float32", "c_float"),
+                                  ("Int8", "c_int8"), ("UInt8", "c_uint8"), ("Int16", "c_int16"),
+                                  ("UInt16", "c_uint16"), ("Int32", "c_int32"),
+                                  ("UInt32", "c_uint32"), ("Int64", "c_int64"),
+                                  ("UInt64", "c_uint64"), ("Boolean", "c_bool"),
+                                  ("String", "c_char_p"), ("Binary", "c_void_p"),
+                                  ("Clock", "c_bool"))]
+
+COUNTS_CHILD = r"""
+import ctypes, json, sys
+sys.path.insert(0, sys.argv[1])
+from fuzz import differential as diff
+from ctypes import *
+unzipped, fmi, calls, counts = json.loads(sys.argv[2])
+drv = diff.Driver(unzipped, fmi)
+drv.setup(0.0), drv.enter(), drv.exit(), drv.step(0.0, 1e-3)
+out = []
+vr = (c_uint * 1)(0)
+for name, ctype in calls:
+    kind = getattr(ctypes, ctype)
+    for n in counts + ["categories"] * (name == calls[0][0]):
+        values, sizes = (kind * 1)(), (c_size_t * 1)(8)
+        drv.logged = []
+        if n == "categories":  # the category list of SetDebugLogging, 2^31 long
+            n, name = 2 ** 31, "SetDebugLogging"
+            s = drv.raw("fmi%dSetDebugLogging" % fmi, [c_int, c_size_t, c_void_p], 0, n,
+                        (c_char_p * 1)(b"logAll"))
+        elif name.endswith("Binary"):
+            s = drv.raw(name, [c_void_p, c_size_t, c_void_p, c_void_p, c_size_t], vr, n, sizes,
+                        values, n)
+        elif name.endswith("Clock") or fmi == 2:
+            s = drv.raw(name, [c_void_p, c_size_t, c_void_p], vr, n, values)
+        else:
+            s = drv.raw(name, [c_void_p, c_size_t, c_void_p, c_size_t], vr, n, values, n)
+        out.append([name, n, s, [m for _, m in drv.logged][-1:]])
+print(json.dumps(out))
+"""
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_counts_no_array_can_have_are_refused_before_any_element_is_touched(dirs, backend):
+    """The count rule: a get or set names at most 65,536 value references (FMI 3.0: and nValues
+    equals nValueReferences, every variable being a scalar); a larger count is refused before
+    any element of the arrays is read or written.  Every get and set of every type, FMI 2.0 and
+    3.0, with SIZE_MAX, 2^61, 2^31 and 65,537 and one-element arrays, in a child process (the
+    native FMUs crashed with SIGSEGV; the shim read past the array): fmi2Error / fmi3Error with
+    a line naming the count.  The native FMUs ignore the category list of SetDebugLogging (they
+    read none: OK); the shim, which keeps it, refuses 2^31 categories."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+    fmi = 3 if backend.endswith("3") else 2
+    calls = FMI3_CALLS if fmi == 3 else FMI2_CALLS
+    rows = []
+    for name in ("DriftEstimator", "Excitation"):
+        done = subprocess.run(
+            [sys.executable, "-c", COUNTS_CHILD, str(Path(__file__).parent),
+             json.dumps([str(dirs[name][backend]), fmi, calls, list(IMPOSSIBLE)])],
+            capture_output=True, text=True, timeout=300)
+        assert done.returncode == 0, (name, done.returncode, done.stderr[-3000:])
+        rows += json.loads(done.stdout.splitlines()[-1])
+    assert len(rows) == 2 * (len(calls) * len(IMPOSSIBLE) + 1)
+    for call_name, n, status, logged in rows:
+        if call_name == "SetDebugLogging" and backend != "python":
+            assert status == OK, logged  # the native FMUs read no category
+            continue
+        assert status == ERROR, (call_name, n, status, logged)
+        assert logged and str(n) in logged[0] and "allowed" in logged[0], (call_name, logged)

@@ -514,8 +514,27 @@ static int bad_references(Instance *inst, const char *function, const fmi2ValueR
     return 0;
 }
 
+/*
+ * The count rule: a get or set names at most MAX_VALUES_PER_CALL value references (as the native
+ * FMUs, cosimulation.h).  A larger count cannot be a list of this FMU's variables; it is refused
+ * before any element of the host's arrays is read (pythonfmu would read nvr of each, and the
+ * shim's own checks too: SIZE_MAX or 2^31 with a short array reads past it).  A count within
+ * the bound is taken at its word: only the host knows its arrays.
+ */
+#define MAX_VALUES_PER_CALL 65536u
+
+static int too_many(Instance *inst, const char *function, const char *what, size_t n)
+{
+    if (n <= MAX_VALUES_PER_CALL)
+        return 0;
+    shim_log(inst, fmi2Error, "%s: %s = %zu; allowed: at most %u per call (a larger count "
+             "cannot list this FMU's variables); nothing was read and nothing was changed",
+             function, what, n, MAX_VALUES_PER_CALL);
+    return 1;
+}
+
 #define CHECK_ARRAYS(function, vr, nvr, value)                                               \
-    if (null_array(inst, function, "vr", nvr, vr) ||                                         \
+    if (too_many(inst, function, "nvr", nvr) || null_array(inst, function, "vr", nvr, vr) ||  \
         null_array(inst, function, "value", nvr, value) ||                                   \
         bad_references(inst, function, vr, nvr))                                             \
     return fmi2Error
@@ -957,7 +976,8 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
                                const fmi2String categories[])
 {
     INSTANCE(c, "fmi2SetDebugLogging", ANY_STATE);
-    if (null_count_array(inst, "fmi2SetDebugLogging", "categories", "nCategories", nCategories,
+    if (too_many(inst, "fmi2SetDebugLogging", "nCategories", nCategories) ||
+        null_count_array(inst, "fmi2SetDebugLogging", "categories", "nCategories", nCategories,
                          categories))
         return fmi2Error;
     /* the new list is made first: out of memory leaves the old one in place (calloc checks

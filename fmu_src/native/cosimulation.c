@@ -505,6 +505,16 @@ static void bad_references(char *out, size_t size, const unsigned int vr[], size
 #undef PUT
 }
 
+int cs_count_ok(ModelInstance *comp, const char *function, size_t n)
+{
+    if (LIKELY(n <= MAX_VALUES_PER_CALL))
+        return 1;
+    cs_log(comp, STATUS_ERROR, "%s: %llu value references in one call; allowed: at most %u "
+           "(a larger count cannot list this FMU's %d variables); nothing was read and nothing "
+           "was changed", function, (unsigned long long)n, MAX_VALUES_PER_CALL, N_VARIABLES);
+    return 0;
+}
+
 static NOINLINE Status refused_null(ModelInstance *comp, const char *function, size_t n)
 {
     cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function, (unsigned long)n);
@@ -524,7 +534,8 @@ Status cs_get(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, double reals[], int ints[])
 {
     /* FMI 2.0 and 3.0 alike: no getter before Initialization Mode (as the Python FMUs) */
-    if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP | STATE_TERMINATED))
+    if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP | STATE_TERMINATED) ||
+        !cs_count_ok(comp, function, n))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
         return refused_null(comp, function, n);
@@ -590,7 +601,7 @@ Status cs_set(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, const double reals[], const int ints[])
 {
     if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
-                    STATE_TERMINATED))
+                    STATE_TERMINATED) || !cs_count_ok(comp, function, n))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
         return refused_null(comp, function, n);
@@ -621,6 +632,8 @@ Status cs_no_such_type(ModelInstance *comp, const char *function, const char *ty
 {
     if (n == 0)
         return STATUS_OK;
+    if (!cs_count_ok(comp, function, n))
+        return STATUS_ERROR;
     if (!vr) {
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
                (unsigned long)n);
