@@ -66,6 +66,10 @@ _TYPES = {"Real": Real, "Integer": Integer}
 MAX_SAMPLES_PER_STEP = 1000000
 #: A time is at a sample instant when within this many sample periods of it.
 INSTANT_TOLERANCE = 1e-6
+#: The value reference the loader shim (fmu_src/loader/fmi2_shim.c, EXPERIMENT_VR) sets with
+#: ``[startTime, stopTimeDefined, stopTime]`` for fmi2SetupExperiment: pythonfmu 0.7.0 hands
+#: the slave the start time only.  No variable has it, and the shim refuses it from a host.
+EXPERIMENT_VR = 0x7FFFFFFF
 #: Namespace of the deterministic GUIDs: uuid5(this, "<module>.<class> <version>").
 GUID_NAMESPACE = uuid.UUID("8d0f3bb2-5a52-4c55-9c1e-6d0e1b7c2a11")
 #: The sampled-data step rule, in the model description of every FMU.
@@ -77,7 +81,7 @@ STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep ac
              % MAX_SAMPLES_PER_STEP)
 
 _STATE_META = ("model", "guid", "version")
-_STATE_FIELDS = ("k", "time", "flags")
+_STATE_FIELDS = ("k", "time", "stop_time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
 _ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
 _INF = math.inf
@@ -248,6 +252,8 @@ class SlaveBase(Fmi2Slave):
                                                              self.version))
         self.description = "%s. %s" % (self.DESCRIPTION, STEP_RULE)
         self.start_time = 0.0
+        self._stop_time = _INF  # the defined stop time (inf: none)
+        self._stop_at = _INF    # it in sample periods after the start, once Ts is fixed
         self._elapsed = 0.0     # t - t_start, and the compensation of its running sum
         self._elapsed_c = 0.0
         self.k = 1              # the next sample to process (pending when _at_sample)
@@ -369,6 +375,12 @@ class SlaveBase(Fmi2Slave):
                 str(vr) for vr, s in self._specs.items() if s["type"] == kind) or "none")
 
     # -- setters: the whole call is checked before anything is assigned ---------------------
+    def _experiment(self, values):
+        """fmi2SetupExperiment through the loader shim: ``values`` is ``[startTime,
+        stopTimeDefined, stopTime]`` (EXPERIMENT_VR)."""
+        start, defined, stop = values
+        self._setup(start, stop if defined else None)
+
     def set_real(self, vrs, values):
         # the per-sample fast path: finite floats into inputs (v - v is 0 only when v is finite)
         if len(vrs) == 1 and len(values) == 1 and not self._terminated:
@@ -389,6 +401,9 @@ class SlaveBase(Fmi2Slave):
                         setattr(self, name, v)
                     self._dirty = True
                     return
+        if vrs[:1] == [EXPERIMENT_VR] and len(vrs) == len(values) == 3:
+            self._call(self._experiment, values)
+            return
         self._call(self._set_checked, "fmi2SetReal", vrs, values, "Real")
 
     def set_integer(self, vrs, values):
@@ -511,8 +526,29 @@ class SlaveBase(Fmi2Slave):
 
     # -- FMI calls --------------------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._call(self._setup, start_time, stop_time)
+
+    def _setup(self, start_time, stop_time):
+        """The experiment: the start time and, when defined, the stop time (finite, at or after
+        the start); a step that would end after the stop time is refused (FMI 2.0,
+        fmi2SetupExperiment: an FMU asked to compute past a defined stop time returns an
+        error)."""
+        if not (_is_number(start_time) and math.isfinite(start_time)):
+            self._fail("fmi2SetupExperiment: startTime = %r; allowed: a finite time"
+                       % (start_time,))
+        if stop_time is not None and not (_is_number(stop_time) and math.isfinite(stop_time)
+                                          and stop_time >= start_time):
+            self._fail("fmi2SetupExperiment: stopTime = %r s with startTime = %r s; allowed: a "
+                       "finite stop time >= startTime, or stopTimeDefined = false (nothing was "
+                       "changed)" % (stop_time, start_time))
         if not self._initialised:
-            self.start_time = start_time
+            self.start_time = float(start_time)
+            self._stop_time = _INF if stop_time is None else float(stop_time)
+
+    def _stop_position(self):
+        """The stop time in sample periods after the start (inf: none), as cs_do_step computes
+        it; for a step's end, compared with the same tolerance as the sample instants."""
+        return (self._stop_time - self.start_time) / self.Ts
 
     def enter_initialization_mode(self):
         if self._terminated:
@@ -532,6 +568,7 @@ class SlaveBase(Fmi2Slave):
         if self._terminated:
             self._fail("fmi2ExitInitializationMode: " + _TERMINATED)
         self._check_and_prepare("")
+        self._stop_at = self._stop_position()
         hidden = self.initial_hidden()
         outputs = pending = None
         if not self.DEPENDENCIES:  # outputs of sample 1 now: they depend on no input
@@ -566,7 +603,8 @@ class SlaveBase(Fmi2Slave):
                                           else ((step_size - elapsed) + s))
                 position = (elapsed + comp) / self.Ts
                 k = self.k
-                if k - 1 < position - INSTANT_TOLERANCE <= k:
+                if k - 1 < position - INSTANT_TOLERANCE <= k and \
+                        position - INSTANT_TOLERANCE <= self._stop_at:
                     at_sample = k <= position + INSTANT_TOLERANCE
                     if self._feedthrough or not at_sample:
                         self._committed = self._pending  # _commit(pending, k + 1, ...)
@@ -606,6 +644,12 @@ class SlaveBase(Fmi2Slave):
             self._fail("communication step h = %r s spans more than %d sample instants of "
                        "Ts = %r s; allowed: at most MAX_SAMPLES_PER_STEP = %d sample instants "
                        "per step, h <= about %r s" % (h, limit, Ts, limit, room))
+        if not position - tol <= self._stop_at:  # (C twin: cs_do_step, refused_stop)
+            self._fail("communication step h = %r s from t = %r s ends at t = %r s, after the "
+                       "stop time %r s (fmi2SetupExperiment); allowed: steps that end at or "
+                       "before the stop time (within a millionth of a sample period); nothing "
+                       "was changed" % (h, self.start_time + (self._elapsed + self._elapsed_c),
+                                        self.start_time + (elapsed + comp), self._stop_time))
         last = _ceil(position - tol)          # index (k - 1) of the first instant at or after t+h
         m = max(0, last + 1 - k)              # instants in [t, t + h)
         at_sample = last <= position + tol    # t + h is that instant
@@ -743,9 +787,10 @@ class SlaveBase(Fmi2Slave):
         """Problems of a hidden state read back for the current parameters (hook)."""
         return []
 
-    def _timing_problems(self, k, time, at_sample):
+    def _timing_problems(self, k, time, at_sample, stop):
         """Whether sample index ``k`` and the at-a-sample flag agree with the time of a state
-        (as :meth:`_step` derives them: ``k - 1`` is the first instant at or after ``t``)."""
+        (as :meth:`_step` derives them: ``k - 1`` is the first instant at or after ``t``), and
+        the time is not after the stop time ``stop`` (None: none defined)."""
         position = (time[1] + time[2]) / self.Ts
         if not math.isfinite(position):
             return ["time = %r is not a finite number of sample periods Ts = %r s"
@@ -755,6 +800,9 @@ class SlaveBase(Fmi2Slave):
             return ["k = %r and at_sample = %r do not match the time %r s after the start "
                     "(the next sample there is k = %d)" % (k, at_sample, time[1] + time[2],
                                                             first + 1)]
+        if stop is not None and not position - INSTANT_TOLERANCE <= (stop - time[0]) / self.Ts:
+            return ["the time %r s after the start is after the stop time %r s; allowed: a "
+                    "time at or before the stop time" % (time[1] + time[2], stop)]
         return []
 
     # -- FMU state: variables plus hidden state ---------------------------------------------
@@ -767,6 +815,7 @@ class SlaveBase(Fmi2Slave):
             state[s["name"]] = getattr(self, s["name"])
         state["k"] = self.k
         state["time"] = [self.start_time, self._elapsed, self._elapsed_c]
+        state["stop_time"] = None if self._stop_time == _INF else self._stop_time
         state["flags"] = {"initialised": self._initialised, "in_init": self._in_init,
                           "at_sample": self._at_sample, "terminated": self._terminated}
         for name in self.HIDDEN:
@@ -817,6 +866,12 @@ class SlaveBase(Fmi2Slave):
                 and all(_is_number(v) and math.isfinite(v) for v in time) and time[1] >= 0.0):
             problems.append("time = %.80r is not [t_start, elapsed >= 0, compensation] of "
                             "finite numbers" % (time,))
+        stop = state["stop_time"]
+        if stop is not None and not (_is_number(stop) and math.isfinite(stop) and (
+                not isinstance(time, list) or not time or not _is_number(time[0])
+                or stop >= time[0])):
+            problems.append("stop_time = %.40r is not null (none defined) or a finite time at "
+                            "or after the start time" % (stop,))
         if not (isinstance(flags, dict) and sorted(flags) == sorted(_FLAGS)
                 and all(isinstance(v, bool) for v in flags.values())):
             problems.append("flags = %.80r is not {%s} of booleans" % (flags, ", ".join(_FLAGS)))
@@ -849,7 +904,7 @@ class SlaveBase(Fmi2Slave):
                                % ", ".join(missing)]
                     else:
                         bad = self.hidden_problems(hidden) + self._timing_problems(
-                            k, time, flags["at_sample"])
+                            k, time, flags["at_sample"], stop)
             finally:
                 for name, value in saved.items():
                     setattr(self, name, value)
@@ -863,12 +918,14 @@ class SlaveBase(Fmi2Slave):
         self._committed = hidden
         self.k = k
         self.start_time, self._elapsed, self._elapsed_c = (float(v) for v in time)
+        self._stop_time = _INF if stop is None else float(stop)
         self._initialised, self._in_init = flags["initialised"], flags["in_init"]
         self._at_sample, self._terminated = flags["at_sample"], flags["terminated"]
         self._pending = None
         self._dirty = True
         if self._initialised:
             self.prepare()
+            self._stop_at = self._stop_position()
 
     @staticmethod
     def _fmu_state_from_bytes(data):

@@ -5,6 +5,7 @@ loader shim), the native FMI 2.0 FMU and the native FMI 3.0 FMU, through raw cal
 - a state belongs to the instance that made it: FreeInstance frees it, and a state whose
   instance is gone, another instance's state or a handle never issued is refused with a reason;
 - counts no array can have are refused before any element is read or written;
+- a defined stop time is honoured: a step that would end after it is refused;
 """
 import pytest
 
@@ -169,3 +170,83 @@ def test_counts_no_array_can_have_are_refused_before_any_element_is_touched(dirs
             continue
         assert status == ERROR, (call_name, n, status, logged)
         assert logged and str(n) in logged[0] and "allowed" in logged[0], (call_name, logged)
+
+
+# -- the stop time ---------------------------------------------------------------------------------
+
+def _enter_with(drv, start, stop):
+    """Set up with ``stop`` and enter Initialization Mode: the status of the call that checks
+    the stop time (fmi2SetupExperiment; FMI 3.0: fmi3EnterInitializationMode)."""
+    status = call(drv, "setup", start, stop)
+    if drv.fmi == 3:
+        status = call(drv, "enter")
+    elif status == OK:
+        assert call(drv, "enter") == OK
+    return status
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_defined_stop_time_is_honoured(dirs, backend):
+    """fmi2SetupExperiment(c, 0, 0, 0.0, fmi2True, 0.0025) (FMI 3.0:
+    fmi3EnterInitializationMode(c, false, 0, 0.0, true, 0.0025)), then steps of 1 ms: the steps
+    to 1 and 2 ms and the half step to 2.5 ms are taken, a step that would end at 4 or 3.5 ms
+    is refused naming the stop time and changes nothing (FMI 2.0 and 3.0: an FMU asked to
+    compute past a defined stop time returns an error; all were OK).  A step that ends at the
+    stop time up to rounding (25 steps of 0.1 ms) is taken.  A stop time before the start time,
+    NaN or inf is refused when it is given (it was accepted), and nothing is changed."""
+    outs = diff.model_info(dirs["DriftEstimator"]["native-fmi2"])["outputs"]
+    drv = driver(dirs, "DriftEstimator", backend)
+    try:
+        assert _enter_with(drv, 0.0, 0.0025) == OK and call(drv, "exit") == OK
+        assert call(drv, "step", 0.0, 1e-3) == OK and call(drv, "step", 1e-3, 1e-3) == OK
+        values = drv.getr(outs)
+        assert call(drv, "gst", 0) == OK
+        before = (drv.ser(0)[1], values)
+        for h in (2e-3, 1.5e-3, 0.5e-3 + 1e-8):  # (the tolerance: 1e-9 s)
+            assert call(drv, "step", 2e-3, h) == ERROR, (h, drv.logged)
+            assert "after the stop time 0.0025 s" in said(drv), said(drv)
+            assert "allowed" in said(drv) and "nothing was changed" in said(drv)
+            assert call(drv, "gst", 0) == OK and (drv.ser(0)[1], drv.getr(outs)) == before
+        assert call(drv, "step", 2e-3, 0.5e-3) == OK  # to the stop time
+        assert call(drv, "step", 2.5e-3, 1e-3) == ERROR
+        # the stop time up to rounding: 25 steps of 0.1 ms sum to 2.5 ms
+        assert call(drv, "reset") == OK
+        assert _enter_with(drv, 0.0, 0.0025) == OK and call(drv, "exit") == OK
+        t = 0.0
+        for _ in range(25):
+            assert call(drv, "step", t, 1e-4) == OK, drv.logged
+            t += 1e-4
+        assert call(drv, "step", t, 1e-4) == ERROR
+        # stop times that cannot be: refused when given, nothing changed
+        for start, stop in ((1.0, 0.5), (0.0, float("nan")), (0.0, float("inf")),
+                            (0.0, -1e-300)):
+            assert call(drv, "reset") == OK
+            assert _enter_with(drv, start, stop) == ERROR, (start, stop)
+            assert "stopTime" in said(drv) and "allowed" in said(drv), said(drv)
+            assert call(drv, "exit") == ERROR  # still instantiated
+        # a stop time equal to the start time: no step at all; none defined: steps go on
+        assert _enter_with(drv, 1.0, 1.0) == OK and call(drv, "exit") == OK
+        assert call(drv, "step", 1.0, 1e-3) == ERROR
+        assert call(drv, "reset") == OK
+        assert _enter_with(drv, 0.0, None) == OK and call(drv, "exit") == OK
+        assert call(drv, "step", 0.0, 10.0) == OK
+    finally:
+        drv.free()
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_a_state_carries_its_stop_time(dirs, backend):
+    """The stop time is part of the experiment a state continues: restored into an instance
+    set up without one, it applies again."""
+    drv = driver(dirs, "DriftEstimator", backend)
+    try:
+        assert _enter_with(drv, 0.0, 0.0025) == OK and call(drv, "exit") == OK
+        assert call(drv, "step", 0.0, 2e-3) == OK and call(drv, "gst", 0) == OK
+        assert call(drv, "reset") == OK
+        assert _enter_with(drv, 0.0, None) == OK and call(drv, "exit") == OK
+        assert call(drv, "step", 0.0, 4e-3) == OK  # no stop time now
+        assert call(drv, "sst", 0) == OK
+        assert call(drv, "step", 2e-3, 2e-3) == ERROR and "stop time" in said(drv)
+        assert call(drv, "step", 2e-3, 0.5e-3) == OK
+    finally:
+        drv.free()

@@ -148,7 +148,10 @@ def _tamperings(S, data, name):
         hidden = path.startswith("h.")
         derived = hidden and path.split(".")[1] in ns.DERIVED[name]
         value = ns.get(s, path)
-        if kind is c_double:
+        if path == "stopTime":  # inf: none defined; else at or after the start and the time
+            out += [(path, v, "stop") for v in (math.nan, -math.inf, s.startTime - 1.0)]
+            out.append((path, s.startTime + (s.elapsed + s.elapsed_c) / 2, "consistent"))
+        elif kind is c_double:
             out += [(path, v, "not finite") for v in (math.nan, math.inf, -math.inf)]
             if hidden and last in ns.VARIANCES and not derived:
                 out.append((path, -1.0, "variance"))

@@ -496,15 +496,22 @@ static int null_array(Instance *inst, const char *function, const char *name, si
 }
 
 /*
+ * The value reference through which the shim hands the model fmi2SetupExperiment's arguments
+ * (slave_base.EXPERIMENT_VR): pythonfmu 0.7.0 passes the model the start time only, so the shim
+ * sets [startTime, stopTimeDefined, stopTime] to this value reference, which no variable has.
+ */
+#define EXPERIMENT_VR 0x7fffffffu
+
+/*
  * 1 (logged) if a value reference cannot be one of this FMU's.  pythonfmu passes value
  * references to Python as signed ints, so 2^31 and above would reach the model as negative
- * numbers; the shim refuses them itself and prints them unsigned.
+ * numbers; the shim refuses them itself and prints them unsigned, and EXPERIMENT_VR too.
  */
 static int bad_references(Instance *inst, const char *function, const fmi2ValueReference vr[],
                           size_t nvr)
 {
     for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] > 0x7fffffffu) {
+        if (vr[i] >= EXPERIMENT_VR) {
             shim_log(inst, fmi2Error, "%s: value reference %u does not exist; the model "
                      "description lists the value references of this FMU", function,
                      (unsigned)vr[i]);
@@ -1014,8 +1021,12 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                  "time", startTime);
         return fmi2Error;
     }
-    fmi2Status status = CALL(inner.SetupExperiment(inst->inner, toleranceDefined, tolerance,
-                                                   startTime, stopTimeDefined, stopTime));
+    (void)toleranceDefined, (void)tolerance;
+    /* the model checks the stop time and refuses a step that would end after it */
+    const fmi2ValueReference vr[3] = {EXPERIMENT_VR, EXPERIMENT_VR, EXPERIMENT_VR};
+    const fmi2Real experiment[3] = {startTime, stopTimeDefined ? 1.0 : 0.0,
+                                    stopTimeDefined ? stopTime : 0.0};
+    fmi2Status status = CALL(inner.SetReal(inst->inner, vr, 3, experiment));
     if (status <= fmi2Warning) {
         inst->start_time = inst->time = startTime;
         inst->elapsed = inst->elapsed_c = 0.0;

@@ -195,6 +195,7 @@ static void to_start(ModelInstance *comp)
     comp->v = START;
     memset(&comp->h, 0, sizeof comp->h);
     comp->startTime = 0.0;
+    comp->stopTime = INFINITY;
     comp->time = 0.0;
     comp->elapsed = comp->elapsed_c = 0.0;
     comp->logContext = NULL;
@@ -258,17 +259,25 @@ Status cs_set_debug_logging(ModelInstance *comp, int loggingOn)
     return STATUS_OK;
 }
 
-Status cs_setup(ModelInstance *comp, const char *function, double startTime)
+Status cs_setup(ModelInstance *comp, const char *function, double startTime,
+                int stopTimeDefined, double stopTime)
 {
     if (!cs_allowed(comp, function, STATE_INSTANTIATED))
         return STATUS_ERROR;
+    char b[32], b2[32];
     if (!isfinite(startTime)) {
-        char b[32];
         cs_log(comp, STATUS_ERROR, "%s: start time %s is not finite; allowed: a finite time",
                function, repr_double(startTime, b));
         return STATUS_ERROR;
     }
+    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
+        cs_log(comp, STATUS_ERROR, "%s: stopTime = %s s with startTime = %s s; allowed: a "
+               "finite stop time >= startTime, or stopTimeDefined = false (nothing was "
+               "changed)", function, repr_double(stopTime, b), repr_double(startTime, b2));
+        return STATUS_ERROR;
+    }
     comp->startTime = startTime;
+    comp->stopTime = stopTimeDefined ? stopTime : INFINITY;
     comp->time = startTime;
     comp->dirty = 1;
     return STATUS_OK;
@@ -711,6 +720,20 @@ static NOINLINE Status refused_span(ModelInstance *comp, double h, double positi
     return STATUS_ERROR;
 }
 
+/* A step that would end after the defined stop time by more than the tolerance of the sample
+ * instants (FMI 2.0 and 3.0: an FMU asked to compute past the stop time returns an error). */
+static NOINLINE Status refused_stop(ModelInstance *comp, double h, double elapsed)
+{
+    char bh[32], bt[32], be[32], bs[32];
+    cs_log(comp, STATUS_ERROR, "communication step h = %s s from t = %s s ends at t = %s s, "
+           "after the stop time %s s (%s); allowed: steps that end at or before the stop time "
+           "(within a millionth of a sample period); nothing was changed", repr_double(h, bh),
+           repr_double(comp->time, bt), repr_double(comp->startTime + elapsed, be),
+           repr_double(comp->stopTime, bs),
+           FMI_VERSION == 2 ? "fmi2SetupExperiment" : "fmi3EnterInitializationMode");
+    return STATUS_ERROR;
+}
+
 /* A step whose outputs or state came out non-finite (the instance is restored already). */
 static NOINLINE Status refused_result(ModelInstance *comp, const char *bad, double h)
 {
@@ -746,6 +769,8 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
     const double limit = (double)MAX_SAMPLES_PER_STEP;
     if (!LIKELY(position - tol <= limit + (double)k - 1.0))
         return refused_span(comp, h, position);
+    if (!LIKELY(position - tol <= (comp->stopTime - comp->startTime) / Ts))
+        return refused_stop(comp, h, elapsed + elapsed_c);
     const int64_t last = ceil_int(position - tol);   /* first instant at or after t + h */
     const int64_t m = last + 1 - k > 0 ? last + 1 - k : 0;   /* instants in [t, t + h) */
     StepPlan plan;
@@ -787,7 +812,7 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
  * through the API (crafted values have a valid checksum: the checks catch them), and the
  * state is refused as a whole, naming the field, otherwise.  See docs/native-hardening.md.
  */
-#define STATE_MAGIC "driftfmu-state-2"
+#define STATE_MAGIC "driftfmu-state-3"
 
 typedef struct {
     char magic[24];             /* STATE_MAGIC */
@@ -803,6 +828,7 @@ typedef struct {
     ModelVariables v;
     ModelHidden h;
     double startTime, time, elapsed, elapsed_c;
+    double stopTime;            /* +inf: none defined */
     int64_t k;
     int32_t pending, dirty, initialised, state;
 } Snapshot;
@@ -932,6 +958,10 @@ static int snapshot_problems(ModelInstance *comp, const char *function, const Sn
         STATE_PROBLEM("time = %s s is not startTime + elapsed = %s s; allowed: the time the "
                       "steps of the state add up to", repr_double(s->time, b1),
                       repr_double(s->startTime + (s->elapsed + s->elapsed_c), b2));
+    if (times_ok && !(s->stopTime >= s->startTime))
+        STATE_PROBLEM("stopTime = %s s with startTime = %s s; allowed: a stop time >= "
+                      "startTime, or inf (none defined)", repr_double(s->stopTime, b1),
+                      repr_double(s->startTime, b2));
     if (s->k < 1)
         STATE_PROBLEM("k = %lld is not a sample index; allowed: k >= 1", (long long)s->k);
     for (int i = 0; i < N_VARIABLES; i++) {
@@ -990,6 +1020,11 @@ static int snapshot_problems(ModelInstance *comp, const char *function, const Sn
                               (long long)s->k, (int)s->pending,
                               repr_double(s->elapsed + s->elapsed_c, b1),
                               repr_double(first + 1.0, b3), at);
+            if (!(position - tol <= (s->stopTime - s->startTime) / Ts))
+                STATE_PROBLEM("the time %s s after the start is after the stop time %s s; "
+                              "allowed: a time at or before the stop time",
+                              repr_double(s->elapsed + s->elapsed_c, b1),
+                              repr_double(s->stopTime, b2));
         }
         ModelInstance fresh = scratch;
         fresh.logContext = NULL;
@@ -1192,6 +1227,7 @@ static void snapshot_of(const ModelInstance *comp, Snapshot *s)
     s->time = comp->time;
     s->elapsed = comp->elapsed;
     s->elapsed_c = comp->elapsed_c;
+    s->stopTime = comp->stopTime;
     s->k = comp->k;
     s->pending = comp->pending;
     s->dirty = comp->dirty;
@@ -1257,6 +1293,7 @@ Status cs_set_state(ModelInstance *comp, const char *function, const void *state
     comp->v = s->v;
     comp->h = s->h;
     comp->startTime = s->startTime;
+    comp->stopTime = s->stopTime;
     comp->time = s->time;
     comp->elapsed = s->elapsed;
     comp->elapsed_c = s->elapsed_c;

@@ -14,7 +14,11 @@ ModelInstance *cs_instantiate(const char *instanceName, const char *token, int l
 void cs_free(ModelInstance *comp);
 
 Status cs_set_debug_logging(ModelInstance *comp, int loggingOn);
-Status cs_setup(ModelInstance *comp, const char *function, double startTime);
+/* The experiment: the start time, and the stop time when stopTimeDefined (finite, >= the start
+ * time; a step that would end after it is refused, FMI 2.0 fmi2SetupExperiment and FMI 3.0
+ * fmi3EnterInitializationMode). */
+Status cs_setup(ModelInstance *comp, const char *function, double startTime,
+                int stopTimeDefined, double stopTime);
 Status cs_enter_initialization(ModelInstance *comp, const char *function);
 Status cs_exit_initialization(ModelInstance *comp, const char *function);
 Status cs_terminate(ModelInstance *comp, const char *function);

@@ -117,10 +117,11 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     GUARD;
-    (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
+    (void)toleranceDefined, (void)tolerance;
     if (!cs_allowed(COMP, "fmi3EnterInitializationMode", STATE_INSTANTIATED))
         return fmi3Error;
-    Status s = cs_setup(COMP, "fmi3EnterInitializationMode", startTime);
+    Status s = cs_setup(COMP, "fmi3EnterInitializationMode", startTime, stopTimeDefined,
+                        stopTime);
     if (s != STATUS_OK)
         return (fmi3Status)s;
     return (fmi3Status)cs_enter_initialization(COMP, "fmi3EnterInitializationMode");

@@ -64,7 +64,7 @@ class Driver:
         self.type = {v.name: v.type for v in md.modelVariables}
         self.logged = []
         self.states = {}
-        self.start_time = 0.0
+        self.start_time, self.stop_time = 0.0, None
         identifier = md.coSimulation.modelIdentifier
         if fmi == 2:
             from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
@@ -99,19 +99,23 @@ class Driver:
         return proto(self.c, *args)
 
     # the calls of a script, by FMI 2.0 name
-    def setup(self, t0):
-        self.start_time = t0
+    def setup(self, t0, stop=None):
+        """fmi2SetupExperiment (``stop``: the stop time, None: not defined); FMI 3.0 keeps both
+        for fmi3EnterInitializationMode."""
+        self.start_time, self.stop_time = t0, stop
         if self.fmi == 3:
             return OK, None
         return self.raw("fmi2SetupExperiment", [c_int, c_double, c_double, c_int, c_double],
-                        0, 0.0, t0, 0, 0.0), None
+                        0, 0.0, t0, int(stop is not None), 0.0 if stop is None else stop), None
 
     def enter(self):
         if self.fmi == 2:
             return self.raw("fmi2EnterInitializationMode", []), None
+        stop = getattr(self, "stop_time", None)
         return self.raw("fmi3EnterInitializationMode", [c_int, c_double, c_double, c_int,
                                                          c_double],
-                        0, 0.0, self.start_time, 0, 0.0), None
+                        0, 0.0, self.start_time, int(stop is not None),
+                        0.0 if stop is None else stop), None
 
     def exit(self):
         return self.raw("fmi%dExitInitializationMode" % self.fmi, []), None
@@ -120,7 +124,10 @@ class Driver:
         return self.raw("fmi%dTerminate" % self.fmi, []), None
 
     def reset(self):
-        return self.raw("fmi%dReset" % self.fmi, []), None
+        status = self.raw("fmi%dReset" % self.fmi, [])
+        if status <= WARNING:  # as fmi2Reset forgets the experiment
+            self.start_time, self.stop_time = 0.0, None
+        return status, None
 
     def _vrs(self, names):
         return (c_uint * len(names))(*[self.vr[n] for n in names])
@@ -215,6 +222,7 @@ class Driver:
         the slots keep are stale now) and instantiate a new one in the same library."""
         getattr(self.fmu, "fmi%dFreeInstance" % self.fmi)(self.c)
         self.instantiate()
+        self.start_time, self.stop_time = 0.0, None
         return OK, None
 
     def free(self):
