@@ -81,6 +81,9 @@ STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep ac
              % MAX_SAMPLES_PER_STEP)
 
 _STATE_META = ("model", "guid", "version")
+#: Names of the variances in the hidden states (the filters' P; C twin: the SLAVE_HIDDEN_REAL
+#: checks with nonnegative = 1): a negative one is refused.
+VARIANCES = frozenset(("P", "P22", "Pxx", "Pyy", "P11", "P33", "P44"))
 _STATE_FIELDS = ("k", "time", "stop_time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
 _ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
@@ -823,29 +826,52 @@ class SlaveBase(Fmi2Slave):
         return state
 
     def _set_fmu_state(self, state):
+        if type(state) is Deserialised:
+            if not state.checked:  # the loader shim's check in fmi2DeSerializeFMUstate
+                if self._call(self._check_deserialised, state):
+                    state.checked = True
+                return
+            state = state.state
         self._call(self._restore, state)
 
-    def _restore(self, state):
+    def _check_deserialised(self, d):
+        """Check a state read from bytes as fmi2SetFMUstate would, and change nothing."""
+        if d.why is not None:
+            self._fail("fmi2DeSerializeFMUstate: not an FMU state of %s: %d bytes that are not "
+                       "a serialised state (%s); allowed: the bytes fmi2SerializeFMUstate of "
+                       "this FMU wrote" % (type(self).__name__, d.size, d.why))
+        self._restore(d.state, "fmi2DeSerializeFMUstate", assign=False)
+
+    def _restore(self, state, function="fmi2SetFMUstate", assign=True):
+        """Check ``state`` field by field (as the native twins check theirs: cosimulation.c,
+        snapshot_problems) and, with ``assign``, make it the instance's; a state with any
+        problem is refused as a whole (every problem logged) and nothing is changed."""
         cls = type(self).__name__
         if not isinstance(state, dict):
-            self._fail("fmi2SetFMUstate: not an FMU state of %s: %.80r" % (cls, state))
+            self._fail("%s: not an FMU state of %s: %.80r; allowed: a state that this FMU "
+                       "produced" % (function, cls, state))
         mine = self._identity()
+        if not isinstance(state.get("model"), str):
+            self._fail("%s: not an FMU state of %s: a JSON object without the model, GUID and "
+                       "version of a state (%.60r); allowed: a state that this FMU (%s, GUID "
+                       "%s) produced" % (function, cls, sorted(map(str, state))[:6], cls,
+                                         mine["guid"]))
         if state.get("model") != mine["model"]:
-            self._fail("fmi2SetFMUstate: this is an FMU state of model %.40r, not of %s; "
-                       "allowed: a state that this FMU (%s, GUID %s) produced"
-                       % (state.get("model"), cls, cls, mine["guid"]))
+            self._fail("%s: this is an FMU state of model %.40r, not of %s; allowed: a state "
+                       "that this FMU (%s, GUID %s) produced"
+                       % (function, state.get("model"), cls, cls, mine["guid"]))
         for key in ("guid", "version"):
             if state.get(key) != mine[key]:
-                self._fail("fmi2SetFMUstate: the FMU state of %s has %s %.60r, this FMU has "
-                           "%r; allowed: a state of this very FMU (same build and version)"
-                           % (cls, key, state.get(key), mine[key]))
+                self._fail("%s: the FMU state of %s has %s %.60r, this FMU has %r; allowed: a "
+                           "state of this very FMU (same build and version)"
+                           % (function, cls, key, state.get(key), mine[key]))
         expected = _STATE_META + tuple(s["name"] for s in self.VARIABLES) + _STATE_FIELDS \
             + tuple(self.HIDDEN)
         unknown = sorted(str(key) for key in state if key not in expected)
         missing = [key for key in expected if key not in state]
         if unknown or missing:
-            self._fail("fmi2SetFMUstate: the FMU state of %s has %s; allowed: exactly the "
-                       "fields %s" % (cls, " and ".join(
+            self._fail("%s: the FMU state of %s has %s; allowed: exactly the fields %s" % (
+                           function, cls, " and ".join(
                            part for part in (unknown and "unknown fields %s" % unknown[:8],
                                              missing and "missing fields %s" % missing) if part),
                            ", ".join(expected)))
@@ -875,6 +901,13 @@ class SlaveBase(Fmi2Slave):
         if not (isinstance(flags, dict) and sorted(flags) == sorted(_FLAGS)
                 and all(isinstance(v, bool) for v in flags.values())):
             problems.append("flags = %.80r is not {%s} of booleans" % (flags, ", ".join(_FLAGS)))
+            flags = None
+        elif flags["initialised"] and flags["in_init"]:
+            problems.append("flags initialised and in_init are both true; allowed: one mode "
+                            "(in_init in Initialization Mode, initialised after it)")
+        elif flags["terminated"] and not (flags["initialised"] or flags["in_init"]):
+            problems.append("flags terminated without initialised or in_init; allowed: "
+                            "terminated after Initialization Mode was entered")
         hidden = {}
         for name in self.HIDDEN:
             try:
@@ -882,11 +915,29 @@ class SlaveBase(Fmi2Slave):
             except (ValueError, TypeError, ArithmeticError) as exc:
                 problems.append("hidden state %s = %.80r is not valid (%s)"
                                 % (name, state[name], exc))
+                continue
+            for part, v in _numbers(name, hidden[name]):
+                if part.rpartition(".")[2] in VARIANCES and not v >= 0.0:
+                    problems.append("hidden state %s = %r is a negative variance; allowed: "
+                                    "%s >= 0" % (part, v, part))
+        if flags is not None and not flags["initialised"]:
+            # before initialisation: no hidden state, at sample 1, no time elapsed (C twin:
+            # snapshot_problems)
+            if any(value is not None for value in hidden.values()):
+                problems.append("the hidden state %s is set although initialised is false; "
+                                "allowed: null before initialisation" % ", ".join(
+                                    name for name, value in hidden.items() if value is not None))
+            if k != 1 or flags["at_sample"] is not True:
+                problems.append("k = %.40r, at_sample = %r before initialisation; allowed: k = "
+                                "1, at_sample = true" % (k, flags["at_sample"]))
+            if isinstance(time, list) and len(time) == 3 and (time[1] != 0.0 or time[2] != 0.0):
+                problems.append("time = %.80r: time elapsed before initialisation; allowed: "
+                                "[t_start, 0.0, 0.0]" % (time,))
         if problems:
             for msg in problems[:-1]:
-                self._log_error("fmi2SetFMUstate: %s" % msg)
-            self._fail("fmi2SetFMUstate: %s; the state is refused and nothing was changed"
-                       % problems[-1])
+                self._log_error("%s: %s" % (function, msg))
+            self._fail("%s: %s; the state is refused and nothing was changed"
+                       % (function, problems[-1]))
         if flags["initialised"]:
             # the parameters of an initialised state must be valid ones: check them on a copy
             saved = self.parameter_values()
@@ -911,8 +962,10 @@ class SlaveBase(Fmi2Slave):
                 if self._initialised:
                     self.prepare()  # the derived constants of the parameters kept
             if bad:
-                self._fail("fmi2SetFMUstate: the FMU state of %s is not valid: %s; the state is "
-                           "refused and nothing was changed" % (cls, bad[0]))
+                self._fail("%s: the FMU state of %s is not valid: %s; the state is refused and "
+                           "nothing was changed" % (function, cls, bad[0]))
+        if not assign:
+            return
         for name, value in values.items():
             setattr(self, name, value)
         self._committed = hidden
@@ -929,12 +982,34 @@ class SlaveBase(Fmi2Slave):
 
     @staticmethod
     def _fmu_state_from_bytes(data):
-        """The state in ``data``, or None (which fmi2SetFMUstate then refuses with an error)
-        when ``data`` is not a serialised state: an exception here would crash pythonfmu."""
+        """A :class:`Deserialised` of ``data`` (the state, or why the bytes are not one), which
+        the loader shim has the instance check before it hands it out (fmi2DeSerializeFMUstate
+        refuses bad bytes with the reason; this class method has no instance to log with).  An
+        exception here would crash pythonfmu."""
         try:
-            return Fmi2Slave._fmu_state_from_bytes(data)
+            try:
+                return Deserialised(Fmi2Slave._fmu_state_from_bytes(data), len(data), None)
+            except Exception as exc:
+                return Deserialised(None, len(data), "%s: %s" % (type(exc).__name__, exc))
         except Exception:
             return None
+
+    @staticmethod
+    def _fmu_state_to_bytes(state):
+        if type(state) is Deserialised:
+            state = state.state
+        return Fmi2Slave._fmu_state_to_bytes(state)
+
+
+class Deserialised:
+    """What fmi2DeSerializeFMUstate made of a host's bytes: ``state`` (None when the bytes are
+    not one, ``why`` saying why) of ``size`` bytes; ``checked`` once the instance has checked
+    it (the loader shim's first fmi2SetFMUstate with it checks, and changes nothing)."""
+
+    __slots__ = ("state", "size", "why", "checked")
+
+    def __init__(self, state, size, why):
+        self.state, self.size, self.why, self.checked = state, size, why, False
 
 
 #: One category string for every error line (pythonfmu 0.7.0 keeps a reference to each

@@ -250,3 +250,126 @@ def test_a_state_carries_its_stop_time(dirs, backend):
         assert call(drv, "step", 2e-3, 0.5e-3) == OK
     finally:
         drv.free()
+
+
+# -- one state check: every field, in every twin, when the bytes are deserialised ------------------
+
+#: The filters' variances, by model and process model: the index in the Python state's JSON
+#: list and the field of the native hidden state.
+VARIANCE_FIELDS = {
+    ("DriftEstimator", 1): [(1, "h.state.P")],
+    ("DriftEstimator", 2): [(2, "h.state.P"), (4, "h.state.P22")],
+    ("DualDriftEstimator", 1): [(2, "h.state.g.Pxx"), (4, "h.state.g.Pyy")],
+    ("DualDriftEstimator", 2): [(4, "h.state.h.P11"), (6, "h.state.h.P22"),
+                                (7, "h.state.h.P33"), (9, "h.state.h.P44")],
+}
+
+
+def _saved_state(dirs, name, backend, process):
+    """A driver of ``name`` initialised with ``process``, stepped twice, its serialised state
+    (slot 0 keeps it) and the instance's outputs and state after one more step."""
+    drv = driver(dirs, name, backend)
+    assert call(drv, "setup", 0.0) == OK and call(drv, "enter") == OK
+    assert call(drv, "seti", ["process"], [process]) == OK
+    assert call(drv, "exit") == OK, drv.logged
+    for i in range(2):
+        assert call(drv, "step", i * 1e-3, 1e-3) == OK
+    assert call(drv, "gst", 0) == OK
+    data = drv.ser(0)[1]
+    assert call(drv, "step", 2e-3, 1e-3) == OK
+    return drv, data
+
+
+def _unchanged(drv, outs):
+    drv.getr(outs)
+    assert call(drv, "gst", 9) == OK
+    return drv.ser(9)[1], drv.getr(outs)
+
+
+def _refused_at_deserialise(drv, blob, outs, *named):
+    """``blob`` is refused by fmi2DeSerializeFMUstate / fmi3DeserializeFMUState itself, with a
+    message naming ``named``, and the instance is unchanged."""
+    before = _unchanged(drv, outs)
+    assert call(drv, "des", blob, 5) == ERROR, (named, drv.logged)
+    text = said(drv)
+    assert all(word in text for word in named) and ("refused" in text or "allowed" in text), \
+        (named, text)
+    assert 5 not in drv.states and _unchanged(drv, outs) == before
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("name, process", sorted(VARIANCE_FIELDS))
+def test_a_negative_variance_in_a_state_is_refused_in_every_twin(dirs, backend, name, process):
+    """The filter's P (P22 of the harmonic model; the dual filter's Pxx, Pyy, P11, P22, P33,
+    P44) set to -1 or -1e300 in a serialised state: refused when the bytes are deserialised,
+    naming the field, in every twin (the Python FMU restored such a state with OK and stepped on
+    with changed outputs; the native twins refused it)."""
+    import json
+    from fuzz import native_state as ns
+    outs = diff.model_info(dirs[name]["native-fmi2"])["outputs"]
+    drv, data = _saved_state(dirs, name, backend, process)
+    try:
+        for index, field in VARIANCE_FIELDS[name, process]:
+            for value in (-1.0, -1e300):
+                if backend == "python":
+                    state = json.loads(data)
+                    state["_state"][index] = value
+                    blob, named = json.dumps(state).encode(), "_state." + field.split(".")[-1]
+                else:
+                    blob = ns.crafted(ns.snapshot_type(dirs[name][backend]), data, field, value)
+                    named = field[2:]
+                _refused_at_deserialise(drv, blob, outs, named, "negative variance")
+        assert call(drv, "des", data, 5) == OK and call(drv, "sst", 5) == OK  # as it was: taken
+    finally:
+        drv.free()
+
+
+#: Bytes that are no state: refused at deserialisation, with the reason.
+GARBAGE = [b"hello", b"", b"{}", b"[1, 2]", b"\x00" * 64, b'{"model": "DriftEstimator"']
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+def test_bytes_that_are_no_state_are_refused_at_deserialisation(dirs, backend):
+    """fmi2DeSerializeFMUstate / fmi3DeserializeFMUState of "hello", empty bytes, JSON that is
+    no state, zeros, a cut state: an error at once, saying what the bytes are not and what is
+    allowed (the Python FMUs returned OK and the later set said "not an FMU state of
+    Excitation: None"); a cut or edited real state too."""
+    outs = diff.model_info(dirs["DriftEstimator"]["native-fmi2"])["outputs"]
+    drv, data = _saved_state(dirs, "DriftEstimator", backend, 1)
+    try:
+        for blob in GARBAGE + [data[:len(data) // 2], data + b"x"]:
+            _refused_at_deserialise(drv, blob, outs, "not an FMU state of DriftEstimator",
+                                    "allowed")
+    finally:
+        drv.free()
+
+
+#: Edits of the Python state's own fields that the native twins refuse in theirs (the mode
+#: flags, the state before initialisation, the stop time): (edit, the words of the refusal).
+def _python_edits(state):
+    t = state["time"]
+    yield dict(state, flags=dict(state["flags"], in_init=True)), "initialised and in_init"
+    yield dict(state, stop_time=t[0] - 1.0), "stop_time"
+    yield dict(state, stop_time="x"), "stop_time"
+    yield dict(state, stop_time=t[0] + (t[1] + t[2]) / 2), "after the stop time"
+    before = dict(state, flags=dict(state["flags"], initialised=False))
+    yield before, "initialised is false"
+    yield dict(before, _state=None), "before initialisation"
+    yield dict(before, _state=None, time=[t[0], 0.0, 0.0], k=2), "k = 2"
+    yield dict(state, flags=dict(state["flags"], initialised=False, terminated=True),
+               _state=None, k=1, time=[t[0], 0.0, 0.0]), "terminated"
+
+
+def test_the_python_state_checks_what_the_native_state_checks(dirs):
+    """The fields the native snapshot checks beyond finiteness and ranges: the mode flags
+    consistent, nothing set and no time elapsed before initialisation, the stop time at or
+    after the start and not before the time: the Python state's equivalents are refused at
+    deserialisation, naming what is wrong (they were restored with OK)."""
+    import json
+    outs = diff.model_info(dirs["DriftEstimator"]["native-fmi2"])["outputs"]
+    drv, data = _saved_state(dirs, "DriftEstimator", "python", 1)
+    try:
+        for edited, words in _python_edits(json.loads(data)):
+            _refused_at_deserialise(drv, json.dumps(edited).encode(), outs, words)
+    finally:
+        drv.free()

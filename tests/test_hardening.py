@@ -405,13 +405,12 @@ def test_fmu_state_pointer_and_bytes_of_another_fmu_are_refused(built_fmus):
     # the loader shim refuses a pointer it did not hand out before anything reads it
     assert "is not a live state of this loaded copy" in est.messages[-1]
     blob = acc.fmu.serializeFMUstate(foreign)
-    state = est.fmu.deSerializeFMUstate(blob)
-    with pytest.raises(Exception, match="status 3"):
-        est.fmu.setFMUstate(state)
+    with pytest.raises(Exception, match="status 3"):  # refused as the bytes are read
+        est.fmu.deSerializeFMUstate(blob)
+    assert "this is an FMU state of model 'Accelerometer'" in est.messages[-1]
     assert est.fmu.getReal([est.vrs["x_hat"], est.vrs["R"]]) == before
     est.fmu.doStep(currentCommunicationPoint=1e-3, communicationStepSize=1e-3)
     acc.fmu.freeFMUstate(foreign)
-    est.fmu.freeFMUstate(state)
     acc.free()
     est.free()
 

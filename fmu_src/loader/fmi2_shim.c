@@ -1547,6 +1547,17 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         shim_log(inst, fmi2Error, "fmi2DeSerializeFMUstate: the model returned no state");
         return fmi2Error;
     }
+    /* the model checks what it read, every field as fmi2SetFMUstate will, and changes nothing:
+       its first fmi2SetFMUstate with a state fresh from bytes is that check (slave_base
+       Deserialised), so bad bytes are refused here, with the reason */
+    fmi2Status checked = CALL(inner.SetFMUstate(inst->inner, fresh));
+    if (checked > fmi2Warning) {
+        if (inst->state != FATAL)
+            inner.FreeFMUstate(inst->inner, &fresh);
+        return checked;
+    }
+    if (checked > status)
+        status = checked;
     fmi2Status stored = store_state(inst, fresh, &target, &fields);
     if (stored == fmi2OK)
         *FMUstate = target;
