@@ -26,7 +26,8 @@ period).  ``fmi2DoStep(t, h)`` accepts any finite ``h > 0`` and processes the sa
 
 Whole-sample steps ``h = m Ts`` therefore advance ``m`` samples, bit for bit as the rule that
 allowed only those.  One step processes at most :data:`MAX_SAMPLES_PER_STEP` instants and
-``Ts >= 1e-9`` s, so no call runs unbounded.  Outputs read in Initialization Mode are computed
+``Ts >= 1e-9`` s, so no call runs unbounded.  A step that would end after a defined stop time
+(fmi2SetupExperiment) by more than :data:`INSTANT_TOLERANCE` sample periods is refused.  Outputs read in Initialization Mode are computed
 from the start values and inputs (sample 1), as the InitialUnknowns declare.
 
 Errors: a bad parameter, a non-finite input, a step ``h`` that is not finite and positive or
@@ -41,9 +42,12 @@ debug logging is off.
 
 FMU state: a JSON-ready dict of the fields ``model`` (class name), ``guid`` (of the FMU),
 ``version`` (driftfmu's), every variable of ``VARIABLES``, ``k``, ``time``
-(``[t_start, elapsed, compensation]``), ``flags`` and the slave's ``HIDDEN`` state.  Setting a
-state reads exactly these fields, checks each one's type and finiteness, refuses a state of
-another model, build or version, and assigns only when all of it is valid.
+(``[t_start, elapsed, compensation]``), ``stop_time`` (None: none defined), ``flags`` and the
+slave's ``HIDDEN`` state.  Setting a state reads exactly these fields, checks each one as the
+native twins check theirs (type, finiteness, variances, the mode flags, the state before
+initialisation, the parameters, the timing, the stop time), refuses a state of another model,
+build or version, and assigns only when all of it is valid; the loader shim has the instance
+make the same check when a host deserialises the bytes (:class:`Deserialised`).
 
 This module runs inside the FMU: standard library and pythonfmu only (NumPy where the FMU's
 Python has it, for :class:`Blocks`, the same bits without it), and it works under
@@ -66,10 +70,13 @@ _TYPES = {"Real": Real, "Integer": Integer}
 MAX_SAMPLES_PER_STEP = 1000000
 #: A time is at a sample instant when within this many sample periods of it.
 INSTANT_TOLERANCE = 1e-6
-#: The value reference the loader shim (fmu_src/loader/fmi2_shim.c, EXPERIMENT_VR) sets with
-#: ``[startTime, stopTimeDefined, stopTime]`` for fmi2SetupExperiment: pythonfmu 0.7.0 hands
-#: the slave the start time only.  No variable has it, and the shim refuses it from a host.
-EXPERIMENT_VR = 0x7FFFFFFF
+#: The value reference through which the loader shim (fmu_src/loader/fmi2_shim.c, SHIM_VR)
+#: tells the model what pythonfmu 0.7.0 does not pass on: set to ``[startTime, stopTimeDefined,
+#: stopTime]`` it is fmi2SetupExperiment (pythonfmu hands the slave the start time only); set to
+#: ``[1.0]`` it makes the next fmi2SetFMUstate, with a state fresh from bytes, the check of
+#: fmi2DeSerializeFMUstate (changes nothing).  No variable has it; the shim refuses it from a
+#: host.
+SHIM_VR = 0x7FFFFFFF
 #: Namespace of the deterministic GUIDs: uuid5(this, "<module>.<class> <version>").
 GUID_NAMESPACE = uuid.UUID("8d0f3bb2-5a52-4c55-9c1e-6d0e1b7c2a11")
 #: The sampled-data step rule, in the model description of every FMU.
@@ -234,6 +241,8 @@ class SlaveBase(Fmi2Slave):
     DESCRIPTION = ""
     VARIABLES = ()
     DEPENDENCIES = {}
+    #: The loader shim may speak to this slave through :data:`SHIM_VR` (the builder records it).
+    SHIM_VR = SHIM_VR
     CAN_HANDLE_VARIABLE_STEP = True
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
     #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
@@ -378,9 +387,12 @@ class SlaveBase(Fmi2Slave):
                 str(vr) for vr, s in self._specs.items() if s["type"] == kind) or "none")
 
     # -- setters: the whole call is checked before anything is assigned ---------------------
-    def _experiment(self, values):
-        """fmi2SetupExperiment through the loader shim: ``values`` is ``[startTime,
-        stopTimeDefined, stopTime]`` (EXPERIMENT_VR)."""
+    def _from_shim(self, values):
+        """What the loader shim sets to :data:`SHIM_VR`: ``[startTime, stopTimeDefined,
+        stopTime]`` (fmi2SetupExperiment) or ``[1.0]`` (the next fmi2SetFMUstate checks)."""
+        if len(values) == 1:
+            self._check_only = True
+            return
         start, defined, stop = values
         self._setup(start, stop if defined else None)
 
@@ -404,8 +416,8 @@ class SlaveBase(Fmi2Slave):
                         setattr(self, name, v)
                     self._dirty = True
                     return
-        if vrs[:1] == [EXPERIMENT_VR] and len(vrs) == len(values) == 3:
-            self._call(self._experiment, values)
+        if vrs[:1] == [SHIM_VR] and len(vrs) == len(values) and len(vrs) in (1, 3):
+            self._call(self._from_shim, values)
             return
         self._call(self._set_checked, "fmi2SetReal", vrs, values, "Real")
 
@@ -826,21 +838,23 @@ class SlaveBase(Fmi2Slave):
         return state
 
     def _set_fmu_state(self, state):
+        check_only = self.__dict__.pop("_check_only", False)  # (SHIM_VR: once)
         if type(state) is Deserialised:
-            if not state.checked:  # the loader shim's check in fmi2DeSerializeFMUstate
-                if self._call(self._check_deserialised, state):
-                    state.checked = True
+            if check_only or state.why is not None:
+                self._call(self._check_deserialised, state,
+                           "fmi2DeSerializeFMUstate" if check_only else "fmi2SetFMUstate")
                 return
             state = state.state
         self._call(self._restore, state)
 
-    def _check_deserialised(self, d):
-        """Check a state read from bytes as fmi2SetFMUstate would, and change nothing."""
+    def _check_deserialised(self, d, function):
+        """Check a state read from bytes as fmi2SetFMUstate would, and change nothing (the
+        loader shim's check in fmi2DeSerializeFMUstate)."""
         if d.why is not None:
-            self._fail("fmi2DeSerializeFMUstate: not an FMU state of %s: %d bytes that are not "
-                       "a serialised state (%s); allowed: the bytes fmi2SerializeFMUstate of "
-                       "this FMU wrote" % (type(self).__name__, d.size, d.why))
-        self._restore(d.state, "fmi2DeSerializeFMUstate", assign=False)
+            self._fail("%s: not an FMU state of %s: %d bytes that are not a serialised state "
+                       "(%s); allowed: the bytes fmi2SerializeFMUstate of this FMU wrote"
+                       % (function, type(self).__name__, d.size, d.why))
+        self._restore(d.state, function, assign=False)
 
     def _restore(self, state, function="fmi2SetFMUstate", assign=True):
         """Check ``state`` field by field (as the native twins check theirs: cosimulation.c,
@@ -984,8 +998,9 @@ class SlaveBase(Fmi2Slave):
     def _fmu_state_from_bytes(data):
         """A :class:`Deserialised` of ``data`` (the state, or why the bytes are not one), which
         the loader shim has the instance check before it hands it out (fmi2DeSerializeFMUstate
-        refuses bad bytes with the reason; this class method has no instance to log with).  An
-        exception here would crash pythonfmu."""
+        refuses bad bytes with the reason; this class method has no instance to log with, and
+        without the shim fmi2SetFMUstate refuses them).  An exception here would crash
+        pythonfmu."""
         try:
             try:
                 return Deserialised(Fmi2Slave._fmu_state_from_bytes(data), len(data), None)
@@ -1003,13 +1018,13 @@ class SlaveBase(Fmi2Slave):
 
 class Deserialised:
     """What fmi2DeSerializeFMUstate made of a host's bytes: ``state`` (None when the bytes are
-    not one, ``why`` saying why) of ``size`` bytes; ``checked`` once the instance has checked
-    it (the loader shim's first fmi2SetFMUstate with it checks, and changes nothing)."""
+    not one, ``why`` saying why) of ``size`` bytes.  The loader shim has the instance check it
+    before handing it out (:data:`SHIM_VR`); fmi2SetFMUstate checks it again and restores it."""
 
-    __slots__ = ("state", "size", "why", "checked")
+    __slots__ = ("state", "size", "why")
 
     def __init__(self, state, size, why):
-        self.state, self.size, self.why, self.checked = state, size, why, False
+        self.state, self.size, self.why = state, size, why
 
 
 #: One category string for every error line (pythonfmu 0.7.0 keeps a reference to each

@@ -21,9 +21,12 @@
  *      fmi2Instantiate) with a log line naming what was given and what is allowed: the
  *      resource location (every file URI form FMI 2.0 allows, decoded here, since pythonfmu
  *      0.7.0 strips only "file://" and decodes only "%20", and crashes on a folder it cannot
- *      find), the GUID and the fmuType, the FMI 2.0 state machine, NULL pointers, value
- *      references pythonfmu would pass on as negative numbers, FMU state pointers and bytes it
- *      did not hand out.  It answers the status inquiries itself;
+ *      find), the GUID and the fmuType, the FMI 2.0 state machine, NULL pointers, counts no
+ *      array can have, value references pythonfmu would pass on as negative numbers, FMU
+ *      states that are not the calling instance's.  It answers the status inquiries itself,
+ *      hands the model fmi2SetupExperiment's stop time (pythonfmu passes the start time only),
+ *      has the model check a deserialised state before handing it out, and frees an
+ *      instance's states with it;
  *   5. keeps freed instances, reset, for the next fmi2Instantiate of the same name (pythonfmu
  *      leaks about 1 kB for every instance it creates).
  *
@@ -45,6 +48,7 @@
 #include <unistd.h>
 
 #include "fmi2Functions.h"
+#include "state_handles.h" /* fmu_src/native/, shared with the native plumbing */
 
 #ifndef DRIFTFMU_BUILD_LIBPYTHON
 #define DRIFTFMU_BUILD_LIBPYTHON "libpython3.so"
@@ -119,6 +123,7 @@ typedef struct Instance {
     fmi2Status worst; /* worst of error and fatal logged during the current call */
     int state;        /* one of the states above */
     char guid[128];   /* the FMU's GUID, checked at instantiation */
+    int speaks;       /* the model understands SHIM_VR (the build record says so) */
     double start_time, time; /* from fmi2SetupExperiment; the end of the last accepted step */
     double elapsed, elapsed_c; /* time - start_time as the model keeps it: Neumaier's sum of the
                                   accepted step sizes (time = start_time + (elapsed + c)) */
@@ -496,22 +501,23 @@ static int null_array(Instance *inst, const char *function, const char *name, si
 }
 
 /*
- * The value reference through which the shim hands the model fmi2SetupExperiment's arguments
- * (slave_base.EXPERIMENT_VR): pythonfmu 0.7.0 passes the model the start time only, so the shim
- * sets [startTime, stopTimeDefined, stopTime] to this value reference, which no variable has.
+ * The value reference through which the shim tells the model what pythonfmu 0.7.0 does not pass
+ * on (slave_base.SHIM_VR; no variable has it): set to [startTime, stopTimeDefined, stopTime] it
+ * is fmi2SetupExperiment (pythonfmu passes the model the start time only); set to [1] it makes
+ * the next fmi2SetFMUstate the check of a state fresh from fmi2DeSerializeFMUstate.
  */
-#define EXPERIMENT_VR 0x7fffffffu
+#define SHIM_VR 0x7fffffffu
 
 /*
  * 1 (logged) if a value reference cannot be one of this FMU's.  pythonfmu passes value
  * references to Python as signed ints, so 2^31 and above would reach the model as negative
- * numbers; the shim refuses them itself and prints them unsigned, and EXPERIMENT_VR too.
+ * numbers; the shim refuses them itself and prints them unsigned, and SHIM_VR too.
  */
 static int bad_references(Instance *inst, const char *function, const fmi2ValueReference vr[],
                           size_t nvr)
 {
     for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] >= EXPERIMENT_VR) {
+        if (vr[i] >= SHIM_VR) {
             shim_log(inst, fmi2Error, "%s: value reference %u does not exist; the model "
                      "description lists the value references of this FMU", function,
                      (unsigned)vr[i]);
@@ -686,16 +692,19 @@ static int value_after(const char *text, const char *key, char end, char *out, s
 
 /*
  * The FMU's GUID: from resources/driftfmu_build.json (the builder writes it there), else from
- * the modelDescription.xml beside the resources folder.
+ * the modelDescription.xml beside the resources folder.  *speaks: the build record says that
+ * the model understands SHIM_VR (a driftfmu slave: "shim_vr": true).
  */
-static int fmu_guid(const char *folder, char *guid, size_t n)
+static int fmu_guid(const char *folder, char *guid, size_t n, int *speaks)
 {
     size_t len = strlen(folder) + 64;
     char *path = malloc(len), *text = malloc(1 << 16);
     int found = 0;
+    *speaks = 0;
     if (path && text) {
         snprintf(path, len, "%s/driftfmu_build.json", folder);
         found = read_text(path, text, 1 << 16) && value_after(text, "\"guid\": \"", '"', guid, n);
+        *speaks = found && strstr(text, "\"shim_vr\": true") != NULL;
         if (!found) {
             snprintf(path, len, "%s/../modelDescription.xml", folder);
             found = read_text(path, text, 1 << 16) && value_after(text, " guid=\"", '"', guid, n);
@@ -878,7 +887,7 @@ static char *checked_arguments(Instance *inst, fmi2String instanceName, fmi2Type
             snprintf(why, sizeof why, "fmuResourceLocation \"%s\" is the folder \"%s\", which is "
                      "not the resources folder of this FMU (it has no slavemodule.txt); "
                      ALLOWED_LOCATIONS, fmuResourceLocation, folder);
-        } else if (!fmu_guid(folder, guid, sizeof guid)) {
+        } else if (!fmu_guid(folder, guid, sizeof guid, &inst->speaks)) {
             snprintf(why, sizeof why, "cannot read this FMU's GUID from %s/driftfmu_build.json "
                      "or %s/../modelDescription.xml", folder, folder);
         } else if (!fmuGUID || strcmp(fmuGUID, guid)) {
@@ -1021,12 +1030,14 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                  "time", startTime);
         return fmi2Error;
     }
-    (void)toleranceDefined, (void)tolerance;
-    /* the model checks the stop time and refuses a step that would end after it */
-    const fmi2ValueReference vr[3] = {EXPERIMENT_VR, EXPERIMENT_VR, EXPERIMENT_VR};
+    /* a driftfmu model gets the stop time too, checks it and refuses a step past it */
+    const fmi2ValueReference vr[3] = {SHIM_VR, SHIM_VR, SHIM_VR};
     const fmi2Real experiment[3] = {startTime, stopTimeDefined ? 1.0 : 0.0,
                                     stopTimeDefined ? stopTime : 0.0};
-    fmi2Status status = CALL(inner.SetReal(inst->inner, vr, 3, experiment));
+    fmi2Status status = inst->speaks
+        ? CALL(inner.SetReal(inst->inner, vr, 3, experiment))
+        : CALL(inner.SetupExperiment(inst->inner, toleranceDefined, tolerance, startTime,
+                                     stopTimeDefined, stopTime));
     if (status <= fmi2Warning) {
         inst->start_time = inst->time = startTime;
         inst->elapsed = inst->elapsed_c = 0.0;
@@ -1176,33 +1187,6 @@ static pthread_mutex_t states_lock = PTHREAD_MUTEX_INITIALIZER;
 static State *live_states;
 static uint64_t issued; /* handles issued so far (the last serial number) */
 
-/* The tag of this loaded copy of the library: bits of the page of one of its variables. */
-static uint64_t library_tag(void)
-{
-    return (uint64_t)((uintptr_t)&issued >> 12);
-}
-
-#if UINTPTR_MAX > 0xFFFFFFFFu
-#define SERIAL_BITS 36
-/* bit 62 set, bit 63 clear: not an address a process can have on x86-64 */
-static uintptr_t handle_of(uint64_t serial)
-{
-    return (uintptr_t)(((uint64_t)1 << 62) | ((library_tag() & 0x3FFFFFFu) << SERIAL_BITS) |
-                       serial);
-}
-#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0x3FFFFFFu)
-#define IS_HANDLE(h) (((uint64_t)(h) >> 62) == 1u)
-#else
-#define SERIAL_BITS 24
-static uintptr_t handle_of(uint64_t serial)
-{
-    return (uintptr_t)(((library_tag() & 0xFFu) << SERIAL_BITS) | serial);
-}
-#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0xFFu)
-#define IS_HANDLE(h) 1
-#endif
-#define SERIAL_OF(h) ((uint64_t)(h) & (((uint64_t)1 << SERIAL_BITS) - 1))
-
 /* The live record of handle h, or NULL (the caller holds the lock). */
 static State *find_locked(const void *h)
 {
@@ -1216,8 +1200,8 @@ static State *find_locked(const void *h)
 static void add_live(State *s, const Instance *inst)
 {
     pthread_mutex_lock(&states_lock);
-    issued = issued + 1 < ((uint64_t)1 << SERIAL_BITS) ? issued + 1 : 1;
-    s->handle = handle_of(issued);
+    issued = state_next_serial(issued);
+    s->handle = state_handle(&issued, issued);
     s->owner = inst;
     s->next = live_states;
     live_states = s;
@@ -1273,11 +1257,7 @@ static int stranger(const Instance *inst, const void *h, State **mine)
     *mine = s && s->owner == inst ? s : NULL;
     if (s)
         return s->owner == inst ? -1 : 1;
-    const uintptr_t v = (uintptr_t)h;
-    if (IS_HANDLE(v) && TAG_OF(v) == TAG_OF(handle_of(0)) && SERIAL_OF(v) >= 1 &&
-        SERIAL_OF(v) <= last)
-        return 2;
-    return 0;
+    return state_issued_here(&issued, h, last) ? 2 : 0;
 }
 
 /* The record behind a state the host passed when it is a live state of inst, or NULL
@@ -1547,10 +1527,15 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         shim_log(inst, fmi2Error, "fmi2DeSerializeFMUstate: the model returned no state");
         return fmi2Error;
     }
-    /* the model checks what it read, every field as fmi2SetFMUstate will, and changes nothing:
-       its first fmi2SetFMUstate with a state fresh from bytes is that check (slave_base
-       Deserialised), so bad bytes are refused here, with the reason */
-    fmi2Status checked = CALL(inner.SetFMUstate(inst->inner, fresh));
+    /* the model checks what it read, every field as fmi2SetFMUstate will, and changes nothing
+       (SHIM_VR set to [1]: the next fmi2SetFMUstate is that check), so bad bytes are refused
+       here, with the reason */
+    const fmi2ValueReference check_vr[1] = {SHIM_VR};
+    const fmi2Real check_next[1] = {1.0};
+    fmi2Status checked = inst->speaks ? CALL(inner.SetReal(inst->inner, check_vr, 1, check_next))
+                                      : fmi2OK;
+    if (inst->speaks && checked <= fmi2Warning)
+        checked = CALL(inner.SetFMUstate(inst->inner, fresh));
     if (checked > fmi2Warning) {
         if (inst->state != FATAL)
             inner.FreeFMUstate(inst->inner, &fresh);

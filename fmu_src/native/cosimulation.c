@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "cosimulation.h"
+#include "state_handles.h"
 
 #define MESSAGE_SIZE 1024
 
@@ -1053,10 +1054,8 @@ verdict:
 
 /*
  * A state handed to the host is a StateNode: the Snapshot, the instance that owns it, and the
- * handle the host holds.  The handle is not the node's address but a number this library
- * issues once (a serial number, with a tag of this loaded copy of the library in the high bits
- * and a bit that makes it a non-canonical address on x86-64): a handle is never issued twice,
- * so a freed state's handle cannot come back as a live state when the memory is reused.
+ * handle the host holds (state_handles.h: a number issued once, never an address, so a freed
+ * state's handle cannot come back as a live state when the memory is reused).
  *
  * Every live state of the library is in one list, guarded by a spin lock (GCC/Clang atomics: no
  * thread library, so the Windows binaries keep needing only system DLLs).  A state belongs to
@@ -1088,33 +1087,6 @@ static void unlock_states(void)
     __atomic_clear(&live_lock, __ATOMIC_RELEASE);
 }
 
-/* The tag of this loaded copy of the library: bits of the page of one of its variables. */
-static uint64_t library_tag(void)
-{
-    return (uint64_t)((uintptr_t)&issued >> 12);
-}
-
-#if UINTPTR_MAX > 0xFFFFFFFFu
-#define SERIAL_BITS 36
-/* bit 62 set, bit 63 clear: not an address a process can have on x86-64 */
-static uintptr_t handle_of(uint64_t serial)
-{
-    return (uintptr_t)(((uint64_t)1 << 62) | ((library_tag() & 0x3FFFFFFu) << SERIAL_BITS) |
-                       serial);
-}
-#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0x3FFFFFFu)
-#define IS_HANDLE(h) (((uint64_t)(h) >> 62) == 1u)
-#else
-#define SERIAL_BITS 24
-static uintptr_t handle_of(uint64_t serial)
-{
-    return (uintptr_t)(((library_tag() & 0xFFu) << SERIAL_BITS) | serial);
-}
-#define TAG_OF(h) (((uint64_t)(h) >> SERIAL_BITS) & 0xFFu)
-#define IS_HANDLE(h) 1
-#endif
-#define SERIAL_OF(h) ((uint64_t)(h) & (((uint64_t)1 << SERIAL_BITS) - 1))
-
 /* The live node of handle h, or NULL (the caller holds the lock). */
 static StateNode *find_locked(const void *h)
 {
@@ -1128,8 +1100,8 @@ static StateNode *find_locked(const void *h)
 static void add_live(StateNode *node, const ModelInstance *comp)
 {
     lock_states();
-    issued = issued + 1 < ((uint64_t)1 << SERIAL_BITS) ? issued + 1 : 1;
-    node->handle = handle_of(issued);
+    issued = state_next_serial(issued);
+    node->handle = state_handle(&issued, issued);
     node->owner = comp;
     node->next = live_states;
     live_states = node;
@@ -1174,11 +1146,7 @@ static int stranger(const ModelInstance *comp, const void *h, StateNode **mine)
     *mine = n && n->owner == comp ? (StateNode *)n : NULL;
     if (n)
         return n->owner == comp ? -1 : 1;
-    const uintptr_t v = (uintptr_t)h;
-    if (IS_HANDLE(v) && TAG_OF(v) == TAG_OF(handle_of(0)) && SERIAL_OF(v) >= 1 &&
-        SERIAL_OF(v) <= last)
-        return 2;
-    return 0;
+    return state_issued_here(&issued, h, last) ? 2 : 0;
 }
 
 /* The node behind a state handle a host passed when it is a live state of comp, or NULL
