@@ -583,12 +583,12 @@ class SlaveBase(Fmi2Slave):
         if self._terminated:
             self._fail("fmi2ExitInitializationMode: " + _TERMINATED)
         self._check_and_prepare("")
-        self._stop_at = self._stop_position()
         hidden = self.initial_hidden()
         outputs = pending = None
         if not self.DEPENDENCIES:  # outputs of sample 1 now: they depend on no input
             pending, outputs = self._samples(hidden, 1, 1, True)
         self._commit(hidden, 1, True, 0.0, 0.0, outputs, pending)
+        self._stop_at = self._stop_position()
 
     def _refresh_in_init(self):
         """Outputs in Initialization Mode: sample 1 from the start values and inputs (after
