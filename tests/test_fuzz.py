@@ -266,7 +266,7 @@ def test_the_differential_fuzz_sees_the_issue_31_classes_planted_back(twins, tmp
 
 
 #: Scripts per model of the long run (qualification): with each instance compared around every
-#: call, about ten minutes on this machine for the four models.
+#: call, about five minutes on this machine for the four models.
 LONG_SCRIPTS = 1500
 
 

@@ -450,9 +450,9 @@ def child(dirs, seeds, n_calls, plant, check=False):
                 driver.fst(slot)
             driver.states.clear()  # (stale handles of a renewed instance are refused)
             results[name] = run_script(driver, script, info["reals"] if check else None)
-            if plant == name:  # a planted difference: the twin answers one call differently
-                for row in results[name]:
-                    if row[1] is not None:
+            if plant == name:  # a planted difference: the twin answers one read differently
+                for call, row in zip(script, results[name]):
+                    if call[0] == "getr" and row[1] is not None:
                         row[1] = [float.fromhex(row[1][0]).__add__(1.0).hex()] + row[1][1:]
                         break
         print(json.dumps({"seed": seed, "problems": compare(script, results),
