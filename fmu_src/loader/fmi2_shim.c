@@ -1250,13 +1250,14 @@ static void free_states_of(Instance *inst)
    -1 (and *mine set) when it is a live state of inst. */
 static int stranger(const Instance *inst, const void *h, State **mine)
 {
-    pthread_mutex_lock(&states_lock);
+    pthread_mutex_lock(&states_lock); /* (read under the lock: another instance may free it) */
     State *s = find_locked(h);
+    const int owned = s && s->owner == inst;
     const uint64_t last = issued;
     pthread_mutex_unlock(&states_lock);
-    *mine = s && s->owner == inst ? s : NULL;
+    *mine = owned ? s : NULL;
     if (s)
-        return s->owner == inst ? -1 : 1;
+        return owned ? -1 : 1;
     return state_issued_here(&issued, h, last) ? 2 : 0;
 }
 

@@ -1139,13 +1139,14 @@ static void free_states_of(const ModelInstance *comp)
  * library and freed since, 0 anything else (never issued here: garbage, another library's). */
 static int stranger(const ModelInstance *comp, const void *h, StateNode **mine)
 {
-    lock_states();
-    const StateNode *n = find_locked(h);
+    lock_states();   /* (the node is read under the lock: another instance may free it) */
+    StateNode *n = find_locked(h);
+    const int owned = n && n->owner == comp;
     const uint64_t last = issued;
     unlock_states();
-    *mine = n && n->owner == comp ? (StateNode *)n : NULL;
+    *mine = owned ? n : NULL;
     if (n)
-        return n->owner == comp ? -1 : 1;
+        return owned ? -1 : 1;
     return state_issued_here(&issued, h, last) ? 2 : 0;
 }
 
