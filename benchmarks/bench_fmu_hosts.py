@@ -67,7 +67,7 @@ def with_shim(fmu, dest, source):
     (as the builder compiles fmu_src/loader/fmi2_shim.c)."""
     shim = Path(dest) / ("%s.so" % fmu.stem)
     subprocess.run(["cc", "-shared", "-fPIC", "-O2", "-fvisibility=hidden",
-                    "-I%s" % builder._fmi2_headers(),
+                    "-I%s" % builder._fmi2_headers(), "-I%s" % (builder.SRC_DIR / "native"),
                     '-DDRIFTFMU_BUILD_LIBPYTHON="%s"' % builder.libpython_soname(),
                     "-o", str(shim), str(source), "-ldl", "-lpthread"], check=True)
     with zipfile.ZipFile(fmu) as archive:

@@ -534,7 +534,7 @@ def _make_loader(work, log):
     if shutil.which(compiler[0]):
         shim = work / "fmi2_shim.so"
         command = compiler + ["-shared", "-fPIC", "-O2", "-fvisibility=hidden",
-                              "-I%s" % _fmi2_headers(),
+                              "-I%s" % _fmi2_headers(), "-I%s" % (SRC_DIR / "native"),
                               '-DDRIFTFMU_BUILD_LIBPYTHON="%s"' % soname,
                               "-o", str(shim), str(LOADER_SOURCE), "-ldl", "-lpthread"]
         result = subprocess.run(command, capture_output=True, text=True)
@@ -647,6 +647,9 @@ def _build_one(name, out_dir, src_dir, loader, log, generated=None):
             "libpython": libpython_soname(),
             "loader": loader[0],
             "pythonfmu_version": pythonfmu_version,
+            # a driftfmu slave (slave_base.SHIM_VR): the loader shim hands it the stop time and
+            # has it check a deserialised state
+            "shim_vr": getattr(slave, "SHIM_VR", None) == 0x7FFFFFFF,
         }, indent=2, sort_keys=True).encode() + b"\n"
         from driftfmu.fmu_src import documentation
         entries.update(documentation.entries(name, "python", 2, entries, slave))

@@ -361,7 +361,8 @@ def model_sources(name, fmi_version):
     of its FMI version, the model's step logic and the models/ units it needs (with every
     models/ header), the FMI headers."""
     plumbing = [NATIVE_DIR / ("fmi%dFunctions.c" % fmi_version), NATIVE_DIR / "cosimulation.c",
-                NATIVE_DIR / "cosimulation.h", NATIVE_DIR / "model.h"]
+                NATIVE_DIR / "cosimulation.h", NATIVE_DIR / "model.h",
+                NATIVE_DIR / "state_handles.h"]
     units = [MODELS_DIR / u for u in _generate().UNITS[name]]
     headers = sorted(p for p in MODELS_DIR.glob("*.h")
                      if not (p.name.endswith("_step.h") and p.name != name + "_step.h"))

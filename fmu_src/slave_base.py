@@ -26,7 +26,8 @@ period).  ``fmi2DoStep(t, h)`` accepts any finite ``h > 0`` and processes the sa
 
 Whole-sample steps ``h = m Ts`` therefore advance ``m`` samples, bit for bit as the rule that
 allowed only those.  One step processes at most :data:`MAX_SAMPLES_PER_STEP` instants and
-``Ts >= 1e-9`` s, so no call runs unbounded.  Outputs read in Initialization Mode are computed
+``Ts >= 1e-9`` s, so no call runs unbounded.  A step that would end after a defined stop time
+(fmi2SetupExperiment) by more than :data:`INSTANT_TOLERANCE` sample periods is refused.  Outputs read in Initialization Mode are computed
 from the start values and inputs (sample 1), as the InitialUnknowns declare.
 
 Errors: a bad parameter, a non-finite input, a step ``h`` that is not finite and positive or
@@ -43,9 +44,12 @@ debug logging is off.
 
 FMU state: a JSON-ready dict of the fields ``model`` (class name), ``guid`` (of the FMU),
 ``version`` (driftfmu's), every variable of ``VARIABLES``, ``k``, ``time``
-(``[t_start, elapsed, compensation]``), ``flags`` and the slave's ``HIDDEN`` state.  Setting a
-state reads exactly these fields, checks each one's type and finiteness, refuses a state of
-another model, build or version, and assigns only when all of it is valid.
+(``[t_start, elapsed, compensation]``), ``stop_time`` (None: none defined), ``flags`` and the
+slave's ``HIDDEN`` state.  Setting a state reads exactly these fields, checks each one as the
+native twins check theirs (type, finiteness, variances, the mode flags, the state before
+initialisation, the parameters, the timing, the stop time), refuses a state of another model,
+build or version, and assigns only when all of it is valid; the loader shim has the instance
+make the same check when a host deserialises the bytes (:class:`Deserialised`).
 
 This module runs inside the FMU: standard library and pythonfmu only (NumPy where the FMU's
 Python has it, for :class:`Blocks`, the same bits without it), and it works under
@@ -68,6 +72,13 @@ _TYPES = {"Real": Real, "Integer": Integer}
 MAX_SAMPLES_PER_STEP = 1000000
 #: A time is at a sample instant when within this many sample periods of it.
 INSTANT_TOLERANCE = 1e-6
+#: The value reference through which the loader shim (fmu_src/loader/fmi2_shim.c, SHIM_VR)
+#: tells the model what pythonfmu 0.7.0 does not pass on: set to ``[startTime, stopTimeDefined,
+#: stopTime]`` it is fmi2SetupExperiment (pythonfmu hands the slave the start time only); set to
+#: ``[1.0]`` it makes the next fmi2SetFMUstate, with a state fresh from bytes, the check of
+#: fmi2DeSerializeFMUstate (changes nothing).  No variable has it; the shim refuses it from a
+#: host.
+SHIM_VR = 0x7FFFFFFF
 #: Namespace of the deterministic GUIDs: uuid5(this, "<module>.<class> <version>").
 GUID_NAMESPACE = uuid.UUID("8d0f3bb2-5a52-4c55-9c1e-6d0e1b7c2a11")
 #: The sampled-data step rule, in the model description of every FMU.
@@ -79,7 +90,10 @@ STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep ac
              % MAX_SAMPLES_PER_STEP)
 
 _STATE_META = ("model", "guid", "version")
-_STATE_FIELDS = ("k", "time", "flags")
+#: Names of the variances in the hidden states (the filters' P; C twin: the SLAVE_HIDDEN_REAL
+#: checks with nonnegative = 1): a negative one is refused.
+VARIANCES = frozenset(("P", "P22", "Pxx", "Pyy", "P11", "P33", "P44"))
+_STATE_FIELDS = ("k", "time", "stop_time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
 _ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models
 _INF = math.inf
@@ -230,6 +244,8 @@ class SlaveBase(Fmi2Slave):
     DESCRIPTION = ""
     VARIABLES = ()
     DEPENDENCIES = {}
+    #: The loader shim may speak to this slave through :data:`SHIM_VR` (the builder records it).
+    SHIM_VR = SHIM_VR
     CAN_HANDLE_VARIABLE_STEP = True
     MAX_SAMPLES_PER_STEP = MAX_SAMPLES_PER_STEP
     #: Names of the hidden state: the fields of ``_committed`` and of the FMU state (None
@@ -252,6 +268,8 @@ class SlaveBase(Fmi2Slave):
                                                              self.version))
         self.description = "%s. %s" % (self.DESCRIPTION, STEP_RULE)
         self.start_time = 0.0
+        self._stop_time = _INF  # the defined stop time (inf: none)
+        self._stop_at = _INF    # it in sample periods after the start, once Ts is fixed
         self._elapsed = 0.0     # t - t_start, and the compensation of its running sum
         self._elapsed_c = 0.0
         self.k = 1              # the next sample to process (pending when _at_sample)
@@ -373,6 +391,15 @@ class SlaveBase(Fmi2Slave):
                 str(vr) for vr, s in self._specs.items() if s["type"] == kind) or "none")
 
     # -- setters: the whole call is checked before anything is assigned ---------------------
+    def _from_shim(self, values):
+        """What the loader shim sets to :data:`SHIM_VR`: ``[startTime, stopTimeDefined,
+        stopTime]`` (fmi2SetupExperiment) or ``[1.0]`` (the next fmi2SetFMUstate checks)."""
+        if len(values) == 1:
+            self._check_only = True
+            return
+        start, defined, stop = values
+        self._setup(start, stop if defined else None)
+
     def set_real(self, vrs, values):
         # the per-sample fast path: finite floats into inputs (v - v is 0 only when v is finite)
         if len(vrs) == 1 and len(values) == 1 and not self._terminated:
@@ -393,6 +420,9 @@ class SlaveBase(Fmi2Slave):
                         setattr(self, name, v)
                     self._dirty = True
                     return
+        if vrs[:1] == [SHIM_VR] and len(vrs) == len(values) and len(vrs) in (1, 3):
+            self._call(self._from_shim, values)
+            return
         self._call(self._set_checked, "fmi2SetReal", vrs, values, "Real")
 
     def set_integer(self, vrs, values):
@@ -515,8 +545,29 @@ class SlaveBase(Fmi2Slave):
 
     # -- FMI calls --------------------------------------------------------------------------
     def setup_experiment(self, start_time, stop_time=None, tolerance=None):
+        self._call(self._setup, start_time, stop_time)
+
+    def _setup(self, start_time, stop_time):
+        """The experiment: the start time and, when defined, the stop time (finite, at or after
+        the start); a step that would end after the stop time is refused (FMI 2.0,
+        fmi2SetupExperiment: an FMU asked to compute past a defined stop time returns an
+        error)."""
+        if not (_is_number(start_time) and math.isfinite(start_time)):
+            self._fail("fmi2SetupExperiment: startTime = %r; allowed: a finite time"
+                       % (start_time,))
+        if stop_time is not None and not (_is_number(stop_time) and math.isfinite(stop_time)
+                                          and stop_time >= start_time):
+            self._fail("fmi2SetupExperiment: stopTime = %r s with startTime = %r s; allowed: a "
+                       "finite stop time >= startTime, or stopTimeDefined = false (nothing was "
+                       "changed)" % (stop_time, start_time))
         if not self._initialised:
-            self.start_time = start_time
+            self.start_time = float(start_time)
+            self._stop_time = _INF if stop_time is None else float(stop_time)
+
+    def _stop_position(self):
+        """The stop time in sample periods after the start (inf: none), as cs_do_step computes
+        it; for a step's end, compared with the same tolerance as the sample instants."""
+        return (self._stop_time - self.start_time) / self.Ts
 
     def enter_initialization_mode(self):
         if self._terminated:
@@ -541,6 +592,7 @@ class SlaveBase(Fmi2Slave):
         if not self.DEPENDENCIES:  # outputs of sample 1 now: they depend on no input
             pending, outputs = self._samples(hidden, 1, 1, True)
         self._commit(hidden, 1, True, 0.0, 0.0, outputs, pending)
+        self._stop_at = self._stop_position()
 
     def _refresh_in_init(self):
         """Outputs in Initialization Mode: sample 1 from the start values and inputs (after
@@ -570,7 +622,8 @@ class SlaveBase(Fmi2Slave):
                                           else ((step_size - elapsed) + s))
                 position = (elapsed + comp) / self.Ts
                 k = self.k
-                if k - 1 < position - INSTANT_TOLERANCE <= k:
+                if k - 1 < position - INSTANT_TOLERANCE <= k and \
+                        position - INSTANT_TOLERANCE <= self._stop_at:
                     at_sample = k <= position + INSTANT_TOLERANCE
                     if self._feedthrough or not at_sample:
                         self._committed = self._pending  # _commit(pending, k + 1, ...)
@@ -610,6 +663,12 @@ class SlaveBase(Fmi2Slave):
             self._fail("communication step h = %r s spans more than %d sample instants of "
                        "Ts = %r s; allowed: at most MAX_SAMPLES_PER_STEP = %d sample instants "
                        "per step, h <= about %r s" % (h, limit, Ts, limit, room))
+        if not position - tol <= self._stop_at:  # (C twin: cs_do_step, refused_stop)
+            self._fail("communication step h = %r s from t = %r s ends at t = %r s, after the "
+                       "stop time %r s (fmi2SetupExperiment); allowed: steps that end at or "
+                       "before the stop time (within a millionth of a sample period); nothing "
+                       "was changed" % (h, self.start_time + (self._elapsed + self._elapsed_c),
+                                        self.start_time + (elapsed + comp), self._stop_time))
         last = _ceil(position - tol)          # index (k - 1) of the first instant at or after t+h
         m = max(0, last + 1 - k)              # instants in [t, t + h)
         at_sample = last <= position + tol    # t + h is that instant
@@ -759,9 +818,10 @@ class SlaveBase(Fmi2Slave):
         """Problems of a hidden state read back for the current parameters (hook)."""
         return []
 
-    def _timing_problems(self, k, time, at_sample):
+    def _timing_problems(self, k, time, at_sample, stop):
         """Whether sample index ``k`` and the at-a-sample flag agree with the time of a state
-        (as :meth:`_step` derives them: ``k - 1`` is the first instant at or after ``t``)."""
+        (as :meth:`_step` derives them: ``k - 1`` is the first instant at or after ``t``), and
+        the time is not after the stop time ``stop`` (None: none defined)."""
         position = (time[1] + time[2]) / self.Ts
         if not math.isfinite(position):
             return ["time = %r is not a finite number of sample periods Ts = %r s"
@@ -771,6 +831,9 @@ class SlaveBase(Fmi2Slave):
             return ["k = %r and at_sample = %r do not match the time %r s after the start "
                     "(the next sample there is k = %d)" % (k, at_sample, time[1] + time[2],
                                                             first + 1)]
+        if stop is not None and not position - INSTANT_TOLERANCE <= (stop - time[0]) / self.Ts:
+            return ["the time %r s after the start is after the stop time %r s; allowed: a "
+                    "time at or before the stop time" % (time[1] + time[2], stop)]
         return []
 
     # -- FMU state: variables plus hidden state ---------------------------------------------
@@ -783,6 +846,7 @@ class SlaveBase(Fmi2Slave):
             state[s["name"]] = getattr(self, s["name"])
         state["k"] = self.k
         state["time"] = [self.start_time, self._elapsed, self._elapsed_c]
+        state["stop_time"] = None if self._stop_time == _INF else self._stop_time
         state["flags"] = {"initialised": self._initialised, "in_init": self._in_init,
                           "at_sample": self._at_sample, "terminated": self._terminated}
         for name in self.HIDDEN:
@@ -790,29 +854,54 @@ class SlaveBase(Fmi2Slave):
         return state
 
     def _set_fmu_state(self, state):
+        check_only = self.__dict__.pop("_check_only", False)  # (SHIM_VR: once)
+        if type(state) is Deserialised:
+            if check_only or state.why is not None:
+                self._call(self._check_deserialised, state,
+                           "fmi2DeSerializeFMUstate" if check_only else "fmi2SetFMUstate")
+                return
+            state = state.state
         self._call(self._restore, state)
 
-    def _restore(self, state):
+    def _check_deserialised(self, d, function):
+        """Check a state read from bytes as fmi2SetFMUstate would, and change nothing (the
+        loader shim's check in fmi2DeSerializeFMUstate)."""
+        if d.why is not None:
+            self._fail("%s: not an FMU state of %s: %d bytes that are not a serialised state "
+                       "(%s); allowed: the bytes fmi2SerializeFMUstate of this FMU wrote"
+                       % (function, type(self).__name__, d.size, d.why))
+        self._restore(d.state, function, assign=False)
+
+    def _restore(self, state, function="fmi2SetFMUstate", assign=True):
+        """Check ``state`` field by field (as the native twins check theirs: cosimulation.c,
+        snapshot_problems) and, with ``assign``, make it the instance's; a state with any
+        problem is refused as a whole (every problem logged) and nothing is changed."""
         cls = type(self).__name__
         if not isinstance(state, dict):
-            self._fail("fmi2SetFMUstate: not an FMU state of %s: %.80r" % (cls, state))
+            self._fail("%s: not an FMU state of %s: %.80r; allowed: a state that this FMU "
+                       "produced" % (function, cls, state))
         mine = self._identity()
+        if not isinstance(state.get("model"), str):
+            self._fail("%s: not an FMU state of %s: a JSON object without the model, GUID and "
+                       "version of a state (%.60r); allowed: a state that this FMU (%s, GUID "
+                       "%s) produced" % (function, cls, sorted(map(str, state))[:6], cls,
+                                         mine["guid"]))
         if state.get("model") != mine["model"]:
-            self._fail("fmi2SetFMUstate: this is an FMU state of model %.40r, not of %s; "
-                       "allowed: a state that this FMU (%s, GUID %s) produced"
-                       % (state.get("model"), cls, cls, mine["guid"]))
+            self._fail("%s: this is an FMU state of model %.40r, not of %s; allowed: a state "
+                       "that this FMU (%s, GUID %s) produced"
+                       % (function, state.get("model"), cls, cls, mine["guid"]))
         for key in ("guid", "version"):
             if state.get(key) != mine[key]:
-                self._fail("fmi2SetFMUstate: the FMU state of %s has %s %.60r, this FMU has "
-                           "%r; allowed: a state of this very FMU (same build and version)"
-                           % (cls, key, state.get(key), mine[key]))
+                self._fail("%s: the FMU state of %s has %s %.60r, this FMU has %r; allowed: a "
+                           "state of this very FMU (same build and version)"
+                           % (function, cls, key, state.get(key), mine[key]))
         expected = _STATE_META + tuple(s["name"] for s in self.VARIABLES) + _STATE_FIELDS \
             + tuple(self.HIDDEN)
         unknown = sorted(str(key) for key in state if key not in expected)
         missing = [key for key in expected if key not in state]
         if unknown or missing:
-            self._fail("fmi2SetFMUstate: the FMU state of %s has %s; allowed: exactly the "
-                       "fields %s" % (cls, " and ".join(
+            self._fail("%s: the FMU state of %s has %s; allowed: exactly the fields %s" % (
+                           function, cls, " and ".join(
                            part for part in (unknown and "unknown fields %s" % unknown[:8],
                                              missing and "missing fields %s" % missing) if part),
                            ", ".join(expected)))
@@ -833,9 +922,22 @@ class SlaveBase(Fmi2Slave):
                 and all(_is_number(v) and math.isfinite(v) for v in time) and time[1] >= 0.0):
             problems.append("time = %.80r is not [t_start, elapsed >= 0, compensation] of "
                             "finite numbers" % (time,))
+        stop = state["stop_time"]
+        if stop is not None and not (_is_number(stop) and math.isfinite(stop) and (
+                not isinstance(time, list) or not time or not _is_number(time[0])
+                or stop >= time[0])):
+            problems.append("stop_time = %.40r is not null (none defined) or a finite time at "
+                            "or after the start time" % (stop,))
         if not (isinstance(flags, dict) and sorted(flags) == sorted(_FLAGS)
                 and all(isinstance(v, bool) for v in flags.values())):
             problems.append("flags = %.80r is not {%s} of booleans" % (flags, ", ".join(_FLAGS)))
+            flags = None
+        elif flags["initialised"] and flags["in_init"]:
+            problems.append("flags initialised and in_init are both true; allowed: one mode "
+                            "(in_init in Initialization Mode, initialised after it)")
+        elif flags["terminated"] and not (flags["initialised"] or flags["in_init"]):
+            problems.append("flags terminated without initialised or in_init; allowed: "
+                            "terminated after Initialization Mode was entered")
         hidden = {}
         for name in self.HIDDEN:
             try:
@@ -843,11 +945,29 @@ class SlaveBase(Fmi2Slave):
             except (ValueError, TypeError, ArithmeticError) as exc:
                 problems.append("hidden state %s = %.80r is not valid (%s)"
                                 % (name, state[name], exc))
+                continue
+            for part, v in _numbers(name, hidden[name]):
+                if part.rpartition(".")[2] in VARIANCES and not v >= 0.0:
+                    problems.append("hidden state %s = %r is a negative variance; allowed: "
+                                    "%s >= 0" % (part, v, part))
+        if flags is not None and not flags["initialised"]:
+            # before initialisation: no hidden state, at sample 1, no time elapsed (C twin:
+            # snapshot_problems)
+            if any(value is not None for value in hidden.values()):
+                problems.append("the hidden state %s is set although initialised is false; "
+                                "allowed: null before initialisation" % ", ".join(
+                                    name for name, value in hidden.items() if value is not None))
+            if k != 1 or flags["at_sample"] is not True:
+                problems.append("k = %.40r, at_sample = %r before initialisation; allowed: k = "
+                                "1, at_sample = true" % (k, flags["at_sample"]))
+            if isinstance(time, list) and len(time) == 3 and (time[1] != 0.0 or time[2] != 0.0):
+                problems.append("time = %.80r: time elapsed before initialisation; allowed: "
+                                "[t_start, 0.0, 0.0]" % (time,))
         if problems:
             for msg in problems[:-1]:
-                self._log_error("fmi2SetFMUstate: %s" % msg)
-            self._fail("fmi2SetFMUstate: %s; the state is refused and nothing was changed"
-                       % problems[-1])
+                self._log_error("%s: %s" % (function, msg))
+            self._fail("%s: %s; the state is refused and nothing was changed"
+                       % (function, problems[-1]))
         if flags["initialised"]:
             # the parameters of an initialised state must be valid ones: check them on a copy
             saved = self.parameter_values()
@@ -865,35 +985,62 @@ class SlaveBase(Fmi2Slave):
                                % ", ".join(missing)]
                     else:
                         bad = self.hidden_problems(hidden) + self._timing_problems(
-                            k, time, flags["at_sample"])
+                            k, time, flags["at_sample"], stop)
             finally:
                 for name, value in saved.items():
                     setattr(self, name, value)
                 if self._initialised:
                     self.prepare()  # the derived constants of the parameters kept
             if bad:
-                self._fail("fmi2SetFMUstate: the FMU state of %s is not valid: %s; the state is "
-                           "refused and nothing was changed" % (cls, bad[0]))
+                self._fail("%s: the FMU state of %s is not valid: %s; the state is refused and "
+                           "nothing was changed" % (function, cls, bad[0]))
+        if not assign:
+            return
         for name, value in values.items():
             setattr(self, name, value)
         self._committed = hidden
         self.k = k
         self.start_time, self._elapsed, self._elapsed_c = (float(v) for v in time)
+        self._stop_time = _INF if stop is None else float(stop)
         self._initialised, self._in_init = flags["initialised"], flags["in_init"]
         self._at_sample, self._terminated = flags["at_sample"], flags["terminated"]
         self._pending = None
         self._dirty = True
         if self._initialised:
             self.prepare()
+            self._stop_at = self._stop_position()
 
     @staticmethod
     def _fmu_state_from_bytes(data):
-        """The state in ``data``, or None (which fmi2SetFMUstate then refuses with an error)
-        when ``data`` is not a serialised state: an exception here would crash pythonfmu."""
+        """A :class:`Deserialised` of ``data`` (the state, or why the bytes are not one), which
+        the loader shim has the instance check before it hands it out (fmi2DeSerializeFMUstate
+        refuses bad bytes with the reason; this class method has no instance to log with, and
+        without the shim fmi2SetFMUstate refuses them).  An exception here would crash
+        pythonfmu."""
         try:
-            return Fmi2Slave._fmu_state_from_bytes(data)
+            try:
+                return Deserialised(Fmi2Slave._fmu_state_from_bytes(data), len(data), None)
+            except Exception as exc:
+                return Deserialised(None, len(data), "%s: %s" % (type(exc).__name__, exc))
         except Exception:
             return None
+
+    @staticmethod
+    def _fmu_state_to_bytes(state):
+        if type(state) is Deserialised:
+            state = state.state
+        return Fmi2Slave._fmu_state_to_bytes(state)
+
+
+class Deserialised:
+    """What fmi2DeSerializeFMUstate made of a host's bytes: ``state`` (None when the bytes are
+    not one, ``why`` saying why) of ``size`` bytes.  The loader shim has the instance check it
+    before handing it out (:data:`SHIM_VR`); fmi2SetFMUstate checks it again and restores it."""
+
+    __slots__ = ("state", "size", "why")
+
+    def __init__(self, state, size, why):
+        self.state, self.size, self.why = state, size, why
 
 
 #: One category string for every error line (pythonfmu 0.7.0 keeps a reference to each

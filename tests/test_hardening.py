@@ -132,6 +132,40 @@ def test_state_fields_are_checked_before_anything_is_set(field, value, text):
     assert not messages(s)
 
 
+def test_deserialised_bytes_are_checked_when_the_shim_asks_and_restored_when_set():
+    """The Python side of fmi2DeSerializeFMUstate's check: the class reads bytes into a
+    Deserialised (never raising), SHIM_VR = [1] makes the next fmi2SetFMUstate only check it
+    (the loader shim's check: nothing changes), and an fmi2SetFMUstate restores it; without the
+    shim's word (an FMU built without the shim) the set checks and restores at once, and bytes
+    that are no state are refused with the reason."""
+    from driftfmu.fmu_src.slave_base import SHIM_VR, Deserialised
+    s = ready(DriftEstimator)
+    s.do_step(0.0, 1e-3)
+    data = json.dumps(s._get_fmu_state()).encode()
+    s.do_step(1e-3, 1e-3)
+    moved = snapshot(s)
+    d = DriftEstimator._fmu_state_from_bytes(data)
+    assert type(d) is Deserialised and d.why is None
+    s.set_real([SHIM_VR], [1.0])
+    s._set_fmu_state(d)               # the check: nothing changed, nothing said
+    assert not messages(s) and snapshot(s) == moved
+    s._set_fmu_state(d)               # the set
+    assert not messages(s) and s.k == 2
+    s.do_step(1e-3, 1e-3)
+    assert snapshot(s) == moved
+    for garbage in (b"hello", b"", b"[1, 2]"):
+        bad = DriftEstimator._fmu_state_from_bytes(garbage)
+        for shim in (True, False):
+            if shim:
+                s.set_real([SHIM_VR], [1.0])
+            s._set_fmu_state(bad)
+            said = messages(s)
+            assert len(said) == 1 and "not an FMU state of DriftEstimator" in said[0], said
+            assert ("fmi2DeSerializeFMUstate" if shim else "fmi2SetFMUstate") in said[0]
+            assert snapshot(s) == moved
+    assert DriftEstimator._fmu_state_to_bytes(d) == data
+
+
 def test_missing_field_is_refused():
     s = ready(Accelerometer)
     good = _state_of(s)
@@ -406,13 +440,12 @@ def test_fmu_state_pointer_and_bytes_of_another_fmu_are_refused(built_fmus):
     # the loader shim refuses a pointer it did not hand out before anything reads it
     assert "is not a live state of this loaded copy" in est.messages[-1]
     blob = acc.fmu.serializeFMUstate(foreign)
-    state = est.fmu.deSerializeFMUstate(blob)
-    with pytest.raises(Exception, match="status 3"):
-        est.fmu.setFMUstate(state)
+    with pytest.raises(Exception, match="status 3"):  # refused as the bytes are read
+        est.fmu.deSerializeFMUstate(blob)
+    assert "this is an FMU state of model 'Accelerometer'" in est.messages[-1]
     assert est.fmu.getReal([est.vrs["x_hat"], est.vrs["R"]]) == before
     est.fmu.doStep(currentCommunicationPoint=1e-3, communicationStepSize=1e-3)
     acc.fmu.freeFMUstate(foreign)
-    est.fmu.freeFMUstate(state)
     acc.free()
     est.free()
 

@@ -21,9 +21,12 @@
  *      fmi2Instantiate) with a log line naming what was given and what is allowed: the
  *      resource location (every file URI form FMI 2.0 allows, decoded here, since pythonfmu
  *      0.7.0 strips only "file://" and decodes only "%20", and crashes on a folder it cannot
- *      find), the GUID and the fmuType, the FMI 2.0 state machine, NULL pointers, value
- *      references pythonfmu would pass on as negative numbers, FMU state pointers and bytes it
- *      did not hand out.  It answers the status inquiries itself;
+ *      find), the GUID and the fmuType, the FMI 2.0 state machine, NULL pointers, counts no
+ *      array can have, value references pythonfmu would pass on as negative numbers, FMU
+ *      states that are not the calling instance's.  It answers the status inquiries itself,
+ *      hands the model fmi2SetupExperiment's stop time (pythonfmu passes the start time only),
+ *      has the model check a deserialised state before handing it out, and frees an
+ *      instance's states with it;
  *   5. keeps freed instances, reset, for the next fmi2Instantiate of the same name (pythonfmu
  *      leaks about 1 kB for every instance it creates).
  *
@@ -36,6 +39,7 @@
 #include <math.h>
 #include <pthread.h>
 #include <stdarg.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -44,6 +48,7 @@
 #include <unistd.h>
 
 #include "fmi2Functions.h"
+#include "state_handles.h" /* fmu_src/native/, shared with the native plumbing */
 
 #ifndef DRIFTFMU_BUILD_LIBPYTHON
 #define DRIFTFMU_BUILD_LIBPYTHON "libpython3.so"
@@ -118,6 +123,7 @@ typedef struct Instance {
     fmi2Status worst; /* worst of error and fatal logged during the current call */
     int state;        /* one of the states above */
     char guid[128];   /* the FMU's GUID, checked at instantiation */
+    int speaks;       /* the model understands SHIM_VR (the build record says so) */
     double start_time, time; /* from fmi2SetupExperiment; the end of the last accepted step */
     double elapsed, elapsed_c; /* time - start_time as the model keeps it: Neumaier's sum of the
                                   accepted step sizes (time = start_time + (elapsed + c)) */
@@ -495,15 +501,23 @@ static int null_array(Instance *inst, const char *function, const char *name, si
 }
 
 /*
+ * The value reference through which the shim tells the model what pythonfmu 0.7.0 does not pass
+ * on (slave_base.SHIM_VR; no variable has it): set to [startTime, stopTimeDefined, stopTime] it
+ * is fmi2SetupExperiment (pythonfmu passes the model the start time only); set to [1] it makes
+ * the next fmi2SetFMUstate the check of a state fresh from fmi2DeSerializeFMUstate.
+ */
+#define SHIM_VR 0x7fffffffu
+
+/*
  * 1 (logged) if a value reference cannot be one of this FMU's.  pythonfmu passes value
  * references to Python as signed ints, so 2^31 and above would reach the model as negative
- * numbers; the shim refuses them itself and prints them unsigned.
+ * numbers; the shim refuses them itself and prints them unsigned, and SHIM_VR too.
  */
 static int bad_references(Instance *inst, const char *function, const fmi2ValueReference vr[],
                           size_t nvr)
 {
     for (size_t i = 0; i < nvr; i++) {
-        if (vr[i] > 0x7fffffffu) {
+        if (vr[i] >= SHIM_VR) {
             shim_log(inst, fmi2Error, "%s: value reference %u does not exist; the model "
                      "description lists the value references of this FMU", function,
                      (unsigned)vr[i]);
@@ -513,8 +527,27 @@ static int bad_references(Instance *inst, const char *function, const fmi2ValueR
     return 0;
 }
 
+/*
+ * The count rule: a get or set names at most MAX_VALUES_PER_CALL value references (as the native
+ * FMUs, cosimulation.h).  A larger count cannot be a list of this FMU's variables; it is refused
+ * before any element of the host's arrays is read (pythonfmu would read nvr of each, and the
+ * shim's own checks too: SIZE_MAX or 2^31 with a short array reads past it).  A count within
+ * the bound is taken at its word: only the host knows its arrays.
+ */
+#define MAX_VALUES_PER_CALL 65536u
+
+static int too_many(Instance *inst, const char *function, const char *what, size_t n)
+{
+    if (n <= MAX_VALUES_PER_CALL)
+        return 0;
+    shim_log(inst, fmi2Error, "%s: %s = %zu; allowed: at most %u per call (a larger count "
+             "cannot list this FMU's variables); nothing was read and nothing was changed",
+             function, what, n, MAX_VALUES_PER_CALL);
+    return 1;
+}
+
 #define CHECK_ARRAYS(function, vr, nvr, value)                                               \
-    if (null_array(inst, function, "vr", nvr, vr) ||                                         \
+    if (too_many(inst, function, "nvr", nvr) || null_array(inst, function, "vr", nvr, vr) ||  \
         null_array(inst, function, "value", nvr, value) ||                                   \
         bad_references(inst, function, vr, nvr))                                             \
     return fmi2Error
@@ -659,16 +692,19 @@ static int value_after(const char *text, const char *key, char end, char *out, s
 
 /*
  * The FMU's GUID: from resources/driftfmu_build.json (the builder writes it there), else from
- * the modelDescription.xml beside the resources folder.
+ * the modelDescription.xml beside the resources folder.  *speaks: the build record says that
+ * the model understands SHIM_VR (a driftfmu slave: "shim_vr": true).
  */
-static int fmu_guid(const char *folder, char *guid, size_t n)
+static int fmu_guid(const char *folder, char *guid, size_t n, int *speaks)
 {
     size_t len = strlen(folder) + 64;
     char *path = malloc(len), *text = malloc(1 << 16);
     int found = 0;
+    *speaks = 0;
     if (path && text) {
         snprintf(path, len, "%s/driftfmu_build.json", folder);
         found = read_text(path, text, 1 << 16) && value_after(text, "\"guid\": \"", '"', guid, n);
+        *speaks = found && strstr(text, "\"shim_vr\": true") != NULL;
         if (!found) {
             snprintf(path, len, "%s/../modelDescription.xml", folder);
             found = read_text(path, text, 1 << 16) && value_after(text, " guid=\"", '"', guid, n);
@@ -851,7 +887,7 @@ static char *checked_arguments(Instance *inst, fmi2String instanceName, fmi2Type
             snprintf(why, sizeof why, "fmuResourceLocation \"%s\" is the folder \"%s\", which is "
                      "not the resources folder of this FMU (it has no slavemodule.txt); "
                      ALLOWED_LOCATIONS, fmuResourceLocation, folder);
-        } else if (!fmu_guid(folder, guid, sizeof guid)) {
+        } else if (!fmu_guid(folder, guid, sizeof guid, &inst->speaks)) {
             snprintf(why, sizeof why, "cannot read this FMU's GUID from %s/driftfmu_build.json "
                      "or %s/../modelDescription.xml", folder, folder);
         } else if (!fmuGUID || strcmp(fmuGUID, guid)) {
@@ -935,11 +971,14 @@ fmi2Component fmi2Instantiate(fmi2String instanceName, fmi2Type fmuType, fmi2Str
     return inst;
 }
 
+static void free_states_of(Instance *inst);
+
 void fmi2FreeInstance(fmi2Component c)
 {
     Instance *inst = (Instance *)c;
     if (!inst)
         return;
+    free_states_of(inst); /* every state the instance got or deserialised dies with it */
     if (inst->state != FATAL && to_pool(inst))
         return;
     /* After a fatal error pythonfmu 0.7.0 has released the instance's Python objects already,
@@ -953,7 +992,8 @@ fmi2Status fmi2SetDebugLogging(fmi2Component c, fmi2Boolean loggingOn, size_t nC
                                const fmi2String categories[])
 {
     INSTANCE(c, "fmi2SetDebugLogging", ANY_STATE);
-    if (null_count_array(inst, "fmi2SetDebugLogging", "categories", "nCategories", nCategories,
+    if (too_many(inst, "fmi2SetDebugLogging", "nCategories", nCategories) ||
+        null_count_array(inst, "fmi2SetDebugLogging", "categories", "nCategories", nCategories,
                          categories))
         return fmi2Error;
     /* the new list is made first: out of memory leaves the old one in place (calloc checks
@@ -990,8 +1030,14 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
                  "time", startTime);
         return fmi2Error;
     }
-    fmi2Status status = CALL(inner.SetupExperiment(inst->inner, toleranceDefined, tolerance,
-                                                   startTime, stopTimeDefined, stopTime));
+    /* a driftfmu model gets the stop time too, checks it and refuses a step past it */
+    const fmi2ValueReference vr[3] = {SHIM_VR, SHIM_VR, SHIM_VR};
+    const fmi2Real experiment[3] = {startTime, stopTimeDefined ? 1.0 : 0.0,
+                                    stopTimeDefined ? stopTime : 0.0};
+    fmi2Status status = inst->speaks
+        ? CALL(inner.SetReal(inst->inner, vr, 3, experiment))
+        : CALL(inner.SetupExperiment(inst->inner, toleranceDefined, tolerance, startTime,
+                                     stopTimeDefined, stopTime));
     if (status <= fmi2Warning) {
         inst->start_time = inst->time = startTime;
         inst->elapsed = inst->elapsed_c = 0.0;
@@ -1113,15 +1159,24 @@ fmi2Status fmi2SetString(fmi2Component c, const fmi2ValueReference vr[], size_t 
 /* -- FMU states ---------------------------------------------------------------------------- */
 
 /*
- * An FMU state is a shim record around pythonfmu's (a Python object): the model's GUID and the
- * instance's FMI state and time go with it, and every live record is listed, so that a pointer
- * the shim did not hand out (garbage, freed, another FMU's) is refused without reading it.
- * Serialised, a state is the model's bytes (JSON with the model's name, GUID and version, which
- * the model checks when the state is set).
+ * An FMU state is a shim record around pythonfmu's (a Python object): the model's GUID, the
+ * instance that owns it and the instance's FMI state and time go with it.  The host holds a
+ * handle, not the record's address: a number the shim issues once (a serial number, with a tag
+ * of this loaded copy of the library in the high bits and a bit that makes it a non-canonical
+ * address on x86-64), so a freed state's handle never comes back as a live state when memory is
+ * reused.  Every live record is listed: a handle that is not a live state of the calling
+ * instance (garbage, freed, freed with its instance, another instance's, another FMU's or
+ * another loaded copy's) is refused, naming which, without reading anything.  A state belongs
+ * to the instance that got or deserialised it, and fmi2FreeInstance frees every state of the
+ * instance (FMI 2.0: it frees all memory the FMU's functions allocated).  Serialised, a state
+ * is the model's bytes (JSON with the model's name, GUID and version, which the model checks,
+ * with every other field, when the bytes are deserialised and again when the state is set).
  */
 
 typedef struct State {
     struct State *next;
+    uintptr_t handle;
+    const Instance *owner;
     fmi2FMUstate inner;
     char guid[128];
     int state;
@@ -1130,20 +1185,24 @@ typedef struct State {
 
 static pthread_mutex_t states_lock = PTHREAD_MUTEX_INITIALIZER;
 static State *live_states;
+static uint64_t issued; /* handles issued so far (the last serial number) */
 
-static int is_live(const void *p)
+/* The live record of handle h, or NULL (the caller holds the lock). */
+static State *find_locked(const void *h)
 {
-    int found = 0;
-    pthread_mutex_lock(&states_lock);
-    for (State *s = live_states; s && !found; s = s->next)
-        found = (const void *)s == p;
-    pthread_mutex_unlock(&states_lock);
-    return found;
+    for (State *s = live_states; s; s = s->next)
+        if ((const void *)s->handle == h)
+            return s;
+    return NULL;
 }
 
-static void add_live(State *s)
+/* Issue a handle for s, owned by inst, and list it. */
+static void add_live(State *s, const Instance *inst)
 {
     pthread_mutex_lock(&states_lock);
+    issued = state_next_serial(issued);
+    s->handle = state_handle(&issued, issued);
+    s->owner = inst;
     s->next = live_states;
     live_states = s;
     pthread_mutex_unlock(&states_lock);
@@ -1160,40 +1219,99 @@ static void remove_live(State *s)
     pthread_mutex_unlock(&states_lock);
 }
 
-/* The record behind a state the host passed, or NULL (logged). */
+/* Free every state inst owns: pythonfmu's states too while the instance can still free them
+   (after an fmi2Fatal pythonfmu's instance is left alone, as fmi2FreeInstance leaves it). */
+static void free_states_of(Instance *inst)
+{
+    State *mine = NULL;
+    pthread_mutex_lock(&states_lock);
+    for (State **p = &live_states; *p;) {
+        State *s = *p;
+        if (s->owner == inst) {
+            *p = s->next;
+            s->next = mine;
+            mine = s;
+        } else {
+            p = &s->next;
+        }
+    }
+    pthread_mutex_unlock(&states_lock);
+    while (mine) {
+        State *s = mine;
+        mine = s->next;
+        if (inst->state != FATAL)
+            CALL(inner.FreeFMUstate(inst->inner, &s->inner));
+        free(s);
+    }
+}
+
+/* What a handle that is not a live state of inst is: 1 another instance's, 2 issued by this
+   library and freed since, 0 anything else (never issued here: garbage, another library's);
+   -1 (and *mine set) when it is a live state of inst. */
+static int stranger(const Instance *inst, const void *h, State **mine)
+{
+    pthread_mutex_lock(&states_lock); /* (read under the lock: another instance may free it) */
+    State *s = find_locked(h);
+    const int owned = s && s->owner == inst;
+    const uint64_t last = issued;
+    pthread_mutex_unlock(&states_lock);
+    *mine = owned ? s : NULL;
+    if (s)
+        return owned ? -1 : 1;
+    return state_issued_here(&issued, h, last) ? 2 : 0;
+}
+
+/* The record behind a state the host passed when it is a live state of inst, or NULL
+   (logged, naming what the handle is). */
 static State *known_state(Instance *inst, const char *function, fmi2FMUstate state)
 {
     if (!state) {
         shim_log(inst, fmi2Error, "%s: FMUstate is NULL; allowed: a state from "
-                 "fmi2GetFMUstate or fmi2DeSerializeFMUstate of this FMU", function);
+                 "fmi2GetFMUstate or fmi2DeSerializeFMUstate of this instance", function);
         return NULL;
     }
-    if (!is_live(state)) {
+    State *s;
+    switch (stranger(inst, state, &s)) {
+    case -1:
+        break;
+    case 1:
+        shim_log(inst, fmi2Error, "%s: FMUstate %p belongs to another instance of this FMU "
+                 "(GUID %s), not to this one: a state is valid only in the instance that made "
+                 "it (to move a state between instances, serialise it and deserialise it in "
+                 "the other); allowed: a live state of this instance", function, state,
+                 inst->guid);
+        return NULL;
+    case 2:
+        shim_log(inst, fmi2Error, "%s: FMUstate %p is freed: by fmi2FreeFMUstate, or with the "
+                 "instance that made it (fmi2FreeInstance frees every state of the instance); "
+                 "allowed: a live state of this instance", function, state);
+        return NULL;
+    default:
         shim_log(inst, fmi2Error, "%s: FMUstate %p is not a live state of this loaded copy of "
                  "the FMU (GUID %s): not made by its fmi2GetFMUstate or "
-                 "fmi2DeSerializeFMUstate, or freed already (a state pointer is valid only in "
-                 "the library that made it; to move a state between copies of an FMU, "
-                 "serialise it); allowed: a live state", function, state, inst->guid);
+                 "fmi2DeSerializeFMUstate (a state pointer is valid only in the library and the "
+                 "instance that made it; to move a state between copies of an FMU, serialise "
+                 "it); allowed: a live state of this instance", function, state, inst->guid);
         return NULL;
     }
-    if (strcmp(((State *)state)->guid, inst->guid)) {
+    if (strcmp(s->guid, inst->guid)) { /* (cannot happen: the owner is this instance) */
         shim_log(inst, fmi2Error, "%s: FMUstate %p is a state of the FMU with GUID %s, not of "
                  "this one (GUID %s); allowed: a live state of this FMU", function, state,
-                 ((State *)state)->guid, inst->guid);
+                 s->guid, inst->guid);
         return NULL;
     }
-    return (State *)state;
+    return s;
 }
 
 /*
- * Put pythonfmu's state `fresh` into *FMUstate: into the record already there (whose old
- * state is freed) or into a new one.
+ * Put pythonfmu's state `fresh` into *FMUstate: into the record already there when it is a live
+ * state of inst (whose old state is freed), or into a new one.
  */
 static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *FMUstate,
                               const State *fields)
 {
-    State *s = (State *)*FMUstate;
-    if (s && is_live(s)) {
+    State *s = NULL;
+    if (*FMUstate && stranger(inst, *FMUstate, &s) == -1) {
         fmi2FMUstate old = s->inner;
         inner.FreeFMUstate(inst->inner, &old);
     } else {
@@ -1203,7 +1321,7 @@ static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *
             shim_log(inst, fmi2Error, "out of memory for an FMU state");
             return fmi2Error;
         }
-        add_live(s);
+        add_live(s, inst);
     }
     s->inner = fresh;
     snprintf(s->guid, sizeof s->guid, "%s", inst->guid);
@@ -1212,17 +1330,18 @@ static fmi2Status store_state(Instance *inst, fmi2FMUstate fresh, fmi2FMUstate *
     s->time = fields->time;
     s->elapsed = fields->elapsed;
     s->elapsed_c = fields->elapsed_c;
-    *FMUstate = s;
+    *FMUstate = (fmi2FMUstate)s->handle;
     return fmi2OK;
 }
 
-/* A non-NULL *FMUstate that is not a live state: said in a warning, and left alone. */
+/* A non-NULL *FMUstate that is not a live state of inst: said in a warning, and left alone. */
 static fmi2Status check_target(Instance *inst, const char *function, fmi2FMUstate *FMUstate)
 {
-    if (*FMUstate && !is_live(*FMUstate)) {
-        shim_log(inst, fmi2Warning, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
-                 "a new state is returned and the old pointer is left alone", function,
-                 *FMUstate);
+    State *s;
+    if (*FMUstate && stranger(inst, *FMUstate, &s) != -1) {
+        shim_log(inst, fmi2Warning, "%s: *FMUstate = %p is not a live FMU state of this "
+                 "instance; a new state is returned and the old pointer is left alone",
+                 function, *FMUstate);
         *FMUstate = NULL;
         return fmi2Warning;
     }
@@ -1278,7 +1397,8 @@ fmi2Status fmi2FreeFMUstate(fmi2Component c, fmi2FMUstate *FMUstate)
     if (!s)
         return fmi2Error;
     remove_live(s);
-    inner.FreeFMUstate(inst->inner, &s->inner);
+    if (inst->state != FATAL)
+        inner.FreeFMUstate(inst->inner, &s->inner);
     free(s);
     *FMUstate = NULL;
     return fmi2OK;
@@ -1408,6 +1528,22 @@ fmi2Status fmi2DeSerializeFMUstate(fmi2Component c, const fmi2Byte serializedSta
         shim_log(inst, fmi2Error, "fmi2DeSerializeFMUstate: the model returned no state");
         return fmi2Error;
     }
+    /* the model checks what it read, every field as fmi2SetFMUstate will, and changes nothing
+       (SHIM_VR set to [1]: the next fmi2SetFMUstate is that check), so bad bytes are refused
+       here, with the reason */
+    const fmi2ValueReference check_vr[1] = {SHIM_VR};
+    const fmi2Real check_next[1] = {1.0};
+    fmi2Status checked = inst->speaks ? CALL(inner.SetReal(inst->inner, check_vr, 1, check_next))
+                                      : fmi2OK;
+    if (inst->speaks && checked <= fmi2Warning)
+        checked = CALL(inner.SetFMUstate(inst->inner, fresh));
+    if (checked > fmi2Warning) {
+        if (inst->state != FATAL)
+            inner.FreeFMUstate(inst->inner, &fresh);
+        return checked;
+    }
+    if (checked > status)
+        status = checked;
     fmi2Status stored = store_state(inst, fresh, &target, &fields);
     if (stored == fmi2OK)
         *FMUstate = target;

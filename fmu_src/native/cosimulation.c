@@ -14,6 +14,7 @@
 #include <string.h>
 
 #include "cosimulation.h"
+#include "state_handles.h"
 
 #define MESSAGE_SIZE 1024
 
@@ -195,6 +196,7 @@ static void to_start(ModelInstance *comp)
     comp->v = START;
     memset(&comp->h, 0, sizeof comp->h);
     comp->startTime = 0.0;
+    comp->stopTime = INFINITY;
     comp->time = 0.0;
     comp->elapsed = comp->elapsed_c = 0.0;
     comp->logContext = NULL;
@@ -241,10 +243,13 @@ ModelInstance *cs_instantiate(const char *instanceName, const char *token, int l
     return comp;
 }
 
+static void free_states_of(const ModelInstance *comp);
+
 void cs_free(ModelInstance *comp)
 {
     if (!comp)
         return;
+    free_states_of(comp);   /* every state the instance got or deserialised dies with it */
     free(comp->instanceName);
     free(comp);
 }
@@ -255,17 +260,25 @@ Status cs_set_debug_logging(ModelInstance *comp, int loggingOn)
     return STATUS_OK;
 }
 
-Status cs_setup(ModelInstance *comp, const char *function, double startTime)
+Status cs_setup(ModelInstance *comp, const char *function, double startTime,
+                int stopTimeDefined, double stopTime)
 {
     if (!cs_allowed(comp, function, STATE_INSTANTIATED))
         return STATUS_ERROR;
+    char b[32], b2[32];
     if (!isfinite(startTime)) {
-        char b[32];
         cs_log(comp, STATUS_ERROR, "%s: start time %s is not finite; allowed: a finite time",
                function, repr_double(startTime, b));
         return STATUS_ERROR;
     }
+    if (stopTimeDefined && !(isfinite(stopTime) && stopTime >= startTime)) {
+        cs_log(comp, STATUS_ERROR, "%s: stopTime = %s s with startTime = %s s; allowed: a "
+               "finite stop time >= startTime, or stopTimeDefined = false (nothing was "
+               "changed)", function, repr_double(stopTime, b), repr_double(startTime, b2));
+        return STATUS_ERROR;
+    }
     comp->startTime = startTime;
+    comp->stopTime = stopTimeDefined ? stopTime : INFINITY;
     comp->time = startTime;
     comp->dirty = 1;
     return STATUS_OK;
@@ -510,6 +523,16 @@ static void bad_references(char *out, size_t size, const unsigned int vr[], size
 #undef PUT
 }
 
+int cs_count_ok(ModelInstance *comp, const char *function, size_t n)
+{
+    if (LIKELY(n <= MAX_VALUES_PER_CALL))
+        return 1;
+    cs_log(comp, STATUS_ERROR, "%s: %llu value references in one call; allowed: at most %u "
+           "(a larger count cannot list this FMU's %d variables); nothing was read and nothing "
+           "was changed", function, (unsigned long long)n, MAX_VALUES_PER_CALL, N_VARIABLES);
+    return 0;
+}
+
 static NOINLINE Status refused_null(ModelInstance *comp, const char *function, size_t n)
 {
     cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function, (unsigned long)n);
@@ -529,7 +552,8 @@ Status cs_get(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, double reals[], int ints[])
 {
     /* FMI 2.0 and 3.0 alike: no getter before Initialization Mode (as the Python FMUs) */
-    if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP | STATE_TERMINATED))
+    if (!cs_allowed(comp, function, STATE_INITIALIZATION | STATE_STEP | STATE_TERMINATED) ||
+        !cs_count_ok(comp, function, n))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
         return refused_null(comp, function, n);
@@ -595,7 +619,7 @@ Status cs_set(ModelInstance *comp, const char *function, VariableType type,
               const unsigned int vr[], size_t n, const double reals[], const int ints[])
 {
     if (!cs_allowed(comp, function, STATE_INSTANTIATED | STATE_INITIALIZATION | STATE_STEP |
-                    STATE_TERMINATED))
+                    STATE_TERMINATED) || !cs_count_ok(comp, function, n))
         return STATUS_ERROR;
     if (n && (!vr || (type == TYPE_REAL ? !reals : !ints)))
         return refused_null(comp, function, n);
@@ -626,6 +650,8 @@ Status cs_no_such_type(ModelInstance *comp, const char *function, const char *ty
 {
     if (n == 0)
         return STATUS_OK;
+    if (!cs_count_ok(comp, function, n))
+        return STATUS_ERROR;
     if (!vr) {
         cs_log(comp, STATUS_ERROR, "%s: a NULL array for %lu values", function,
                (unsigned long)n);
@@ -703,6 +729,20 @@ static NOINLINE Status refused_span(ModelInstance *comp, double h, double positi
     return STATUS_ERROR;
 }
 
+/* A step that would end after the defined stop time by more than the tolerance of the sample
+ * instants (FMI 2.0 and 3.0: an FMU asked to compute past the stop time returns an error). */
+static NOINLINE Status refused_stop(ModelInstance *comp, double h, double elapsed)
+{
+    char bh[32], bt[32], be[32], bs[32];
+    cs_log(comp, STATUS_ERROR, "communication step h = %s s from t = %s s ends at t = %s s, "
+           "after the stop time %s s (%s); allowed: steps that end at or before the stop time "
+           "(within a millionth of a sample period); nothing was changed", repr_double(h, bh),
+           repr_double(comp->time, bt), repr_double(comp->startTime + elapsed, be),
+           repr_double(comp->stopTime, bs),
+           FMI_VERSION == 2 ? "fmi2SetupExperiment" : "fmi3EnterInitializationMode");
+    return STATUS_ERROR;
+}
+
 /* A step whose outputs or state came out non-finite (the instance is restored already). */
 static NOINLINE Status refused_result(ModelInstance *comp, const char *bad, double h)
 {
@@ -742,6 +782,8 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
     const double limit = (double)MAX_SAMPLES_PER_STEP;
     if (!LIKELY(position - tol <= limit + (double)k - 1.0))
         return refused_span(comp, h, position);
+    if (!LIKELY(position - tol <= (comp->stopTime - comp->startTime) / Ts))
+        return refused_stop(comp, h, elapsed + elapsed_c);
     const int64_t last = ceil_int(position - tol);   /* first instant at or after t + h */
     const int64_t m = last + 1 - k > 0 ? last + 1 - k : 0;   /* instants in [t, t + h) */
     StepPlan plan;
@@ -783,7 +825,7 @@ Status cs_do_step(ModelInstance *comp, const char *function, double currentTime,
  * through the API (crafted values have a valid checksum: the checks catch them), and the
  * state is refused as a whole, naming the field, otherwise.  See docs/native-hardening.md.
  */
-#define STATE_MAGIC "driftfmu-state-2"
+#define STATE_MAGIC "driftfmu-state-3"
 
 typedef struct {
     char magic[24];             /* STATE_MAGIC */
@@ -799,6 +841,7 @@ typedef struct {
     ModelVariables v;
     ModelHidden h;
     double startTime, time, elapsed, elapsed_c;
+    double stopTime;            /* +inf: none defined */
     int64_t k;
     int32_t pending, dirty, initialised, state;
 } Snapshot;
@@ -928,6 +971,10 @@ static int snapshot_problems(ModelInstance *comp, const char *function, const Sn
         STATE_PROBLEM("time = %s s is not startTime + elapsed = %s s; allowed: the time the "
                       "steps of the state add up to", repr_double(s->time, b1),
                       repr_double(s->startTime + (s->elapsed + s->elapsed_c), b2));
+    if (times_ok && !(s->stopTime >= s->startTime))
+        STATE_PROBLEM("stopTime = %s s with startTime = %s s; allowed: a stop time >= "
+                      "startTime, or inf (none defined)", repr_double(s->stopTime, b1),
+                      repr_double(s->startTime, b2));
     if (s->k < 1)
         STATE_PROBLEM("k = %lld is not a sample index; allowed: k >= 1", (long long)s->k);
     for (int i = 0; i < N_VARIABLES; i++) {
@@ -986,6 +1033,11 @@ static int snapshot_problems(ModelInstance *comp, const char *function, const Sn
                               (long long)s->k, (int)s->pending,
                               repr_double(s->elapsed + s->elapsed_c, b1),
                               repr_double(first + 1.0, b3), at);
+            if (!(position - tol <= (s->stopTime - s->startTime) / Ts))
+                STATE_PROBLEM("the time %s s after the start is after the stop time %s s; "
+                              "allowed: a time at or before the stop time",
+                              repr_double(s->elapsed + s->elapsed_c, b1),
+                              repr_double(s->stopTime, b2));
         }
         ModelInstance fresh = scratch;
         fresh.logContext = NULL;
@@ -1010,18 +1062,30 @@ verdict:
 }
 #undef STATE_PROBLEM
 
-/* ---- the live states: a state pointer a host passes is looked up before it is read --------- */
+/* ---- the live states: a state handle a host passes is looked up before anything is read ---- */
 
-/* A state handed to the host: the Snapshot, in a list of every live state of this library, so
- * that a pointer the plumbing did not hand out (garbage, freed, another library's) is refused
- * without being read.  The list is guarded by a spin lock (GCC/Clang atomics: no thread
- * library, so the Windows binaries keep needing only system DLLs). */
+/*
+ * A state handed to the host is a StateNode: the Snapshot, the instance that owns it, and the
+ * handle the host holds (state_handles.h: a number issued once, never an address, so a freed
+ * state's handle cannot come back as a live state when the memory is reused).
+ *
+ * Every live state of the library is in one list, guarded by a spin lock (GCC/Clang atomics: no
+ * thread library, so the Windows binaries keep needing only system DLLs).  A state belongs to
+ * the instance that got or deserialised it: the instance's free frees all its states (FMI 2.0
+ * and 3.0: fmi2FreeInstance/fmi3FreeInstance free all memory the FMU's functions allocated),
+ * and a handle that is not a live state of the calling instance (garbage, freed, freed with its
+ * instance, another instance's, another library's) is refused, naming which, without being
+ * read.  To move a state between instances, a host serialises it.
+ */
 typedef struct StateNode {
     struct StateNode *next;
+    uintptr_t handle;
+    const ModelInstance *owner;
     Snapshot s;
 } StateNode;
 
 static StateNode *live_states;
+static uint64_t issued;   /* handles issued so far (the last serial number) */
 static char live_lock;
 
 static void lock_states(void)
@@ -1035,19 +1099,22 @@ static void unlock_states(void)
     __atomic_clear(&live_lock, __ATOMIC_RELEASE);
 }
 
-static int is_live(const void *p)
+/* The live node of handle h, or NULL (the caller holds the lock). */
+static StateNode *find_locked(const void *h)
 {
-    int found = 0;
-    lock_states();
-    for (const StateNode *n = live_states; n && !found; n = n->next)
-        found = (const void *)n == p;
-    unlock_states();
-    return found;
+    for (StateNode *n = live_states; n; n = n->next)
+        if ((const void *)n->handle == h)
+            return n;
+    return NULL;
 }
 
-static void add_live(StateNode *node)
+/* Issue a handle for node, owned by comp, and list it. */
+static void add_live(StateNode *node, const ModelInstance *comp)
 {
     lock_states();
+    issued = state_next_serial(issued);
+    node->handle = state_handle(&issued, issued);
+    node->owner = comp;
     node->next = live_states;
     live_states = node;
     unlock_states();
@@ -1064,22 +1131,71 @@ static void remove_live(StateNode *node)
     unlock_states();
 }
 
-/* The node behind a state pointer a host passed, or NULL (logged). */
+/* Free every state comp owns (its free: nothing the instance's calls allocated outlives it). */
+static void free_states_of(const ModelInstance *comp)
+{
+    lock_states();
+    for (StateNode **p = &live_states; *p;) {
+        StateNode *n = *p;
+        if (n->owner == comp) {
+            *p = n->next;
+            free(n);
+        } else {
+            p = &n->next;
+        }
+    }
+    unlock_states();
+}
+
+/* What a handle that is not a live state of comp is: 1 another instance's, 2 issued by this
+ * library and freed since, 0 anything else (never issued here: garbage, another library's). */
+static int stranger(const ModelInstance *comp, const void *h, StateNode **mine)
+{
+    lock_states();   /* (the node is read under the lock: another instance may free it) */
+    StateNode *n = find_locked(h);
+    const int owned = n && n->owner == comp;
+    const uint64_t last = issued;
+    unlock_states();
+    *mine = owned ? n : NULL;
+    if (n)
+        return owned ? -1 : 1;
+    return state_issued_here(&issued, h, last) ? 2 : 0;
+}
+
+/* The node behind a state handle a host passed when it is a live state of comp, or NULL
+ * (logged, naming what the handle is). */
 static StateNode *known_state(ModelInstance *comp, const char *function, const void *state)
 {
     if (!state) {
         cs_log(comp, STATUS_ERROR, "%s: the FMU state is NULL; allowed: a state from this "
-               "FMU's get or deserialise call", function);
+               "instance's get or deserialise call", function);
         return NULL;
     }
-    if (!is_live(state)) {
+    StateNode *node;
+    switch (stranger(comp, state, &node)) {
+    case -1:
+        return node;
+    case 1:
+        cs_log(comp, STATUS_ERROR, "%s: FMU state %p belongs to another instance of %s, not to "
+               "this one: a state is valid only in the instance that made it (to move a state "
+               "between instances, serialise it and deserialise it in the other); allowed: a "
+               "live state of this instance", function, state, MODEL_NAME);
+        return NULL;
+    case 2:
+        cs_log(comp, STATUS_ERROR, "%s: FMU state %p is freed: by %s, or with the instance "
+               "that made it (%s frees every state of the instance); allowed: a live state of "
+               "this instance", function, state,
+               FMI_VERSION == 2 ? "fmi2FreeFMUstate" : "fmi3FreeFMUState",
+               FMI_VERSION == 2 ? "fmi2FreeInstance" : "fmi3FreeInstance");
+        return NULL;
+    default:
         cs_log(comp, STATUS_ERROR, "%s: FMU state %p is not a live state of this loaded copy "
-               "of %s: not made by its get or deserialise call, or freed already (a state "
-               "pointer is valid only in the library that made it; to move a state between "
-               "copies, serialise it); allowed: a live state", function, state, MODEL_NAME);
+               "of %s: not made by its get or deserialise call (a state pointer is valid only "
+               "in the library and the instance that made it; to move a state between copies, "
+               "serialise it); allowed: a live state of this instance", function, state,
+               MODEL_NAME);
         return NULL;
     }
-    return (StateNode *)state;
 }
 
 static void snapshot_of(const ModelInstance *comp, Snapshot *s)
@@ -1092,6 +1208,7 @@ static void snapshot_of(const ModelInstance *comp, Snapshot *s)
     s->time = comp->time;
     s->elapsed = comp->elapsed;
     s->elapsed_c = comp->elapsed_c;
+    s->stopTime = comp->stopTime;
     s->k = comp->k;
     s->pending = comp->pending;
     s->dirty = comp->dirty;
@@ -1100,19 +1217,21 @@ static void snapshot_of(const ModelInstance *comp, Snapshot *s)
     s->checksum = checksum_of(s);
 }
 
-/* The state a host hands in to be written (get, deserialise): `node` when it is a live state
- * of this FMU, else NULL (a new one is made), with a warning for a pointer that is not one. */
-static StateNode *reusable_state(ModelInstance *comp, const char *function, StateNode *node,
+/* The state a host hands in to be written (get, deserialise): its node when it is a live state
+ * of comp, else NULL (a new one is made), with a warning for a handle that is not one (left
+ * alone: another instance's state stays as it is). */
+static StateNode *reusable_state(ModelInstance *comp, const char *function, void *handle,
                                  Status *status)
 {
-    if (node && !is_live(node)) {
-        cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this FMU; "
-               "a new state is returned and the old pointer is left alone", function,
-               (void *)node);
-        *status = STATUS_WARNING;
+    if (!handle)
         return NULL;
-    }
-    return node;
+    StateNode *node;
+    if (stranger(comp, handle, &node) == -1)
+        return node;
+    cs_log(comp, STATUS_WARNING, "%s: *FMUstate = %p is not a live FMU state of this instance; "
+           "a new state is returned and the old pointer is left alone", function, handle);
+    *status = STATUS_WARNING;
+    return NULL;
 }
 
 Status cs_get_state(ModelInstance *comp, const char *function, void **state)
@@ -1121,7 +1240,7 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
         return STATUS_ERROR;
     if (!state) {
         cs_log(comp, STATUS_ERROR, "%s: the FMU state pointer is NULL; allowed: a pointer to "
-               "NULL or to a live state of this FMU", function);
+               "NULL or to a live state of this instance", function);
         return STATUS_ERROR;
     }
     Status status = STATUS_OK;
@@ -1134,11 +1253,11 @@ Status cs_get_state(ModelInstance *comp, const char *function, void **state)
             return STATUS_ERROR;
         }
         snapshot_of(comp, &node->s);
-        add_live(node);
+        add_live(node, comp);
     } else {
         snapshot_of(comp, &node->s);
     }
-    *state = node;
+    *state = (void *)node->handle;
     return status;
 }
 
@@ -1155,6 +1274,7 @@ Status cs_set_state(ModelInstance *comp, const char *function, const void *state
     comp->v = s->v;
     comp->h = s->h;
     comp->startTime = s->startTime;
+    comp->stopTime = s->stopTime;
     comp->time = s->time;
     comp->elapsed = s->elapsed;
     comp->elapsed_c = s->elapsed_c;
@@ -1232,14 +1352,14 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
                (unsigned long)sizeof(Snapshot));
         return STATUS_ERROR;
     }
-    /* into the live state *state points to (as the loader shim does), else into a new one:
-     * a host that deserialises into one state pointer again and again allocates nothing */
-    Status status = STATUS_OK;
-    StateNode *node = reusable_state(comp, function, *state, &status);
     Snapshot s;   /* checked as a whole before it replaces anything */
     memcpy(&s, bytes, sizeof s);
     if (snapshot_problems(comp, function, &s))
         return STATUS_ERROR;
+    /* into the live state *state is (as the loader shim does), else into a new one: a host
+     * that deserialises into one state again and again allocates nothing */
+    Status status = STATUS_OK;
+    StateNode *node = reusable_state(comp, function, *state, &status);
     if (!node) {
         node = malloc(sizeof *node);
         if (!node) {
@@ -1248,10 +1368,10 @@ Status cs_deserialize(ModelInstance *comp, const char *function, const unsigned 
             return STATUS_ERROR;
         }
         node->s = s;
-        add_live(node);
+        add_live(node, comp);
     } else {
         node->s = s;
     }
-    *state = node;
+    *state = (void *)node->handle;
     return status;
 }

@@ -14,11 +14,21 @@ ModelInstance *cs_instantiate(const char *instanceName, const char *token, int l
 void cs_free(ModelInstance *comp);
 
 Status cs_set_debug_logging(ModelInstance *comp, int loggingOn);
-Status cs_setup(ModelInstance *comp, const char *function, double startTime);
+/* The experiment: the start time, and the stop time when stopTimeDefined (finite, >= the start
+ * time; a step that would end after it is refused, FMI 2.0 fmi2SetupExperiment and FMI 3.0
+ * fmi3EnterInitializationMode). */
+Status cs_setup(ModelInstance *comp, const char *function, double startTime,
+                int stopTimeDefined, double stopTime);
 Status cs_enter_initialization(ModelInstance *comp, const char *function);
 Status cs_exit_initialization(ModelInstance *comp, const char *function);
 Status cs_terminate(ModelInstance *comp, const char *function);
 Status cs_reset(ModelInstance *comp, const char *function);
+
+/* The most value references one get or set may name (the count rule, docs/native-hardening.md):
+ * a larger count cannot be a list of this FMU's variables, and is refused before any element of
+ * the arrays is read or written (a count such as SIZE_MAX or 2^31 with a short array would read
+ * past it).  A count within the bound is taken at its word: only the host knows its arrays. */
+#define MAX_VALUES_PER_CALL 65536u
 
 /* Get/set `n` variables of `type` (TYPE_REAL: `reals`, TYPE_INTEGER: `ints`). A rejected call
  * changes nothing. */
@@ -55,6 +65,9 @@ static inline int cs_allowed(ModelInstance *comp, const char *function, int allo
 {
     return (comp->state & allowed) ? 1 : cs_refuse_mode(comp, function, allowed);
 }
+/* 1 when a call's count of value references is within MAX_VALUES_PER_CALL; else 0, logged
+ * (nothing of the call's arrays is read). */
+int cs_count_ok(ModelInstance *comp, const char *function, size_t n);
 /* A function the FMU does not support (Model Exchange, clocks, ...). */
 Status cs_unsupported(ModelInstance *comp, const char *function);
 void cs_log(ModelInstance *comp, Status status, const char *format, ...)

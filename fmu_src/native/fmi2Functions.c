@@ -110,9 +110,8 @@ fmi2Status fmi2SetupExperiment(fmi2Component c, fmi2Boolean toleranceDefined,
     GUARD("fmi2SetupExperiment");
     (void)toleranceDefined;
     (void)tolerance;
-    (void)stopTimeDefined;
-    (void)stopTime;
-    return (fmi2Status)cs_setup(COMP, "fmi2SetupExperiment", startTime);
+    return (fmi2Status)cs_setup(COMP, "fmi2SetupExperiment", startTime, stopTimeDefined,
+                                stopTime);
 }
 
 fmi2Status fmi2EnterInitializationMode(fmi2Component c)

@@ -117,10 +117,11 @@ fmi3Status fmi3EnterInitializationMode(fmi3Instance instance, fmi3Boolean tolera
                                        fmi3Boolean stopTimeDefined, fmi3Float64 stopTime)
 {
     GUARD;
-    (void)toleranceDefined, (void)tolerance, (void)stopTimeDefined, (void)stopTime;
+    (void)toleranceDefined, (void)tolerance;
     if (!cs_allowed(COMP, "fmi3EnterInitializationMode", STATE_INSTANTIATED))
         return fmi3Error;
-    Status s = cs_setup(COMP, "fmi3EnterInitializationMode", startTime);
+    Status s = cs_setup(COMP, "fmi3EnterInitializationMode", startTime, stopTimeDefined,
+                        stopTime);
     if (s != STATUS_OK)
         return (fmi3Status)s;
     return (fmi3Status)cs_enter_initialization(COMP, "fmi3EnterInitializationMode");
@@ -146,14 +147,18 @@ fmi3Status fmi3Reset(fmi3Instance instance)
 
 /* ---- variables ---------------------------------------------------------------------------- */
 
+/* The counts of a get or set, checked before any element is read or written: nValues is the
+ * sum of the variables' sizes (every variable of this FMU is a scalar: nValues == nvr), and
+ * nvr is within MAX_VALUES_PER_CALL (cosimulation.h). */
 static int counts_match(fmi3Instance instance, const char *function, size_t nvr, size_t nValues)
 {
-    if (nvr == nValues)
-        return 1;
-    cs_log(COMP, STATUS_ERROR, "%s: %lu value references but %lu values; every variable is a "
-           "scalar, allowed: as many values as value references", function, (unsigned long)nvr,
-           (unsigned long)nValues);
-    return 0;
+    if (nvr != nValues) {
+        cs_log(COMP, STATUS_ERROR, "%s: %llu value references but %llu values; every variable "
+               "is a scalar, allowed: as many values as value references", function,
+               (unsigned long long)nvr, (unsigned long long)nValues);
+        return 0;
+    }
+    return cs_count_ok(COMP, function, nvr);
 }
 
 fmi3Status fmi3GetFloat64(fmi3Instance instance, const fmi3ValueReference vr[], size_t nvr,
@@ -193,20 +198,25 @@ fmi3Status fmi3SetInt32(fmi3Instance instance, const fmi3ValueReference vr[], si
                               (const int *)values);
 }
 
-/* The types this FMU has no variable of: every value reference is an error. */
+/* The types this FMU has no variable of: every value reference is an error (the counts are
+ * checked first: nothing is read with a count no array can have). */
 #define NO_TYPE(kind, ctype)                                                                \
     fmi3Status fmi3Get##kind(fmi3Instance instance, const fmi3ValueReference vr[],          \
                              size_t nvr, ctype values[], size_t nValues)                    \
     {                                                                                       \
         GUARD;                                                                              \
-        (void)values, (void)nValues;                                                        \
+        (void)values;                                                                       \
+        if (!counts_match(instance, "fmi3Get" #kind, nvr, nValues))                         \
+            return fmi3Error;                                                               \
         return (fmi3Status)cs_no_such_type(COMP, "fmi3Get" #kind, #kind, vr, nvr);          \
     }                                                                                       \
     fmi3Status fmi3Set##kind(fmi3Instance instance, const fmi3ValueReference vr[],          \
                              size_t nvr, const ctype values[], size_t nValues)              \
     {                                                                                       \
         GUARD;                                                                              \
-        (void)values, (void)nValues;                                                        \
+        (void)values;                                                                       \
+        if (!counts_match(instance, "fmi3Set" #kind, nvr, nValues))                         \
+            return fmi3Error;                                                               \
         return (fmi3Status)cs_no_such_type(COMP, "fmi3Set" #kind, #kind, vr, nvr);          \
     }
 
@@ -225,7 +235,9 @@ fmi3Status fmi3GetBinary(fmi3Instance instance, const fmi3ValueReference vr[], s
                          size_t valueSizes[], fmi3Binary values[], size_t nValues)
 {
     GUARD;
-    (void)valueSizes, (void)values, (void)nValues;
+    (void)valueSizes, (void)values;
+    if (!counts_match(instance, "fmi3GetBinary", nvr, nValues))
+        return fmi3Error;
     return (fmi3Status)cs_no_such_type(COMP, "fmi3GetBinary", "Binary", vr, nvr);
 }
 
@@ -233,7 +245,9 @@ fmi3Status fmi3SetBinary(fmi3Instance instance, const fmi3ValueReference vr[], s
                          const size_t valueSizes[], const fmi3Binary values[], size_t nValues)
 {
     GUARD;
-    (void)valueSizes, (void)values, (void)nValues;
+    (void)valueSizes, (void)values;
+    if (!counts_match(instance, "fmi3SetBinary", nvr, nValues))
+        return fmi3Error;
     return (fmi3Status)cs_no_such_type(COMP, "fmi3SetBinary", "Binary", vr, nvr);
 }
 

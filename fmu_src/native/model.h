@@ -72,6 +72,8 @@ typedef struct ModelInstance {
     ModelVariables v;           /* every variable, in VARIABLES order */
     ModelHidden h;              /* the model's hidden state */
     double startTime;
+    double stopTime;            /* the defined stop time, or +inf (none defined): a step that
+                                   would end after it is refused */
     double time;                /* startTime + the sum of the accepted step sizes */
     double elapsed, elapsed_c;  /* time - startTime as Neumaier's compensated sum, as the
                                    Python FMUs keep it (position = (elapsed + elapsed_c)/Ts) */

@@ -222,6 +222,59 @@ def state_garbage_bytes(model, ctx):
     return calls
 
 
+def _instance(model, slot, name):
+    """Calls that make an initialised instance in ``slot`` (each must succeed)."""
+    return [("inst %d 0 %s 1 %s DEFAULT" % (slot, name, model.guid), "ok"),
+            ("setup %d 0" % slot, "ok"), ("enter %d" % slot, "ok"), ("exit %d" % slot, "ok")]
+
+
+@case("step", all_models=False)
+def state_of_a_freed_instance(model, ctx):
+    """A state got in an instance freed without freeing it dies with it: refused by this
+    instance and by the one that takes the freed one's place (the Python FMUs' loader shim
+    hands the same instance back)."""
+    i = ctx.slot
+    return _instance(model, 7, "ghost") + [
+        ("gst 7 50", "ok"), ("free 7", None), ("sst %d 50" % i, "refused"),
+        ("fst %d 50" % i, "refused")] + _instance(model, 7, "ghost") + [
+        ("sst 7 50", "refused"), ("ser 7 50 50", "refused"), ("free 7", None)]
+
+
+@case("step", all_models=False)
+def state_of_another_instance(model, ctx):
+    """A live state of another instance of the same FMU: refused (to move a state, serialise
+    it), and left as it is."""
+    i = ctx.slot
+    return _instance(model, 7, "other") + [
+        ("gst 7 51", "ok"), ("sst %d 51" % i, "refused"), ("fst %d 51" % i, "refused"),
+        ("ser %d 51 51" % i, "refused"), ("gst %d 51" % i, "ok"), ("sst 7 51", "refused"),
+        ("fst %d 51" % i, "ok"), ("free 7", None)]
+
+
+@case("step", all_models=False)
+def stop_time(model, ctx):
+    """A stop time of 2.5 sample periods: steps to it are taken, a step past it is refused;
+    stop times that cannot be are refused when given."""
+    Ts = model.Ts
+    guid = model.guid
+    return [("inst 7 0 stop 1 %s DEFAULT" % guid, "ok"), ("setup 7 0 %r" % (2.5 * Ts), "ok"),
+            ("enter 7", "ok"), ("exit 7", "ok"), ("step 7 0 %r" % Ts, "ok"),
+            ("step 7 %r %r" % (Ts, Ts), "ok"), ("step 7 %r %r" % (2 * Ts, 2 * Ts), "refused"),
+            ("step 7 %r %r" % (2 * Ts, Ts), "refused"),
+            ("step 7 %r %r" % (2 * Ts, 0.5 * Ts), "ok"),
+            ("step 7 %r %r" % (2.5 * Ts, Ts), "refused"), ("free 7", None),
+            ("inst 7 0 stop 1 %s DEFAULT" % guid, "ok"), ("setup 7 1 0.5", "refused"),
+            ("setup 7 0 nan", "refused"), ("setup 7 0 inf", "refused"), ("free 7", None)]
+
+
+@case("step", all_models=False)
+def count_impossible(model, ctx):
+    """Gets and sets of every type with counts no array can have and one-element arrays."""
+    return [("count %d %s %s" % (ctx.slot, kind, n), "refused")
+            for kind in ("getr", "setr", "geti", "seti", "getb", "setb")
+            for n in ("18446744073709551615", "2305843009213693952", "2147483648", "65537")]
+
+
 def _crafted(model, ctx, key, value):
     i = ctx.slot
     return [("gst %d 40" % i, "ok"), ("ser %d 40 40" % i, "ok"),

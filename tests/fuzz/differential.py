@@ -15,12 +15,16 @@ every call the three must agree on
   parameters (near overflow, huge priors and estimates, tiny and huge noise) and the harmonic
   filter (``process = 2``); ``--extreme`` sets them at every one.
 
+A script also sets stop times (steps past them must be refused; stop times that cannot be are
+refused), frees its instance with the states it got still held and goes on in a new one (the
+held states must be refused: they died with their instance), and calls gets and sets with
+counts no array can have (refused before any element is touched).  A serialise, deserialise
+and set round trip is one call of the script whose three statuses are compared.
+
 Where the standards differ the comparison says so (``FMI3_DIFFERS``): FMI 3.0 has no
-fmi3SetupExperiment (the start time goes with fmi3EnterInitializationMode, so ``setup`` is not
-called on FMI 3.0) and no status inquiries (``status``).  Where the two implementations may
-legitimately split one refusal over two calls (a bad serialised state: the Python FMU refuses it
-at fmi2SetFMUstate, the native FMUs already at deserialisation), a deserialise + set pair is
-compared as one (the worse status of the two).
+fmi3SetupExperiment (the start and stop times go with fmi3EnterInitializationMode, so ``setup``
+is not called on FMI 3.0; a refused setup is followed by a good one before ``enter``) and no
+status inquiries (``status``).
 
 ``python3 -m tests.fuzz.differential --seconds 1200`` runs random scripts for twenty minutes
 (the FMUs are built first); the test suite runs a fixed-seed portion (tests/test_fuzz.py).
@@ -51,6 +55,8 @@ BACKENDS = ("python", "native-fmi2", "native-fmi3")
 #: The models with native twins.
 MODELS = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
 OK, WARNING, DISCARD, ERROR, FATAL = range(5)
+#: Counts no array can have (the count rule: at most 65,536 value references per call).
+IMPOSSIBLE_COUNTS = (2 ** 64 - 1, 2 ** 61, 2 ** 31, 65537)
 
 
 # -- one FMU, driven through raw calls ---------------------------------------------------------
@@ -69,7 +75,7 @@ class Driver:
         self.type = {v.name: v.type for v in md.modelVariables}
         self.logged = []
         self.states = {}
-        self.start_time = 0.0
+        self.start_time, self.stop_time = 0.0, None
         identifier = md.coSimulation.modelIdentifier
         if fmi == 2:
             from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
@@ -104,19 +110,23 @@ class Driver:
         return proto(self.c, *args)
 
     # the calls of a script, by FMI 2.0 name
-    def setup(self, t0):
-        self.start_time = t0
+    def setup(self, t0, stop=None):
+        """fmi2SetupExperiment (``stop``: the stop time, None: not defined); FMI 3.0 keeps both
+        for fmi3EnterInitializationMode."""
+        self.start_time, self.stop_time = t0, stop
         if self.fmi == 3:
             return OK, None
         return self.raw("fmi2SetupExperiment", [c_int, c_double, c_double, c_int, c_double],
-                        0, 0.0, t0, 0, 0.0), None
+                        0, 0.0, t0, int(stop is not None), 0.0 if stop is None else stop), None
 
     def enter(self):
         if self.fmi == 2:
             return self.raw("fmi2EnterInitializationMode", []), None
+        stop = getattr(self, "stop_time", None)
         return self.raw("fmi3EnterInitializationMode", [c_int, c_double, c_double, c_int,
                                                          c_double],
-                        0, 0.0, self.start_time, 0, 0.0), None
+                        0, 0.0, self.start_time, int(stop is not None),
+                        0.0 if stop is None else stop), None
 
     def exit(self):
         return self.raw("fmi%dExitInitializationMode" % self.fmi, []), None
@@ -125,7 +135,10 @@ class Driver:
         return self.raw("fmi%dTerminate" % self.fmi, []), None
 
     def reset(self):
-        return self.raw("fmi%dReset" % self.fmi, []), None
+        status = self.raw("fmi%dReset" % self.fmi, [])
+        if status <= WARNING:  # as fmi2Reset forgets the experiment
+            self.start_time, self.stop_time = 0.0, None
+        return status, None
 
     def _vrs(self, names):
         return (c_uint * len(names))(*[self.vr[n] for n in names])
@@ -155,6 +168,20 @@ class Driver:
             s = self.raw("fmi3GetFloat64", [c_void_p, c_size_t, c_void_p, c_size_t],
                          self._vrs(names), len(names), out, len(names))
         return s, ([float(v).hex() for v in out] if s <= WARNING else None)
+
+    def count(self, which, n):
+        """A get or set (``which``: getr, setr, geti, seti) of ``n`` value references with
+        one-element arrays, ``n`` a count no array can have (FMI 3.0: nValues = n too)."""
+        kind = {"getr": ("Get", "Real", "Float64", c_double),
+                "setr": ("Set", "Real", "Float64", c_double),
+                "geti": ("Get", "Integer", "Int32", c_int),
+                "seti": ("Set", "Integer", "Int32", c_int)}[which]
+        vr, values = (c_uint * 1)(0), (kind[3] * 1)()
+        if self.fmi == 2:
+            return self.raw("fmi2%s%s" % kind[:2], [c_void_p, c_size_t, c_void_p], vr, n,
+                            values), None
+        return self.raw("fmi3%s%s" % (kind[0], kind[2]), [c_void_p, c_size_t, c_void_p,
+                                                         c_size_t], vr, n, values, n), None
 
     def step(self, t, h):
         if self.fmi == 2:
@@ -214,6 +241,14 @@ class Driver:
         if s <= WARNING:
             self.states[slot] = p.value
         return s, None
+
+    def renew(self):
+        """Free the instance without freeing its states (FreeInstance frees them: the handles
+        the slots keep are stale now) and instantiate a new one in the same library."""
+        getattr(self.fmu, "fmi%dFreeInstance" % self.fmi)(self.c)
+        self.instantiate()
+        self.start_time, self.stop_time = 0.0, None
+        return OK, None
 
     def free(self):
         for slot in list(self.states):
@@ -287,7 +322,13 @@ def random_script(info, rng, n_calls=60, extreme=False):
     def initialise():
         t0 = rng.choice([0.0, 0.0, 0.0, 1.5, -2.0, 1e9])
         t[0] = t0
-        calls.extend([["setup", t0], ["enter"]])
+        if rng.random() < 0.15:  # a stop time: a few samples on, or at the start
+            if rng.random() < 0.3:  # one that cannot be (refused), then a good one
+                calls.append(["setup", t0, rng.choice([t0 - 1.0, math.nan, math.inf])])
+            stop = t0 + Ts * rng.choice((0, 2, 3.5, 6, 20, 60))
+            calls.extend([["setup", t0, stop], ["enter"]])
+        else:
+            calls.extend([["setup", t0], ["enter"]])
         for name in info["inputs"]:
             if rng.random() < 0.7:
                 calls.append(["setr", [name], [input_value()]])
@@ -341,9 +382,17 @@ def random_script(info, rng, n_calls=60, extreme=False):
             calls.append(["garbage", rng.randrange(3, 5)])
         elif r < 0.88:
             calls.append(["fst", rng.randrange(5)])
-        elif r < 0.92:
+        elif r < 0.90:
             calls.append(rng.choice([["exit"], ["enter"], ["setup", 0.0], ["term"],
                                      ["status", rng.choice((0, 1, 2, 3, 7))]]))
+        elif r < 0.91:  # a count no array can have
+            calls.append(["count", rng.choice(("getr", "setr", "geti", "seti")),
+                          rng.choice(IMPOSSIBLE_COUNTS)])
+        elif r < 0.92:
+            # the instance freed with its states kept by the host, a new one made: the kept
+            # states (slots 0..4) are refused from now on
+            calls.append(["renew"])
+            initialise()
         else:
             calls.append(rng.choice([["reset"], ["term"]]))
             if rng.random() < 0.8:
@@ -383,11 +432,11 @@ def run_script(driver, script, reals=None):
             s1, data = driver.ser(args[0])
             s2 = ERROR if data is None else driver.des(data, args[1])[0]
             s3 = ERROR if s2 > WARNING else driver.sst(args[1])[0]
-            status, values = max(s1, s2, s3), None
+            status, values = max(s1, s2, s3), [s1, s2, s3]
         elif op == "garbage":
             s1 = driver.des(b'{"k": 1}\x00garbage' * 3, args[0])[0]
             s2 = driver.sst(args[0])[0] if s1 <= WARNING else s1
-            status, values = max(s1, s2), None
+            status, values = max(s1, s2), [s1, s2]
         else:
             status, values = getattr(driver, op)(*args)
         errors = any(s >= ERROR for s, _ in driver.logged)
@@ -511,10 +560,11 @@ def child(dirs, seeds, n_calls, plant, check=False, extreme=False):
             driver.reset()
             for slot in list(driver.states):
                 driver.fst(slot)
+            driver.states.clear()  # (stale handles of a renewed instance are refused)
             results[name] = run_script(driver, script, info["reals"] if check else None)
-            if plant == name:  # a planted difference: the twin answers one call differently
-                for row in results[name]:
-                    if row[1] is not None:
+            if plant == name:  # a planted difference: the twin answers one read differently
+                for call, row in zip(script, results[name]):
+                    if call[0] == "getr" and row[1] is not None:
                         row[1] = [float.fromhex(row[1][0]).__add__(1.0).hex()] + row[1][1:]
                         break
         print(json.dumps({"seed": seed, "problems": compare(script, results),
@@ -598,10 +648,23 @@ PLANTED_DEFECT = ("""    if (model_check(comp) > 0)
         return STATUS_ERROR;""")
 
 
-def plant_defect(unzipped, folder):
+#: The defects of issue 31 planted back the same way, by class: a state kept across the free of
+#: its instance (not freed with it, so a later instance takes it), a stop time not honoured, a
+#: count no array can have taken at its word.
+PLANTED_31 = {
+    "states": ("    free_states_of(comp);   /* every state", "    /* free_states_of(comp); every"),
+    "stop": ("    if (!LIKELY(position - tol <= (comp->stopTime - comp->startTime) / Ts))",
+             "    if (0)"),
+    "counts": ("    if (LIKELY(n <= MAX_VALUES_PER_CALL))\n        return 1;",
+               "    return 1;"),
+}
+
+
+def plant_defect(unzipped, folder, defect=None):
     """A copy of the native FMU unzipped in ``unzipped``, in ``folder``, whose binary is rebuilt
-    from its own sources with :data:`PLANTED_DEFECT` (the twin that the differential fuzz must
-    tell from the others)."""
+    from its own sources with ``defect`` (``(old, new)`` text of cosimulation.c; default
+    :data:`PLANTED_DEFECT`): the twin that the differential fuzz must tell from the others."""
+    defect = defect or PLANTED_DEFECT
     import shutil
     from driftfmu.fmu_src import native_build
     from fmpy import read_model_description
@@ -609,8 +672,8 @@ def plant_defect(unzipped, folder):
     shutil.copytree(str(unzipped), str(folder))
     source = folder / "sources" / "cosimulation.c"
     text = source.read_text()
-    assert PLANTED_DEFECT[0] in text, "the exit of initialisation changed: update PLANTED_DEFECT"
-    source.write_text(text.replace(*PLANTED_DEFECT))
+    assert defect[0] in text, "the planted code changed: update %r" % (defect[0],)
+    source.write_text(text.replace(*defect))
     md = read_model_description(str(folder), validate=False)
     identifier = md.coSimulation.modelIdentifier
     subprocess.run(native_build.PLAIN_COMPILE.format(identifier=identifier), shell=True,

@@ -14,11 +14,15 @@
  *   instcb I L NAME GUID KIND          fmi2Instantiate with callbacks without a logger
  *                                      (nolog), without memory functions (noalloc), or NULL
  *   reals I N VR...                    the Real value references of I (snapshots, finiteness)
- *   free I | setup I T | enter I | exit I | term I | reset I
+ *   free I | setup I T [STOP] | enter I | exit I | term I | reset I
+ *                                      (setup: with STOP, stopTimeDefined and that stop time)
  *   setr I N VR V ...  | seti I N VR V ... | setb I N VR V ...
  *   getr I N VR ...    | geti I N VR ...   | getb I N VR ...
  *   copy I VR J VR2                    set Real VR2 of instance J to Real VR of instance I
  *   step I T H
+ *   count I KIND N                     a get or set (KIND: getr setr geti seti getb setb) of N
+ *                                      value references with one-element arrays (N: any
+ *                                      size_t, e.g. 18446744073709551615)
  *   gst I S | sst I S | fst I S        get into / set from / free state slot S
  *   ser I S B | des I B S              serialise state S into buffer B / deserialise B into S
  *   raw B TEXT                         buffer B := TEXT (a hand-made "serialised state"; \n
@@ -487,8 +491,25 @@ static fmi2Status run(char **w, int n)
         s->c = NULL;
         return fmi2OK;
     }
-    if (!strcmp(op, "setup")) return l->SetupExperiment(s->c, fmi2False, 0.0, number(w[2]),
-                                                        fmi2False, 0.0);
+    if (!strcmp(op, "setup"))
+        return l->SetupExperiment(s->c, fmi2False, 0.0, number(w[2]), n > 3 ? fmi2True : fmi2False,
+                                  n > 3 ? number(w[3]) : 0.0);
+    if (!strcmp(op, "count")) {
+        if (n < 4) fail("count I KIND N");
+        size_t count = (size_t)strtoull(w[3], NULL, 10);
+        fmi2ValueReference vr[1] = {0};
+        fmi2Real r[1] = {0.0};
+        fmi2Integer i[1] = {0};
+        fmi2Boolean b[1] = {0};
+        const char *kind = w[2];
+        if (!strcmp(kind, "getr")) return l->GetReal(s->c, vr, count, r);
+        if (!strcmp(kind, "setr")) return l->SetReal(s->c, vr, count, r);
+        if (!strcmp(kind, "geti")) return l->GetInteger(s->c, vr, count, i);
+        if (!strcmp(kind, "seti")) return l->SetInteger(s->c, vr, count, i);
+        if (!strcmp(kind, "getb")) return l->GetBoolean(s->c, vr, count, b);
+        if (!strcmp(kind, "setb")) return l->SetBoolean(s->c, vr, count, b);
+        fail("count: unknown kind");
+    }
     if (!strcmp(op, "enter")) return l->EnterInitializationMode(s->c);
     if (!strcmp(op, "exit")) return l->ExitInitializationMode(s->c);
     if (!strcmp(op, "term")) return l->Terminate(s->c);

@@ -71,7 +71,7 @@ def snapshot_type(unzipped):
     return _struct("Snapshot", [
         ("header", StateHeader), ("checksum", c_uint64), ("v", ModelVariables),
         ("h", ModelHidden), ("startTime", D), ("time", D), ("elapsed", D), ("elapsed_c", D),
-        ("k", I64), ("pending", c_int32), ("dirty", c_int32), ("initialised", c_int32),
+        ("stopTime", D), ("k", I64), ("pending", c_int32), ("dirty", c_int32), ("initialised", c_int32),
         ("state", c_int32)])
 
 

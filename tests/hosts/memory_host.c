@@ -13,6 +13,11 @@
  *                    state pointer (the FMU may reuse the state it handed out)
  *           serdes   as states, then N times: serialise the state into one buffer and
  *                    deserialise that buffer into the same state pointer
+ *           orphans  N times: instantiate, (setup,) enter and exit initialisation, one step
+ *                    of 1 ms, get a state, free the instance without freeing the state (FMI
+ *                    2.0 and 3.0: the free frees every state of the instance); every 1000th
+ *                    cycle the last orphaned state is also passed to the next instance's
+ *                    set-state, which must refuse it (else "ORPHAN ACCEPTED i" is printed)
  *   EVERY   print "RSS WHAT i bytes" after every EVERY-th call (i counts from 1)
  *   LEAK    (tests of the measurement) the host itself leaks LEAK bytes per call
  *
@@ -53,6 +58,7 @@ static struct {
     fmi2TerminateTYPE *terminate;
     fmi2FreeInstanceTYPE *free_instance;
     fmi2GetFMUstateTYPE *get_state;
+    fmi2SetFMUstateTYPE *set_state;
     fmi2FreeFMUstateTYPE *free_state;
     fmi2SerializedFMUstateSizeTYPE *size;
     fmi2SerializeFMUstateTYPE *serialize;
@@ -67,6 +73,7 @@ static struct {
     fmi3TerminateTYPE *terminate;
     fmi3FreeInstanceTYPE *free_instance;
     fmi3GetFMUStateTYPE *get_state;
+    fmi3SetFMUStateTYPE *set_state;
     fmi3FreeFMUStateTYPE *free_state;
     fmi3SerializedFMUStateSizeTYPE *size;
     fmi3SerializeFMUStateTYPE *serialize;
@@ -84,7 +91,7 @@ static void look_up(const char *dir, const char *id)
         LOOK(instantiate, Instantiate) LOOK(setup, SetupExperiment)
         LOOK(enter, EnterInitializationMode) LOOK(exit_init, ExitInitializationMode)
         LOOK(step, DoStep) LOOK(terminate, Terminate) LOOK(free_instance, FreeInstance)
-        LOOK(get_state, GetFMUstate) LOOK(free_state, FreeFMUstate)
+        LOOK(get_state, GetFMUstate) LOOK(set_state, SetFMUstate) LOOK(free_state, FreeFMUstate)
         LOOK(size, SerializedFMUstateSize) LOOK(serialize, SerializeFMUstate)
         LOOK(deserialize, DeSerializeFMUstate)
 #undef LOOK
@@ -94,7 +101,7 @@ static void look_up(const char *dir, const char *id)
         LOOK(instantiate, InstantiateCoSimulation)
         LOOK(enter, EnterInitializationMode) LOOK(exit_init, ExitInitializationMode)
         LOOK(step, DoStep) LOOK(terminate, Terminate) LOOK(free_instance, FreeInstance)
-        LOOK(get_state, GetFMUState) LOOK(free_state, FreeFMUState)
+        LOOK(get_state, GetFMUState) LOOK(set_state, SetFMUState) LOOK(free_state, FreeFMUState)
         LOOK(size, SerializedFMUStateSize) LOOK(serialize, SerializeFMUState)
         LOOK(deserialize, DeserializeFMUState)
 #undef LOOK
@@ -142,6 +149,24 @@ static void stop(void *c)
         check("fmi3Terminate", f3.terminate(c));
         f3.free_instance(c);
     }
+}
+
+static void free_instance(void *c)
+{
+    if (fmi == 2)
+        f2.free_instance(c);
+    else
+        f3.free_instance(c);
+}
+
+/* 1 when the instance accepts a state of a freed instance (it must refuse it: an error). */
+static int refuse_orphan(void *c, void *orphan)
+{
+    int quiet = host_quiet, status;
+    host_quiet = 1;
+    status = fmi == 2 ? (int)f2.set_state(c, orphan) : (int)f3.set_state(c, orphan);
+    host_quiet = quiet;
+    return status < 3; /* fmi2Error == fmi3Error == 3 */
 }
 
 static void get_state(void *c, void **state)
@@ -212,8 +237,9 @@ int main(int argc, char **argv)
     long n = strtol(argv[6], NULL, 10), every = strtol(argv[7], NULL, 10);
     leak = argc == 9 ? (size_t)strtoul(argv[8], NULL, 10) : 0;
     if ((fmi != 2 && fmi != 3) || n < 0 || every < 1 ||
-        (strcmp(what, "cycles") && strcmp(what, "states") && strcmp(what, "serdes"))) {
-        fprintf(stderr, "memory_host: FMI is 2 or 3, WHAT cycles, states or serdes, "
+        (strcmp(what, "cycles") && strcmp(what, "states") && strcmp(what, "serdes") &&
+         strcmp(what, "orphans"))) {
+        fprintf(stderr, "memory_host: FMI is 2 or 3, WHAT cycles, states, serdes or orphans, "
                         "N >= 0, EVERY >= 1\n");
         return 1;
     }
@@ -222,6 +248,18 @@ int main(int argc, char **argv)
     if (!strcmp(what, "cycles")) {
         for (long i = 0; i < n; i++) {
             stop(start());
+            plant_leak();
+            host_measure(what, i, every);
+        }
+    } else if (!strcmp(what, "orphans")) {
+        void *orphan = NULL;
+        for (long i = 0; i < n; i++) {
+            void *c = start(), *state = NULL;
+            if (orphan && i % 1000 == 0 && refuse_orphan(c, orphan))
+                printf("ORPHAN ACCEPTED %ld\n", i);
+            get_state(c, &state);
+            free_instance(c);
+            orphan = state;
             plant_leak();
             host_measure(what, i, every);
         }
