@@ -378,6 +378,7 @@ def test_failed_build_keeps_the_previous_fmu(tmp_path):
     assert (out / "Toy.fmu").read_bytes() == b"previous build"
 
 
+@pytest.mark.qualification  # builds every FMU twice
 @integration
 def test_source_date_epoch_makes_the_same_sources_build_the_same_bytes(tmp_path, monkeypatch):
     """With SOURCE_DATE_EPOCH set, the model description's generationDateAndTime is that time

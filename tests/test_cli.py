@@ -459,6 +459,7 @@ def test_sigterm_to_the_command_alone_stops_its_workers_too(built_fmus, tmp_path
     assert left == [] and files == []
 
 
+@pytest.mark.qualification  # a Dask cluster of two worker processes
 def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
     dd = pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not "
                              "installed")

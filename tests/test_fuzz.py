@@ -20,6 +20,13 @@ from driftfmu.simulations.gaussian import CONNECTIONS, FMU_NAMES
 
 pytestmark = pytest.mark.integration
 SEEDS = range(4)
+
+
+def portions(count, loop):
+    """``range(count)`` in two parameters: the first ``loop`` in the everyday loop, the rest in
+    the qualification (the same cases, the same seeds: the loop is a prefix of the whole)."""
+    return [pytest.param(range(0, loop), id="loop"),
+            pytest.param(range(loop, count), id="rest", marks=pytest.mark.qualification)]
 VALGRIND = ["-q", "--undef-value-errors=no", "--error-exitcode=99"]
 
 
@@ -48,7 +55,8 @@ def _seed(*words):
 
 # -- valid sequences: replays agree ------------------------------------------------------------
 
-@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("seed", [s if s == 0 else pytest.param(s, marks=pytest.mark.qualification)
+                                  for s in SEEDS])
 @pytest.mark.parametrize("name", FMU_NAMES)
 def test_valid_sequences_replay_identically(host, models, name, seed):
     lines, pairs = fuzz.valid_sequence(models[name], seed, n_calls=60)
@@ -100,12 +108,17 @@ def test_chain_in_the_c_host_equals_models(host, models, report):
 # -- invalid calls -----------------------------------------------------------------------------
 
 def _invalid_params():
+    """Every case on every model it applies to; the everyday loop runs each case once, on the
+    models in turn (every model about as often), the qualification the rest."""
     params = []
-    for name in cases.CASES:
-        for model in (FMU_NAMES if name in cases.ALL_MODELS else ("Accelerometer",)):
+    for i, name in enumerate(cases.CASES):
+        models = FMU_NAMES if name in cases.ALL_MODELS else ("Accelerometer",)
+        for model in models:
             marks = []
             if name in cases.PYTHON_SIDE:
                 marks.append(pytest.mark.xfail(reason=cases.PYTHON_SIDE[name], strict=True))
+            if model != models[i % len(models)]:
+                marks.append(pytest.mark.qualification)
             params.append(pytest.param(name, model, id="%s-%s" % (name, model), marks=marks))
     return params
 
@@ -117,7 +130,8 @@ def test_invalid_calls_are_refused_and_change_nothing(host, models, case, name):
     assert problems == [], "\n".join(problems) + "\n" + result.output[-3000:]
 
 
-@pytest.mark.parametrize("seed", range(6))
+@pytest.mark.parametrize("seed", [s if s < 2 else pytest.param(s, marks=pytest.mark.qualification)
+                                  for s in range(6)])
 def test_random_mixes_of_invalid_calls(host, models, seed):
     rng = __import__("random").Random(seed)
     name = rng.choice(FMU_NAMES)
@@ -166,8 +180,10 @@ def test_under_valgrind_no_invalid_memory_access(host, models, name, report):
 
 # -- the differential fuzz: Python FMU, native FMI 2.0, native FMI 3.0, call by call -----------
 
-#: Scripts per model in the fixed-seed portion (about a minute for the four models).
+#: Scripts per model in the fixed-seed portion (about a minute for the four models), and those
+#: of them in the everyday loop.
 DIFFERENTIAL_SCRIPTS = 80
+DIFFERENTIAL_SCRIPTS_LOOP = 25
 
 
 @pytest.fixture(scope="module")
@@ -177,9 +193,10 @@ def twins(python_fmus, native_fmus, tmp_path_factory):
                                   tmp_path_factory.mktemp("differential"))
 
 
+@pytest.mark.parametrize("portion", portions(DIFFERENTIAL_SCRIPTS, DIFFERENTIAL_SCRIPTS_LOOP))
 @pytest.mark.parametrize("name", differential.MODELS)
-def test_python_and_native_twins_agree_call_by_call(twins, name, report):
-    seeds = [_seed("differential", name, str(i)) for i in range(DIFFERENTIAL_SCRIPTS)]
+def test_python_and_native_twins_agree_call_by_call(twins, name, portion, report):
+    seeds = [_seed("differential", name, str(i)) for i in portion]
     problems = differential.run(twins[name], seeds)
     report("FUZZ differential %s: %d scripts of about 100 calls on the Python FMU, the native "
            "FMI 2.0 and FMI 3.0 FMUs: %d disagreements" % (name, len(seeds), len(problems)))
@@ -277,23 +294,27 @@ def test_the_fuzz_sees_a_negative_variance_answered_ok(twins, backend):
         drv.free()
 
 
-#: Scripts per model with every instance compared around every call.
+#: Scripts per model with every instance compared around every call, and those of them in the
+#: everyday loop.
 CHECKED_SCRIPTS = 20
+CHECKED_SCRIPTS_LOOP = 8
 
 
+@pytest.mark.parametrize("portion", portions(CHECKED_SCRIPTS, CHECKED_SCRIPTS_LOOP))
 @pytest.mark.parametrize("name", differential.MODELS)
-def test_a_refused_call_changes_no_twin(twins, name, report):
+def test_a_refused_call_changes_no_twin(twins, name, portion, report):
     """Every call that one of the three refuses (an error or worse) leaves that instance as it
     was: the statuses and values of every Real, and its serialised state, compared before and
     after the call (the case fuzz checks this in its FMI 2.0 host; this reaches the FMI 3.0
     twin too)."""
-    seeds = [_seed("checked", name, str(i)) for i in range(CHECKED_SCRIPTS)]
+    seeds = [_seed("checked", name, str(i)) for i in portion]
     problems = differential.run(twins[name], seeds, check=True)
     report("FUZZ differential %s, every refused call checked: %d scripts on the three "
            "backends: %d problems" % (name, len(seeds), len(problems)))
     assert problems == [], "\n".join(problems[:10])
 
 
+@pytest.mark.qualification  # rebuilds a native twin with the defect planted
 def test_the_differential_fuzz_reports_a_planted_difference(twins, tmp_path):
     """The judge can fail: the defect of issue 20 (a refused exit of initialisation that moves
     the instance to step mode anyway) planted into a rebuilt copy of the native FMI 2.0 twin is

@@ -69,7 +69,8 @@ def _stop_after(script, delay, env=None):
             p.wait()
 
 
-@pytest.mark.parametrize("delay", [0.5, 1.5, 2.5])
+@pytest.mark.parametrize("delay", [pytest.param(0.5, marks=pytest.mark.qualification), 1.5,
+                                   pytest.param(2.5, marks=pytest.mark.qualification)])
 def test_a_stop_with_many_queued_tasks_and_large_results_ends_the_process(delay):
     rc = _stop_after(SCRIPT, delay)
     assert rc == 130, "the process still ran %g s after SIGTERM" % BOUND if rc is None else rc

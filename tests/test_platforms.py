@@ -292,6 +292,7 @@ def test_python_fmus_ship_only_the_linux_binaries(built_fmus):
 
 # -- a machine with only the host's compiler ---------------------------------------------------
 
+@pytest.mark.qualification  # a build of every FMU
 def test_without_zig_and_mingw_the_build_ships_what_it_can_and_names_the_rest(monkeypatch,
                                                                             tmp_path):
     monkeypatch.setattr(native_build, "zig_command", lambda: None)
@@ -374,7 +375,8 @@ def cached_excitation(tmp_path_factory):
     return plain, entry
 
 
-@pytest.mark.parametrize("damage", ["flipped byte", "cut short", "old format", "empty"])
+@pytest.mark.parametrize("damage", ["flipped byte"] + [
+    pytest.param(d, marks=pytest.mark.qualification) for d in ("cut short", "old format", "empty")])
 def test_a_damaged_cache_entry_is_compiled_again_and_replaced_never_shipped(
         damage, cached_excitation, tmp_path):
     """An entry whose library no longer matches the checksum written with it (a file damaged on
@@ -434,6 +436,7 @@ def test_asking_a_compiler_its_version_leaves_nothing_in_the_current_folder(tmp_
     assert os.listdir(tmp_path) == []
 
 
+@pytest.mark.qualification  # a build of every FMU
 def test_a_cache_that_cannot_be_written_does_not_fail_the_build(tmp_path):
     """A library cache that cannot be written (here a path under a file) is skipped: the build
     succeeds with the bytes of a build without a cache, and leaves no part of a write."""

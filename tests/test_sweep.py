@@ -85,6 +85,7 @@ def test_in_process_equals_worker_processes(local):
         assert np.array_equal(single[key], local[key]), key
 
 
+@pytest.mark.qualification  # a Dask cluster of worker processes
 def test_local_dask_cluster_equals_local_workers(local):
     LocalCluster = pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] "
                                        "is not installed").LocalCluster
