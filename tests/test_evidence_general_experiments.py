@@ -184,13 +184,15 @@ def test_a_single_a4_of_either_sign_reaches_every_grid_point(a4):
     x = _states(Q=0.5)
     for i, a2 in enumerate((0.01, 0.03)):
         for j, R in enumerate((1e-3, 1e-2)):
+            # the references: eq. 5 (A = 0, sigma_x^2 = Q) and the recorded x's realised drift
+            assert res["table"]["dc_expected"][2 * i + j] == pytest.approx(
+                a2 * 0.5 + 3 * a4 * 0.25, rel=1e-12)
+            assert np.allclose(res["grid_dc_realised"][i, j], cf.realised(x, a2, 0.0, a4)[:, -1],
+                               rtol=1e-12, atol=0)
+            # the runs: each grid point's is the engine's with that a4
             want = batch.simulate(N, batch.run_seeds(1, RUNS), a2=a2, a4=a4, R=R, Q=0.5,
                                   kernel="numpy")
             assert np.array_equal(res["grid_dc1"][i, j], want["final_dc_ekf1"])
-            assert np.allclose(res["grid_dc_realised"][i, j], cf.realised(x, a2, 0.0, a4)[:, -1],
-                               rtol=1e-12, atol=0)
-            assert res["table"]["dc_expected"][2 * i + j] == pytest.approx(
-                a2 * 0.5 + 3 * a4 * 0.25, rel=1e-12)
 
 
 # -- identify --order 3|4 --held-out K -----------------------------------------------------------
