@@ -177,7 +177,7 @@ def test_sweep_over_a4_with_a3_keeps_the_cubic_term_at_a4_zero():
 
 
 @pytest.mark.parametrize("a4", [-0.004, 0.004])
-def test_a_single_a4_of_either_sign_reaches_every_grid_point(a4):
+def test_a_single_a4_of_either_sign_reaches_every_grid_point(a4, capsys):
     res = sweep.sweep(a2=[0.01, 0.03], a4=a4, R=[1e-3, 1e-2], Q=0.5, runs=RUNS, n=N, seed=1,
                       workers=1)
     assert res["axis"] == "a2" and res["parameters"]["a4"] == a4
@@ -193,6 +193,13 @@ def test_a_single_a4_of_either_sign_reaches_every_grid_point(a4):
             want = batch.simulate(N, batch.run_seeds(1, RUNS), a2=a2, a4=a4, R=R, Q=0.5,
                                   kernel="numpy")
             assert np.array_equal(res["grid_dc1"][i, j], want["final_dc_ekf1"])
+    # the printed table's drift column is that expected drift
+    capsys.readouterr()
+    sweep.print_table(res)
+    lines = capsys.readouterr().out.splitlines()
+    assert lines[0].split()[:3] == ["a2", "R", "drift"], lines
+    assert [float(r.split()[2]) for r in lines[1:]] == [
+        float("%.3g" % (a2 * 0.5 + 3 * a4 * 0.25)) for a2 in (0.01, 0.03) for _ in (1, 2)]
 
 
 # -- identify --order 3|4 --held-out K -----------------------------------------------------------
@@ -255,6 +262,8 @@ def test_identify_held_out_rows_and_margin(tmp_path, capsys, order):
     assert s["margin_db"] == pytest.approx(margin, rel=1e-6)
     assert margin >= experiment.CLAIM_DB  # the letter's claim: EKF1 at least 5 dB below
     assert "EKF1 on 2 held-out set(s): margin %.1f dB" % margin in printed
+    assert "order %d: %s; standard errors of the first set: " % (order, ", ".join(
+        "a%d %.6g" % (i, m["a%d" % i]) for i in range(3, order + 1))) in printed
     csv = (tmp_path / "o" / "identify.csv").read_text().splitlines()
     assert csv[0] == "file,dc_empirical,dc_ekf1,difference" and len(csv) == 3
     assert [float(v) for v in csv[1].split(",")[1:]] == [rows[k][0] for k in (

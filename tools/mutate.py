@@ -81,7 +81,8 @@ BASELINE_TIMEOUT = 3600.0
 #: Seconds a killed run's group gets between SIGTERM and SIGKILL.
 GRACE = 5.0
 IGNORE = shutil.ignore_patterns(".git", "__pycache__", ".pytest_cache", "*.pyc", "*.egg-info",
-                                "results", "out", "target", "fmus", "cross-check", "tmp")
+                                "results", "out", "target", "fmus", "cross-check", "tmp",
+                                ".venv", ".hypothesis")
 
 
 def edits(fault):
