@@ -73,6 +73,7 @@ SINE_AWAY = dict(Ts=2.5e-4, A=0.7, Q=0.1, a2=0.02, a3=0.0, a4=-0.01, B=0.8, driv
 @given(p=general())
 @example(p=SINE_AWAY)
 @example(p=dict(SINE_AWAY, a4=0.0, a3=0.03, drive=1, Qu=0.4, Xu=0.0, fu=0.0))
+@example(p=dict(SINE_AWAY, a2=1.0, a3=1.0, a4=1.0, B=1.0))  # (a test for 0 made one for 1)
 def test_expected_drift_is_the_closed_form_through_every_path(p):
     m2, m4 = cf.stationary_moments(p["A"], p["Q"], *(p[k] for k in INPUT), p["Ts"])
     scale = abs(p["a2"] * m2) + abs(p["a4"] * m4) + 1e-300
@@ -131,6 +132,7 @@ def _draws(drive, Qu, runs, n, seed=7):
 @given(p=general())
 @example(p=SINE_AWAY)
 @example(p=dict(SINE_AWAY, A=-0.6, a2=0.0, a3=0.05, a4=0.0))
+@example(p=dict(SINE_AWAY, a2=1.0, a3=1.0, a4=1.0, B=1.0, drive=1, Qu=0.3, Xu=0.0, fu=0.0))
 def test_realised_drift_of_every_run_and_its_mean_over_the_runs(p):
     """The batch engine (the compiled kernel here, NumPy in the mutation check): each run's
     realised drift is the running mean of ``h(x) - a0 - a1 x`` of its recorded ``x``; over the
@@ -209,3 +211,25 @@ def test_sinusoidal_population_over_whole_periods_is_the_closed_form(samples, pe
     assert np.allclose(res["sine_dc_realised"], cf.realised(res["sine_x"], a2, a3, a4),
                        rtol=1e-12, atol=1e-14 * scale)
     assert np.allclose(res["sine_dc_realised"][:, -1], want, rtol=0, atol=1e-12 * scale)
+
+
+@pytest.mark.parametrize("zero", [np.float64(0.0), 0, np.int64(0), np.float32(0.0)],
+                         ids=["float64", "int", "int64", "float32"])
+def test_zero_coefficients_of_any_numeric_type_are_the_letters_sensor_bit_for_bit(zero):
+    """docs/method.md section 9: the letter's case is computed exactly as before, the higher
+    terms not even evaluated: also when ``a3 = a4 = 0`` come as NumPy scalars or integers (a
+    script's numbers), in the chain (the masters' reference) and the batch engine (its NumPy
+    path: the mutation check runs it), the realised drift included."""
+    seeds = batch.run_seeds(3, 5)
+    model = dict(a0=0.2, a2=0.3, A=0.7, Q=0.05, R=1e-3)
+    plain = chain.simulate(40, seeds, **model)
+    zeros = chain.simulate(40, seeds, a3=zero, a4=zero, **model)
+    for c in chain.COLUMNS:
+        assert plain[c].tobytes() == zeros[c].tobytes(), c
+    for kernel in ("numpy", "auto"):
+        want = batch.simulate(40, seeds, record=batch.TRAJECTORIES, kernel=kernel, **model)
+        got = batch.simulate(40, seeds, record=batch.TRAJECTORIES, kernel=kernel, a3=zero,
+                             a4=zero, **model)
+        for key in want:
+            assert want[key].tobytes() == got[key].tobytes(), (kernel, key)
+    assert not sensor.higher(zero, zero) and sensor.higher(zero, 1e-3)

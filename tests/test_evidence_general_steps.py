@@ -315,12 +315,13 @@ def test_the_harmonic_filters_three_estimators_with_a3_and_a4(Ts, f_frac, X, a2,
 
 @prop(20)
 @given(Vs=st.floats(3.0, 6.0), a1=st.floats(0.5, 1.5), a2=_coefficient(0.005, 0.05),
-       a3=_coefficient(0.001, 0.02), a4=st.one_of(st.floats(0.001, 0.02),
-                                                  st.floats(-0.02, -0.001)),
+       a3=_coefficient(0.001, 0.02), a4=_coefficient(0.001, 0.02),
        density=st.sampled_from([0.0, 110e-6]), Ts=st.sampled_from([1e-4, 1e-3]),
        x=st.lists(st.floats(-1.7, 1.7), min_size=5, max_size=5))
 @example(Vs=3.3, a1=1.0, a2=0.01, a3=0.002, a4=0.01, density=0.0, Ts=1e-4, x=[1.5, -1.5, 1.0,
                                                                              0.5, -0.2])
+@example(Vs=5.0, a1=1.0, a2=0.01, a3=0.0, a4=1.0, density=0.0, Ts=1e-3, x=[1.2, -0.7, 0.3,
+                                                                            1.0, -1.1])
 def test_the_adxl203_stand_in_scales_a4_with_its_supply(Vs, a1, a2, a3, a4, density, Ts, x):
     """Ratiometric output: zero-g at ``Vs/2`` and ``a1 .. a4`` (and noise given as a density)
     scaled by the datasheet's sensitivity ``S(Vs) / S(5 V)`` (560 mV/g at 3 V, 1000 mV/g at
@@ -336,4 +337,40 @@ def test_the_adxl203_stand_in_scales_a4_with_its_supply(Vs, a1, a2, a3, a4, dens
         want = Vs / 2 + scale * (a1 * xk + a2 * xk ** 2 + a3 * xk ** 3 + a4 * xk ** 4) \
             + sigma * v
         assert _get(a, "z") == pytest.approx(want, rel=1e-12, abs=1e-12), (k, Vs)
+        assert a.do_step((k - 1) * Ts, Ts)
+
+
+@prop(25)
+@given(fc=st.one_of(st.just(0.0), st.floats(-1.0, math.log10(2500.0)).map(lambda e: 10.0 ** e)),
+       bits=st.one_of(st.just(0), st.integers(1, 16)), Vs=st.one_of(st.just(0.0),
+                                                                    st.floats(3.0, 6.0)),
+       a4=_coefficient(0.001, 0.02), Ts=st.sampled_from([1e-4, 1e-3]),
+       x=st.lists(st.floats(-1.7, 1.7), min_size=6, max_size=6))
+@example(fc=0.5, bits=1, Vs=0.0, a4=0.0, Ts=1e-3, x=[1.0, 0.5, -0.5, 1.5, -1.0, 0.2])
+def test_the_adxl203_stand_ins_output_filter_and_adc_at_any_allowed_setting(fc, bits, Vs, a4,
+                                                                            Ts, x):
+    """The output low-pass at any allowed bandwidth (``0 < fc <= 2500`` Hz, a tenth of a hertz
+    included), ``e_k = alpha e_{k-1} + (1 - alpha) s_k``, ``alpha = exp(-2 pi fc Ts)``, started
+    at ``e_1 = s_1``; the ADC of any resolution (1 bit included): the nearest code of
+    ``z0 + e`` on ``[0, 2^bits)`` times ``Vfs / 2^bits``, ``Vfs = Vs`` or 5 V (docs/method.md
+    section 6, models/adxl203.py)."""
+    a0, a1, a2, a3, R = 2.4, 1.0, 0.01, 0.002, 1e-4
+    a = _ready(Accelerometer, dict(a0=a0, a1=a1, a2=a2, a3=a3, a4=a4, R=R, fc=fc, bits=bits,
+                                   Vs=Vs, cross=0.01, Ts=Ts, seed=6))
+    scale = 0.56 + 0.44 * (Vs - 3.0) / 2.0 if Vs else 1.0
+    z0 = Vs / 2 if Vs else a0
+    alpha = math.exp(-2 * math.pi * fc * Ts)
+    lsb = (Vs if Vs else 5.0) / 2 ** bits
+    e = None
+    for k, xk in enumerate(x, start=1):
+        _set(a, "x", xk)
+        _set(a, "y", 0.5)
+        u = xk + 0.01 * 0.5
+        s = scale * (a1 * u + a2 * u ** 2 + a3 * u ** 3 + a4 * u ** 4) \
+            + math.sqrt(R) * noise.normal(6, noise.STREAM_MEASUREMENT, k)
+        e = s if e is None or not fc else alpha * e + (1 - alpha) * s
+        want = z0 + e
+        if bits:
+            want = min(max(math.floor(want / lsb + 0.5), 0), 2 ** bits - 1) * lsb
+        assert _get(a, "z") == pytest.approx(want, rel=1e-12, abs=1e-12), (k, fc, bits, Vs)
         assert a.do_step((k - 1) * Ts, Ts)
