@@ -112,7 +112,7 @@ def test_montecarlo_reports_the_letters_gap_only_for_the_letters_sensor(capsys, 
 # -- run sinusoidal: the sensor's own a3, a4, with the supply scaling ------------------------
 
 @pytest.mark.parametrize("sensor", [dict(a4=0.02), dict(a3=0.03, a4=-0.01, Vs=3.6),
-                                    dict(a4=0.01, Vs=5.8, cross=0.05)])
+                                    dict(a4=0.01, Vs=5.8, cross=0.05), dict(a4=1.0)])
 def test_run_sinusoidal_references_take_the_sensors_a3_a4_scaled_with_the_supply(
         monkeypatch, sensor):
     use_slaves(monkeypatch, sinusoidal)
@@ -323,3 +323,26 @@ def test_the_seven_general_options_with_the_same_names_and_checks(command, capsy
             parser.parse_args(command + bad)
         assert exc.value.code == 2
         assert match in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("order", [2, 3, 4])
+def test_the_standard_errors_of_every_order_are_the_documented_closed_forms(order):
+    """docs/method.md sections 6 and 9: over ``N`` samples in whole periods, white noise of
+    variance ``s^2``, ``sd(R) = sqrt(2/N) s^2`` at every order; at order 4 ``sd(a0) =
+    sqrt(5/N) s``, ``sd(a1) = sqrt(20/N) s/X``, ``sd(a2) = sqrt(136/N) s/X^2``, ``sd(a3) =
+    4 sqrt(2/N) s/X^3``, ``sd(a4) = 8 sqrt(2/N) s/X^4``; at order 2 ``sqrt(3/N) s``,
+    ``sqrt(2/N) s/X``, ``2 sqrt(2/N) s/X^2`` (tests/test_identify_order.py checks the fits'
+    own standard errors against these; ``R``'s is checked here)."""
+    s, X, n = 0.013, 1.37, 4000
+    want = {2: dict(a0=math.sqrt(3 / n) * s, a1=math.sqrt(2 / n) * s / X,
+                    a2=2 * math.sqrt(2 / n) * s / X ** 2),
+            3: dict(a0=math.sqrt(3 / n) * s, a1=math.sqrt(20 / n) * s / X,
+                    a2=2 * math.sqrt(2 / n) * s / X ** 2, a3=4 * math.sqrt(2 / n) * s / X ** 3),
+            4: dict(a0=math.sqrt(5 / n) * s, a1=math.sqrt(20 / n) * s / X,
+                    a2=math.sqrt(136 / n) * s / X ** 2, a3=4 * math.sqrt(2 / n) * s / X ** 3,
+                    a4=8 * math.sqrt(2 / n) * s / X ** 4)}[order]
+    want["R"] = math.sqrt(2 / n) * s * s
+    got = identify.standard_errors(s, X, n, order)
+    assert set(got) == set(want)
+    for name, value in want.items():
+        assert got[name] == pytest.approx(value, rel=1e-14), name
