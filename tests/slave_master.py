@@ -10,41 +10,16 @@ from driftfmu.fmu_src.Accelerometer import Accelerometer
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
 
+from test_hardening import get, put, ready
+
 SLAVES = {"Excitation": Excitation, "Accelerometer": Accelerometer,
           "DriftEstimator": DriftEstimator}
-
-
-def _vr(slave, name):
-    return next(v.value_reference for v in slave.vars.values() if v.name == name)
-
-
-def _is_real(slave, name):
-    return type(slave.vars[_vr(slave, name)]).__name__ == "Real"
-
-
-def _set(slave, name, value):
-    vr = _vr(slave, name)
-    (slave.set_real if _is_real(slave, name) else slave.set_integer)([vr], [value])
-
-
-def _get(slave, name):
-    vr = _vr(slave, name)
-    return (slave.get_real if _is_real(slave, name) else slave.get_integer)([vr])[0]
 
 
 def cosimulate_slaves(fmus, connections, n_steps, step_size, start_values=None, record=None,
                       progress=None, **_ignored):
     """``cosimulate`` over the slave classes named by the keys of ``fmus``."""
-    slaves = {}
-    for name in fmus:
-        s = SLAVES[name](instance_name=name)
-        s.setup_experiment(0.0)
-        s.enter_initialization_mode()
-        for var, value in (start_values or {}).get(name, {}).items():
-            _set(s, var, value)
-        s.exit_initialization_mode()
-        assert not s.log_queue, [m.msg for m in s.log_queue]
-        slaves[name] = s
+    slaves = {name: ready(SLAVES[name], **(start_values or {}).get(name, {})) for name in fmus}
     out = {"time": []}
     record = record or {}
     for name, names in record.items():
@@ -53,11 +28,11 @@ def cosimulate_slaves(fmus, connections, n_steps, step_size, start_values=None, 
     t = 0.0
     for i in range(n_steps):
         for src, o, dst, inp in connections:
-            _set(slaves[dst], inp, _get(slaves[src], o))
+            put(slaves[dst], inp, get(slaves[src], o))
         out["time"].append(t)
         for name, names in record.items():
             for v in names:
-                out["%s.%s" % (name, v)].append(_get(slaves[name], v))
+                out["%s.%s" % (name, v)].append(get(slaves[name], v))
         for s in slaves.values():
             assert s.do_step(t, step_size), [m.msg for m in s.log_queue]
         t = (i + 1) * step_size

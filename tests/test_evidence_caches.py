@@ -13,7 +13,6 @@ alone, and what is served afterwards is what a fresh computation gives.
 - the compiled batch kernel and the fast master's C loop in the temporary folder: the
   compiler, and the flags they are compiled with.
 """
-import json
 import math
 import os
 import struct
@@ -27,26 +26,13 @@ from driftfmu.fmu_src.DriftEstimator import DriftEstimator
 from driftfmu.fmu_src.Excitation import Excitation
 from driftfmu.models import parameters
 
-
-def _vr(slave, name):
-    return next(v.value_reference for v in slave.vars.values() if v.name == name)
+from test_hardening import put, ready, vr
 
 
-def _set(slave, name, value):
-    v = slave.vars[_vr(slave, name)]
-    (slave.set_real if type(v).__name__ == "Real" else slave.set_integer)([v.value_reference],
-                                                                        [value])
 
 
-def _ready(cls, values):
-    s = cls(instance_name=cls.__name__)
-    s.setup_experiment(0.0)
-    s.enter_initialization_mode()
-    for name, value in values.items():
-        _set(s, name, value)
-    s.exit_initialization_mode()
-    assert not s.log_queue, [m.msg for m in s.log_queue]
-    return s
+
+
 
 
 def _outputs(slave, steps, t0=0.0, Ts=1e-3):
@@ -59,7 +45,7 @@ def _outputs(slave, steps, t0=0.0, Ts=1e-3):
     rows, t = [], t0
     for i in range(steps):
         for j, name in enumerate(inputs):
-            _set(slave, name, 0.3 * math.sin(0.7 * i + j) + 0.1 * j)
+            put(slave, name, 0.3 * math.sin(0.7 * i + j) + 0.1 * j)
         rows.append(struct.pack("<%dd" % len(outs), *slave.get_real(outs)))
         h = Ts * (3 if i % 5 == 2 else 0.5 if i % 7 == 4 else 1)
         assert slave.do_step(t, h), [m.msg for m in slave.log_queue]
@@ -123,9 +109,9 @@ def test_a_state_restore_with_any_one_parameter_changed_makes_its_blocks_anew(cl
     """The instance made its blocks under ``base`` (20 steps); a state with ``name`` changed
     alone is restored into it: from there its outputs are those of a fresh instance with that
     parameter, bit for bit."""
-    used = _ready(cls, base)
+    used = ready(cls, **base)
     _outputs(used, 20)
-    fresh = _ready(cls, dict(base, **{name: value}))
+    fresh = ready(cls, **dict(base, **{name: value}))
     state = fresh._get_fmu_state()
     used._set_fmu_state(state)
     assert not used.log_queue, [m.msg for m in used.log_queue]
@@ -141,13 +127,13 @@ def test_the_block_parameters_matter_where_they_are_tested():
     for config, (cls, base) in CONFIGS.items():
         if cls not in keys:
             continue
-        before = _outputs(_ready(cls, base), 30)
+        before = _outputs(ready(cls, **base), 30)
         for name in keys[cls]:
-            value = dict(_ready(cls, {}).parameter_values(), **base)[name]
+            value = dict(ready(cls).parameter_values(), **base)[name]
             new = _changed(name, value)
             if new is None or new == value:
                 continue
-            if _outputs(_ready(cls, dict(base, **{name: new})), 30) != before:
+            if _outputs(ready(cls, **dict(base, **{name: new})), 30) != before:
                 seen.add((cls.__name__, name))
     assert seen >= {("Excitation", n) for n in keys[Excitation]} | {("Accelerometer", "seed")}
 
@@ -162,12 +148,12 @@ def test_a_parameter_set_again_in_initialization_mode_makes_its_blocks_anew(name
     s.setup_experiment(0.0)
     s.enter_initialization_mode()
     for k, v in base.items():
-        _set(s, k, v)
-    s.get_real([_vr(s, "x"), _vr(s, "u")])  # sample 1, from the blocks of base
-    _set(s, name, value)
+        put(s, k, v)
+    s.get_real([vr(s, "x"), vr(s, "u")])  # sample 1, from the blocks of base
+    put(s, name, value)
     s.exit_initialization_mode()
     assert not s.log_queue, [m.msg for m in s.log_queue]
-    fresh = _ready(Excitation, dict(base, **{name: value}))
+    fresh = ready(Excitation, **dict(base, **{name: value}))
     assert _outputs(s, 1100) == _outputs(fresh, 1100)  # across the blocks' 1024 samples
 
 

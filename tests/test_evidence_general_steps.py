@@ -33,6 +33,7 @@ from driftfmu.fmu_src.Excitation import Excitation
 from driftfmu.models import noise
 
 from general_closed_forms import prop
+from test_hardening import get, put, ready, vr
 
 #: Relative agreement of the slaves with the reference written here: the same operations in
 #: other orders, and math.sin against models/' arithmetic-only sine.
@@ -41,29 +42,12 @@ QUOTIENTS = [Fraction(1, 4), Fraction(3, 10), Fraction(1, 2), Fraction(1), Fract
              Fraction(2), Fraction(5, 2), Fraction(3), Fraction(5)]
 
 
-def _vr(slave, name):
-    return next(v.value_reference for v in slave.vars.values() if v.name == name)
 
 
-def _set(slave, name, value):
-    v = slave.vars[_vr(slave, name)]
-    call = slave.set_real if type(v).__name__ == "Real" else slave.set_integer
-    call([v.value_reference], [value])
 
 
-def _get(slave, name):
-    return slave.get_real([_vr(slave, name)])[0]
 
 
-def _ready(cls, values):
-    s = cls(instance_name=cls.__name__)
-    s.setup_experiment(0.0)
-    s.enter_initialization_mode()
-    for name, value in values.items():
-        _set(s, name, value)
-    s.exit_initialization_mode()
-    assert not s.log_queue, [m.msg for m in s.log_queue]
-    return s
 
 
 DE_OUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "z_comp")
@@ -73,21 +57,21 @@ def run_slaves(p, quotients, host_u):
     """The chain stepped by ``h_i = q_i Ts``: per communication point ``(x, u, z, x_hat, P,
     dc_ekf1, dc_ekf2, dc_ekf3, z_comp)``.  ``host_u[i]``: the host's ``u_in`` at point ``i``
     (``drive = 0``)."""
-    e = _ready(Excitation, dict(A=p["A"], Q=p["Q"], B=p["B"], drive=p["drive"], Qu=p["Qu"],
-                                Xu=p["Xu"], fu=p["fu"], Ts=p["Ts"], seed=p["seed"]))
-    a = _ready(Accelerometer, dict(a0=p["a0"], a1=p["a1"], a2=p["a2"], a3=p["a3"], a4=p["a4"],
-                                   R=p["R"], Ts=p["Ts"], seed=p["seed"]))
-    d = _ready(DriftEstimator, dict(a0=p["a0"], a1=p["a1"], a2=p["a2"], a3=p["a3"], a4=p["a4"],
-                                    R=p["R"], A=p["A"], Q=p["Q"], B=p["B"], x0=0.0, P0=p["P0"],
-                                    Ts=p["Ts"], estimator=p["estimator"]))
+    e = ready(Excitation, A=p["A"], Q=p["Q"], B=p["B"], drive=p["drive"], Qu=p["Qu"],
+              Xu=p["Xu"], fu=p["fu"], Ts=p["Ts"], seed=p["seed"])
+    a = ready(Accelerometer, a0=p["a0"], a1=p["a1"], a2=p["a2"], a3=p["a3"], a4=p["a4"],
+              R=p["R"], Ts=p["Ts"], seed=p["seed"])
+    d = ready(DriftEstimator, a0=p["a0"], a1=p["a1"], a2=p["a2"], a3=p["a3"], a4=p["a4"],
+              R=p["R"], A=p["A"], Q=p["Q"], B=p["B"], x0=0.0, P0=p["P0"], Ts=p["Ts"],
+              estimator=p["estimator"])
     rows, t = [], 0.0
     for i in range(len(quotients) + 1):
         if p["drive"] == 0:
-            _set(e, "u_in", host_u[i])
-        _set(a, "x", _get(e, "x"))
-        _set(d, "z", _get(a, "z"))
-        _set(d, "u", _get(e, "u"))
-        rows.append((_get(e, "x"), _get(e, "u"), _get(a, "z")) + tuple(_get(d, n)
+            put(e, "u_in", host_u[i])
+        put(a, "x", get(e, "x"))
+        put(d, "z", get(a, "z"))
+        put(d, "u", get(e, "u"))
+        rows.append((get(e, "x"), get(e, "u"), get(a, "z")) + tuple(get(d, n)
                                                                       for n in DE_OUTS))
         if i == len(quotients):
             break
@@ -298,16 +282,16 @@ def test_the_harmonic_filters_three_estimators_with_a3_and_a4(Ts, f_frac, X, a2,
     f = f_frac * 0.5 / Ts
     p = dict(Ts=Ts, f=f, a0=0.2, a1=1.0, a2=a2, a3=a3, a4=a4, R=1e-3, Qh=1e-6, P0=X * X,
              estimator=1)
-    d = _ready(DriftEstimator, dict(a0=0.2, a1=1.0, a2=a2, a3=a3, a4=a4, R=1e-3, process=2,
-                                    f=f, Qh=1e-6, x0=0.0, P0=X * X, Ts=Ts))
+    d = ready(DriftEstimator, a0=0.2, a1=1.0, a2=a2, a3=a3, a4=a4, R=1e-3, process=2,
+              f=f, Qh=1e-6, x0=0.0, P0=X * X, Ts=Ts)
     k, t, rows, zs = 1, 0.0, [], []
     for m in steps:
         x = X * math.sin(2 * math.pi * f * (k - 1) * Ts + 0.4)
         z = (0.2 + x + a2 * x * x + a3 * x ** 3 + a4 * x ** 4
              + 0.03 * noise.normal(3, noise.STREAM_MEASUREMENT, k))
-        _set(d, "z", z)  # at instant k: its sample, updated with this z, is what is read
+        put(d, "z", z)  # at instant k: its sample, updated with this z, is what is read
         zs.append(z)
-        rows.append(tuple(_get(d, n) for n in ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3")))
+        rows.append(tuple(get(d, n) for n in ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3")))
         assert d.do_step(t, m * Ts)  # commits it, then predicts through the other m - 1
         k, t = k + m, t + m * Ts
     _compare(rows, harmonic_reference(p, zs, steps))
@@ -328,15 +312,15 @@ def test_the_adxl203_stand_in_scales_a4_with_its_supply(Vs, a1, a2, a3, a4, dens
     5 V, linear); the noise from ``R`` is in volts, unscaled (docs/method.md section 6)."""
     scale = (0.56 + (1.0 - 0.56) * (Vs - 3.0) / 2.0) / 1.0
     R = 1e-4
-    a = _ready(Accelerometer, dict(a0=0.7, a1=a1, a2=a2, a3=a3, a4=a4, R=R, Vs=Vs,
-                                   density=density, Ts=Ts, seed=5))
+    a = ready(Accelerometer, a0=0.7, a1=a1, a2=a2, a3=a3, a4=a4, R=R, Vs=Vs,
+              density=density, Ts=Ts, seed=5)
     for k, xk in enumerate(x, start=1):
-        _set(a, "x", xk)
+        put(a, "x", xk)
         v = noise.normal(5, noise.STREAM_MEASUREMENT, k)
         sigma = scale * a1 * density * math.sqrt(0.5 / Ts) if density else math.sqrt(R)
         want = Vs / 2 + scale * (a1 * xk + a2 * xk ** 2 + a3 * xk ** 3 + a4 * xk ** 4) \
             + sigma * v
-        assert _get(a, "z") == pytest.approx(want, rel=1e-12, abs=1e-12), (k, Vs)
+        assert get(a, "z") == pytest.approx(want, rel=1e-12, abs=1e-12), (k, Vs)
         assert a.do_step((k - 1) * Ts, Ts)
 
 
@@ -355,16 +339,16 @@ def test_the_adxl203_stand_ins_output_filter_and_adc_at_any_allowed_setting(fc, 
     ``z0 + e`` on ``[0, 2^bits)`` times ``Vfs / 2^bits``, ``Vfs = Vs`` or 5 V (docs/method.md
     section 6, models/adxl203.py)."""
     a0, a1, a2, a3, R = 2.4, 1.0, 0.01, 0.002, 1e-4
-    a = _ready(Accelerometer, dict(a0=a0, a1=a1, a2=a2, a3=a3, a4=a4, R=R, fc=fc, bits=bits,
-                                   Vs=Vs, cross=0.01, Ts=Ts, seed=6))
+    a = ready(Accelerometer, a0=a0, a1=a1, a2=a2, a3=a3, a4=a4, R=R, fc=fc, bits=bits,
+              Vs=Vs, cross=0.01, Ts=Ts, seed=6)
     scale = 0.56 + 0.44 * (Vs - 3.0) / 2.0 if Vs else 1.0
     z0 = Vs / 2 if Vs else a0
     alpha = math.exp(-2 * math.pi * fc * Ts)
     lsb = (Vs if Vs else 5.0) / 2 ** bits
     e = None
     for k, xk in enumerate(x, start=1):
-        _set(a, "x", xk)
-        _set(a, "y", 0.5)
+        put(a, "x", xk)
+        put(a, "y", 0.5)
         u = xk + 0.01 * 0.5
         s = scale * (a1 * u + a2 * u ** 2 + a3 * u ** 3 + a4 * u ** 4) \
             + math.sqrt(R) * noise.normal(6, noise.STREAM_MEASUREMENT, k)
@@ -372,5 +356,5 @@ def test_the_adxl203_stand_ins_output_filter_and_adc_at_any_allowed_setting(fc, 
         want = z0 + e
         if bits:
             want = min(max(math.floor(want / lsb + 0.5), 0), 2 ** bits - 1) * lsb
-        assert _get(a, "z") == pytest.approx(want, rel=1e-12, abs=1e-12), (k, fc, bits, Vs)
+        assert get(a, "z") == pytest.approx(want, rel=1e-12, abs=1e-12), (k, fc, bits, Vs)
         assert a.do_step((k - 1) * Ts, Ts)

@@ -291,27 +291,6 @@ def _result(returncode, out, seconds):
     return "error", first or " / ".join(tail)[:160], seconds
 
 
-def run(copy, tests, timeout):
-    """pytest on the copy: ``(status, first failing test, seconds)``."""
-    env = dict(os.environ, PYTHONPATH=copy, PYTHONDONTWRITEBYTECODE="1", DRIFTFMU_KERNEL="numpy")
-    cmd = [sys.executable, "-m", "pytest"] + _pytest_args(tests)
-    t0 = time.perf_counter()
-    p = subprocess.Popen(cmd, cwd=copy, env=env, stdout=subprocess.PIPE,
-                         stderr=subprocess.STDOUT, text=True, start_new_session=True)
-    try:
-        out, _ = p.communicate(timeout=timeout)
-    except subprocess.TimeoutExpired:
-        mutate.kill_group(p)
-        p.communicate()
-        return "timeout", None, time.perf_counter() - t0
-    except BaseException:
-        mutate.kill_group(p)
-        p.communicate()
-        raise
-    mutate.kill_group(p, grace=1.0)
-    return _result(p.returncode, out, time.perf_counter() - t0)
-
-
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--list", action="store_true", help="list the mutants, run nothing")
@@ -341,20 +320,7 @@ def main(argv=None):
                 " ".join(m["original"].split()), m["mutated"]))
         print("%d mutants" % len(found))
         return 0
-    # SIGINT and SIGTERM (a background run ignores SIGINT) as exceptions, so that the running
-    # pytest's group is killed (run) and the copy removed, as tools/mutate.py does
-    def stop(signum, frame):
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-        signal.signal(signal.SIGTERM, signal.SIG_IGN)
-        raise KeyboardInterrupt
-    signal.signal(signal.SIGINT, stop)
-    signal.signal(signal.SIGTERM, stop)
-    try:
-        return _survey(args, found)
-    except KeyboardInterrupt:
-        print("survey: stopped; the running tests were killed, the copy removed",
-              file=sys.stderr)
-        return 130
+    return mutate.stoppable("survey", _survey, args, found)
 
 
 def _survey(args, found):
@@ -363,7 +329,7 @@ def _survey(args, found):
     forked = hasattr(os, "fork") and not args.no_fork
     if forked:
         _preload()
-    execute = run_forked if forked else run
+    execute = run_forked if forked else mutate.run_tests  # (a new Python, pytest-xdist's -n)
     try:
         where = subprocess.run([sys.executable, "-c", "import driftfmu.models as m; "
                                 "print(m.__file__)"], cwd=copy, capture_output=True, text=True,
