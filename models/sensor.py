@@ -16,11 +16,17 @@ from .noise import STREAM_MEASUREMENT, normal
 
 
 def higher(a3, a4):
-    """True unless ``a3`` and ``a4`` are both the number 0 (the letter's quadratic sensor); an
-    array of coefficients (a batch that sweeps them) counts as higher-order."""
+    """True unless ``a3`` and ``a4`` are both the number 0 (the letter's quadratic sensor), of
+    any numeric type (a NumPy scalar too); an array of coefficients (a batch that sweeps them)
+    counts as higher-order."""
     if type(a3) is float and type(a4) is float:  # the per-sample case of one FMU instance
         return a3 != 0.0 or a4 != 0.0
-    return not (_ops.is_scalar(a3) and a3 == 0.0 and _ops.is_scalar(a4) and a4 == 0.0)
+    return not (_zero(a3) and _zero(a4))
+
+
+def _zero(a):
+    """``a`` is one number (not an array of them) and it is 0."""
+    return (_ops.is_scalar(a) or getattr(a, "ndim", None) == 0) and a == 0.0
 
 
 def h(x, a0, a1, a2, a3=0.0, a4=0.0):
@@ -70,7 +76,7 @@ def drift(a2, variance, a4=0.0, m4=None):
     that the result is the letter's ``a2 sigma_x^2 + 3 a4 sigma_x^4`` (eqs. 4-5).  ``a4 = 0``
     gives ``a2 sigma_x^2``, same bits as the quadratic sensor's.
     """
-    if _ops.is_scalar(a4) and a4 == 0.0:
+    if _zero(a4):
         return a2 * variance
     if m4 is None:
         m4 = 3.0 * variance * variance

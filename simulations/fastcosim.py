@@ -142,7 +142,10 @@ def unpacked(path):
     import platform
     import zipfile
     stat = os.stat(path)
-    key = (os.path.abspath(path), stat.st_mtime_ns, stat.st_size)
+    # the file's identity and every time it has: the change time (which no one sets) also
+    # moves when an FMU is written again with the same size and modification time
+    key = (os.path.abspath(path), stat.st_dev, stat.st_ino, stat.st_mtime_ns, stat.st_ctime_ns,
+           stat.st_size)
     if key not in _UNPACKED:
         # registered where a worker told to stop finds it (batch._worker_stop), removed when
         # the process ends (cosim.new_extract_folder)
@@ -225,6 +228,24 @@ class _Access(ctypes.Structure):
 _LOOP_LIBRARY = []
 
 
+#: The flags the C loop is compiled with.
+LOOP_FLAGS = ("-O2", "-shared", "-fPIC")
+
+
+def loop_target():
+    """Path of the compiled C loop in the temporary folder, named by the hash of what its
+    bytes depend on: :data:`LOOP_SOURCE`, :data:`LOOP_FLAGS` and the compiler
+    (:func:`driftfmu.simulations.kernel.compiler_identity`)."""
+    import hashlib
+    import os
+    import tempfile
+    from driftfmu.simulations import kernel
+    digest = hashlib.sha256("\0".join(
+        (LOOP_SOURCE, " ".join(LOOP_FLAGS),
+         kernel.compiler_identity(kernel.compiler_command()))).encode()).hexdigest()[:12]
+    return os.path.join(tempfile.gettempdir(), "driftfmu-loop-%s-%d.so" % (digest, os.getuid()))
+
+
 def loop_library():
     """The compiled C loop (ctypes function), or None when no C compiler works.  Compiled once
     into the temporary directory, named by the source's hash, written atomically: compiled in
@@ -233,18 +254,14 @@ def loop_library():
     any point leaves either the whole library or nothing, never a partial file."""
     if _LOOP_LIBRARY:
         return _LOOP_LIBRARY[0]
-    import hashlib
     import os
-    import shlex
     import subprocess
-    import tempfile
-    digest = hashlib.sha256(LOOP_SOURCE.encode()).hexdigest()[:12]
-    target = os.path.join(tempfile.gettempdir(), "driftfmu-loop-%s-%d.so" % (digest,
-                                                                          os.getuid()))
+    from driftfmu.simulations import kernel
+    target = loop_target()
     function = None
     try:
         if not os.path.exists(target):
-            compiler = shlex.split(os.environ.get("CC", "cc"))
+            compiler = kernel.compiler_command()
             # registered where a worker told to stop (SIGTERM) removes it, as the FMUs' folders
             work = new_extract_folder(prefix="driftfmu_loop_")
             try:
@@ -252,7 +269,7 @@ def loop_library():
                 with open(source, "w") as fh:
                     fh.write(LOOP_SOURCE)
                 partial = os.path.join(work, "loop.so")
-                subprocess.run(compiler + ["-O2", "-shared", "-fPIC", "-o", partial, source],
+                subprocess.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
                                check=True, capture_output=True)
                 os.replace(partial, target)  # one rename: the work folder is beside target
             finally:

@@ -193,7 +193,8 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
     cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(
         cols["x"], cols["z"], a0, a2, dc_expected, general["a3"], general["a4"])
     diffs, bad = compare(cols, ref)
-    # the gap's closed form is the letter's quadratic sensor's, without an input
+    # the gap's closed form 10 log10(1 + R/(a1^2 Q)) is the letter's quadratic sensor's, at
+    # A = 0 without the input (as montecarlo gaussian reports it)
     summary = summarise(cols, params, a1=a1, Q=Q, R=R, A=A if general == GENERAL_OFF else None)
     summary["estimator"] = estimator
     summary["validation"] = {"reference": "models.chain.simulate, same seed",

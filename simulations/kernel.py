@@ -15,6 +15,7 @@ a C compiler :func:`library` returns None and the callers use the NumPy engine (
 machines whose compiler misbehaves); ``CC`` names the compiler (default ``cc``).
 """
 import ctypes
+import functools
 import hashlib
 import os
 import shlex
@@ -103,21 +104,52 @@ def library():
     return lib
 
 
-def _build():
-    """Path of the compiled kernel; compile it first when it is not there."""
+def compiler_command():
+    """The C compiler command: ``CC`` split as a shell would, default ``cc``."""
+    return shlex.split(os.environ.get("CC", "cc"))
+
+
+@functools.lru_cache(maxsize=None)
+def _version(command):
+    try:
+        done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
+                              timeout=60)
+    except (OSError, subprocess.SubprocessError):
+        return ""
+    return done.stdout if done.returncode == 0 else ""
+
+
+def compiler_identity(command):
+    """What names a compiler in the name of a library it compiled: its command and what its
+    ``--version`` prints (once per command and process), so that another ``CC``, or the same
+    command after an upgrade, compiles anew instead of loading what the other one made."""
+    return " ".join(command) + "\n" + _version(tuple(command))
+
+
+def target():
+    """Path of the compiled kernel in the temporary folder, named by the hash of everything
+    its bytes depend on: the sources and headers, the parameter table, the flags, the
+    compiler (:func:`compiler_identity`) and the processor the machine flags are for."""
     generate, sources = _sources()
-    table = generate.parameters_table()
     digest = hashlib.sha256()
     for path in sorted(sources + sorted(generate.HERE.glob("*.h"))):
         digest.update(path.name.encode() + b"\0" + path.read_bytes())
-    digest.update(table.encode())
+    digest.update(generate.parameters_table().encode())
     digest.update(" ".join(generate.CFLAGS + SPEED_FLAGS + MACHINE_FLAGS).encode())
+    digest.update(compiler_identity(compiler_command()).encode())
     digest.update(_processor().encode())
-    target = Path(tempfile.gettempdir()) / ("driftfmu-kernel-%s-%d.so"
-                                            % (digest.hexdigest()[:12], os.getuid()))
-    if target.exists():
-        return target
-    compiler = shlex.split(os.environ.get("CC", "cc"))
+    return Path(tempfile.gettempdir()) / ("driftfmu-kernel-%s-%d.so"
+                                          % (digest.hexdigest()[:12], os.getuid()))
+
+
+def _build():
+    """Path of the compiled kernel (:func:`target`); compile it first when it is not there."""
+    generate, sources = _sources()
+    table = generate.parameters_table()
+    target_path = target()
+    if target_path.exists():
+        return target_path
+    compiler = compiler_command()
     with folders.temporary("driftfmu_kernel_") as work:
         (Path(work) / "parameters_table.h").write_text(table)
         partial = Path(work) / "kernel.so"
@@ -135,10 +167,10 @@ def _build():
             except subprocess.CalledProcessError:
                 if not extra:
                     raise
-        staged = target.with_name(target.name + ".part%d" % os.getpid())
+        staged = target_path.with_name(target_path.name + ".part%d" % os.getpid())
         shutil.move(str(partial), str(staged))
-        os.replace(staged, target)
-    return target
+        os.replace(staged, target_path)
+    return target_path
 
 
 def _processor():

@@ -230,6 +230,9 @@ def test_margin_is_10_log10_of_the_mean_drift_over_the_rms_difference():
     assert experiment.margin([-d, -d], [-d + e, -d - e])["margin_db"] == \
         pytest.approx(10 * math.log10(22), rel=1e-12)             # a negative drift: |mean|
     assert experiment.margin([d, d], [d, d])["margin_db"] == math.inf
+    # the per-set difference (adxl203.csv's column) is EKF1 - empirical, with its sign
+    assert experiment.margin([d, 2 * d], [d + e, 2 * d - 3 * e])["difference"] == \
+        pytest.approx([e, -3 * e], rel=1e-9)
 
 
 def test_identify_reports_the_same_margin_for_its_held_out_recordings(tmp_path):

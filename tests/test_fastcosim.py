@@ -49,9 +49,9 @@ def test_the_loop_library_is_compiled_once_into_the_temporary_directory(tmp_path
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
     if fastcosim.loop_library() is None:
         pytest.skip("no C compiler")
-    assert [f.name for f in tmp_path.iterdir()] == [
-        "driftfmu-loop-%s-%d.so" % (__import__("hashlib").sha256(
-            fastcosim.LOOP_SOURCE.encode()).hexdigest()[:12], os.getuid())]
+    # named by the hash of its source, flags and compiler (tests/test_evidence_caches.py)
+    assert [f.name for f in tmp_path.iterdir()] == [os.path.basename(fastcosim.loop_target())]
+    assert fastcosim.loop_target().startswith(str(tmp_path / "driftfmu-loop-"))
 
 
 def _unpack_in_worker(path):
@@ -66,8 +66,11 @@ def test_a_worker_process_removes_the_fmus_it_unpacked_when_it_ends(native_fmus,
     the folders ``unpacked`` made there went with no one (every ``experiment adxl203`` left
     its workers' FMUs in the temporary directory).  Both start methods of the pool (a fork
     server started earlier keeps its temporary directory: the folders are checked by name)."""
-    from driftfmu.simulations import batch
+    from driftfmu.simulations import batch, fastcosim
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
+    # what this process unpacked before (another test in this pytest worker) is not the pool
+    # workers' to remove: they would take it from the fork instead of unpacking their own
+    monkeypatch.setattr(fastcosim, "_UNPACKED", {})
     fmu = str(native_fmus[2]["Accelerometer"])
     for threads in (False, True):  # fork (one thread), forkserver (another thread runs)
         if threads:

@@ -47,7 +47,8 @@ def test_noise_free_recovers_every_coefficient(delay):
 
 
 def test_a_missing_order_is_bias_not_noise():
-    # a quartic sensor fitted at order 2: a0 and a2 absorb the a4 terms (3 a4 X^4/8, a4 X^2)
+    # a quartic sensor fitted at order 2: a2 absorbs a4 X^2 (a0 gets - a4 X^4/8: the test of
+    # tests/test_evidence_general_experiments.py)
     fit = identify.fit_set(*_record(1, 0.0), F, order=2)
     assert fit.a2 == pytest.approx(TRUE["a2"] + TRUE["a4"] * X * X, abs=1e-11)
     assert fit.a1 == pytest.approx(TRUE["a1"] + 0.75 * TRUE["a3"] * X * X, abs=1e-11)

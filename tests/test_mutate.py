@@ -150,3 +150,70 @@ def test_a_bound_that_is_not_positive_is_a_usage_error(tmp_path):
                        text=True, timeout=BOUND)
     assert p.returncode == 2
     assert "--timeout 0.0: allowed: seconds > 0" in p.stderr.strip().splitlines()[-1]
+
+
+def _tool(name):
+    spec = importlib.util.spec_from_file_location(name, ROOT / "tools" / ("%s.py" % name))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+def test_every_fault_of_the_list_matches_the_tree_and_names_tests_that_exist():
+    """The list kept with the code (CI checks it before its short run; here in the loop): every
+    pattern occurs once, every selection exists, and the general sensor's faults of issue 32
+    are there, the C twin changed with the Python one where there is one, some in CI's list."""
+    mutate = _tool("mutate")
+    faults = mutate.load()
+    assert mutate.check(faults) == []
+    for f in faults:
+        for t in f["tests"]:
+            assert (ROOT / t.split("::")[0]).exists(), (f["id"], t)
+    general = [f for f in faults if "test_evidence_general_" in " ".join(f["tests"])
+               or "test_evidence_caches" in " ".join(f["tests"])]
+    assert len(general) >= 30
+    assert sum(f["short"] for f in general) >= 5
+    twins = {"models/sensor.py": "sensor.c", "models/adxl203.py": "adxl203.c",
+             "models/harmonic.py": "harmonic.c", "fmu_src/DriftEstimator.py":
+             "DriftEstimator_step.c", "simulations/batch.py": "batch_kernel.c"}
+    for f in general:
+        if f["file"] in twins and f["id"] != "general-estimator-sample-predicts-without-u":
+            assert any(a["file"].endswith(twins[f["file"]]) for a in f["also"]), f["id"]
+
+
+def test_the_copy_leaves_out_the_virtual_environment_and_caches(tmp_path):
+    mutate = _tool("mutate")
+    root = tmp_path / "root"
+    for name in ("models/a.py", ".venv/lib/big.so", ".hypothesis/constants/x", ".git/HEAD"):
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text("x")
+    tmp, copy = mutate.make_copy(str(root))
+    try:
+        assert sorted(p.name for p in Path(copy).iterdir()) == ["models"]
+    finally:
+        import shutil
+        shutil.rmtree(tmp)
+
+
+def test_the_survey_generates_each_kind_of_mutant(tmp_path):
+    """tools/mutation_survey.py: a changed constant, a sign, a dropped term, a comparison, two
+    arguments swapped, a keyword or a last argument left out; each mutant parses and differs."""
+    survey = _tool("mutation_survey")
+    (tmp_path / "m.py").write_text(
+        "def f(a, b, c=1.0):\n"
+        '    """Docstring 2.0 is not mutated."""\n'
+        "    if a != 0.0:\n"
+        "        return g(a, b, c=c) + 2.0 * a - b\n"
+        "    return h(a, b)\n")
+    found = survey.mutants(str(tmp_path), (("m.py", "f"),))
+    kinds = {m["operator"] for m in found}
+    assert kinds == {"constant", "sign", "drop", "compare", "swap", "default", "last"}, kinds
+    texts = [m["source"] for m in found]
+    assert len(set(texts)) == len(texts)
+    for m in found:
+        compile(m["source"], "m.py", "exec")
+        assert "Docstring 2.0" in m["source"]
+    mutated = {(m["operator"], m["mutated"]) for m in found}
+    assert ("compare", "a > 0.0") in mutated and ("swap", "g(b, a, c=c)") in mutated
+    assert ("default", "g(a, b)") in mutated and ("constant", "4.0") in mutated
+    assert ("drop", "g(a, b, c=c) + 2.0 * a") in mutated and ("last", "h(a)") in mutated

@@ -81,7 +81,8 @@ BASELINE_TIMEOUT = 3600.0
 #: Seconds a killed run's group gets between SIGTERM and SIGKILL.
 GRACE = 5.0
 IGNORE = shutil.ignore_patterns(".git", "__pycache__", ".pytest_cache", "*.pyc", "*.egg-info",
-                                "results", "out", "target", "fmus", "cross-check", "tmp")
+                                "results", "out", "target", "fmus", "cross-check", "tmp",
+                                ".venv", ".hypothesis")
 
 
 def edits(fault):
@@ -263,8 +264,13 @@ def main(argv=None):
         print("mutate: all %d patterns match exactly once" % len(load(args.list)))
         return 0
 
-    # SIGINT and SIGTERM as exceptions, so the running pytest's group is killed (run_tests) and
-    # the copy removed; a second signal while that happens is ignored
+    return stoppable("mutate", _run, args, faults, root)
+
+
+def stoppable(name, run, *args):
+    """``run(*args)`` with SIGINT and SIGTERM (a background job ignores SIGINT) as exceptions,
+    so that the running pytest's group is killed (:func:`run_tests`) and the copy removed; a
+    second signal while that happens is ignored.  130 when stopped."""
     def stop(signum, frame):
         signal.signal(signal.SIGINT, signal.SIG_IGN)
         signal.signal(signal.SIGTERM, signal.SIG_IGN)
@@ -272,9 +278,9 @@ def main(argv=None):
     signal.signal(signal.SIGINT, stop)
     signal.signal(signal.SIGTERM, stop)
     try:
-        return _run(args, faults, root)
+        return run(*args)
     except KeyboardInterrupt:
-        print("mutate: stopped; the running tests were killed, the copy removed",
+        print("%s: stopped; the running tests were killed, the copy removed" % name,
               file=sys.stderr)
         return 130
 
