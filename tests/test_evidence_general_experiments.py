@@ -197,8 +197,9 @@ def test_a_single_a4_of_either_sign_reaches_every_grid_point(a4, capsys):
     capsys.readouterr()
     sweep.print_table(res)
     lines = capsys.readouterr().out.splitlines()
-    assert lines[0].split()[:3] == ["a2", "R", "drift"], lines
-    assert [float(r.split()[2]) for r in lines[1:]] == [
+    assert lines[0].split()[:3] == ["a2", "R", "expected"], lines
+    assert lines[1].split()[:4] == ["[V/g^2]", "[V^2]", "drift", "[V]"], lines
+    assert [float(r.split()[2]) for r in lines[2:]] == [
         float("%.3g" % (a2 * 0.5 + 3 * a4 * 0.25)) for a2 in (0.01, 0.03) for _ in (1, 2)]
 
 
