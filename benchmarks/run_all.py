@@ -17,15 +17,12 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 
-#: Each benchmark's arguments: (the page's sizes, --quick's sizes).  bench_plumbing's baseline
-#: is the native FMUs' plumbing before it was made cheaper (the same models and flags).
+#: Each benchmark's arguments: (the page's sizes, --quick's sizes).
 RUNS = [
     ("bench_step.py", ["--repeats", "9"], ["--steps", "2000", "--repeats", "5"]),
     ("bench_fmu_hosts.py", ["--repeats", "5"], ["--steps", "2000", "--repeats", "3"]),
     ("bench_native.py", ["--repeats", "5"],
      ["--steps", "50000", "--python-steps", "2000", "--repeats", "3"]),
-    ("bench_plumbing.py", ["--baseline", "5b5f364", "--repeats", "7"],
-     ["--baseline", "5b5f364", "--repeats", "3"]),
     ("bench_batch.py", ["--repeats", "3"], ["--repeats", "2"]),
     ("bench_sweep.py", ["--repeats", "5"], ["--repeats", "3"]),
     ("bench_adxl203.py", [], []),
