@@ -7,8 +7,12 @@ Every script runs in its own process with a time limit.  This is the fixed-seed 
 runs; ``python3 -m tests.fuzz.run --seconds 600`` runs random scripts for ten minutes and
 ``python3 -m tests.fuzz.differential --seconds 1200`` the differential fuzz for twenty.
 """
+import os
 import shutil
+import subprocess
+import sys
 import zlib
+from pathlib import Path
 
 import pytest
 
@@ -312,6 +316,23 @@ def test_a_refused_call_changes_no_twin(twins, name, portion, report):
     report("FUZZ differential %s, every refused call checked: %d scripts on the three "
            "backends: %d problems" % (name, len(seeds), len(problems)))
     assert problems == [], "\n".join(problems[:10])
+
+
+def test_the_differential_child_imports_the_driftfmu_of_its_parent(monkeypatch, tmp_path):
+    """``python -m tests.fuzz.differential`` in a checkout that is not installed: the child runs
+    as a script from tests/fuzz, so it finds driftfmu only because its PYTHONPATH starts with
+    the folder of the parent's driftfmu (the host's own PYTHONPATH entries kept after it)."""
+    import driftfmu
+    root = str(Path(driftfmu.__file__).resolve().parent.parent)
+    monkeypatch.setenv("PYTHONPATH", os.pathsep.join([str(tmp_path), root]))
+    monkeypatch.delenv("PYTHONMALLOC", raising=False)
+    env = differential.child_environment()
+    assert env["PYTHONPATH"].split(os.pathsep) == [root, str(tmp_path)]
+    assert "PYTHONMALLOC" not in env
+    assert differential.child_environment(valgrind=True)["PYTHONMALLOC"] == "malloc"
+    done = subprocess.run([sys.executable, "-c", "import driftfmu; print(driftfmu.__file__)"],
+                          cwd=tmp_path, env=env, capture_output=True, text=True, check=True)
+    assert done.stdout.strip() == driftfmu.__file__
 
 
 @pytest.mark.qualification  # rebuilds a native twin with the defect planted

@@ -579,6 +579,19 @@ VALGRIND = ["valgrind", "-q", "--undef-value-errors=no", "--error-exitcode=99",
             "--suppressions=%s" % (Path(__file__).resolve().parent / "valgrind.supp")]
 
 
+def child_environment(valgrind=False):
+    """The child's environment: it imports the driftfmu that this process imported (the
+    checkout's, when this module runs as ``python -m tests.fuzz.differential`` in a checkout
+    that is not installed, where the child's own path, tests/fuzz, would not find it)."""
+    import driftfmu
+    root = str(Path(driftfmu.__file__).resolve().parent.parent)
+    rest = [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join([root] + rest))
+    if valgrind:
+        env["PYTHONMALLOC"] = "malloc"
+    return env
+
+
 def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False, check=False,
         extreme=False):
     """Run the scripts of ``seeds`` in a child process (under valgrind if asked; ``check``:
@@ -595,10 +608,9 @@ def run(dirs, seeds, n_calls=60, plant=None, time_limit=600, valgrind=False, che
         command.append("--check")
     if extreme:
         command.append("--extreme")
-    env = dict(os.environ, PYTHONMALLOC="malloc") if valgrind else None
     try:
         done = subprocess.run(command, capture_output=True, text=True, timeout=time_limit,
-                              env=env)
+                              env=child_environment(valgrind))
     except subprocess.TimeoutExpired:
         return ["hang: the scripts did not end within %g s" % time_limit]
     problems, seen = [], set()
