@@ -66,7 +66,12 @@ def test_a_worker_process_removes_the_fmus_it_unpacked_when_it_ends(native_fmus,
     the folders ``unpacked`` made there went with no one (every ``experiment adxl203`` left
     its workers' FMUs in the temporary directory).  Both start methods of the pool (a fork
     server started earlier keeps its temporary directory: the folders are checked by name)."""
+    import multiprocessing.util
     from driftfmu.simulations import batch, fastcosim
+    # multiprocessing's own folder (the fork server's socket) in the temporary directory, before
+    # it is tmp_path: a socket's path has at most 107 bytes, and tmp_path under a TMPDIR of a
+    # few more letters than /tmp is too long for it ("AF_UNIX path too long")
+    multiprocessing.util.get_temp_dir()
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
     # what this process unpacked before (another test in this pytest worker) is not the pool
     # workers' to remove: they would take it from the fork instead of unpacking their own
