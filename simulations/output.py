@@ -101,14 +101,25 @@ class Staging:
     def path(self, target, folder=True):
         """The staged stand-in for ``target`` (a folder, or with ``folder=False`` a file).
         First the commits that killed processes left unfinished in the places of ``target``
-        (its folder and the folders above it) are completed or rolled back (:func:`recover`)."""
+        (its folder and the folders above it) are completed or rolled back (:func:`recover`).
+
+        A ``target`` that is an existing folder where a file is asked for (the commit would
+        move the folder aside and remove it with everything in it), an existing file where a
+        folder is asked for, or a path under an existing file, is a UsageError: nothing is
+        staged."""
         shown = Path(target)
         target = shown.absolute()
-        recover(target if folder else target.parent)
         anchor = target if folder else target.parent
-        while not anchor.is_dir() and anchor != anchor.parent:
-            anchor = anchor.parent
-        stage = Path(folders.make(STAGE, dir=anchor))
+        existing = nearest_existing(anchor)
+        if not existing.is_dir():
+            raise UsageError("%s: %s is an existing file; allowed: %s" % (
+                shown, existing, "a folder (created if missing)" if folder
+                else "a file path in a folder"))
+        if not folder and target.is_dir():
+            raise UsageError("%s is an existing folder; allowed: a file path (an existing file "
+                             "is replaced; a folder is not)" % shown)
+        recover(anchor)
+        stage = Path(folders.make(STAGE, dir=existing))
         staged = stage / target.name
         self._pairs.append((stage, staged, target))
         self._shown.append((staged, shown))

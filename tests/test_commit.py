@@ -14,6 +14,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations import folders, output
+from driftfmu.simulations.errors import UsageError
 
 pytestmark = [pytest.mark.skipif(folders.fcntl is None, reason="no flock on this platform"),
               pytest.mark.skipif(not hasattr(os, "fork"), reason="no fork on this platform")]
@@ -55,6 +56,7 @@ SERVER = """
 import json, os, signal, sys, warnings
 from pathlib import Path
 from driftfmu.simulations import folders, output
+from driftfmu.simulations.errors import UsageError
 # no fsync: a process killed outright loses nothing the kernel has (3 ms a file here);
 # where the commit syncs is tested on its own
 output._sync = lambda fd: None
@@ -342,3 +344,26 @@ def test_the_commit_writes_to_disk_what_each_step_needs_before_it(tmp_path, monk
     changed = {str(out), str(out / "sub"), str(out / "sub" / "deeper"), str(ssp.parent),
                stages[0], stages[1]}
     assert changed <= {e[1] for e in events[first_move:done] if e[0] == "sync"}
+
+
+@pytest.mark.parametrize("kind", ["a folder for a file", "a file for a folder",
+                                  "a file under a file", "a folder under a file"])
+def test_a_destination_of_the_other_kind_is_refused_before_anything_is_staged(kind, tmp_path):
+    """A file asked for where a folder of the user's is (the commit would move the folder aside
+    and remove it with its files), a folder where a file is, or either under a file: one
+    UsageError from Staging.path, nothing staged, the user's files as they were."""
+    (tmp_path / "mine").mkdir()
+    (tmp_path / "mine" / "notes.txt").write_text("my notes\n")
+    (tmp_path / "file.csv").write_text("my data\n")
+    target, folder = {"a folder for a file": ("mine", False),
+                      "a file for a folder": ("file.csv", True),
+                      "a file under a file": ("file.csv/x.csv", False),
+                      "a folder under a file": ("file.csv/out", True)}[kind]
+    before = sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*"))
+    with pytest.raises(UsageError, match="is an existing (folder|file); allowed: "):
+        with output.Staging() as staging:
+            staged = staging.path(tmp_path / target, folder=folder)
+            (staged.mkdir() if folder else staged.write_text("new\n"))
+    assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before
+    assert (tmp_path / "mine" / "notes.txt").read_text() == "my notes\n"
+    assert (tmp_path / "file.csv").read_text() == "my data\n"
