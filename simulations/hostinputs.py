@@ -45,8 +45,6 @@ interval for a 2 s run) is refused, naming the sample and the ``--output-interva
 """
 import csv
 import math
-import os
-import tempfile
 from pathlib import Path
 
 from driftfmu.simulations.errors import UsageError
@@ -203,22 +201,16 @@ def _columns(model, name):
 def write_input_file(fmu, results, out, Ts=None, start_time=None, force=False):
     """Write the input file of ``fmu`` (:func:`host_input`) to ``out``, whole or not at all;
     an existing ``out`` is kept unless ``force``.  Returns ``(samples, sources)``."""
+    from driftfmu.simulations.output import Staging
     out = Path(out)
     if out.exists() and not force:
         raise UsageError("%s exists; allowed: a new file, or --force to replace it" % out)
     header, rows, sources = host_input(fmu, results, Ts, start_time)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, part = tempfile.mkstemp(prefix=".%s." % out.name, suffix=".part", dir=out.parent)
-    try:
-        with os.fdopen(fd, "w", newline="") as f:
+    with Staging() as staging:  # (a kill at any instant: the next run completes the commit)
+        with open(staging.path(out, folder=False), "w", newline="") as f:
             f.write(",".join(header) + "\n")
             for row in rows:  # repr: the shortest text that reads back as the same double
                 f.write(",".join(repr(float(v)) for v in row) + "\n")
-        os.chmod(part, 0o644)
-        os.replace(part, out)
-    finally:
-        if os.path.exists(part):
-            os.unlink(part)
     return (len(rows) + 1) // 2, sources
 
 
