@@ -564,10 +564,10 @@ class SlaveBase(Fmi2Slave):
             self.start_time = float(start_time)
             self._stop_time = _INF if stop_time is None else float(stop_time)
 
-    def _stop_position(self):
+    def _stop_position(self, start_time, stop_time):
         """The stop time in sample periods after the start (inf: none), as cs_do_step computes
         it; for a step's end, compared with the same tolerance as the sample instants."""
-        return (self._stop_time - self.start_time) / self.Ts
+        return (stop_time - start_time) / self.Ts
 
     def enter_initialization_mode(self):
         if self._terminated:
@@ -592,7 +592,7 @@ class SlaveBase(Fmi2Slave):
         if not self.DEPENDENCIES:  # outputs of sample 1 now: they depend on no input
             pending, outputs = self._samples(hidden, 1, 1, True)
         self._commit(hidden, 1, True, 0.0, 0.0, outputs, pending)
-        self._stop_at = self._stop_position()
+        self._stop_at = self._stop_position(self.start_time, self._stop_time)
 
     def _refresh_in_init(self):
         """Outputs in Initialization Mode: sample 1 from the start values and inputs (after
@@ -622,8 +622,8 @@ class SlaveBase(Fmi2Slave):
                                           else ((step_size - elapsed) + s))
                 position = (elapsed + comp) / self.Ts
                 k = self.k
-                if k - 1 < position - INSTANT_TOLERANCE <= k and \
-                        position - INSTANT_TOLERANCE <= self._stop_at:
+                end = position - INSTANT_TOLERANCE
+                if k - 1 < end <= k and end <= self._stop_at:
                     at_sample = k <= position + INSTANT_TOLERANCE
                     if self._feedthrough or not at_sample:
                         self._committed = self._pending  # _commit(pending, k + 1, ...)
@@ -831,7 +831,8 @@ class SlaveBase(Fmi2Slave):
             return ["k = %r and at_sample = %r do not match the time %r s after the start "
                     "(the next sample there is k = %d)" % (k, at_sample, time[1] + time[2],
                                                             first + 1)]
-        if stop is not None and not position - INSTANT_TOLERANCE <= (stop - time[0]) / self.Ts:
+        if stop is not None and not position - INSTANT_TOLERANCE <= self._stop_position(
+                time[0], stop):
             return ["the time %r s after the start is after the stop time %r s; allowed: a "
                     "time at or before the stop time" % (time[1] + time[2], stop)]
         return []
@@ -1008,7 +1009,7 @@ class SlaveBase(Fmi2Slave):
         self._dirty = True
         if self._initialised:
             self.prepare()
-            self._stop_at = self._stop_position()
+            self._stop_at = self._stop_position(self.start_time, self._stop_time)
 
     @staticmethod
     def _fmu_state_from_bytes(data):
