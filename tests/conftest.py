@@ -138,6 +138,19 @@ def backend_fmus(request):
 
 
 @pytest.fixture
+def closed_figures(monkeypatch):
+    """Every figure that the code under test closes with ``plt.close``, kept open for the test
+    to inspect (closed after it)."""
+    import matplotlib.pyplot as plt
+    kept = []
+    close = plt.close
+    monkeypatch.setattr(plt, "close", lambda fig=None: kept.append(fig))
+    yield kept
+    for fig in kept:
+        close(fig)
+
+
+@pytest.fixture
 def report(request):
     """``report(line)``: note what a passing test saw (which importer stepped the FMUs, the
     error texts of bad inputs, the memory figure).  The lines are listed together after the

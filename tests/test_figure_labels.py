@@ -5,22 +5,16 @@ import matplotlib
 import pytest
 
 matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
 
 from driftfmu.simulations import dual_axis, gaussian, montecarlo, output, sweep  # noqa: E402
 from driftfmu.simulations.cli import main  # noqa: E402
 
 
 @pytest.fixture
-def drawn(monkeypatch):
+def drawn(closed_figures, monkeypatch):
     """Every figure the code closes, kept for inspection; figures drawn in this process."""
-    kept = []
-    close = plt.close
-    monkeypatch.setattr(plt, "close", lambda fig=None: kept.append(fig))
     monkeypatch.setattr(output, "fork_is_cheap", lambda: False)
-    yield kept
-    for fig in kept:
-        close(fig)
+    return closed_figures
 
 
 def texts(fig):

@@ -16,16 +16,11 @@ from driftfmu.simulations import adxl203, montecarlo, output, sweep  # noqa: E40
 
 
 @pytest.fixture
-def figures(monkeypatch):
+def figures(closed_figures):
     """Render with warnings as errors; keep each figure the code closes, for inspection."""
-    kept = []
-    close = plt.close
-    monkeypatch.setattr(plt, "close", lambda fig=None: kept.append(fig))
     with warnings.catch_warnings():
         warnings.simplefilter("error")
-        yield kept
-    for fig in kept:
-        close(fig)
+        yield closed_figures
 
 
 def _check(fig, series):
