@@ -320,21 +320,16 @@ def _variables(path: Path) -> Dict[str, Any]:
     return {v.name: v for v in read_model_description(str(path)).modelVariables}
 
 
-def _is_number(value: Any) -> bool:
-    """True for an int or float (NumPy's too), False for bool, str and the rest."""
-    import numbers
-    return isinstance(value, numbers.Real) and not isinstance(value, bool)
-
-
 def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
     """Why ``value`` is not allowed as the start value of the FMU's parameter ``variable``
     (an fmpy model variable), or None: the rule of ``driftfmu.models.parameters`` where it
     has one (what the FMU checks too), else the declared type, min and max."""
     import math
     from driftfmu.models import parameters
+    from driftfmu.simulations.checks import is_number
     integer = variable.type in ("Integer", "Int32")
     kind = "an integer" if integer else "a finite number"
-    if not _is_number(value):
+    if not is_number(value):
         return "%s = %r is not a number; allowed: %s" % (name, value, kind)
     if name in parameters.PARAMETERS:
         return parameters.problem(name, value)
@@ -469,7 +464,7 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
                          "e.g. ['z', 'dc_ekf1'], or None (every output)" % (output,))
     for label, value in (("stop_time", stop_time), ("step_size", step_size),
                          ("start_time", start_time)):
-        if value is not None and not _is_number(value):
+        if value is not None and not checks.is_number(value):
             raise UsageError("%s = %r is not a number; allowed: a finite number" % (label, value))
     names = list(fmus)
     if not names:
