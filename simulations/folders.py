@@ -278,6 +278,14 @@ def discard(folder, last=()):
         os.rmdir(folder)
 
 
+def _record(folder):
+    """The record in ``folder``'s lock file, not followed if a link (JSON; None when empty),
+    and the file's status.  OSError or ValueError when it cannot be read as one."""
+    with open(os.path.join(folder, LOCK), "rb",
+              opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW)) as fh:
+        return json.loads(fh.read(65536) or b"null"), os.fstat(fh.fileno())
+
+
 def claim(folder):
     """A file descriptor holding the lock of ``folder`` when it is provably the work folder of
     a process that is gone: made by :func:`make` on this host at this very path (its record
@@ -289,16 +297,13 @@ def claim(folder):
         st = os.lstat(folder)
         if not stat.S_ISDIR(st.st_mode) or st.st_uid != os.geteuid():
             return None
-        lock = os.path.join(folder, LOCK)
         # read and checked before it is opened for writing: another view of the folder (an
         # overlay's layer) is not even copied up
-        with open(lock, "rb", opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW)) as fh:
-            record = json.loads(fh.read(65536) or b"null")
-            seen = os.fstat(fh.fileno())
+        record, seen = _record(folder)
         if not (stat.S_ISREG(seen.st_mode) and seen.st_uid == os.geteuid()
                 and _matches(record, folder, st)):
             return None
-        fd = os.open(lock, os.O_RDWR | os.O_NOFOLLOW)
+        fd = os.open(os.path.join(folder, LOCK), os.O_RDWR | os.O_NOFOLLOW)
     except (OSError, ValueError):
         return None
     try:
@@ -318,9 +323,7 @@ def made_here(folder):
     view of it), (False, record or None) otherwise; its lock is not looked at."""
     try:
         st = os.lstat(folder)
-        with open(os.path.join(folder, LOCK), "rb",
-                  opener=lambda p, f: os.open(p, f | os.O_NOFOLLOW)) as fh:
-            record = json.loads(fh.read(65536) or b"null")
+        record = _record(folder)[0]
     except (OSError, ValueError):
         return False, None
     return _matches(record, folder, st), record if isinstance(record, dict) else None
