@@ -169,16 +169,23 @@ def kill_group(p, grace=GRACE):
 _FAILED = re.compile(r"^(FAILED|ERROR) (.+?)(?: - .*)?$")  # ids may hold spaces
 
 
+def pytest_args(tests, ignore=(), twins=False):
+    """pytest's arguments for a run of ``tests`` on the copy: stop at the first failure, the
+    everyday loop's markers, without this tool's own tests, ``ignore`` and, unless ``twins``,
+    :data:`TWIN_TESTS`."""
+    ignore = tuple(ignore) + SELF_TESTS + (() if twins else TWIN_TESTS)
+    return ["-x", "-q", "-rfE", "-p", "no:cacheprovider", "-m", DEFAULT_MARKERS] + \
+        ["--deselect=" + d for d in DESELECT] + ["--ignore-glob=" + g for g in ignore] + \
+        list(tests)
+
+
 def run_tests(copy, tests, timeout, ignore=(), twins=False):
     """Run pytest on the copy, without :data:`TWIN_TESTS` unless ``twins``; return (status,
     first failing test or None, seconds)."""
-    ignore = tuple(ignore) + SELF_TESTS + (() if twins else TWIN_TESTS)
     # DRIFTFMU_KERNEL=numpy: the batch engine runs models/ (the faults' target) instead of the
     # compiled kernel, the C port that a fault in models/ leaves as it is
     env = dict(os.environ, PYTHONPATH=copy, PYTHONDONTWRITEBYTECODE="1", DRIFTFMU_KERNEL="numpy")
-    cmd = [sys.executable, "-m", "pytest", "-x", "-q", "-rfE", "-p", "no:cacheprovider",
-           "-m", DEFAULT_MARKERS] + ["--deselect=" + d for d in DESELECT] + \
-        ["--ignore-glob=" + g for g in ignore] + list(tests)
+    cmd = [sys.executable, "-m", "pytest"] + pytest_args(tests, ignore, twins)
     t0 = time.perf_counter()
     # its own session: the timeout, SIGINT and SIGTERM end pytest and its xdist workers alike
     p = subprocess.Popen(cmd, cwd=copy, env=env, stdout=subprocess.PIPE,

@@ -212,13 +212,6 @@ def _preload():
             pass
 
 
-def _pytest_args(tests):
-    ignore = mutate.SELF_TESTS + mutate.TWIN_TESTS
-    return ["-x", "-q", "-rfE", "-n", "0", "-p", "no:cacheprovider", "-m",
-            mutate.DEFAULT_MARKERS] + ["--deselect=" + d for d in mutate.DESELECT] + \
-        ["--ignore-glob=" + g for g in ignore] + list(tests)
-
-
 def _kill(pgid):
     for sig in (signal.SIGTERM, signal.SIGKILL):
         try:
@@ -247,7 +240,7 @@ def run_forked(copy, tests, timeout):
             sys.path.insert(0, copy)
             sys.dont_write_bytecode = True
             import pytest
-            code = int(pytest.main(_pytest_args(tests)))
+            code = int(pytest.main(["-n", "0"] + mutate.pytest_args(tests)))
         except BaseException:  # (nothing may escape into the parent's code)
             code = 3
         finally:
