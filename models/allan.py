@@ -219,11 +219,13 @@ def interval(adev, nu, z=Z_SIGMA):
 
 
 def local_slopes(taus, adevs):
-    """The log-log slope at each ``tau`` between its neighbours (None at either end)."""
+    """The log-log slope at each ``tau`` between its neighbours (None at either end, and
+    where a neighbour is 0: a constant signal)."""
     out = [None] * len(taus)
     for j in range(1, len(taus) - 1):
-        out[j] = (math.log(adevs[j + 1] / adevs[j - 1])
-                  / math.log(taus[j + 1] / taus[j - 1]))
+        if adevs[j + 1] > 0 and adevs[j - 1] > 0:
+            out[j] = (math.log(adevs[j + 1] / adevs[j - 1])
+                      / math.log(taus[j + 1] / taus[j - 1]))
     return out
 
 
@@ -279,8 +281,8 @@ def read(y, Ts):
     taus = [m * Ts for m in ms]
     nus = [edf(n, m) for m in ms]
     slopes = local_slopes(taus, adevs)
-    ok = [0 < j < len(ms) - 1 and min(nus[j - 1:j + 2]) >= EDF_MIN and adevs[j - 1] > 0
-          and adevs[j + 1] > 0 for j in range(len(ms))]
+    ok = [0 < j < len(ms) - 1 and min(nus[j - 1:j + 2]) >= EDF_MIN
+          and min(adevs[j - 1:j + 2]) > 0 for j in range(len(ms))]
     grid = {"tau": taus, "adev": adevs, "edf": nus, "slope": slopes, "read": ok}
     result = {"grid": grid}
     if not any(ok):

@@ -440,3 +440,12 @@ def test_local_slopes_are_central_log_log_differences():
     assert s[1] == pytest.approx(-0.5, abs=1e-15)
     assert s[2] == pytest.approx(math.log(0.5 / (1 / math.sqrt(2.0))) / math.log(4.0),
                                  abs=1e-15)
+
+
+def test_a_constant_signal_resolves_nothing_and_does_not_fail():
+    """A constant (a sensor at rest with its noise off) has Allan deviation 0 everywhere: no
+    slope, no figure, no division by zero."""
+    r = allan.read(np.full(5000, 0.25), TS)
+    assert set(r["grid"]["adev"]) == {0.0} and not any(r["grid"]["read"])
+    assert all(r[k]["value"] is None for k in "NBK")
+    assert allan.local_slopes([1.0, 2.0, 4.0], [1.0, 0.0, 0.0]) == [None, None, None]
