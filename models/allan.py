@@ -304,11 +304,8 @@ def read(y, Ts):
             continue
         first, last = runs[pick]
         level, se = _line(taus, adevs, nus, first, last, target)
-        value = math.exp(level + target * math.log(read_at))  # the line at tau = read_at
-        if name == "K":
-            value *= math.sqrt(3.0 / read_at)  # sigma = K sqrt(tau / 3)
-        else:
-            value *= math.sqrt(read_at)  # sigma = N / sqrt(tau)
+        # the line's value at tau = read_at: N / sqrt(1 s) = N, K sqrt(3 s / 3) = K
+        value = math.exp(level + target * math.log(read_at))
         result[name] = _figure(value, se, (taus[first], taus[last]), last - first + 1,
                                read_at=read_at)
 
