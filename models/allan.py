@@ -267,6 +267,15 @@ def _unresolved(reason):
     return {"value": None, "reason": reason}
 
 
+def least_samples():
+    """The fewest samples with a ``tau`` to read: ``m = 2`` with its neighbours ``m = 1, 4``
+    each at :data:`EDF_MIN` or more."""
+    n = 8
+    while min(edf(n, m) for m in (1, 2, 4)) < EDF_MIN:
+        n += 1
+    return n
+
+
 def read(y, Ts):
     """The IEEE Std 952 reading of ``y`` sampled at ``Ts`` (the module's rules): a dict with
     ``"N"`` [unit sqrt(s)], ``"B"`` [unit] and ``"K"`` [unit / sqrt(s)], each either
@@ -287,7 +296,7 @@ def read(y, Ts):
     result = {"grid": grid}
     if not any(ok):
         why = ("no tau with both neighbours and each of the three with at least %g EDF "
-               "(%d samples: at least about %d needed)" % (EDF_MIN, n, int(6 * EDF_MIN)))
+               "(%d samples: at least %d needed)" % (EDF_MIN, n, least_samples()))
         for name in ("N", "B", "K"):
             result[name] = _unresolved(why)
         return result

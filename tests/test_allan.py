@@ -403,15 +403,22 @@ def test_K_comes_from_the_last_random_walk_run():
 
 
 def test_too_few_samples_resolve_nothing_and_say_why():
-    """A run needs both neighbours at 100 EDF or more: about 600 samples; with fewer every
-    figure is not resolved, with the reason."""
+    """A tau is read when it and both neighbours have 100 EDF or more: 409 samples at least
+    (m = 4's random-walk EDF, about n / 4, decides); with fewer every figure is not resolved,
+    and the reason says how many are needed."""
+    least = allan.least_samples()
+    assert least == 409
     rng = np.random.default_rng(5)
-    for n in (2, 3, 100, 350):
+    for n in (2, 3, 100, least - 1):
         r = allan.read(white(rng, n=n), TS)
+        assert not any(r["grid"]["read"])
         for name in "NBK":
-            assert r[name]["value"] is None and "EDF" in r[name]["reason"], (n, r[name])
-    r = allan.read(white(rng, n=4000), TS)
-    assert r["N"]["value"] is not None
+            assert r[name]["value"] is None, (n, r[name])
+            assert r[name]["reason"] == (
+                "no tau with both neighbours and each of the three with at least 100 EDF (%d "
+                "samples: at least %d needed)" % (n, least))
+    assert allan.read(white(rng, n=least), TS)["grid"]["read"][1]
+    assert allan.read(white(rng, n=4000), TS)["N"]["value"] is not None
 
 
 def test_a_single_white_octave_is_not_a_run():
