@@ -1096,5 +1096,198 @@ def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
     return summary
 
 
+#: The FMUs that output each signal ``allan`` can co-simulate, and the chain up to them.
+_ALLAN_CHAINS = (("Excitation",), ("Excitation", "Accelerometer"),
+                 ("Excitation", "Accelerometer", "DriftEstimator"))
+
+
+def _allan_chain(column: str) -> tuple:
+    """The shortest chain of :data:`_ALLAN_CHAINS` whose last FMU outputs ``column``, and the
+    output's unit; the whole chain (``simulate`` then names what it has) when none does."""
+    from driftfmu.fmu_src import documentation
+    for chain in _ALLAN_CHAINS:
+        for spec in documentation.slave_class(chain[-1]).VARIABLES:
+            if spec["name"] == column and spec["causality"] == "output":
+                return chain, spec.get("unit")
+    return _ALLAN_CHAINS[-1], None
+
+
+@_keywords_checked
+def allan(source: Union[None, PathLike, "np.ndarray"] = None, column: str = "z", *,
+          time: str = "time", taus: Union[str, Sequence[float]] = "octave",
+          per_decade: Optional[int] = None, out: Optional[PathLike] = None,
+          unit: Optional[str] = None, stop_time: Optional[float] = None,
+          start_values: Optional[Mapping[str, float]] = None, backend: str = "python",
+          fmu_dir: PathLike = "build/fmus",
+          progress: Optional[Callable[[int], None]] = None) -> Dict[str, Any]:
+    r"""The overlapping Allan deviation of one signal, and its IEEE Std 952 reading.
+
+    For ``n`` samples ``y_1 .. y_n`` at the sample period ``Ts``, the running sum ``S_0 = 0``,
+    ``S_k = y_1 + .. + y_k``, and the averaging time ``tau = m Ts`` (``1 <= m <= n / 2``, at
+    least two clusters of ``m`` samples):
+
+    .. math::
+
+        \sigma^2(\tau) = \frac{1}{2 m^2 (n - 2m + 1)}
+            \sum_{i=0}^{n-2m} \left(S_{i+2m} - 2 S_{i+m} + S_i\right)^2
+
+    (NIST SP 1065, eq. 11; equal to ``allantools.oadev`` to rounding).  Its confidence: the
+    equivalent degrees of freedom ``nu`` (the smaller of NIST SP 1065's for white noise and
+    for random walk; flicker noise's lies between) and the 68.3 % chi-square interval.  The
+    reading, on the octave grid ``m = 1, 2, 4, ..`` (so the figures do not depend on
+    ``taus``), from the ``tau`` whose estimate and neighbours have at least 100 EDF:
+
+    - ``N`` (white noise, ``sigma = N / sqrt(tau)``): the line of slope -1/2 fitted on the
+      first two or more consecutive octaves whose local slope is within 0.15 of -1/2, read
+      at ``tau = 1 s``;
+    - ``K`` (random walk, ``sigma = K sqrt(tau / 3)``): the line of slope +1/2 on the last
+      such run near +1/2, read at ``tau = 3 s``;
+    - ``B`` (bias instability): the flat line through the lowest point, when its local slope
+      is within 0.15 of 0, divided by ``sqrt(2 ln 2 / pi) = 0.664``.
+
+    A figure whose region the data do not show is not resolved: its ``value`` is None and
+    its ``reason`` says why; no number is made up.
+
+    Parameters
+    ----------
+    source : str, pathlib.Path, numpy.ndarray or None
+        None: co-simulate the chain with ``driftfmu.simulate`` (Excitation -> Accelerometer,
+        and the DriftEstimator for its outputs), ``start_values`` and ``stop_time``, one row
+        per sample.  A path: a CSV file with a header row, the column ``time`` and the column
+        ``column``.  A structured array with the fields ``time`` and ``column`` (as
+        [`simulate`][driftfmu.simulate] returns).
+    column : str
+        The signal: an output of the chain (``"z"``, ``"z_comp"``, ``"x"``, ``"dc_ekf1"``,
+        ...) or a column of the file or array.
+    time : str
+        The time column [s] of a file or array: strictly increasing, uniform (every step within
+        1e-6 of their mean).
+    taus : {"octave", "all"} or sequence of float
+        The table's ``tau``: ``m = 1, 2, 4, ..`` (default), every ``m`` (``n / 2`` of them,
+        each O(n)), or these ``tau`` [s], each a multiple ``m Ts`` with ``1 <= m <= n / 2``.
+    per_decade : int, optional
+        About this many ``tau`` per decade (``m = 10^(j / per_decade)`` rounded) instead of
+        ``taus``.
+    out : str or pathlib.Path, optional
+        If given, ``allan.csv`` (the table), ``allan.json`` (the reading and the settings)
+        and ``allan.png`` (the figure) are written there, all or none.
+    unit : str, optional
+        The signal's unit for the figures and labels (default: the FMU variable's unit, or
+        ``"unit"`` for a file or array).
+    stop_time : float, optional
+        Length [s] of the co-simulation (default 100 s: 100,000 samples at ``Ts = 1 ms``).
+    start_values : dict of str to float, optional
+        The co-simulation's parameters, as [`simulate`][driftfmu.simulate] takes them (e.g.
+        ``{"Q": 0.0, "R": 1e-6}``: the sensor at rest, its noise alone).
+    backend : {"python", "native"}
+        Which FMUs co-simulate (the same results bit for bit).
+    fmu_dir : str or pathlib.Path
+        Where the FMUs are; missing ones are built.
+    progress : callable, optional
+        Called as the table goes with the number of ``tau`` done.
+
+    Returns
+    -------
+    dict
+        The table, lists ``tau`` [s], ``m``, ``adev``, ``low``, ``high`` (the 68.3 %
+        interval), ``terms`` (differences averaged, ``n - 2m + 1``), ``edf``; the figures
+        ``N`` [unit sqrt(s), i.e. unit/sqrt(Hz)], ``B`` [unit] and ``K`` [unit/sqrt(s)], each
+        a dict with ``value`` (None when not resolved), ``low``, ``high``, ``tau_from``,
+        ``tau_to`` (the fitted region), ``points``, ``read_at`` (N, K) or ``floor`` (B) and
+        ``reason``; ``reading`` (the octave grid it came from: ``tau``, ``adev``, ``edf``,
+        ``slope``, ``read``); ``column``, ``unit``, ``Ts``, ``samples``, ``source``.
+
+    Raises
+    ------
+    ValueError
+        A setting is not allowed, or the signal cannot be analysed (one line naming what and
+        what is allowed): a file without the column, a value that is not a finite number,
+        time not strictly increasing or not uniform, fewer than two samples, a ``tau`` that
+        is not a multiple of ``Ts`` within two clusters; ``start_values`` or ``stop_time``
+        with a file or array.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
+    RuntimeError
+        An FMU call failed.
+
+    Examples
+    --------
+    >>> import driftfmu
+    >>> r = driftfmu.allan(column="z", stop_time=5.0, start_values={"Q": 0.0, "R": 1e-6})
+    >>> print("N = %.3g V/sqrt(Hz)" % r["N"]["value"])  # sqrt(R Ts) = 3.16e-05
+    N = ... V/sqrt(Hz)
+    >>> print(r["K"]["value"], "-", r["K"]["reason"])
+    None - no 2 consecutive tau with a local slope within 0.15 of +0.5 (and at least 100 EDF)
+    """
+    import math
+    import os
+
+    from driftfmu.simulations import allan as _allan
+    from driftfmu.simulations import checks
+    from driftfmu.simulations.cli import start_phase
+    from driftfmu.simulations.errors import UsageError
+    problems = []
+    for name, value in (("column", column), ("time", time)):
+        if not isinstance(value, str) or not value.strip():
+            problems.append("%s = %r is not allowed; allowed: a column name, e.g. 'z'"
+                            % (name, value))
+    if unit is not None and not isinstance(unit, str):
+        problems.append("unit = %r is not allowed; allowed: text, e.g. 'V', or None" % (unit,))
+    problems.append(_allan.taus_problem(taus))
+    if per_decade is not None:
+        problems.append(checks.count_problem("per_decade", per_decade, 1))
+        if taus != "octave":
+            problems.append("per_decade = %r with taus = %r; allowed: one of them"
+                            % (per_decade, taus))
+    if stop_time is not None and not (checks.is_number(stop_time) and math.isfinite(stop_time)
+                                      and stop_time > 0):
+        problems.append("stop_time = %r is not allowed; allowed: a finite number > 0"
+                        % (stop_time,))
+    problems += _settings_problems(dict(out=out, progress=progress, fmu_dir=fmu_dir,
+                                        backend=backend), choices={"backend": BACKENDS})
+    simulation = source is None
+    if not simulation and (start_values is not None or stop_time is not None):
+        problems.append("start_values and stop_time are for a co-simulation (source = None); "
+                        "allowed: neither with a file or an array")
+    path = isinstance(source, (str, os.PathLike))
+    if not (simulation or path or hasattr(source, "dtype")):
+        problems.append("source = %r is not allowed; allowed: None (a co-simulation), the "
+                        "path of a CSV file, or a structured array with a time field"
+                        % (source,))
+    if path:
+        problems.append(checks.path_problem("source", source, optional=False,
+                                            example="recording.csv"))
+    checks.refuse(problems)
+    _check_folders(out, fmu_dir if simulation else None)
+    if simulation:
+        chain, fmu_unit = _allan_chain(column)
+        data = simulate(list(chain), stop_time=_allan.STOP_TIME if stop_time is None
+                        else stop_time, start_values=start_values, output=[column],
+                        backend=backend, fmu_dir=fmu_dir)
+        y, Ts = _allan.from_array(data, column, "time")
+        what = "a co-simulation of %s (%s FMUs, %s)" % (
+            " -> ".join(chain), backend, ", ".join("%s = %r" % kv for kv in sorted(
+                (start_values or {}).items())) or "default start values")
+        unit = fmu_unit if unit is None else unit
+    elif path:
+        from driftfmu.simulations import budget
+        budget.check_allan(source, out, api=True)
+        y, Ts = _allan.from_csv(source, column, time)
+        what = str(os.fspath(source))
+    else:
+        y, Ts = _allan.from_array(source, column, time)
+        what = "an array"
+    ms = _allan.cluster_sizes(len(y), Ts, taus, per_decade)
+    start_phase(progress, "allan deviation", len(ms), "tau")
+    result = _allan.analyse(y, Ts, ms, progress=progress)
+    result.update(column=column, unit=unit, Ts=Ts, samples=len(y), source=what,
+                  taus=taus if isinstance(taus, str) else [float(t) for t in taus],
+                  per_decade=per_decade)
+    if out is not None:
+        _allan.write(out, result, "Allan deviation of %s: %d samples at Ts = %.6g s, from %s"
+                     % (column, len(y), Ts, what))
+    return result
+
+
 __all__ = ["build_fmus", "simulate", "run_gaussian", "run_sinusoidal", "montecarlo", "sweep",
-           "experiment_adxl203", "experiment_dual_axis", "identify"]
+           "experiment_adxl203", "experiment_dual_axis", "identify", "allan"]

@@ -367,16 +367,19 @@ def standard_errors(sigma, X, n, order=2):
     return out
 
 
-def read_csv(path):
-    """A recording ``time, x, z`` (header row; extra columns ignored) as three float arrays.
+def read_csv(path, columns=CSV_COLUMNS, min_rows=3):
+    """A recording with a header row (extra columns ignored) as one float array per name of
+    ``columns`` (default ``time, x, z``; the first is the time).
 
     Raises ValueError naming the file and the problem: missing columns, a value that is not a
-    finite number (row and column), fewer than 3 rows, or time not strictly increasing.
+    finite number (row and column), fewer than ``min_rows`` rows, or time not strictly
+    increasing.
     """
     import csv
 
     import numpy as np
     path = str(path)
+    columns = tuple(columns)
     try:
         with open(path, newline="") as fh:
             rows = list(csv.reader(fh))
@@ -385,23 +388,23 @@ def read_csv(path):
     except (UnicodeDecodeError, csv.Error) as exc:  # a binary file, NUL bytes
         raise ValueError("%s: not a text CSV file (%s); allowed: a UTF-8 text file with a "
                          "header row with columns %s, then numbers"
-                         % (path, str(exc).splitlines()[0], ", ".join(CSV_COLUMNS))) from None
+                         % (path, str(exc).splitlines()[0], ", ".join(columns))) from None
     if not rows:
         raise ValueError("%s: empty file; allowed: a header row with columns %s, then numbers"
-                         % (path, ", ".join(CSV_COLUMNS)))
+                         % (path, ", ".join(columns)))
     header = [h.strip() for h in rows[0]]
-    missing = [c for c in CSV_COLUMNS if c not in header]
+    missing = [c for c in columns if c not in header]
     if missing:
         raise ValueError("%s: missing column(s) %s (found %s); allowed: a header with columns "
                          "%s" % (path, ", ".join(missing), ", ".join(header) or "none",
-                                 ", ".join(CSV_COLUMNS)))
-    idx = [header.index(c) for c in CSV_COLUMNS]
+                                 ", ".join(columns)))
+    idx = [header.index(c) for c in columns]
     data = []
     for r, row in enumerate(rows[1:], start=2):
         if not row or all(not cell.strip() for cell in row):
             continue
         values = []
-        for name, i in zip(CSV_COLUMNS, idx):
+        for name, i in zip(columns, idx):
             cell = row[i].strip() if i < len(row) else ""
             try:
                 v = float(cell)
@@ -412,13 +415,14 @@ def read_csv(path):
                                  "finite numbers only" % (path, r, name, cell))
             values.append(v)
         data.append(values)
-    if len(data) < 3:
-        raise ValueError("%s: %d data row(s); allowed: at least 3" % (path, len(data)))
+    if len(data) < min_rows:
+        raise ValueError("%s: %d data row(s); allowed: at least %d" % (path, len(data),
+                                                                       min_rows))
     arr = np.array(data)
     if not np.all(np.diff(arr[:, 0]) > 0):
-        raise ValueError("%s: time is not strictly increasing; allowed: uniformly sampled, "
-                         "increasing time" % path)
-    return arr[:, 0], arr[:, 1], arr[:, 2]
+        raise ValueError("%s: %s is not strictly increasing; allowed: uniformly sampled, "
+                         "increasing time" % (path, columns[0]))
+    return tuple(arr[:, i] for i in range(len(columns)))
 
 
 def sample_period(t, rtol=1e-6):

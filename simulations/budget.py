@@ -358,3 +358,16 @@ def check_identify(files, out, api=False, announce=True):
             else "identify of %d recording(s), %s of CSV,") % (len(files), size(total))
     return check(what, IDENTIFY_MEMORY * total, 0, IDENTIFY_SECONDS * total, out,
                  "fewer or shorter recordings", announce=announce)
+
+
+def check_allan(path, out, api=False, announce=False):
+    """The size check of ``driftfmu allan`` on a CSV file (``api``: of :func:`driftfmu.allan`):
+    the recording is read whole, as ``identify`` reads one (a file that cannot be read counts
+    0; reading it says why)."""
+    try:
+        total = os.path.getsize(path)
+    except (OSError, ValueError):
+        total = 0
+    what = ("allan() of %s of CSV," if api else "allan of %s of CSV,") % size(total)
+    return check(what, IDENTIFY_MEMORY * total, 0, IDENTIFY_SECONDS * total, out,
+                 "a shorter recording", announce=announce)

@@ -156,6 +156,9 @@ KEYWORDS = [
      "Q Qy a0 a1 a2 bx R a0y a1y a2y by Ry Qh"),
     ("identify", dict(files=["a.csv"], f=150.0, bogus=1), "identify()",
      "files f held_out out order"),
+    ("allan", dict(column="z", tau=[1.0]), "allan()",
+     "source column time taus per_decade out unit stop_time start_values backend fmu_dir "
+     "progress"),
     ("simulate", dict(stop_time=1.0, bogus=1), "simulate()",
      "fmus stop_time step_size start_values input output backend fmi_version fmu_dir "
      "start_time"),
@@ -428,6 +431,12 @@ SAME = [
      dict(files=["{rec}"], f=150.0, order=4)),
     (["identify", "{rec}", "--f", "150", "--held-out", "-1"], "identify",
      dict(files=["{rec}"], f=150.0, held_out=-1)),
+    (["allan", "{rec}", "--column", "w"], "allan", dict(source="{rec}", column="w")),
+    (["allan", "{rec}", "--taus", "0.0015"], "allan", dict(source="{rec}", taus=[0.0015])),
+    (["allan", "{rec}", "--taus", "1.001"], "allan", dict(source="{rec}", taus=[1.001])),
+    (["allan", "{rec}", "--taus", "0"], "allan", dict(source="{rec}", taus=[0.0])),
+    (["allan", "{rec}", "--per-decade", "0"], "allan", dict(source="{rec}", per_decade=0)),
+    (["allan", "--backend", "java"], "allan", dict(backend="java")),
 ]
 
 
@@ -493,6 +502,7 @@ SIZES = [
     (["experiment", "dual-axis", "--points", "2", "--runs", "1", "--n", "1000"],
      "experiment_dual_axis", dict(points=2, runs=1, n=1000)),
     (["identify", "{rec}", "--f", "150"], "identify", dict(files="{rec}", f=150.0)),
+    (["allan", "{rec}"], "allan", dict(source="{rec}")),
 ]
 
 

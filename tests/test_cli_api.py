@@ -53,6 +53,13 @@ COMMANDS = [
       "--out", "{tmp}/o"], "identify",
      {"files": ["{tmp}/a.csv", "{tmp}/b.csv"], "f": 50.0, "held_out": 1, "order": 3,
       "out": "{tmp}/o"}),
+    (["allan", "{tmp}/a.csv", "--column", "x", "--taus", "0.5,2", "--out", "{tmp}/o"], "allan",
+     {"source": "{tmp}/a.csv", "column": "x", "taus": [0.5, 2.0], "out": "{tmp}/o",
+      "time": "time", "per_decade": None, "start_values": None}),
+    (["allan", "--start-values", "Q", "0", "seed", "4", "--stop-time", "7", "--column",
+      "z_comp", "--backend", "native", "--per-decade", "5", "--out", "{tmp}/o"], "allan",
+     {"source": None, "column": "z_comp", "start_values": {"Q": 0, "seed": 4},
+      "stop_time": 7.0, "backend": "native", "per_decade": 5, "taus": "octave"}),
 ]
 
 
