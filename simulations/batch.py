@@ -242,6 +242,76 @@ def _realised(quadratic, a2, a3, a4, x2bar, hbar):
     return np.where((np.asarray(a3) == 0.0) & (np.asarray(a4) == 0.0), a2 * x2bar, hbar)
 
 
+#: What :func:`estimate` can record, each ``(runs, n)``, and returns after the last sample
+#: under ``"final_<name>"``.
+ESTIMATES = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "b_hat", "P_bb", "P_xb")
+
+
+def estimate(zs, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None, Ts=1e-3,
+             a3=0.0, a4=0.0, bias=0, Qb=0.0, tau_b=0.0, b0=0.0, Pb0=1e-4, record=()):
+    """The DriftEstimator (Gauss-Markov process model, the bias state with ``bias = 1``) over
+    recorded outputs: ``zs`` of shape ``(runs, n)``, one measurement per sample; the same
+    models/ functions as the FMU on arrays of runs, so run ``r`` gives the FMU's bits for the
+    measurements ``zs[r]`` (each step one sample).
+
+    The parameters are the DriftEstimator's, each a float or a ``(runs,)`` array; ``P0``
+    defaults to ``Q / (1 - A^2)``.  The bias filter's covariance is checked after every sample
+    (:func:`driftfmu.models.bias.check`: a :class:`~driftfmu.models.covariance.CovarianceError`
+    names the first run and sample where it is not valid), as the FMU refuses such a sample.
+
+    Returns ``"final_<name>"`` for :data:`ESTIMATES` after the last sample, each ``(runs,)``
+    (``b_hat``, ``P_bb``, ``P_xb`` with ``bias = 1`` only), and the ``record``-ed ones, each
+    ``(runs, n)``.
+    """
+    from driftfmu.models import bias as bias_model
+    zs = np.asarray(zs, dtype=float)
+    if zs.ndim != 2:
+        raise UsageError("zs has shape %r; allowed: (runs, n)" % (zs.shape,))
+    names = set(ESTIMATES) if bias == 1 else set(ESTIMATES[:5])
+    unknown = set(record) - names
+    if unknown:
+        raise UsageError("cannot record %s; allowed: %s" % (sorted(unknown), ", ".join(
+            n for n in ESTIMATES if n in names)))
+    check_parameters(dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0, P0=P0, Ts=Ts, a3=a3,
+                          a4=a4, bias=bias, Qb=Qb, tau_b=tau_b, b0=b0, Pb0=Pb0))
+    runs, n = zs.shape
+    if P0 is None:
+        P0 = default_P0(A, Q)
+    shape = (runs,)
+    est = chain.estimator_init(np.broadcast_to(np.asarray(x0, dtype=float), shape).copy(),
+                               np.broadcast_to(np.asarray(P0, dtype=float), shape).copy())
+    b = None
+    if bias == 1:
+        b = bias_model.init(np.broadcast_to(np.asarray(b0, dtype=float), shape).copy(),
+                            np.broadcast_to(np.asarray(Pb0, dtype=float), shape).copy())
+        Fb = bias_model.factor(tau_b, Ts)
+    traj = {name: np.empty((runs, n)) for name in record}
+    for k in range(1, n + 1):
+        z = zs[:, k - 1]
+        if b is None:
+            est = chain.estimator_step(est, z, a0, a1, a2, A, Q, R, a3, a4)
+        else:
+            est, b = bias_model.estimator_step(est, b, z, a0, a1, a2, A, Q, R, Fb, Qb, a3, a4)
+            bias_model.check(est, b, k)
+        if traj:
+            values = _estimates(est, b, a2, a3, a4)
+            for name, arr in traj.items():
+                arr[:, k - 1] = values[name]
+    out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), shape).copy()
+           for key, v in _estimates(est, b, a2, a3, a4).items()}
+    out.update(traj)
+    return out
+
+
+def _estimates(est, b, a2, a3, a4):
+    """The values of :data:`ESTIMATES` of a state (without the bias part when ``b`` is None)."""
+    dc1, dc2, dc3 = drift.estimates(est.drift, a2, a3, a4)
+    out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3}
+    if b is not None:
+        out.update(b_hat=b.b, P_bb=b.Pbb, P_xb=b.Pxb)
+    return out
+
+
 def _kernel_library(kernel):
     """The compiled kernel for ``kernel`` (``"auto"``, ``"numpy"`` or ``"c"``), or None."""
     from driftfmu.simulations import kernel as compiled
