@@ -138,6 +138,13 @@ INPUT_USE = {
     ("DriftEstimator", "u"):
         "only when B != 0 and process = 1 (the prediction x- = A x+ + B u_k); connect the "
         "Excitation's u; ignored otherwise (the defaults)",
+    ("DriftEstimator", "theta"):
+        "whenever it is not 0: the class-2 offset of the tilt (with the temperature's, "
+        "dc_class2) is removed from z before filtering; 0 by default (no tilt)",
+    ("DriftEstimator", "T"):
+        "only when kT_bias != 0 or kT_scale != 0 (the class-2 offset kT_bias (T - T0) and the "
+        "sensitivity a1 (1 + kT_scale (T - T0)) of the tilt's offset); ignored otherwise (the "
+        "defaults)",
     ("DualDriftEstimator", "z_x"): "always: the first axis's measurement",
     ("DualDriftEstimator", "z_y"): "always: the second axis's measurement",
 }
