@@ -24,9 +24,6 @@ STATE_COVARIANCE_NAMES = (("hidden state _state.P",),
 BIAS_STATE_COVARIANCE_NAMES = (("hidden state _state.P",),
                                ("hidden state _bias.Pxb", "hidden state _bias.Pbb"))
 BIAS_STATE_LISTING = "the covariance (P, Pxb, Pbb) of hidden states _state and _bias"
-#: The outputs of the letter's filter (a sample without bias state and class-2 offset computes
-#: these, a prefix of OUTPUTS; the others keep their values, 0).
-LETTER_OUTPUTS = 7
 #: The refusal of a bias state with the harmonic process model (C twin: DriftEstimator_step.c).
 BIAS_WITH_HARMONIC = ("bias = %r is not allowed with process = %r; allowed: bias = 1 with "
                       "process = 1 (the harmonic filter has no bias state), or bias = 0")
@@ -131,7 +128,8 @@ class DriftEstimator(SlaveBase):
         # the class-2 offset's coefficients (the tilt is an input: checked per sample)
         self._class2_args = (self.a1, self.a2, self.T0, self.kT_bias, self.kT_scale, self.a3,
                              self.a4)
-        self._general = self._bias or self.kT_bias != 0.0 or self.kT_scale != 0.0
+        self._kT = self.kT_bias != 0.0 or self.kT_scale != 0.0
+        self._general = self._bias or self._kT
         # the check after each sample (see hidden_valid): the class's for the harmonic model
         # and the bias state; none for the letter's Gauss-Markov one, whose numbers all reach
         # the outputs and whose scalar P stays >= 0 (it would answer True); the state's kind
@@ -148,7 +146,8 @@ class DriftEstimator(SlaveBase):
     def _outputs(self, state):
         dcs = drift.estimates(state.drift, self.a2, self.a3, self.a4)
         dc = drift.select(dcs, self.estimator)
-        return state.x, state.P, dcs[0], dcs[1], dcs[2], dc, chain.compensate(self.z, dc)
+        return (state.x, state.P, dcs[0], dcs[1], dcs[2], dc, chain.compensate(self.z, dc),
+                0.0, 0.0, 0.0, 0.0)
 
     def _general_outputs(self, state, b, z, offset):
         """The outputs of a sample of the bias filter or with a class-2 offset: all of OUTPUTS
@@ -162,20 +161,11 @@ class DriftEstimator(SlaveBase):
                 b.b, b.Pbb, b.Pxb, offset)
 
     def show(self, outputs):
-        if len(outputs) == LETTER_OUTPUTS:
-            (self.x_hat, self.P, self.dc_ekf1, self.dc_ekf2, self.dc_ekf3, self.dc,
-             self.z_comp) = outputs
-        else:
-            (self.x_hat, self.P, self.dc_ekf1, self.dc_ekf2, self.dc_ekf3, self.dc,
-             self.z_comp, self.b_hat, self.P_bb, self.P_xb, self.dc_class2) = outputs
-
-    def _letter(self):
-        """Whether this sample is the letter's filter: no bias state, no class-2 offset now
-        and none shown (a tilt set back to 0 shows dc_class2 = 0 once more)."""
-        return not self._general and self.theta == 0.0 and self.dc_class2 == 0.0
+        (self.x_hat, self.P, self.dc_ekf1, self.dc_ekf2, self.dc_ekf3, self.dc, self.z_comp,
+         self.b_hat, self.P_bb, self.P_xb, self.dc_class2) = outputs
 
     def sample(self, hidden, k, first):
-        if not self._letter():
+        if self._general or self.theta != 0.0:  # (the bias state, a class-2 offset)
             return self._general_sample(hidden, first)
         state = hidden["_state"]
         if first:  # the measurement: the z set at (or held from) the start of the step
@@ -188,7 +178,8 @@ class DriftEstimator(SlaveBase):
         """A sample with the bias state or the class-2 offset: the offset (models.sensor.class2)
         is removed from z, and the bias filter (models.bias) or the letter's runs on the rest."""
         state, b = hidden["_state"], hidden["_bias"]
-        offset = sensor.class2(self.theta, self.T, *self._class2_args)
+        offset = sensor.class2(self.theta, self.T, *self._class2_args) \
+            if self.theta != 0.0 or self._kT else 0.0
         z = self.z - offset
         if b is None:
             if first:
@@ -204,7 +195,7 @@ class DriftEstimator(SlaveBase):
     def hold(self, hidden, k0, n, first):
         hidden, outputs = self.sample(hidden, k0, first)
         if n > 1:
-            if hidden["_bias"] is not None or len(outputs) != LETTER_OUTPUTS:
+            if self._general or self.theta != 0.0:
                 return self._general_hold(hidden, k0, n)
             state = hidden["_state"]
             args, u = self._predict_args, self.u
