@@ -32,7 +32,7 @@ HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
 #: The C units of models/ the kernel calls (with their own dependencies).
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c")
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c", "bias.c")
 #: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
 #: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``; the general model's last, ``drive`` as a
 #: float).
