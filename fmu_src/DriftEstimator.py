@@ -167,12 +167,15 @@ class DriftEstimator(SlaveBase):
     def sample(self, hidden, k, first):
         if self._general or self.theta != 0.0:  # (the bias state, a class-2 offset)
             return self._general_sample(hidden, first)
-        state = hidden["_state"]
-        if first:  # the measurement: the z set at (or held from) the start of the step
-            state = harmonic.estimator_step(state, self.z, *self._step_args, self.u)
-        else:      # samples between communication points carry no measurement (u held)
-            state = harmonic.estimator_predict(state, *self._predict_args, self.u)
+        state = self._filter(hidden["_state"], self.z, first)
         return {"_state": state, "_bias": None}, self._outputs(state)
+
+    def _filter(self, state, z, first):
+        """The letter's filter (either process model) at one sample, with measurement ``z``."""
+        if first:  # the measurement: the z set at (or held from) the start of the step
+            return harmonic.estimator_step(state, z, *self._step_args, self.u)
+        # samples between communication points carry no measurement (u held)
+        return harmonic.estimator_predict(state, *self._predict_args, self.u)
 
     def _general_sample(self, hidden, first):
         """A sample with the bias state or the class-2 offset: the offset (models.sensor.class2)
@@ -182,10 +185,7 @@ class DriftEstimator(SlaveBase):
             if self.theta != 0.0 or self._kT else 0.0
         z = self.z - offset
         if b is None:
-            if first:
-                state = harmonic.estimator_step(state, z, *self._step_args, self.u)
-            else:
-                state = harmonic.estimator_predict(state, *self._predict_args, self.u)
+            state = self._filter(state, z, first)
         elif first:
             state, b = bias.estimator_step(state, b, z, *self._bias_step_args, self.u)
         else:
