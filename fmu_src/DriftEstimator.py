@@ -167,29 +167,27 @@ class DriftEstimator(SlaveBase):
     def sample(self, hidden, k, first):
         if self._general or self.theta != 0.0:  # (the bias state, a class-2 offset)
             return self._general_sample(hidden, first)
-        state = self._filter(hidden["_state"], self.z, first)
-        return {"_state": state, "_bias": None}, self._outputs(state)
-
-    def _filter(self, state, z, first):
-        """The letter's filter (either process model) at one sample, with measurement ``z``."""
+        state = hidden["_state"]
         if first:  # the measurement: the z set at (or held from) the start of the step
-            return harmonic.estimator_step(state, z, *self._step_args, self.u)
-        # samples between communication points carry no measurement (u held)
-        return harmonic.estimator_predict(state, *self._predict_args, self.u)
+            state = harmonic.estimator_step(state, self.z, *self._step_args, self.u)
+        else:      # samples between communication points carry no measurement (u held)
+            state = harmonic.estimator_predict(state, *self._predict_args, self.u)
+        return {"_state": state, "_bias": None}, self._outputs(state)
 
     def _general_sample(self, hidden, first):
         """A sample with the bias state or the class-2 offset: the offset (models.sensor.class2)
         is removed from z, and the bias filter (models.bias) or the letter's runs on the rest."""
-        state, b = hidden["_state"], hidden["_bias"]
+        state, b, u = hidden["_state"], hidden["_bias"], self.u
         offset = sensor.class2(self.theta, self.T, *self._class2_args) \
             if self.theta != 0.0 or self._kT else 0.0
         z = self.z - offset
-        if b is None:
-            state = self._filter(state, z, first)
+        if b is None:  # the letter's filter on z (either process model)
+            state = harmonic.estimator_step(state, z, *self._step_args, u) if first else \
+                harmonic.estimator_predict(state, *self._predict_args, u)
         elif first:
-            state, b = bias.estimator_step(state, b, z, *self._bias_step_args, self.u)
+            state, b = bias.estimator_step(state, b, z, *self._bias_step_args, u)
         else:
-            state, b = bias.estimator_predict(state, b, *self._bias_predict_args, self.u)
+            state, b = bias.estimator_predict(state, b, *self._bias_predict_args, u)
         return {"_state": state, "_bias": b}, self._general_outputs(state, b, z, offset)
 
     def hold(self, hidden, k0, n, first):
