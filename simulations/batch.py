@@ -180,6 +180,8 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     if bias not in (0, 1):
         raise UsageError(parameters.problem("bias", bias) or "bias = %r is not allowed; "
                          "allowed: 0 or 1" % (bias,))
+    if bias == 1:
+        check_parameters(dict(Qb=Qb, tau_b=tau_b, b0=b0, Pb0=Pb0))
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:

@@ -97,3 +97,16 @@ def test_without_the_bias_state_nothing_is_added_and_its_outputs_cannot_be_recor
         batch.simulate(20, batch.run_seeds(1, 2), record=("b_hat",))
     with pytest.raises(UsageError, match="bias = 2 is out of range; allowed: an integer bias"):
         batch.simulate(20, batch.run_seeds(1, 2), bias=2)
+
+
+@pytest.mark.parametrize("kw,text", [
+    (dict(Qb=-1e-12), "Qb = -1e-12 is out of range; allowed: Qb >= 0"),
+    (dict(Pb0=np.array([1e-4, -1e-4])), "Pb0 = -0.0001 is out of range; allowed: Pb0 >= 0"),
+    (dict(tau_b=-1.0), "tau_b = -1.0 is out of range; allowed: tau_b >= 0"),
+])
+def test_bad_bias_parameters_are_refused_in_one_line(kw, text):
+    with pytest.raises(UsageError) as info:
+        batch.simulate(5, batch.run_seeds(1, 2), bias=1, **kw)
+    assert str(info.value) == text
+    batch.simulate(5, batch.run_seeds(1, 2), bias=1, **{k: 0.0 * np.asarray(v) for k, v in
+                                                          kw.items()})  # (the bound itself)
