@@ -83,7 +83,7 @@ class DriftEstimator(SlaveBase):
             description="a-posteriori cross-covariance of x and b (0 with bias = 0)"),
         var("dc_class2", "output", start=0.0, unit="V",
             description="class-2 offset removed from z before filtering: kT_bias (T - T0) + "
-            "h(sin theta) - a0 with the sensitivity a1 (1 + kT_scale (T - T0))"),
+            "h(g) - a0, g = (1 + kT_scale (T - T0)) sin theta"),
     )
     OUTPUTS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc", "z_comp", "b_hat", "P_bb",
                "P_xb", "dc_class2")

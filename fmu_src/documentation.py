@@ -82,8 +82,9 @@ EQUATIONS = {
         "      b- = F_b b+,  Pxb- = A F_b Pxb+,  Pbb- = F_b^2 Pbb+ + Qb;  update with the row\n"
         "      (H, 1), the innovation z - E[h(x)] - b- (E[h(x)] = h(x-) + a2 P- + ... under\n"
         "      N(x-, P-)) and the variance R + 2 a2^2 P-^2, Joseph form;  z_comp = z - dc - b_hat\n"
-        "class 2: dc_class2 = kT_bias (T - T0) + h(sin theta) - a0 with the sensitivity\n"
-        "      a1 (1 + kT_scale (T - T0)); the filter's measurement is z - dc_class2"),
+        "class 2: dc_class2 = kT_bias (T - T0) + h(g) - a0, g = (1 + kT_scale (T - T0)) sin theta\n"
+        "      (the sensor senses (1 + kT_scale (T - T0)) (x + sin theta)); the filter's\n"
+        "      measurement is z - dc_class2"),
     "DualDriftEstimator": (
         "state (x, y) (process = 1: Gauss-Markov, covariance [[Q, rho sqrt(Q Qy)], [., Qy]];\n"
         "process = 2: two harmonic oscillators at f), measurement (z_x, z_y) with\n"
@@ -150,8 +151,7 @@ INPUT_USE = {
         "dc_class2) is removed from z before filtering; 0 by default (no tilt)",
     ("DriftEstimator", "T"):
         "only when kT_bias != 0 or kT_scale != 0 (the class-2 offset kT_bias (T - T0) and the "
-        "sensitivity a1 (1 + kT_scale (T - T0)) of the tilt's offset); ignored otherwise (the "
-        "defaults)",
+        "scale 1 + kT_scale (T - T0) of the sensed tilt); ignored otherwise (the defaults)",
     ("DualDriftEstimator", "z_x"): "always: the first axis's measurement",
     ("DualDriftEstimator", "z_y"): "always: the second axis's measurement",
 }

@@ -102,8 +102,8 @@ PARAMETERS = {p.name: p for p in (
        "coefficients", low_open=True),
     _p("kT_bias", 0.0, unit="V/K", description="temperature coefficient of the offset: "
        "a0 + kT_bias (T - T0) (0: off)"),
-    _p("kT_scale", 0.0, unit="1/K", description="temperature coefficient of the sensitivity: "
-       "a1 (1 + kT_scale (T - T0)) (0: off)"),
+    _p("kT_scale", 0.0, unit="1/K", description="temperature coefficient of the scale factor: "
+       "the sensor senses (1 + kT_scale (T - T0)) times the acceleration (0: off)"),
 )}
 
 

@@ -100,22 +100,17 @@ def class2(theta, T, a1, a2, T0, kT_bias, kT_scale, a3=0.0, a4=0.0):
     """The class-2 offset [V]: what the sensor's tilt and temperature add to its output at
     ``x = 0``.
 
-    The sensor with class-2 terms senses ``g = x + sin(theta)`` [g], its offset moves by
-    ``kT_bias (T - T0)`` and its sensitivity by the factor ``1 + kT_scale (T - T0)``:
+    The sensor with class-2 terms senses ``u = (1 + kT_scale (T - T0)) (x + sin(theta))`` [g] (the tilt puts a share of
+    gravity on its axis, the temperature scales the sensing element) and its output moves by
+    ``kT_bias (T - T0)`` [V]:
 
-    .. math:: z = h(x + \\sin\\theta;\\; a_0 + k_{T,bias} \\Delta T,\\;
-              a_1 (1 + k_{T,scale} \\Delta T),\\; a_2, a_3, a_4) + v, \\qquad \\Delta T = T - T_0
+    .. math:: z = h\\big((1 + k_{T,scale} \\Delta T)(x + \\sin\\theta)\\big)
+              + k_{T,bias} \\Delta T + v, \\qquad \\Delta T = T - T_0
 
-    so its output at ``x = 0`` is ``a0`` plus ``kT_bias dT + h(sin theta; 0, a1 (1 + kT_scale
-    dT), a2, a3, a4)``, which this returns.  With ``theta = 0`` and ``kT_bias = kT_scale = 0`` it
+    so its output at ``x = 0`` is ``a0`` plus ``kT_bias dT + h((1 + kT_scale dT) sin theta; 0,
+    a1, a2, a3, a4)``, which this returns.  With ``theta = 0`` and ``kT_bias = kT_scale = 0`` it
     is 0.  The DriftEstimator subtracts it from ``z`` before filtering (docs/method.md,
     section 10).
     """
     dT = T - T0
-    return kT_bias * dT + h(tilt(theta), 0.0, a1 * (1.0 + kT_scale * dT), a2, a3, a4)
-
-
-def class2_on(theta, kT_bias, kT_scale):
-    """Whether the class-2 offset can be other than 0: a tilt, or a temperature coefficient
-    (floats: the FMU's per-sample test)."""
-    return theta != 0.0 or kT_bias != 0.0 or kT_scale != 0.0
+    return kT_bias * dT + h((1.0 + kT_scale * dT) * tilt(theta), 0.0, a1, a2, a3, a4)

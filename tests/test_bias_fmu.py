@@ -90,8 +90,8 @@ def test_the_class2_offset_is_removed_before_filtering(process):
         set_var(s, "theta", theta)
         set_var(s, "T", T)
         offset = sensor.class2(theta, T, 1.0, 0.05, 300.0, 2e-3, 5e-4)
-        assert offset == pytest.approx(2e-3 * (T - 300) + (1 + 5e-4 * (T - 300)) *
-                                       math.sin(theta) + 0.05 * math.sin(theta) ** 2, rel=1e-13)
+        g = (1 + 5e-4 * (T - 300)) * math.sin(theta)
+        assert offset == pytest.approx(2e-3 * (T - 300) + g + 0.05 * g * g, rel=1e-13)
         est = harmonic.estimator_step(est, float(z) - offset, 0.0, 1.0, 0.05, 1e-4, process,
                                       0.0, 0.01, C, S, 1e-8)
         dcs = drift.estimates(est.drift, 0.05)

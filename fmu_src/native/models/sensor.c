@@ -73,6 +73,6 @@ double sensor_class2(double theta, double T, double a1, double a2, double T0, do
                      double kT_scale, double a3, double a4)
 {
     double dT = T - T0;
-    return kT_bias * dT + sensor_h_general(sensor_tilt(theta), 0.0, a1 * (1.0 + kT_scale * dT),
+    return kT_bias * dT + sensor_h_general((1.0 + kT_scale * dT) * sensor_tilt(theta), 0.0, a1,
                                            a2, a3, a4);
 }
