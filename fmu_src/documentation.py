@@ -76,7 +76,15 @@ EQUATIONS = {
         "EKF2: dc = mean_{i<=k}(a2 x+_i^2 + a3 x+_i^3 + a4 x+_i^4)        (plug-in: low by about a2 P+)\n"
         "EKF3: s3, t3, q3 = running means of x+^2, x+^3, x+^4;\n"
         "      dc = running mean of a2 s3 + a3 t3 + a4 q3                  (smoother, slower)\n"
-        "dc = the estimate of EKF<estimator>,   z_comp = z - dc"),
+        "dc = the estimate of EKF<estimator>,   z_comp = z - dc\n"
+        "bias = 1 (process = 1): state [x, b], b_k = F_b b_{k-1} + w_b, w_b ~ N(0, Qb),\n"
+        "      F_b = exp(-Ts/tau_b) (1 for tau_b = 0: a random walk), z_k = h(x_k) + b_k + v_k;\n"
+        "      b- = F_b b+,  Pxb- = A F_b Pxb+,  Pbb- = F_b^2 Pbb+ + Qb;  update with the row\n"
+        "      (H, 1), the innovation z - E[h(x)] - b- (E[h(x)] = h(x-) + a2 P- + ... under\n"
+        "      N(x-, P-)) and the variance R + 2 a2^2 P-^2, Joseph form;  z_comp = z - dc - b_hat\n"
+        "class 2: dc_class2 = kT_bias (T - T0) + h(g) - a0, g = (1 + kT_scale (T - T0)) sin theta\n"
+        "      (the sensor senses (1 + kT_scale (T - T0)) (x + sin theta)); the filter's\n"
+        "      measurement is z - dc_class2"),
     "DualDriftEstimator": (
         "state (x, y) (process = 1: Gauss-Markov, covariance [[Q, rho sqrt(Q Qy)], [., Qy]];\n"
         "process = 2: two harmonic oscillators at f), measurement (z_x, z_y) with\n"
@@ -138,6 +146,12 @@ INPUT_USE = {
     ("DriftEstimator", "u"):
         "only when B != 0 and process = 1 (the prediction x- = A x+ + B u_k); connect the "
         "Excitation's u; ignored otherwise (the defaults)",
+    ("DriftEstimator", "theta"):
+        "whenever it is not 0: the class-2 offset of the tilt (with the temperature's, "
+        "dc_class2) is removed from z before filtering; 0 by default (no tilt)",
+    ("DriftEstimator", "T"):
+        "only when kT_bias != 0 or kT_scale != 0 (the class-2 offset kT_bias (T - T0) and the "
+        "scale 1 + kT_scale (T - T0) of the sensed tilt); ignored otherwise (the defaults)",
     ("DualDriftEstimator", "z_x"): "always: the first axis's measurement",
     ("DualDriftEstimator", "z_y"): "always: the second axis's measurement",
 }

@@ -92,7 +92,7 @@ STEP_RULE = ("Sampled-data FMU: sample k is at t_start + (k-1) Ts. fmi2DoStep ac
 _STATE_META = ("model", "guid", "version")
 #: Names of the variances in the hidden states (the filters' P; C twin: the SLAVE_HIDDEN_REAL
 #: checks with nonnegative = 1): a negative one is refused.
-VARIANCES = frozenset(("P", "P22", "Pxx", "Pyy", "P11", "P33", "P44"))
+VARIANCES = frozenset(("P", "P22", "Pxx", "Pyy", "P11", "P33", "P44", "Pbb"))
 _STATE_FIELDS = ("k", "time", "stop_time", "flags")
 _FLAGS = ("initialised", "in_init", "at_sample", "terminated")
 _ARITHMETIC = (ArithmeticError, ValueError)  # overflow, 0/0, floor(nan) in the models

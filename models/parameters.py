@@ -89,6 +89,21 @@ PARAMETERS = {p.name: p for p in (
     _p("Qu", 0.0, 0.0, unit="g2", description="variance sigma_u^2 of the Gaussian known input"),
     _p("Xu", 0.0, 0.0, unit="g", description="amplitude of the sinusoidal known input"),
     _p("fu", 0.0, 0.0, unit="Hz", description="frequency of the sinusoidal known input"),
+    # -- the DriftEstimator's bias state and its class-2 (tilt, temperature) offset -------------
+    _p("bias", 0, 0, 1, description="bias state of the filter: 0 off (the letter's filter), 1 "
+       "on: state [x, b], b_k = exp(-Ts/tau_b) b_{k-1} + w_b, z_k = h(x_k) + b_k + v_k"),
+    _p("Qb", 0.0, 0.0, unit="V2", description="process noise variance Qb of the bias per sample "
+       "(a random walk of K V/sqrt(s) sampled every Ts: Qb = K^2 Ts)"),
+    _p("tau_b", 0.0, 0.0, unit="s", description="correlation time of the bias (0: a random walk "
+       "b_k = b_{k-1} + w_b; > 0: Gauss-Markov b_k = exp(-Ts/tau_b) b_{k-1} + w_b)"),
+    _p("b0", 0.0, unit="V", description="initial bias estimate b_0 of the filter"),
+    _p("Pb0", 1e-4, 0.0, unit="V2", description="initial error variance of the bias estimate"),
+    _p("T0", 298.15, 0.0, unit="K", description="reference temperature T0 of the temperature "
+       "coefficients", low_open=True),
+    _p("kT_bias", 0.0, unit="V/K", description="temperature coefficient of the offset: "
+       "a0 + kT_bias (T - T0) (0: off)"),
+    _p("kT_scale", 0.0, unit="1/K", description="temperature coefficient of the scale factor: "
+       "the sensor senses (1 + kT_scale (T - T0)) times the acceleration (0: off)"),
 )}
 
 

@@ -40,6 +40,9 @@ TRAJECTORIES = ("x", "z", "x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "dc_emp
 #: state ``mean(x^2)`` and the realised drift ``mean(a2 x^2 + a3 x^3 + a4 x^4)`` (``a2
 #: mean(x^2)`` for the letter's sensor, those bits).
 FINALS = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "zbar", "x2bar", "dc_realised")
+#: With the DriftEstimator's bias state (``bias = 1``): the bias part, as trajectories and
+#: under ``"final_<name>"``.
+BIAS_OUTPUTS = ("b_hat", "P_bb", "P_xb")
 #: Samples of noise generated per block (rows of a ``(block, runs)`` array).
 BLOCK = 32
 #: Sample-runs per call of the compiled kernel when no one asks for progress (about 0.05 s):
@@ -117,7 +120,8 @@ def sine_phase(seed):
 def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
              Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
              filter_Q=None, record=(), block=BLOCK, progress=None, kernel="auto", a3=0.0,
-             a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0):
+             a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0, bias=0, Qb=0.0,
+             tau_b=0.0, b0=0.0, Pb0=1e-4):
     """Run ``len(seeds)`` Monte-Carlo runs of the chain for samples ``k = 1..n`` at once.
 
     Run ``r`` is the co-simulation of Excitation -> Accelerometer -> DriftEstimator with both
@@ -141,8 +145,16 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         The general sensor (``h`` up to 4th order, sensor and filter alike) and the known input
         ``u`` (:func:`driftfmu.models.excitation.input_sample`) driving the Gaussian state and
         the filter's prediction through ``B``; the defaults are the letter's case, same bits.
+    bias, Qb, tau_b, b0, Pb0 : optional
+        The DriftEstimator's bias state (:mod:`driftfmu.models.bias`; ``bias = 1``, the
+        others floats or arrays ``(runs,)``): the filter tracks ``[x, b]``, its covariance is
+        checked after every sample (a :class:`~driftfmu.models.covariance.CovarianceError`
+        names the first sample and run where it is not valid, as the FMU refuses it), and
+        the results hold :data:`BIAS_OUTPUTS` too.  ``bias = 0`` (default): the letter's
+        filter, same bits.
     record : sequence of str
-        Names out of :data:`TRAJECTORIES` to return as ``(runs, n)`` arrays.
+        Names out of :data:`TRAJECTORIES` (and :data:`BIAS_OUTPUTS` with ``bias = 1``) to
+        return as ``(runs, n)`` arrays.
     block : int
         Samples of noise generated at once.
     progress : callable, optional
@@ -160,10 +172,16 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     """
     seeds = np.asarray(seeds, dtype=np.uint64)
     runs = seeds.shape[0]
-    unknown = set(record) - set(TRAJECTORIES)
+    recordable = TRAJECTORIES + (BIAS_OUTPUTS if bias == 1 else ())
+    unknown = set(record) - set(recordable)
     if unknown:
         raise UsageError("cannot record %s; allowed: %s" % (sorted(unknown),
-                                                            ", ".join(TRAJECTORIES)))
+                                                            ", ".join(recordable)))
+    if bias not in (0, 1):
+        raise UsageError(parameters.problem("bias", bias) or "bias = %r is not allowed; "
+                         "allowed: 0 or 1" % (bias,))
+    if bias == 1:
+        check_parameters(dict(Qb=Qb, tau_b=tau_b, b0=b0, Pb0=Pb0))
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
@@ -175,12 +193,19 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         return _simulate_kernel(lib, n, seeds, dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0,
                                                     P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
                                                     fQ=fQ, a3=a3, a4=a4, B=B, drive=drive,
-                                                    Qu=Qu, Xu=Xu, fu=fu), kind, record,
+                                                    Qu=Qu, Xu=Xu, fu=fu, bias=bias, Qb=Qb,
+                                                    tau_b=tau_b, b0=b0, Pb0=Pb0), kind, record,
                                 progress)
     shape = (runs,)
     x = np.broadcast_to(np.asarray(x0, dtype=float), shape).copy()
     est = chain.estimator_init(x.copy(), np.broadcast_to(np.asarray(P0, dtype=float),
                                                          shape).copy())
+    b = None
+    if bias == 1:
+        from driftfmu.models import bias as bias_model
+        b = bias_model.init(np.broadcast_to(np.asarray(b0, dtype=float), shape).copy(),
+                            np.broadcast_to(np.asarray(Pb0, dtype=float), shape).copy())
+        Fb = bias_model.factor(tau_b, Ts)
     zbar = 0.0
     x2bar = 0.0
     hbar = 0.0  # realised drift (1/k) sum a2 x^2 + a3 x^3 + a4 x^4 of the general sensor
@@ -203,7 +228,12 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
             else:
                 x = excitation.sine(k, X, f, Ts, phi)
             z = sensor.measure(x, a0, a1, a2, R, V[i], a3, a4)
-            est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
+            if b is None:
+                est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
+            else:
+                est, b = bias_model.estimator_step(est, b, z, a0, a1, a2, fA, fQ, R, Fb, Qb, a3,
+                                                   a4, fB, u)
+                bias_model.check(est, b, k, seeds)
             zbar = drift.running_mean(zbar, z, k)
             x2 = x * x
             x2bar = drift.running_mean(x2bar, x2, k)
@@ -211,21 +241,24 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
                 hbar = drift.running_mean(hbar, a2 * x2 + a3 * x2 * x + a4 * x2 * x2, k)
             if traj:
                 _record(traj, k - 1, x, z, est, zbar,
-                        _realised(quadratic, a2, a3, a4, x2bar, hbar), a0, (a2, a3, a4))
+                        _realised(quadratic, a2, a3, a4, x2bar, hbar), a0, (a2, a3, a4), b)
         if progress is not None:
             progress(k0 - 1 + ks.shape[0])
-    out = _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4)
+    out = _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4, b)
     for name, arr in traj.items():
         out[name] = np.ascontiguousarray(arr.T)
     return out
 
 
-def _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4):
-    """The ``"final_<name>"`` arrays of :data:`FINALS` after the last sample (both engines)."""
+def _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4, b=None):
+    """The ``"final_<name>"`` arrays of :data:`FINALS` after the last sample (both engines),
+    and of :data:`BIAS_OUTPUTS` with the bias part ``b``."""
     dc1, dc2, dc3 = drift.estimates(est.drift, a2, a3, a4)
     out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3,
            "zbar": zbar - a0, "x2bar": x2bar,
            "dc_realised": _realised(quadratic, a2, a3, a4, x2bar, hbar)}
+    if b is not None:
+        out.update(b_hat=b.b, P_bb=b.Pbb, P_xb=b.Pxb)
     return {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), (runs,)).copy()
             for key, v in out.items()}
 
@@ -240,6 +273,76 @@ def _realised(quadratic, a2, a3, a4, x2bar, hbar):
     if _ops.is_scalar(a3) and _ops.is_scalar(a4):
         return hbar
     return np.where((np.asarray(a3) == 0.0) & (np.asarray(a4) == 0.0), a2 * x2bar, hbar)
+
+
+#: What :func:`estimate` can record, each ``(runs, n)``, and returns after the last sample
+#: under ``"final_<name>"``.
+ESTIMATES = ("x_hat", "P", "dc_ekf1", "dc_ekf2", "dc_ekf3", "b_hat", "P_bb", "P_xb")
+
+
+def estimate(zs, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None, Ts=1e-3,
+             a3=0.0, a4=0.0, bias=0, Qb=0.0, tau_b=0.0, b0=0.0, Pb0=1e-4, record=()):
+    """The DriftEstimator (Gauss-Markov process model, the bias state with ``bias = 1``) over
+    recorded outputs: ``zs`` of shape ``(runs, n)``, one measurement per sample; the same
+    models/ functions as the FMU on arrays of runs, so run ``r`` gives the FMU's bits for the
+    measurements ``zs[r]`` (each step one sample).
+
+    The parameters are the DriftEstimator's, each a float or a ``(runs,)`` array; ``P0``
+    defaults to ``Q / (1 - A^2)``.  The bias filter's covariance is checked after every sample
+    (:func:`driftfmu.models.bias.check`: a :class:`~driftfmu.models.covariance.CovarianceError`
+    names the first run and sample where it is not valid), as the FMU refuses such a sample.
+
+    Returns ``"final_<name>"`` for :data:`ESTIMATES` after the last sample, each ``(runs,)``
+    (``b_hat``, ``P_bb``, ``P_xb`` with ``bias = 1`` only), and the ``record``-ed ones, each
+    ``(runs, n)``.
+    """
+    from driftfmu.models import bias as bias_model
+    zs = np.asarray(zs, dtype=float)
+    if zs.ndim != 2:
+        raise UsageError("zs has shape %r; allowed: (runs, n)" % (zs.shape,))
+    names = set(ESTIMATES) if bias == 1 else set(ESTIMATES[:5])
+    unknown = set(record) - names
+    if unknown:
+        raise UsageError("cannot record %s; allowed: %s" % (sorted(unknown), ", ".join(
+            n for n in ESTIMATES if n in names)))
+    check_parameters(dict(a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0, P0=P0, Ts=Ts, a3=a3,
+                          a4=a4, bias=bias, Qb=Qb, tau_b=tau_b, b0=b0, Pb0=Pb0))
+    runs, n = zs.shape
+    if P0 is None:
+        P0 = default_P0(A, Q)
+    shape = (runs,)
+    est = chain.estimator_init(np.broadcast_to(np.asarray(x0, dtype=float), shape).copy(),
+                               np.broadcast_to(np.asarray(P0, dtype=float), shape).copy())
+    b = None
+    if bias == 1:
+        b = bias_model.init(np.broadcast_to(np.asarray(b0, dtype=float), shape).copy(),
+                            np.broadcast_to(np.asarray(Pb0, dtype=float), shape).copy())
+        Fb = bias_model.factor(tau_b, Ts)
+    traj = {name: np.empty((runs, n)) for name in record}
+    for k in range(1, n + 1):
+        z = zs[:, k - 1]
+        if b is None:
+            est = chain.estimator_step(est, z, a0, a1, a2, A, Q, R, a3, a4)
+        else:
+            est, b = bias_model.estimator_step(est, b, z, a0, a1, a2, A, Q, R, Fb, Qb, a3, a4)
+            bias_model.check(est, b, k)
+        if traj:
+            values = _estimates(est, b, a2, a3, a4)
+            for name, arr in traj.items():
+                arr[:, k - 1] = values[name]
+    out = {"final_" + key: np.broadcast_to(np.asarray(v, dtype=float), shape).copy()
+           for key, v in _estimates(est, b, a2, a3, a4).items()}
+    out.update(traj)
+    return out
+
+
+def _estimates(est, b, a2, a3, a4):
+    """The values of :data:`ESTIMATES` of a state (without the bias part when ``b`` is None)."""
+    dc1, dc2, dc3 = drift.estimates(est.drift, a2, a3, a4)
+    out = {"x_hat": est.x, "P": est.P, "dc_ekf1": dc1, "dc_ekf2": dc2, "dc_ekf3": dc3}
+    if b is not None:
+        out.update(b_hat=b.b, P_bb=b.Pbb, P_xb=b.Pxb)
+    return out
 
 
 def _kernel_library(kernel):
@@ -265,7 +368,8 @@ def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
     runs = seeds.shape[0]
     a2, a3, a4, a0 = params["a2"], params["a3"], params["a4"], params["a0"]
     quadratic = not sensor.higher(a3, a4)
-    general = not quadratic or not (_ops.is_scalar(params["B"]) and params["B"] == 0.0)
+    on = params["bias"] == 1
+    general = not quadratic or not (_ops.is_scalar(params["B"]) and params["B"] == 0.0) or on
     state = compiled.Batch(lib, seeds, params, kind, n, record, general, quadratic)
     step = max(BLOCK, -(-n // 32) if progress is not None else KERNEL_CALL // max(1, runs))
     for k0 in range(1, n + 1, step):
@@ -274,18 +378,22 @@ def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
         if progress is not None:
             progress(k1 - 1)
     x, zbar, x2bar, est, hbar = state.state()
-    out = _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4)
+    if on:
+        state.check_bias(est, seeds)
+    out = _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4,
+                  state.bias() if on else None)
     out.update(state.traj)
     return out
 
 
-def _record(traj, j, x, z, est, zbar, realised, a0, coefficients):
+def _record(traj, j, x, z, est, zbar, realised, a0, coefficients, b=None):
     """Store sample ``j`` (0-based) of the recorded trajectories (``coefficients`` are
-    ``(a2, a3, a4)``, ``realised`` the realised drift so far)."""
+    ``(a2, a3, a4)``, ``realised`` the realised drift so far, ``b`` the bias part)."""
     values = {"x": lambda: x, "z": lambda: z, "x_hat": lambda: est.x, "P": lambda: est.P,
               "dc_ekf1": lambda: drift.estimates(est.drift, *coefficients)[0],
               "dc_ekf2": lambda: est.drift.dc2, "dc_ekf3": lambda: est.drift.dc3,
-              "dc_empirical": lambda: zbar - a0, "dc_realised": lambda: realised}
+              "dc_empirical": lambda: zbar - a0, "dc_realised": lambda: realised,
+              "b_hat": lambda: b.b, "P_bb": lambda: b.Pbb, "P_xb": lambda: b.Pxb}
     for name, arr in traj.items():
         arr[j] = values[name]()
 

@@ -8,6 +8,7 @@
 #include <stdint.h>
 
 #include "adxl203.h"
+#include "bias.h"
 #include "chain.h"
 #include "covariance.h"
 #include "drift.h"
@@ -18,21 +19,28 @@
 #include "sensor.h"
 
 /* One run of simulations.batch.simulate between blocks: the excitation, the filter, the two
- * running means and the general sensor's realised drift (fifteen 8-byte fields, the layout of
- * a (runs, 15) float64 array: kernel.py's STATE_FIELDS). */
+ * running means, the general sensor's realised drift, the bias filter's part and where its
+ * covariance first left the PSD cone (twenty-two 8-byte fields, the layout of a (runs, 22)
+ * float64 array: kernel.py's STATE_FIELDS). */
 typedef struct {
     double x, zbar, x2bar;
     EstimatorState est;
     double hbar;  /* running mean of a2 x^2 + a3 x^3 + a4 x^4 (the general sensor only) */
+    Bias b;       /* the bias part (bias = 1 only; 0 otherwise) */
+    double bad_k; /* the first sample whose covariance (P, Pxb, Pbb) is not valid (0: none) */
+    double bad[3];/* that covariance */
 } RunState;
 
 /* The per-run parameters of batch.simulate, in this order, each an array of `runs` values
  * (the general model's last: a3, a4, B, the known input's drive, Qu, Xu, fu). */
 enum { P_A0, P_A1, P_A2, P_A, P_Q, P_R, P_X0, P_P0, P_TS, P_X, P_F, P_PHI, P_FA, P_FQ,
-       P_A3, P_A4, P_B, P_DRIVE, P_QU, P_XU, P_FU, N_PARAMS };
+       P_A3, P_A4, P_B, P_DRIVE, P_QU, P_XU, P_FU, P_BIAS, P_QB, P_TAU_B, P_B0, P_PB0,
+       N_PARAMS };
 
-/* batch.TRAJECTORIES, in this order; a NULL pointer is a trajectory not recorded. */
-enum { T_X, T_Z, T_XHAT, T_P, T_DC1, T_DC2, T_DC3, T_EMPIRICAL, T_REALISED, N_TRAJ };
+/* batch.TRAJECTORIES and batch.BIAS_OUTPUTS, in this order; a NULL pointer is a trajectory not
+ * recorded. */
+enum { T_X, T_Z, T_XHAT, T_P, T_DC1, T_DC2, T_DC3, T_EMPIRICAL, T_REALISED, T_BHAT, T_PBB,
+       T_PXB, N_TRAJ };
 
 /* The state of every run before sample 1: x = x0, the filter at (x0, P0), means 0. */
 void driftfmu_batch_init(int64_t runs, const double *const *p, RunState *state)
@@ -43,6 +51,13 @@ void driftfmu_batch_init(int64_t runs, const double *const *p, RunState *state)
         state[r].x2bar = 0.0;
         state[r].est = chain_estimator_init(p[P_X0][r], p[P_P0][r]);
         state[r].hbar = 0.0;
+        if (p[P_BIAS][r] != 0.0) {
+            state[r].b = bias_init(p[P_B0][r], p[P_PB0][r]);
+        } else {
+            state[r].b.b = state[r].b.Pxb = state[r].b.Pbb = 0.0;
+        }
+        state[r].bad_k = 0.0;
+        state[r].bad[0] = state[r].bad[1] = state[r].bad[2] = 0.0;
     }
 }
 
@@ -163,12 +178,14 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
         const int lanes = runs - r0 < LANES ? (int)(runs - r0) : LANES;
         RunState s[LANES];
         double q[N_PARAMS][LANES];  /* this block's parameters, out of reach of the stores */
+        double Fb[LANES];           /* the bias filter's bias_factor(tau_b, Ts) */
         uint64_t key_process[LANES], key_measurement[LANES];
         for (int i = 0; i < lanes; i++) {
             s[i] = state[r0 + i];
             for (int j = 0; j < N_PARAMS; j++) q[j][i] = p[j][r0 + i];
             key_process[i] = noise_key(seeds[r0 + i], NOISE_STREAM_PROCESS);
             key_measurement[i] = noise_key(seeds[r0 + i], NOISE_STREAM_MEASUREMENT);
+            Fb[i] = bias_factor(q[P_TAU_B][i], q[P_TS][i]);
         }
         for (int64_t k = k0; k < k1; k++) {
             for (int i = 0; i < lanes; i++) {
@@ -189,8 +206,21 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                 }
                 z = sensor_measure_general(s[i].x, a0, a1, a2, R,
                                            keyed_normal(key_measurement[i], k), a3, a4);
-                s[i].est = chain_estimator_step_general(s[i].est, z, a0, a1, a2, q[P_FA][i],
-                                                        q[P_FQ][i], R, a3, a4, B, u);
+                if (q[P_BIAS][i] != 0.0) { /* models.bias.estimator_step and check */
+                    s[i].est = bias_estimator_step(s[i].est, &s[i].b, z, a0, a1, a2, q[P_FA][i],
+                                                   q[P_FQ][i], R, Fb[i], q[P_QB][i], a3, a4, B,
+                                                   u);
+                    if (s[i].bad_k == 0.0 &&
+                        !covariance_valid2(s[i].est.P, s[i].b.Pxb, s[i].b.Pbb)) {
+                        s[i].bad_k = (double)k;
+                        s[i].bad[0] = s[i].est.P;
+                        s[i].bad[1] = s[i].b.Pxb;
+                        s[i].bad[2] = s[i].b.Pbb;
+                    }
+                } else {
+                    s[i].est = chain_estimator_step_general(s[i].est, z, a0, a1, a2, q[P_FA][i],
+                                                            q[P_FQ][i], R, a3, a4, B, u);
+                }
                 s[i].zbar = drift_running_mean(s[i].zbar, z, k);
                 x2 = s[i].x * s[i].x;
                 s[i].x2bar = drift_running_mean(s[i].x2bar, x2, k);
@@ -211,6 +241,9 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                     if (traj[T_REALISED])  /* batch._realised */
                         traj[T_REALISED][j] = quadratic || (a3 == 0.0 && a4 == 0.0)
                                               ? a2 * s[i].x2bar : s[i].hbar;
+                    if (traj[T_BHAT]) traj[T_BHAT][j] = s[i].b.b;
+                    if (traj[T_PBB]) traj[T_PBB][j] = s[i].b.Pbb;
+                    if (traj[T_PXB]) traj[T_PXB][j] = s[i].b.Pxb;
                 }
             }
         }

@@ -32,16 +32,17 @@ HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
 #: The C units of models/ the kernel calls (with their own dependencies).
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c")
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c", "bias.c")
 #: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
 #: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``; the general model's last, ``drive`` as a
 #: float).
 PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "fA", "fQ",
-          "a3", "a4", "B", "drive", "Qu", "Xu", "fu")
+          "a3", "a4", "B", "drive", "Qu", "Xu", "fu", "bias", "Qb", "tau_b", "b0", "Pb0")
 #: Fields of one run's state (``RunState``): float64 but the drift counter ``k`` (int64):
 #: x, zbar, x2bar, the filter's x and P, the drift estimators' state (whose 3rd/4th-order
-#: sums come last), and the general sensor's realised drift.
-STATE_FIELDS = 5 + 9 + 1
+#: sums come last), the general sensor's realised drift, the bias part (b, Pxb, Pbb), and the
+#: first sample whose covariance (P, Pxb, Pbb) was not valid (0: none) with that covariance.
+STATE_FIELDS = 5 + 9 + 1 + 3 + 4
 #: models.adxl203.simulate's start values and columns, in the kernel's order.
 EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
 SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",
@@ -219,7 +220,7 @@ class Batch:
     """
 
     def __init__(self, lib, seeds, params, kind, n, record, general=False, quadratic=True):
-        from driftfmu.simulations.batch import TRAJECTORIES
+        from driftfmu.simulations.batch import BIAS_OUTPUTS, TRAJECTORIES
         self.lib = lib
         self.seeds = np.ascontiguousarray(seeds, dtype=np.uint64)
         runs = self.seeds.shape[0]
@@ -230,8 +231,8 @@ class Batch:
         self.kind, self.n, self.runs = int(kind), int(n), runs
         self.general, self.quadratic = int(bool(general)), int(bool(quadratic))
         self.traj = {name: np.empty((runs, n)) for name in record}
-        self.traj_ptrs = _pointers([self.traj.get(name) for name in TRAJECTORIES]) \
-            if self.traj else None
+        self.traj_ptrs = _pointers([self.traj.get(name) for name in
+                                    TRAJECTORIES + BIAS_OUTPUTS]) if self.traj else None
         self.buffer = np.zeros((runs, STATE_FIELDS))
         lib.driftfmu_batch_init(runs, self.param_ptrs, self.buffer.ctypes.data)
 
@@ -251,6 +252,25 @@ class Batch:
         est = chain.EstimatorState(b[:, 3].copy(), b[:, 4].copy(),
                                    drift.DriftState(k, *(b[:, i].copy() for i in range(6, 14))))
         return b[:, 0].copy(), b[:, 1].copy(), b[:, 2].copy(), est, b[:, 14].copy()
+
+    def bias(self):
+        """The bias part of every run, a models.bias.Bias of arrays ``(runs,)``."""
+        from driftfmu.models import bias
+        return bias.Bias(*(self.buffer[:, i].copy() for i in (15, 16, 17)))
+
+    def check_bias(self, est, seeds):
+        """Raise the CovarianceError models.bias.check raises in the NumPy engine: the first
+        sample at which a run's covariance (P, Pxb, Pbb) was not valid, and the first run
+        there (with its seed)."""
+        from driftfmu.models import bias, covariance
+        bad_k = self.buffer[:, 18]
+        if not (bad_k > 0).any():
+            return
+        k = bad_k[bad_k > 0].min()
+        run = int(np.flatnonzero(bad_k == k)[0])
+        P, Pxb, Pbb = (float(v) for v in self.buffer[run, 19:22])
+        raise covariance.error(bias.COVARIANCE_NAMES, ((P,), (Pxb, Pbb)), int(k),
+                               "the bias filter", run, int(seeds[run]))
 
 
 def adxl203_simulate(lib, n, excitation_values, sensor_values, estimator_values, Ts,

@@ -149,7 +149,7 @@ def test_a_run_that_cannot_fit_in_memory_is_refused_before_it_starts(fmu_dir):
     text = str(info.value)
     assert "\n" not in text
     assert text.startswith("simulate(stop_time=1000000000000.0, step_size=0.001), recording "
-                           "13 values at each of 1000000000000001 communication points, needs "
+                           "17 values at each of 1000000000000001 communication points, needs "
                            "about "), text
     assert "of memory; this machine has" in text and "allowed: a run that fits: at most " \
         "about" in text, text

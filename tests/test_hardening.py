@@ -285,7 +285,8 @@ def test_parameter_combination_with_non_finite_effective_value_is_refused():
 INIT_CASES = {
     "Excitation": (dict(kind=2, X=2.0, f=100.0, phi=0.5, Xy=1.0, phiy=0.2, drive=1, Qu=0.5), {}),
     "Accelerometer": (dict(a0=5.0, a2=0.1, axes=2, cross=0.1, fc=100.0), dict(x=1.0, y=-0.5)),
-    "DriftEstimator": (dict(a0=0.2, a2=0.05, x0=0.3, P0=0.2), dict(z=1.5)),
+    "DriftEstimator": (dict(a0=0.2, a2=0.05, x0=0.3, P0=0.2, bias=1, b0=0.01, Pb0=0.02,
+                            kT_bias=1e-3), dict(z=1.5, theta=0.2, T=300.0)),
     "DualDriftEstimator": (dict(a0=0.2, a2=0.05, bx=0.02, by=0.03, x0=0.3, y0=-0.2, P0=0.2,
                                 P0y=0.3, rho=0.4), dict(z_x=1.5, z_y=-0.7)),
 }

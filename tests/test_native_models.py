@@ -14,13 +14,13 @@ import subprocess
 import pytest
 
 from driftfmu.fmu_src.native.models import generate
-from driftfmu.models import _ops, adxl203, chain, covariance, drift, dualaxis, ekf, excitation, \
-    harmonic, noise, parameters, sensor
+from driftfmu.models import _ops, adxl203, bias, chain, covariance, drift, dualaxis, ekf, \
+    excitation, harmonic, noise, parameters, sensor
 from waiting import BOUND
 
 CC = shutil.which("gcc") or shutil.which("cc")
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c")
+         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c", "bias.c")
 
 D, I64, U64 = ctypes.c_double, ctypes.c_int64, ctypes.c_uint64
 PD, PI64 = ctypes.POINTER(D), ctypes.POINTER(I64)
@@ -36,6 +36,10 @@ class EstimatorState(ctypes.Structure):
 
 class HarmonicState(ctypes.Structure):
     _fields_ = [("x", D), ("d", D), ("P", D), ("P12", D), ("P22", D), ("drift", DriftState)]
+
+
+class Bias(ctypes.Structure):
+    _fields_ = [(n, D) for n in bias.Bias._fields]
 
 
 class Config(ctypes.Structure):
@@ -134,6 +138,15 @@ SIGNATURES = {
                                  ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p,
                                  ctypes.c_char_p, ctypes.c_size_t),
     "parameters_allowed": (ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t),
+    "sensor_tilt": (D, D), "sensor_class2": (D,) + (D,) * 9,
+    "bias_factor": (D, D, D), "bias_init": (Bias, D, D),
+    "bias_expected": (D,) + (D,) * 7, "bias_spread": (D, D, D, D),
+    "bias_predict": (None, D, D, Bias, D, D, D, D, D, D, PD, PD, ctypes.POINTER(Bias)),
+    "bias_update": (None, D, D, Bias) + (D,) * 7 + (PD, PD, ctypes.POINTER(Bias)),
+    "bias_estimator_step": (EstimatorState, EstimatorState, ctypes.POINTER(Bias)) + (D,) * 13,
+    "bias_estimator_predict": (EstimatorState, EstimatorState, ctypes.POINTER(Bias), D, D, D, D,
+                               D, D),
+    "bias_compensate": (D, D, D, D),
     "parameters_problem": (ctypes.c_int, ctypes.c_char_p, D, ctypes.c_int, ctypes.c_char_p,
                            ctypes.c_size_t),
 }
@@ -486,6 +499,72 @@ def test_chain_estimator_equals_models(c):
         assert_same(py[:2], (cv.x, cv.P), "EstimatorState")
         assert_drift(py.drift, cv.drift)
     assert same(chain.compensate(1.5, 0.25), c.chain_compensate(1.5, 0.25))
+
+
+def _bias_tuple(b):
+    return (b.b, b.Pxb, b.Pbb)
+
+
+def test_class2_offset_equals_models(c):
+    rng = random.Random(RNG_SEED + 30)
+    for _ in range(3000):
+        theta, T, T0 = rng.uniform(-50, 50), rng.uniform(200, 400), rng.uniform(250, 350)
+        a1, a2 = rng.uniform(0.2, 2), rng.uniform(-1, 1)
+        a3, a4 = rng.choice(((0.0, 0.0), (rng.uniform(-1, 1), rng.uniform(-1, 1))))
+        kb, ks = rng.choice((0.0, rng.uniform(-1e-2, 1e-2))), rng.choice((0.0, rng.uniform(-1e-3,
+                                                                                           1e-3)))
+        assert same(sensor.tilt(theta), c.sensor_tilt(theta))
+        assert same(sensor.class2(theta, T, a1, a2, T0, kb, ks, a3, a4),
+                    c.sensor_class2(theta, T, a1, a2, T0, kb, ks, a3, a4))
+
+
+def test_bias_filter_equals_models(c):
+    rng = random.Random(RNG_SEED + 31)
+    for _ in range(2000):
+        tau, Ts = rng.choice((0.0, 10.0 ** rng.uniform(-5, 2))), 10.0 ** rng.uniform(-5, -2)
+        assert same(bias.factor(tau, Ts), c.bias_factor(tau, Ts))
+        x, P = rng.uniform(-3, 3), 10.0 ** rng.uniform(-6, 1)
+        b = bias.Bias(rng.uniform(-1, 1), rng.uniform(-1e-3, 1e-3), 10.0 ** rng.uniform(-8, -1))
+        cb = Bias(*b)
+        A, Q, R = rng.uniform(-0.99, 0.99), 10.0 ** rng.uniform(-6, 0), 10.0 ** rng.uniform(-8, 0)
+        Fb, Qb = bias.factor(tau, Ts), rng.choice((0.0, 10.0 ** rng.uniform(-12, -2)))
+        a0, a1, a2 = rng.uniform(-1, 1), rng.uniform(0.1, 3), rng.uniform(-5, 5)
+        a3, a4 = rng.choice(((0.0, 0.0), (rng.uniform(-1, 1), rng.uniform(-1, 1))))
+        B, u, z = rng.choice((0.0, rng.uniform(-1, 1))), rng.uniform(-1, 1), rng.uniform(-5, 5)
+        assert same(bias.expected(x, P, a0, a1, a2, a3, a4),
+                    c.bias_expected(x, P, a0, a1, a2, a3, a4))
+        assert same(bias.spread(R, a2, P), c.bias_spread(R, a2, P))
+        o, ob = outs(2), Bias()
+        c.bias_predict(x, P, cb, A, Q, Fb, Qb, B, u, *refs(o), ctypes.byref(ob))
+        want = bias.predict(x, P, b, A, Q, Fb, Qb, B, u)
+        assert_same(want[:2] + tuple(want[2]), tuple(vals(o)) + _bias_tuple(ob), "predict")
+        c.bias_update(x, P, cb, z, a0, a1, a2, R, a3, a4, *refs(o), ctypes.byref(ob))
+        want = bias.update(x, P, b, z, a0, a1, a2, R, a3, a4)
+        assert_same(want[:2] + tuple(want[2]), tuple(vals(o)) + _bias_tuple(ob), "update")
+        assert same(bias.compensate(z, x, b.b), c.bias_compensate(z, x, b.b))
+    init = c.bias_init(0.3, 1e-3)
+    assert _bias_tuple(init) == tuple(bias.init(0.3, 1e-3))
+    assert bits(c.bias_init(0.0, -0.0).Pxb) == bits(bias.init(0.0, -0.0).Pxb)
+
+
+def test_bias_estimator_equals_models_over_a_long_sequence(c):
+    rng = random.Random(RNG_SEED + 32)
+    py, pb = chain.estimator_init(0.2, 0.05), bias.init(0.01, 1e-3)
+    cv, cb = c.chain_estimator_init(0.2, 0.05), Bias(*bias.init(0.01, 1e-3))
+    Fb = bias.factor(0.05, 1e-3)
+    for i in range(3000):
+        z, u = rng.gauss(0.01, 1), rng.gauss(0, 1)
+        a3, a4 = (0.02, -0.01) if i >= 1500 else (0.0, 0.0)
+        if rng.random() < 0.3:
+            py, pb = bias.estimator_predict(py, pb, 0.6, 0.02, Fb, 1e-7, 0.4, u)
+            cv = c.bias_estimator_predict(cv, ctypes.byref(cb), 0.6, 0.02, Fb, 1e-7, 0.4, u)
+        else:
+            py, pb = bias.estimator_step(py, pb, z, 0.1, 1.2, 0.3, 0.6, 0.02, 1e-3, Fb, 1e-7,
+                                         a3, a4, 0.4, u)
+            cv = c.bias_estimator_step(cv, ctypes.byref(cb), z, 0.1, 1.2, 0.3, 0.6, 0.02, 1e-3,
+                                       Fb, 1e-7, a3, a4, 0.4, u)
+        assert_same(py[:2] + tuple(pb), (cv.x, cv.P) + _bias_tuple(cb), "bias estimator")
+        assert_drift(py.drift, cv.drift)
 
 
 # -- harmonic ---------------------------------------------------------------------------------
@@ -986,11 +1065,19 @@ def random_values(name, rng):
                  estimator=rng.randint(1, 3), process=rng.choice((1, 2)),
                  f=rng.uniform(1, 300), Qh=10.0 ** rng.uniform(-10, -4))
         return p
-    return dict(a0=rng.uniform(-1, 1), a1=rng.uniform(0.5, 2), a2=rng.uniform(-0.1, 0.1),
-                A=rng.uniform(-0.9, 0.9), Q=rng.uniform(0.001, 0.1), R=10.0 ** rng.uniform(-6, -2),
-                x0=rng.uniform(-0.5, 0.5), P0=rng.uniform(0, 0.1), Ts=rng.choice((1e-3, 1e-4)),
-                estimator=rng.randint(1, 3), process=rng.choice((1, 2)), f=rng.uniform(1, 300),
-                Qh=10.0 ** rng.uniform(-10, -4))
+    p = dict(a0=rng.uniform(-1, 1), a1=rng.uniform(0.5, 2), a2=rng.uniform(-0.1, 0.1),
+             A=rng.uniform(-0.9, 0.9), Q=rng.uniform(0.001, 0.1), R=10.0 ** rng.uniform(-6, -2),
+             x0=rng.uniform(-0.5, 0.5), P0=rng.uniform(0, 0.1), Ts=rng.choice((1e-3, 1e-4)),
+             estimator=rng.randint(1, 3), process=rng.choice((1, 2)), f=rng.uniform(1, 300),
+             Qh=10.0 ** rng.uniform(-10, -4))
+    if rng.random() < 0.5:  # the bias state (Gauss-Markov process model only)
+        p.update(bias=1, process=1, Qb=rng.choice((0.0, 10.0 ** rng.uniform(-12, -4))),
+                 tau_b=rng.choice((0.0, 10.0 ** rng.uniform(-4, 1))), b0=rng.uniform(-0.1, 0.1),
+                 Pb0=rng.uniform(0, 0.01), a3=rng.choice((0.0, 0.01)), B=rng.uniform(-1, 1))
+    if rng.random() < 0.5:  # the class-2 coefficients (the inputs theta, T are random)
+        p.update(kT_bias=rng.uniform(-1e-3, 1e-3), kT_scale=rng.choice((0.0, 1e-4)),
+                 T0=rng.uniform(1, 3))
+    return p
 
 
 def random_dual_sensor(rng):
@@ -1061,7 +1148,8 @@ BAD = {"Ts": (0.0, -1e-3, 1e-12, 1e-9, 5.0), "R": (0.0, -1.0, 5e-324), "A": (1.0
        "axes": (0, 3), "Vs": (2.0, 6.5, 5.0), "fc": (3000.0, -1.0), "cross": (1.5,),
        "density": (-1e-6,), "estimator": (0, 4), "process": (0, 3, 2), "Qh": (-1e-9,),
        "Qy": (-0.1,), "rho": (1.5, -1.0, float("nan")), "Ry": (0.0, -1.0), "a1y": (0.0,),
-       "dual": (1, 2, -1), "P0y": (-1.0,),
+       "dual": (1, 2, -1), "P0y": (-1.0,), "bias": (2, -1, 1), "Qb": (-1e-9,),
+       "tau_b": (-0.1,), "Pb0": (-1.0,), "T0": (0.0, -1.0),
        **({"a2": (1e308,), "a3": (1.7e308,)} if VARIABLE_STEPS else {})}
 
 

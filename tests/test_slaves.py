@@ -337,6 +337,8 @@ PATH_CONFIGS = [
     (Accelerometer, {"dual": 1}), (Accelerometer, {"noise": 0}),
     (DriftEstimator, {}), (DriftEstimator, {"process": 2, "estimator": 3, "a3": 0.01}),
     (DriftEstimator, {"B": 0.5, "a4": 0.001, "estimator": 2}),
+    (DriftEstimator, {"bias": 1, "Qb": 1e-8, "tau_b": 0.1, "a2": 0.05, "estimator": 3}),
+    (DriftEstimator, {"kT_bias": 1e-3, "kT_scale": 1e-4, "process": 2}),
     (DualDriftEstimator, {}), (DualDriftEstimator, {"process": 2}),
 ]
 

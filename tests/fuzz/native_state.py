@@ -22,6 +22,7 @@ DriftState = _struct("DriftState", [("k", I64)] + [(n, D) for n in (
     "s1", "dc2", "s3", "dc3", "t1", "q1", "t3", "q3")])
 HarmonicState = _struct("HarmonicState", [(n, D) for n in ("x", "d", "P", "P12", "P22")]
                         + [("drift", DriftState)])
+Bias = _struct("Bias", [(n, D) for n in ("b", "Pxb", "Pbb")])
 Axis = _struct("Axis", [(n, D) for n in ("a0", "a1", "a2", "b", "R")])
 DualDrift = _struct("DualDrift", [("k", I64)] + [(n, D) for n in (
     "s1xx", "s1xy", "s1yy", "dc2x", "dc2y", "s3xx", "s3xy", "s3yy", "dc3x", "dc3y")])
@@ -46,15 +47,16 @@ HIDDEN = {
                       ("lpy_set", I64), ("lp", D), ("lpy", D), ("lp_pending_set", I64),
                       ("lpy_pending_set", I64), ("lp_pending", D), ("lpy_pending", D)],
     "DriftEstimator": [("C", D), ("S", D), ("state", HarmonicState),
-                       ("pending", HarmonicState)],
+                       ("pending", HarmonicState), ("Fb", D), ("bias", Bias),
+                       ("bias_pending", Bias)],
     "DualDriftEstimator": [("ax", Axis), ("ay", Axis), ("m", DualModel),
                            ("state", DualEstimator), ("pending", DualEstimator)],
 }
 #: Hidden values derived from the parameters (model_start computes them).
 DERIVED = {"Excitation": (), "Accelerometer": ("cfg", "ax", "ay"),
-           "DriftEstimator": ("C", "S"), "DualDriftEstimator": ("ax", "ay", "m")}
+           "DriftEstimator": ("C", "S", "Fb"), "DualDriftEstimator": ("ax", "ay", "m")}
 #: Hidden variances (>= 0).
-VARIANCES = {"P", "P22", "Pxx", "Pyy", "P11", "P33", "P44"}
+VARIANCES = {"P", "P22", "Pxx", "Pyy", "P11", "P33", "P44", "Pbb"}
 
 StateHeader = _struct("StateHeader", [("magic", c_char * 24), ("model", c_char * 32),
                                       ("token", c_char * 64), ("version", c_char * 24),

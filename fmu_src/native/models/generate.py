@@ -26,8 +26,8 @@ UNITS = {
     "Excitation": ("Excitation_step.c", "excitation.c") + MATH_UNITS,
     "Accelerometer": ("Accelerometer_step.c", "adxl203.c", "dualaxis.c", "harmonic.c",
                       "chain.c", "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
-    "DriftEstimator": ("DriftEstimator_step.c", "harmonic.c", "chain.c", "ekf.c", "drift.c",
-                       "sensor.c", "covariance.c") + MATH_UNITS,
+    "DriftEstimator": ("DriftEstimator_step.c", "bias.c", "dualaxis.c", "harmonic.c", "chain.c",
+                       "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
     "DualDriftEstimator": ("DualDriftEstimator_step.c", "dualaxis.c", "harmonic.c", "chain.c",
                            "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
 }
