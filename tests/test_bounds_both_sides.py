@@ -132,3 +132,28 @@ def test_each_size_check_counts_no_more_workers_than_work(which):
         assert check(work, 8) == check(work, total), (which, work)          # capped
     # below the work, the workers count
     assert check(4, 2)["seconds"] > check(4, 4 * unit)["seconds"]
+
+
+# -- a drive frequency: 0 < f (the option's check), f < 1/(2 Ts) (the run's) -------------------
+
+@pytest.mark.parametrize("Ts", [1e-3, 3e-4])
+def test_a_drive_frequency_is_above_0_and_below_the_nyquist_rate(Ts):
+    from driftfmu.simulations import sinusoidal
+    from driftfmu.simulations.errors import UsageError
+    nyquist = 0.5 / Ts
+    tiny = parameters.next_float(0.0, 1.0)
+    for f, allowed in ((0.0, False), (-tiny, False), (tiny, True), (1.0, True),
+                       (parameters.next_float(nyquist, 0.0), True), (nyquist, False),
+                       (parameters.next_float(nyquist, math.inf), False)):
+        try:
+            sinusoidal.check_frequency(f, Ts)
+            refused = None
+        except UsageError as e:
+            refused = str(e)
+        assert (refused is None) == allowed, (f, Ts, refused)
+        if refused:
+            assert "allowed: 0 < f < 1/(2 Ts) = %r Hz" % nyquist in refused
+    # the option's check (no Ts there): > 0 and finite, on both sides of 0
+    for f, allowed in ((0.0, False), (-tiny, False), (tiny, True), (math.inf, False)):
+        assert (checks.frequency_problem(f) is None) == allowed, f
+        assert (checks.freqs_problem([100.0, f]) is None) == allowed, f
