@@ -9,7 +9,6 @@ parameter's start, min and max); docs/fmus.md, the reference page the users read
 """
 import inspect
 import re
-import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import fmpy

@@ -103,14 +103,16 @@ def test_a_schedulers_port_is_1_to_65535(form, port, allowed):
 
 # -- the size checks: never more workers than work ----------------------------------------------
 
-def test_parallel_is_the_workers_capped_by_the_work():
+def test_parallel_is_the_workers_capped_by_the_work(monkeypatch):
     assert budget.parallel(8, 2) == 2 and budget.parallel(2, 8) == 2
     assert budget.parallel(3, 3) == 3 and budget.parallel(4, 3) == 3 and budget.parallel(2, 3) == 2
     assert budget.parallel(5, 0) == 1 and budget.parallel(None, 1) == 1
-
-
-def _estimates(check, work_at, workers):
-    return {w: check(w, workers) for w in work_at}
+    # no workers given: one per core, capped the same; no core count known: one
+    monkeypatch.setattr(budget.os, "cpu_count", lambda: 4)
+    assert budget.parallel(None, 8) == 4 and budget.parallel(None, 3) == 3
+    assert budget.parallel(0, 8) == 4
+    monkeypatch.setattr(budget.os, "cpu_count", lambda: None)
+    assert budget.parallel(None, 8) == 1
 
 
 @pytest.mark.parametrize("which", ["montecarlo", "sweep", "adxl203", "dual_axis"])

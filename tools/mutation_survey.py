@@ -35,6 +35,7 @@ Usage::
     python3 tools/mutation_survey.py                           # the whole tree (hours: background)
     python3 tools/mutation_survey.py --list --changed main     # the mutants, without running them
     python3 tools/mutation_survey.py --check-triage            # stale triage entries only
+    python3 tools/mutation_survey.py --changed main --only 9 35 --against tests/test_new.py
 
 Exit status: 0 when no untriaged survivor remains, 1 when one does, 2 for a usage error, a
 broken triage file or a record that fails, 130 when stopped.
@@ -46,13 +47,11 @@ import fnmatch
 import hashlib
 import json
 import os
-import random
 import re
 import shutil
 import signal
 import subprocess
 import sys
-import tempfile
 import time
 
 HERE = os.path.dirname(os.path.abspath(__file__))
@@ -597,12 +596,16 @@ def _preload():
 
 
 class _Only:
-    """pytest plugin: keep exactly the node ids asked for, in their order."""
+    """pytest plugin: keep exactly the node ids asked for, in their order (a path alone: all of
+    its tests)."""
 
     def __init__(self, ids):
         self.ids = {t: i for i, t in enumerate(ids)}
+        self.whole = {t for t in ids if "::" not in t}
 
     def pytest_collection_modifyitems(self, config, items):
+        if self.whole:
+            return
         keep = [it for it in items if it.nodeid in self.ids]
         drop = [it for it in items if it.nodeid not in self.ids]
         keep.sort(key=lambda it: self.ids[it.nodeid])
@@ -717,10 +720,11 @@ class Slot:
 
 
 def timeout_for(rec, tests):
-    return TIMEOUT_FLOOR + TIMEOUT_FACTOR * sum(rec["tests"][t][2] for t in tests)
+    return TIMEOUT_FLOOR + TIMEOUT_FACTOR * sum(rec["tests"].get(t, [0, 0, 0.0])[2]
+                                                for t in tests)
 
 
-def run_all(root, found, rec, jobs=1, budget=None, log=print):
+def run_all(root, found, rec, jobs=1, budget=None, log=print, against=None):
     """Run each mutant of ``found`` against its selection: stage 1 the unit tests that reach
     it, stage 2 (when it passes them or has none) the integration tests.  Rows in the order
     of ``found``; a mutant not started within ``budget`` seconds gets status "not run"."""
@@ -741,7 +745,7 @@ def run_all(root, found, rec, jobs=1, budget=None, log=print):
                     pending = []
                     break
                 m = pending.pop(0)
-                unit, integration = selection(rec, m)
+                unit, integration = selection(rec, m) if against is None else (against, [])
                 stages = [s for s in (unit, integration) if s]
                 source = mutant_source(root, m)
                 if source is None:
@@ -768,7 +772,7 @@ def run_all(root, found, rec, jobs=1, budget=None, log=print):
                     continue
                 slots[i].restore()
                 del running[i]
-                kinds = ["unit" if not rec["tests"][s[0]][1] else "integration"
+                kinds = ["unit" if not rec["tests"].get(s[0], [0, 0])[1] else "integration"
                          for s in stages]
                 rows[m["number"]] = _row(m, status, first, stage, seconds, kinds,
                                          sum(len(s) for s in stages[:stage]))
@@ -882,6 +886,9 @@ def main(argv=None):
                     help="start no mutant after SECONDS (those left are reported not run)")
     ap.add_argument("--shuffle", metavar="SEED", help="run the mutants in an order drawn "
                     "from SEED (with --budget: another sample each run)")
+    ap.add_argument("--against", nargs="+", metavar="TEST",
+                    help="run every mutant against these tests (paths or node ids) instead of "
+                         "the recorded selection: does a new test catch these survivors?")
     ap.add_argument("--out", help="write the rows (JSON) here")
     ap.add_argument("--toml", help="write the untriaged survivors here as triage entries")
     args = ap.parse_args(argv)
@@ -941,8 +948,11 @@ def _survey(args, root, found, entries, everything):
     if not found:
         report([], entries, everything)
         return 0
-    rec = cached_record(root, args.record_tests, args.record_workers, refresh=args.refresh)
-    rows = run_all(root, found, rec, args.jobs, args.budget)
+    if args.against:
+        rec = {"tests": {}, "lines": {}}
+    else:
+        rec = cached_record(root, args.record_tests, args.record_workers, refresh=args.refresh)
+    rows = run_all(root, found, rec, args.jobs, args.budget, against=args.against)
     if args.out:
         with open(args.out, "w") as fh:
             json.dump(rows, fh, indent=1)
