@@ -172,3 +172,55 @@ def test_each_refusal_says_how_to_proceed(machine, api):
     share = _room(B.SWEEP_MEMORY * 1000 * 10 ** 6)
     assert ("at most %s for the 1000 grid points" % (
         ("runs=%d" if api else "--runs %d") % int(10 ** 6 * share))) in text
+
+
+@pytest.mark.parametrize("api", [False, True])
+def test_the_experiments_notes_and_refusals_in_the_callers_words(machine, capsys, api):
+    # experiment adxl203: one frequency, two; long (over LONG); too large (refused)
+    for freqs, at in (((100.0,), "1 frequency"), ((100.0, 200.0), "2 frequencies")):
+        B.check_adxl203(freqs, 400, 10 ** 6, 1, None, api=api, announce=False)
+        assert capsys.readouterr().err == ""
+        B.check_adxl203(freqs, 400, 10 ** 6, 1, None, api=api)
+        assert capsys.readouterr().err.startswith(
+            "driftfmu: note: " + ("experiment_adxl203(sets=400, n=1000000) at %s: about " if api
+                                  else "experiment adxl203 --sets 400 --n 1000000 at %s: "
+                                  "about ") % at)
+    n = 10 ** 8
+    with pytest.raises(UsageError) as e:
+        B.check_adxl203((100.0,), 4, n, 2, None, api=api, announce=False)
+    grows = (B.ADXL203_WORKER_MEMORY + B.ADXL203_MEMORY * n) * 2
+    text = str(e.value)
+    assert ("at most %s; or a smaller %s or fewer %s" % (
+        ("n=%d" if api else "--n %d") % int(n * _room(grows)), *(
+            ("n", "workers") if api else ("--n", "--workers")))) in text, text
+    # experiment dual-axis: batch and FMU engines
+    for engine, runs in (("batch", 10 ** 5), ("fmu", 10)):  # each over LONG on one core
+        B.check_dual_axis(5, runs, 1000, engine, 1, None, api=api, announce=False)
+        assert capsys.readouterr().err == ""
+        B.check_dual_axis(5, runs, 1000, engine, 1, None, api=api)
+        assert capsys.readouterr().err.startswith("driftfmu: note: " + (
+            "experiment_dual_axis(points=5, runs=%d, n=1000, engine=%r): about " % (runs, engine)
+            if api else "experiment dual-axis --points 5 --runs %d --n 1000 --engine %s: "
+            "about " % (runs, engine)))
+    points, runs = 10, 10 ** 7
+    with pytest.raises(UsageError) as e:
+        B.check_dual_axis(points, runs, 100, "batch", 2, None, api=api, announce=False)
+    share = _room(B.DUAL_BATCH_MEMORY * 2 * points * runs)
+    assert str(e.value).endswith("at most %s; or fewer %s or %s" % (
+        ("runs=%d" if api else "--runs %d") % int(runs * share),
+        *(("points", "runs") if api else ("--points", "--runs")))), str(e.value)
+    # one run too many samples: the samples that fit (FMU engine), the points (batch)
+    with pytest.raises(UsageError) as e:
+        B.check_dual_axis(points, 1, 10 ** 9, "fmu", 2, None, api=api, announce=False)
+    share = _room(B.DUAL_FMU_MEMORY * 2 * points * 10 ** 9)
+    assert ("at most %s at %s; or fewer %s or %s, or a smaller %s" % (
+        ("n=%d" if api else "--n %d") % max(1, int(10 ** 9 * share)),
+        "runs=1" if api else "--runs 1",
+        *(("points", "runs", "n") if api else ("--points", "--runs", "--n")))) \
+        in str(e.value), str(e.value)
+    with pytest.raises(UsageError) as e:
+        B.check_dual_axis(10 ** 9, 1, 100, "batch", 2, None, api=api, announce=False)
+    share = _room(B.DUAL_BATCH_MEMORY * 2 * 10 ** 9)
+    assert ("at most %s at %s" % (("points=%d" if api else "--points %d")
+                                  % max(1, int(10 ** 9 * share)),
+                                  "runs=1" if api else "--runs 1")) in str(e.value)
