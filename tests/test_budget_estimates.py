@@ -224,3 +224,11 @@ def test_the_experiments_notes_and_refusals_in_the_callers_words(machine, capsys
     assert ("at most %s at %s" % (("points=%d" if api else "--points %d")
                                   % max(1, int(10 ** 9 * share)),
                                   "runs=1" if api else "--runs 1")) in str(e.value)
+
+
+def test_a_backend_without_its_own_figure_is_estimated_as_the_python_fmus(machine):
+    """The slowest figure stands in for a backend the tables do not name."""
+    assert B.check_adxl203((100.0,), 3, 1000, 1, None, backend="elsewhere", announce=False) == \
+        B.check_adxl203((100.0,), 3, 1000, 1, None, backend="python", announce=False)
+    assert B.check_dual_axis(2, 3, 100, "fmu", 1, None, backend="elsewhere", announce=False) \
+        == B.check_dual_axis(2, 3, 100, "fmu", 1, None, backend="python", announce=False)
