@@ -355,6 +355,16 @@ def test_a_survivor_is_untriaged_until_the_triage_file_names_it(tmp_path):
     assert "UNTRIAGED models/calc.py:half:7 return: x / 2 -> None (no test runs this line)" \
         in p.stdout
     assert "UNTRIAGED models/calc.py:add" not in p.stdout  # test_add catches every one
+    # the record: add's statement is run by test_add alone, half's test by test_half alone,
+    # half's return x / 2 by no test
+    import json
+    survey = _tool("mutation_survey")
+    (record,) = (tmp_path / "cache").glob("*.json")
+    rec = json.loads(record.read_text())
+    found = {(m["function"], m["line"]): m for m in survey.mutants(str(root))}
+    assert survey.selection(rec, found["add", 2]) == (["tests/test_calc.py::test_add"], [])
+    assert survey.selection(rec, found["half", 6]) == (["tests/test_calc.py::test_half"], [])
+    assert survey.selection(rec, found["half", 7]) == ([], [])
     # the entries to fill in: all of them equivalent, one stale entry besides
     entries = (tmp_path / "new.toml").read_text().replace(
         'verdict = "?"\nreason = ""', 'verdict = "equivalent"\nreason = "planted"')
