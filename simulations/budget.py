@@ -147,6 +147,12 @@ def check(what, memory, disk, seconds, out, proceed, fit=None, announce=True):
     return {"memory": memory, "disk": disk, "seconds": seconds}
 
 
+def parallel(workers, work):
+    """How many workers run at once: ``workers`` (None: one per core), but never more than the
+    ``work`` there is (units that can run side by side: runs, grid points, sets); at least 1."""
+    return max(1, min(workers or os.cpu_count() or 1, work))
+
+
 def _setting(name, value, api):
     """A setting as its caller writes it: ``runs=1000`` (the Python API) or ``--runs 1000``
     (the command line)."""
@@ -165,7 +171,7 @@ def check_montecarlo(command, runs, n, workers, out, summary_only=False, api=Fal
     """The size check of ``driftfmu montecarlo`` (``api``: of :func:`driftfmu.montecarlo`,
     its settings named as keywords): every trajectory of every run is kept, or
     (``summary_only``) per-run summaries and the figure's runs' trajectories."""
-    cores = max(1, workers or os.cpu_count() or 1)
+    cores = parallel(workers, runs)
     if api:
         what = "montecarlo(%r, runs=%d, n=%d%s)" % (command, runs, n, ", summary_only=True"
                                                    if summary_only else "")
@@ -210,8 +216,8 @@ def check_sweep(points, runs, n, workers, out, announce=True, api=False):
     """The size check of ``driftfmu sweep`` (``api``: of :func:`driftfmu.sweep`): ``points``
     grid points of ``runs`` runs of ``n`` samples; each run keeps its final estimates only, so
     the memory grows with the runs, not with ``n``."""
-    cores = max(1, workers or os.cpu_count() or 1)
     total = points * runs
+    cores = parallel(workers, total)
 
     def fit(share):
         if runs * share < 1:
@@ -277,9 +283,8 @@ def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, ann
     """The size check of ``driftfmu experiment adxl203`` (``api``: of
     :func:`driftfmu.experiment_adxl203`): ``sets`` sets of ``n`` samples at each of
     ``freqs`` frequencies, as many at once as there are workers."""
-    cores = max(1, workers or os.cpu_count() or 1)
     total = len(freqs) * sets
-    at_once = min(cores, total)
+    at_once = parallel(workers, total)
 
     def fit(share):
         return "at most %s" % _setting("n", max(1, int(n * share)), api)
@@ -313,8 +318,8 @@ def check_dual_axis(points, runs, n, engine, workers, out, backend="python", api
     """The size check of ``driftfmu experiment dual-axis`` (``api``: of
     :func:`driftfmu.experiment_dual_axis`): two sweeps of ``points`` points of ``runs`` runs of
     ``n`` samples."""
-    cores = max(1, workers or os.cpu_count() or 1)
     total = 2 * points * runs
+    cores = parallel(workers, total)
     memory = DUAL_BATCH_MEMORY * total if engine == "batch" else DUAL_FMU_MEMORY * total * n
     seconds = DUAL_SECONDS.get("batch" if engine == "batch" else backend,
                                DUAL_SECONDS["python"]) * total * n / cores
