@@ -161,6 +161,9 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         Folder of the Python FMUs (``<out_dir>/<Name>.fmu``); the native FMUs go to
         ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where [`simulate`][driftfmu.simulate] looks for them
         (and, with an ARM compiler, the FMI 2.0 FMUs for ARM to ``native/fmi2-aarch64/``).
+        Beside the Excitation, Accelerometer and DriftEstimator FMUs of each folder goes
+        ``DriftChain.json``, the description from which the FMU Manipulation Toolbox's
+        ``fmucontainer`` makes the chain one FMU (docs/hosts.md).
         Created if missing.  All or nothing: every output of the call (FMUs, ``cross_check``,
         ``ssp``) is built in a hidden staging folder and moved into place only once the whole
         build has succeeded; a failed or interrupted build leaves every path as it was.
@@ -275,6 +278,10 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
             built = native_build.build_native_fmus(staged_out / "native", names=names,
                                                    fmi_versions=versions, log=log, cache=cache)
             built = {v: {n: Path(p) for n, p in built[v].items()} for v in built}
+        from driftfmu.fmu_src import container
+        for v in sorted(built):  # the chain as one FMU: fmucontainer's description of it
+            if set(container.NAMES) <= set(built[v]):
+                container.write(built[v][container.NAMES[0]].parent)
         if staged_cross_check is not None:
             from driftfmu.fmu_src.crosscheck import write_cross_check
             for v in sorted(built):
