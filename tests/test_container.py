@@ -5,6 +5,7 @@ writes beside the FMUs (fmu_src/container.py), and that container, run in fmpy, 
 containers.  Its step of Ts/2 is what makes it exact: at Ts the sequential container commits
 each sample of the DriftEstimator with the next sample's measurement."""
 import json
+import shlex
 import shutil
 import subprocess
 import sys
@@ -14,6 +15,7 @@ import pytest
 
 import driftfmu
 from driftfmu.fmu_src import container, native_build
+from recipes import commands
 
 pytestmark = pytest.mark.integration
 
@@ -50,10 +52,14 @@ def _folder(tmp_path, fmus, description=None):
 
 
 def _make(folder, fmi=2):
-    """Run the recipe's command; return the container's path."""
-    done = subprocess.run([_fmucontainer(), "-container", container.FILENAME,
-                           "-fmu-directory", str(folder)] + (["-fmi", "3"] if fmi == 3 else []),
-                          capture_output=True, text=True, timeout=300)
+    """Run the page's command for an FMI ``fmi`` container (docs/hosts.md, its first line
+    FMI 2.0, its second FMI 3.0) on ``folder``; return the container's path."""
+    line = commands("fmucontainer")[fmi - 2]
+    assert ("-fmi 3" in line) == (fmi == 3), line
+    argv = shlex.split(line.replace("build/fmus", shlex.quote(str(folder))))
+    assert argv[0] == "fmucontainer"
+    done = subprocess.run([_fmucontainer()] + argv[1:], capture_output=True, text=True,
+                          timeout=300)
     assert done.returncode == 0, done.stdout + done.stderr
     path = folder / container.CONTAINER
     assert path.is_file(), done.stdout + done.stderr
