@@ -17,8 +17,6 @@ import driftfmu
 from driftfmu.fmu_src import container, native_build
 from recipes import commands
 
-pytestmark = pytest.mark.integration
-
 TS = 1e-3
 N = 200
 STOP = (N - 1) * TS
@@ -90,6 +88,7 @@ def _fmus(kind, python_fmus, native_fmus):
     return python_fmus if kind == "python" else native_fmus[int(kind[-1])]
 
 
+@pytest.mark.integration
 @pytest.mark.parametrize("kind, fmi", [("python", 2), ("python", 3), ("native-fmi2", 2),
                                        ("native-fmi3", 3), ("native-fmi2", 3),
                                        ("native-fmi3", 2)])
@@ -120,6 +119,7 @@ def _layout(tmp_path, fmus, kind):
     return d
 
 
+@pytest.mark.integration
 def test_the_container_exposes_every_output_and_every_parameter(native_fmus, tmp_path):
     from fmpy import read_model_description
     path = _make(_folder(tmp_path, native_fmus[2]))
@@ -155,11 +155,13 @@ def test_the_description_follows_the_tables(monkeypatch):
 def test_the_description_steps_at_half_the_sample_period():
     d = container.description()
     assert d["step_size"] == TS / 2 and d["sequential"] is True
+    assert d["auto_parameter"] is True and d["mt"] is False
     assert container.description(Ts=4e-3)["step_size"] == 2e-3
     assert d["fmu"] == ["Excitation.fmu", "Accelerometer.fmu", "DriftEstimator.fmu"]
     assert json.loads(container.text(d)) == d
 
 
+@pytest.mark.integration
 def test_at_a_step_of_ts_the_container_commits_the_next_measurement(native_fmus, tmp_path):
     """Why the step is Ts/2: at Ts the sequential container sets the DriftEstimator's z to the
     measurement of t + h before it steps from t, so the filter's sums take each measurement

@@ -8,8 +8,6 @@ import pytest
 
 from driftfmu.fmu_src import icons
 
-pytestmark = pytest.mark.integration
-
 
 def _png(data, what):
     from PIL import Image
@@ -30,6 +28,7 @@ def _kinds(python_fmus, native_fmus):
         yield "native-fmi%d" % v, v, fmus
 
 
+@pytest.mark.integration
 def test_every_fmu_of_every_kind_carries_its_icon(python_fmus, native_fmus):
     seen = {}
     for kind, version, fmus in _kinds(python_fmus, native_fmus):

@@ -189,3 +189,59 @@ def test_omsimulator_runs_the_users_sensor_from_the_archive(user_archive, native
             assert np.array_equal(cols[col], want[col.split(".")[1]]), (kind, col)
         report("SSP OMSimulator with --start-values a2 0.02 seed 7: the %s archive equals "
                "driftfmu.simulate with the same values bit for bit, %d points" % (kind, N))
+
+
+# -- without building: model descriptions from the tables, the command's plumbing -------------
+
+def _description_only_fmus(folder):
+    """Archives holding only the chain's model descriptions (generated from the tables, as
+    the native build writes them): enough for the SSD and the SSV files."""
+    from driftfmu.fmu_src import native_build
+    fmus = {}
+    for name in ssp.FMU_NAMES:
+        xml = native_build.fmi2_model_description(native_build.slave_class(name),
+                                                  native_build.token(name, 2), ["all.c"],
+                                                  log=lambda line: None)
+        fmus[name] = folder / ("%s.fmu" % name)
+        with zipfile.ZipFile(fmus[name], "w") as z:
+            z.writestr("modelDescription.xml", xml)
+    return fmus
+
+
+def test_each_components_values_are_its_ssv_bound_from_the_ssd(tmp_path):
+    from fmpy.ssp.ssd import find_components, read_ssd
+    fmus = _description_only_fmus(tmp_path)
+    archive = ssp.build_ssp(fmus, tmp_path / "chain.ssp", n=N,
+                            start_values=ssp.parameter_values(USER))
+    ssd = read_ssd(str(archive))  # the .ssd and the .ssv files, schema-validated
+    sources = {c.name: [b.source for b in c.parameterBindings]
+               for c in find_components(ssd.system)}
+    assert sources == {n: ["resources/%s.ssv" % n] for n in ssp.FMU_NAMES}
+    values = {p.name: (p.type, p.value) for p in ssp.parameter_set(archive).parameters}
+    assert values["Accelerometer.a2"] == values["DriftEstimator.a2"] == ("Real", "0.02")
+    assert values["Excitation.seed"] == values["Accelerometer.seed"] == ("Integer", "7")
+    assert values["DriftEstimator.R"] == ("Real", "0.0001")  # the defaults are there too
+    with zipfile.ZipFile(archive) as z:
+        root = ET.fromstring(z.read("resources/Accelerometer.ssv"))
+    assert root.get("name") == ssp.SYSTEM
+
+
+def test_the_command_hands_its_values_to_the_archive(tmp_path, monkeypatch):
+    """``driftfmu build --ssp FILE --start-values a2 0.02 seed 7`` gives the archive those
+    values (the builds themselves replaced: nothing is compiled)."""
+    from driftfmu.fmu_src import builder
+    from test_cli_checks import _fake_python_build
+    seen = {}
+
+    def fake_ssp(fmus, out, start_values=None, n=2000, Ts=1e-3):
+        seen.update(start_values=start_values, Ts=Ts)
+        out.write_bytes(b"ssp")
+        return out
+    monkeypatch.setattr(builder, "build_fmus", _fake_python_build)
+    monkeypatch.setattr(ssp, "build_ssp", fake_ssp)
+    assert main(["build", "--out", str(tmp_path / "fmus"), "--ssp", str(tmp_path / "c.ssp"),
+                 "--start-values", "a2", "0.02", "seed", "7", "Ts", "0.002"]) == 0
+    assert seen["start_values"] == ssp.parameter_values(dict(USER, Ts=0.002))
+    assert seen["start_values"]["Accelerometer"]["a2"] == 0.02 and seen["Ts"] == 0.002
+    assert main(["build", "--out", str(tmp_path / "fmus2"), "--ssp", str(tmp_path / "d.ssp")]) == 0
+    assert seen["start_values"] == ssp.parameter_values() and seen["Ts"] == 1e-3
