@@ -300,7 +300,8 @@ def _declared_range_problem(name, value, variable):
 
 
 def parameter_set(ssp):
-    """The SSD's inline start values as one fmpy ``ParameterSet`` named ``<Component>.<var>``.
+    """The archive's parameter values (each component's ``.ssv``, bound from the ``.ssd``) as
+    one fmpy ``ParameterSet`` named ``<Component>.<var>``.
 
     fmpy reads the SSD's ParameterBindings (and the ``.ssv`` files they reference) but
     ``simulate_ssp`` applies only a parameter set passed to it, with names prefixed by the
