@@ -34,6 +34,9 @@ json.dump({("%s.%s" % k if isinstance(k, tuple) else k): [float(x) for x in v]
 def _python():
     given = os.environ.get("DRIFTFMU_COFMUPY_PYTHON")
     if given:
+        if not os.access(given, os.X_OK):
+            pytest.skip("DRIFTFMU_COFMUPY_PYTHON=%s is not an executable; allowed: the Python "
+                        "of a virtual environment with cofmupy" % given)
         return given
     if importlib.util.find_spec("cofmupy") is not None:
         return sys.executable
