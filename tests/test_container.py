@@ -78,10 +78,12 @@ def _container_start(path, start):
 
 
 def _run(path, start=START):
+    """fmpy runs the container (with its own logger: fmpy 0.3.32's logger proxy keeps a
+    ``logger=`` callable in a global that outlives the run, and the next FMU that logs in this
+    process calls it after it is freed: a segmentation fault)."""
     from fmpy import simulate_fmu
     return simulate_fmu(str(path), stop_time=STOP, output_interval=TS,
-                        start_values=_container_start(path, start),
-                        logger=lambda *args: None)
+                        start_values=_container_start(path, start))
 
 
 def _fmus(kind, python_fmus, native_fmus):
