@@ -152,6 +152,7 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                log: Optional[Callable[[str], None]] = None, *,
                cross_check: Optional[PathLike] = None,
                ssp: Optional[PathLike] = None,
+               start_values: Optional[Mapping[str, float]] = None,
                cache: Optional[PathLike] = None) -> Dict[str, Path]:
     """Build and validate the FMUs.
 
@@ -161,6 +162,9 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         Folder of the Python FMUs (``<out_dir>/<Name>.fmu``); the native FMUs go to
         ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where [`simulate`][driftfmu.simulate] looks for them
         (and, with an ARM compiler, the FMI 2.0 FMUs for ARM to ``native/fmi2-aarch64/``).
+        Beside the Excitation, Accelerometer and DriftEstimator FMUs of each folder goes
+        ``DriftChain.json``, the description from which the FMU Manipulation Toolbox's
+        ``fmucontainer`` makes the chain one FMU (docs/hosts.md).
         Created if missing.  All or nothing: every output of the call (FMUs, ``cross_check``,
         ``ssp``) is built in a hidden staging folder and moved into place only once the whole
         build has succeeded; a failed or interrupted build leaves every path as it was.
@@ -186,6 +190,14 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         Also write the wired chain Excitation -> Accelerometer -> DriftEstimator of the built
         FMUs (FMI 2.0) as an SSP archive at this path (replaced if it exists), as ``driftfmu
         build --ssp``.
+    start_values : dict of str to float, optional
+        With ``ssp``: the parameter values the archive carries, as [`simulate`][driftfmu.simulate]
+        takes them (``"a2"`` in every component that has it, ``"Accelerometer.a2"`` in one);
+        the others keep the FMUs' defaults.  Each component's values are a parameter set of
+        its own (``resources/<Component>.ssv``, referenced from the ``.ssd``), which
+        OMSimulator applies, and fmpy's ``simulate_ssp`` when it is passed (docs/hosts.md).
+        Checked before anything is built: a name that is no parameter or a value that is not
+        allowed is refused in one line naming the component and the parameter.
     cache : str or pathlib.Path, optional
         Native FMUs only: a folder of compiled libraries kept from build to build; a library
         compiled before from the same sources by the same compiler (command, version, flags)
@@ -243,11 +255,17 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
     names = tuple(FMU_NAMES if names is None else names)
     for name in names:
         _check_choice("FMU name", name, FMU_NAMES)
+    ssp_values = None
+    if start_values is not None and ssp is None:
+        raise UsageError("start_values are the SSP archive's parameter values; allowed: "
+                         "start_values with ssp (the path of the archive to write)")
     if ssp is not None:
         from driftfmu.fmu_src.ssp import FMU_NAMES as chain
+        from driftfmu.fmu_src.ssp import parameter_values
         if 2 not in versions or not set(chain) <= set(names):
             raise UsageError("ssp needs the FMI 2.0 FMUs %s; allowed: names with them and "
                              "fmi_version 2" % ", ".join(chain))
+        ssp_values = parameter_values(start_values)  # refused before anything is built
     from driftfmu.simulations.output import Staging, nearest_existing
     for what, path, folder in (("out_dir", out_dir, True), ("cross_check", cross_check, True),
                                ("ssp", ssp, False)):
@@ -275,6 +293,10 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
             built = native_build.build_native_fmus(staged_out / "native", names=names,
                                                    fmi_versions=versions, log=log, cache=cache)
             built = {v: {n: Path(p) for n, p in built[v].items()} for v in built}
+        from driftfmu.fmu_src import container
+        for v in sorted(built):  # the chain as one FMU: fmucontainer's description of it
+            if set(container.NAMES) <= set(built[v]):
+                container.write(built[v][container.NAMES[0]].parent)
         if staged_cross_check is not None:
             from driftfmu.fmu_src.crosscheck import write_cross_check
             for v in sorted(built):
@@ -283,8 +305,11 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                     log("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
         if staged_ssp is not None:
             from driftfmu.fmu_src.ssp import build_ssp
-            log("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
-                "Gaussian run)" % (build_ssp(built[2], staged_ssp), backend))
+            log("%s (SSP: the wired chain of the %s FMUs, %s)" % (
+                build_ssp(built[2], staged_ssp, start_values=ssp_values,
+                          Ts=ssp_values["Excitation"]["Ts"]), backend,
+                "the parameter values given" if start_values else
+                "the start values of the letter's Gaussian run"))
     out = Path(out_dir)  # the paths the FMUs have now, as given
     built = {v: {n: out / p.relative_to(staged_out) for n, p in built[v].items()}
              for v in built}

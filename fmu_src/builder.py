@@ -651,7 +651,8 @@ def _build_one(name, out_dir, src_dir, loader, log, generated=None):
             # has it check a deserialised state
             "shim_vr": getattr(slave, "SHIM_VR", None) == 0x7FFFFFFF,
         }, indent=2, sort_keys=True).encode() + b"\n"
-        from driftfmu.fmu_src import documentation
+        from driftfmu.fmu_src import documentation, icons
+        entries.update(icons.entries(name, 2))
         entries.update(documentation.entries(name, "python", 2, entries, slave))
         target = out_dir / ("%s.fmu" % name)
         _write_atomically(target, entries)

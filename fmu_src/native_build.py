@@ -710,7 +710,8 @@ def _build_one(name, fmi_version, out_dir, platforms, missing, log, cache=None):
             entries.update({path: data for path, (data, _) in files.items()})
             entries["documentation/binaries.txt"] = binaries_text(
                 name, fmi_version, files, missing).encode()
-            from driftfmu.fmu_src import documentation
+            from driftfmu.fmu_src import documentation, icons
+            entries.update(icons.entries(name, fmi_version))
             entries.update(documentation.entries(name, "native", fmi_version, entries, slave))
             folder = out_dir / (variant or "fmi%d" % fmi_version)
             folder.mkdir(parents=True, exist_ok=True)

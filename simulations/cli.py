@@ -223,9 +223,10 @@ def cmd_build(args):
     import driftfmu
     from driftfmu.fmu_src import native_build
     from driftfmu.simulations.output import Staging
+    start = start_values(args.start_values)
     if not (args.native or args.backend == "native"):  # one call, all or nothing by itself
         driftfmu.build_fmus(args.out, log=build_log,  # logs one line per FMU
-                            cross_check=args.cross_check, ssp=args.ssp)
+                            cross_check=args.cross_check, ssp=args.ssp, start_values=start)
         return
     # two calls, all the outputs of both or none: they write to staged stand-ins, moved into
     # place only once both have succeeded (with --backend python the first call writes the
@@ -235,12 +236,33 @@ def cmd_build(args):
         cross_check = args.cross_check and staging.path(args.cross_check)
         ssp = args.ssp and staging.path(args.ssp, folder=False)
         log = staging.log(build_log)
+        python_ssp = args.backend == "python"
         driftfmu.build_fmus(out, log=log, cross_check=None,
-                            ssp=ssp if args.backend == "python" else None)
+                            ssp=ssp if python_ssp else None,
+                            start_values=start if python_ssp else None)
         driftfmu.build_fmus(out, backend="native", fmi_version=(2, 3), log=log,
                             cross_check=cross_check,
-                            ssp=ssp if args.backend == "native" else None,
+                            ssp=ssp if not python_ssp else None,
+                            start_values=start if not python_ssp else None,
                             cache=None if args.no_cache else native_build.user_cache())
+
+
+def start_values(pairs):
+    """``--start-values NAME VALUE ...`` as a dict (None when not given): a value that reads
+    as an integer is one, else a float; text that is no number stays text, for the check that
+    names it."""
+    if pairs is None:
+        return None
+    out = {}
+    for name, text in zip(pairs[::2], pairs[1::2]):
+        try:
+            out[name] = int(text)
+        except ValueError:
+            try:
+                out[name] = float(text)
+            except ValueError:
+                out[name] = text
+    return out
 
 
 def build_log(line):
@@ -272,6 +294,16 @@ def check_build_args(args):
                              % ssp)
         if ssp.exists() and not args.force:
             raise UsageError("--ssp %s exists; add --force to replace it" % ssp)
+    if args.start_values is not None:
+        if not args.ssp:
+            raise UsageError("--start-values sets the SSP archive's parameter values; allowed: "
+                             "--start-values with --ssp")
+        if len(args.start_values) % 2:
+            raise UsageError("--start-values %s: a name without a value; allowed: pairs NAME "
+                             "VALUE, e.g. --start-values a2 0.02 seed 7"
+                             % " ".join(args.start_values))
+        from driftfmu.fmu_src.ssp import parameter_values
+        parameter_values(start_values(args.start_values))  # refused before anything is built
 
 
 #: The general model's parameters (issue 16, docs/method.md section 9): off by default.
@@ -344,6 +376,12 @@ def make_parser():
     p.add_argument("--ssp", nargs="?", const="build/DriftChain.ssp", default=None,
                    metavar="FILE", help="also write the wired chain as an SSP archive "
                    "(default: build/DriftChain.ssp); an existing FILE is kept unless --force")
+    p.add_argument("--start-values", nargs="+", default=None, metavar="NAME VALUE",
+                   help="with --ssp: the parameter values the archive carries as its parameter "
+                   "sets (resources/<Component>.ssv), pairs of a name and a value, e.g. "
+                   "--start-values a2 0.02 seed 7; a plain name sets the parameter in every "
+                   "component that has it, Accelerometer.a2 in one (default: the FMUs' "
+                   "defaults)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing --ssp FILE")
     p.add_argument("--native", action="store_true",

@@ -351,6 +351,9 @@ def test_a_build_that_succeeds_moves_every_output_into_place(existing, tmp_path,
     expected.update({"fmus/native/fmi%d/%s.fmu" % (v, n): b"fmu" for v in (2, 3)
                      for n in ("Excitation", "Accelerometer", "DriftEstimator",
                                "DualDriftEstimator")})
+    from driftfmu.fmu_src import container  # the chain as one FMU: its description beside
+    for folder in ("fmus", "fmus/native/fmi2", "fmus/native/fmi3"):
+        assert tree.pop("%s/%s" % (folder, container.FILENAME)).startswith(b"{")
     assert tree == expected  # and no staging folder
     # the lines name where the files are now, not the staging folder they were built in
     assert "stage" not in captured.out and "built %s" % (out / "Excitation.fmu") in captured.out

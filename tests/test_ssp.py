@@ -222,7 +222,11 @@ def test_archive_carries_openmodelicas_annotation_and_one_parameter_set_name(gen
                         "oms:SimulationInformation/oms:FixedStepMaster")
     assert master.attrib == {"description": "oms-ma", "stepSize": "0.001",
                              "relativeTolerance": "0.0001"}
-    sets = root.iter("{%s}ParameterSet" % ssp.NS["ssv"])
+    bindings = root.iter("{%s}ParameterBinding" % ssp.NS["ssd"])
+    assert [b.get("source") for b in bindings] == ["resources/%s.ssv" % n for n in ssp.FMU_NAMES]
+    with zipfile.ZipFile(general_archive) as z:
+        sets = [ET.fromstring(z.read("resources/%s.ssv" % n)) for n in ssp.FMU_NAMES]
+    assert [s.tag for s in sets] == ["{%s}ParameterSet" % ssp.NS["ssv"]] * 3
     assert [s.get("name") for s in sets] == [ssp.SYSTEM] * 3
 
 
