@@ -265,6 +265,8 @@ def check_build_args(args):
         problem = native_build.compiler_problem("linux64")
         if problem:
             raise UsageError("build --native needs a C compiler: %s" % problem)
+        if not args.no_cache:  # a cache another user could change is refused before the build
+            native_build.open_cache(native_build.user_cache())
     if args.ssp:
         ssp = Path(args.ssp)
         if ssp.is_dir():

@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
@@ -176,6 +177,105 @@ def test_an_unsafe_private_folder_is_refused_in_one_line(case, tmp_path, private
         text = str(err.value)
         assert "\n" not in text and want in text and "allowed: a folder of this user's" in text
     assert list(elsewhere.iterdir()) == []
+
+
+#: Each permission bit of the private folder on its own: any permission for its group or for
+#: others is refused; setgid (inherited from a setgid temporary folder) and sticky give no one
+#: access to a folder of mode 0700 and are taken.
+PRIVATE_MODES = {0o700: None, 0o2700: None, 0o1700: None, 0o3700: None}
+PRIVATE_MODES.update({0o700 | bit: "has mode %04o: others may use it" % (0o700 | bit)
+                      for bit in (0o040, 0o020, 0o010, 0o004, 0o002, 0o001)})
+PRIVATE_MODES.update({0o770: "has mode 0770", 0o750: "has mode 0750",
+                      0o707: "has mode 0707", 0o2770: "has mode 2770"})
+
+
+@pytest.mark.parametrize("mode", sorted(PRIVATE_MODES), ids=lambda m: "%04o" % m)
+def test_each_permission_bit_of_the_private_folder_is_told_apart(mode, tmp_path, private):
+    from driftfmu.simulations.errors import UsageError
+    private.mkdir(mode=0o700)
+    private.chmod(mode)
+    want = PRIVATE_MODES[mode]
+    if want is None:
+        folder = folders.make("driftfmu_fmu_")
+        assert os.path.dirname(folder) == str(private)
+        folders.remove(folder)
+        return
+    with pytest.raises(UsageError, match=want):
+        folders.make("driftfmu_fmu_")
+    assert os.listdir(private) == []
+
+
+@pytest.mark.parametrize("case", ["sticky, every user may write it (/tmp)",
+                                  "every user may write it", "another user's"])
+def test_the_temporary_folder_around_the_private_folder_is_checked(case, tmp_path,
+                                                                   monkeypatch):
+    """Another user who can rename the private folder out of the temporary folder (not
+    sticky), or who owns the temporary folder, could put a folder of theirs in its place
+    between driftfmu's check and its use: refused in one line.  A sticky folder (/tmp) keeps
+    this user's entries."""
+    from driftfmu.simulations.errors import UsageError
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    tmp.chmod(0o1777 if case.startswith("sticky") else 0o777)
+    if case == "another user's":
+        if os.geteuid() != 0:
+            pytest.skip("only root can give a folder to another user")
+        tmp.chmod(0o755)
+        os.chown(tmp, 4242, 4242)
+    monkeypatch.setattr(folders.tempfile, "tempdir", str(tmp))
+    monkeypatch.setattr(folders, "_SWEPT", set())
+    if case.startswith("sticky"):
+        folder = folders.make("driftfmu_fmu_")
+        assert os.path.dirname(folder) == str(tmp / ("driftfmu-%d" % os.geteuid()))
+        folders.remove(folder)
+        return
+    want = ("%s can be written by every user (mode 0777)" % tmp if case != "another user's"
+            else "%s is owned by uid 4242" % tmp)
+    for call in (lambda: folders.make("driftfmu_fmu_"),
+                 lambda: folders.sweep(folders.TEMPORARY)):
+        with pytest.raises(UsageError) as err:
+            call()
+        assert "\n" not in str(err.value) and want in str(err.value), str(err.value)
+    assert os.listdir(tmp) == []
+
+
+def other_host(folder):
+    """Rewrite the record in ``folder``'s lock file as made on another machine (the same path,
+    device and inode: a shared file system mounted at the same place)."""
+    lock = os.path.join(folder, folders.LOCK)
+    with open(lock) as fh:
+        record = json.load(fh)
+    assert record["host"] != "another-machine"
+    record["host"] = "another-machine"
+    with open(lock, "w") as fh:
+        json.dump(record, fh)
+
+
+def test_a_folder_recorded_on_another_machine_is_never_swept(tmp_path, private):
+    """A dead work folder whose record names another host (a shared file system: that host's
+    process may be alive, and its lock is not seen here), and a half-made one whose complete
+    record does: never removed, never claimed; the same folder with this host's record is."""
+    theirs, mine = (killed("driftfmu_fmu_", tmp_path=tmp_path) for _ in range(2))
+    other_host(theirs)
+    half = private / "driftfmu_fmu_half"
+    half.mkdir()
+    shutil.copy(os.path.join(theirs, folders.LOCK), half / folders.PART)
+    record = json.loads((half / folders.PART).read_text())
+    st = os.lstat(half)
+    record.update(path=str(half), dev=st.st_dev, ino=st.st_ino)
+    (half / folders.PART).write_text(json.dumps(record))
+    assert folders.made_here(theirs)[0] is False and folders.made_here(mine)[0] is True
+    assert folders.claim(theirs) is None and not folders.stale(theirs)
+    assert not folders.stale(str(half))
+
+    assert folders.sweep(folders.TEMPORARY) == [mine]
+
+    assert os.path.isfile(os.path.join(theirs, folders.LOCK))
+    assert (half / folders.PART).is_file()
+    record["host"] = socket.gethostname()  # the other side: this host's half-made folder goes
+    (half / folders.PART).write_text(json.dumps(record))
+    folders._SWEPT.clear()
+    assert folders.sweep(folders.TEMPORARY) == [str(half)]
 
 
 def test_a_copy_or_a_rename_of_a_work_folder_is_never_removed(tmp_path, private):
