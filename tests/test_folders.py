@@ -17,7 +17,7 @@ import time
 import pytest
 
 from driftfmu.simulations import folders, output
-from waiting import BOUND
+from waiting import BOUND, wait_for
 
 pytestmark = pytest.mark.skipif(folders.fcntl is None, reason="no flock on this platform")
 
@@ -570,3 +570,95 @@ def test_the_folders_of_workers_killed_by_stop_pool_are_removed(tmp_path):
     assert folder.startswith(str(tmp)) and "driftfmu_stuck_" in folder
     assert not os.path.exists(folder)
     assert os.listdir(tmp) == []  # the private folder too, left empty
+
+
+#: A process that starts, at ``site``, a program working in one of its work folders (the
+#: program is FAKE: it notes that it started, then waits for its standard input to close).
+STARTER = textwrap.dedent("""
+    import os, sys
+    from pathlib import Path
+    site, fake = sys.argv[1], sys.argv[2]
+    os.environ["CC"] = fake
+    os.environ["PATH"] = os.path.dirname(fake) + os.pathsep + os.environ["PATH"]
+    from driftfmu.simulations import folders
+    if site == "batch kernel":
+        from driftfmu.simulations import kernel
+        kernel.library()
+    elif site == "fast loop":
+        from driftfmu.simulations import fastcosim
+        fastcosim.loop_library()
+    elif site == "compiler version":  # (in a work folder of its own)
+        from driftfmu.fmu_src import native_build
+        native_build.compiler_version((fake,))
+    elif site == "native compile":
+        from driftfmu.fmu_src import native_build
+        with folders.temporary("driftfmu_native_Excitation_") as work:
+            sources = Path(work) / "sources"
+            c_files = native_build.stage_sources("Excitation", 3, sources)
+            native_build.compile_library("x86_64-linux", sources, c_files,
+                                         Path(work) / "x86_64-linux" / "Excitation.so")
+    elif site in ("loader shim", "patchelf"):
+        from driftfmu.fmu_src import builder
+        with folders.temporary("driftfmu_loader_") as work:
+            if site == "loader shim":
+                builder._make_loader(Path(work), print)
+            else:
+                builder._linux_binaries("X", b"a library", ("dt_needed", None), Path(work))
+    elif site == "doctor's trial host":
+        from driftfmu.simulations import doctor
+        sys.executable = fake
+        doctor._run_instantiate("", "X.fmu")
+    sys.exit("the program ended")
+""")
+
+#: The program: answers --version (a compiler asked what it is) at once; otherwise notes its
+#: start in STARTED and waits until its standard input (the test's pipe) closes.
+FAKE_PROGRAM = """#!/bin/sh
+for a; do [ "$a" = --version ] && [ "$STOP_AT_VERSION" != 1 ] && { echo "fake 1"; exit 0; }; done
+echo $$ >> "$STARTED"
+cat > /dev/null
+"""
+
+PROGRAM_SITES = ["batch kernel", "fast loop", "native compile", "compiler version",
+                 "loader shim", "patchelf", "doctor's trial host"]
+
+
+@pytest.mark.parametrize("site", PROGRAM_SITES)
+def test_a_program_started_in_a_work_folder_keeps_it_after_its_parent_is_killed(site,
+                                                                                 tmp_path,
+                                                                                 private):
+    """Each place where driftfmu starts a program that works in a work folder (a compiler, the
+    doctor's trial host): the parent killed outright while the program runs, the next sweep
+    leaves the folder (the program holds its lock: ``subprocess``'s pass_fds), and removes it
+    once the program has ended.  (Before: subprocess closed the lock's descriptor and the
+    folder went under the running program.)"""
+    fake = tmp_path / "bin" / ("patchelf" if site == "patchelf" else "fakecc")
+    fake.parent.mkdir()
+    fake.write_text(FAKE_PROGRAM)
+    fake.chmod(0o755)
+    started = tmp_path / "started"
+    env = dict(os.environ, TMPDIR=str(tmp_path), STARTED=str(started),
+               STOP_AT_VERSION="1" if site == "compiler version" else "0")
+    if site == "patchelf":
+        env["CC"] = "no-such-compiler"
+    parent = subprocess.Popen([sys.executable, "-c", STARTER, site, str(fake)], env=env,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE)
+    try:
+        wait_for(lambda: started.exists() and started.read_text().strip(),
+                 "the program started at %s" % site, process=parent)
+        program = int(started.read_text().split()[0])
+        work, = [p for p in private.iterdir() if p.name.startswith(folders.TEMPORARY)]
+        parent.kill()
+        parent.wait(timeout=BOUND)
+        assert os.path.exists("/proc/%d" % program)  # still running: its parent is gone
+        assert not folders.stale(str(work))
+        assert folders.sweep(folders.TEMPORARY) == [] and work.is_dir()
+    finally:
+        parent.stdin.close()  # the program's standard input: it ends
+        parent.kill()
+        parent.wait(timeout=BOUND)
+    wait_for(lambda: not os.path.exists("/proc/%d" % program), "the program's end")
+    wait_for(lambda: folders.stale(str(work)), "the folder's lock released")
+    folders._SWEPT.clear()
+    assert folders.sweep(folders.TEMPORARY) == [str(work)]
