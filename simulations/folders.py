@@ -284,13 +284,16 @@ def temporary(prefix):
 
 def remove(folder, last=()):
     """Remove ``folder`` (made by :func:`make`) and release its lock: its files first, then
-    those named in ``last`` in that order, the lock file and the folder."""
-    discard(folder, last)
+    those named in ``last`` in that order, the lock file and the folder (:func:`discard`).
+    None when it is gone; else the error that left it (with its lock file: the next
+    :func:`sweep` removes it once this process is gone)."""
+    error = discard(folder, last)
     release(folder)
     if folder in _PRIVATE:
         _PRIVATE.discard(folder)
         with contextlib.suppress(OSError):  # the last one out; a folder with others stays
             os.rmdir(os.path.dirname(folder))
+    return error
 
 
 def held_fds(*paths):
@@ -310,36 +313,62 @@ def release(folder):
     """Let go of the lock of ``folder`` (made by this process) without removing it."""
     fd = _HELD.pop(folder, None)
     if fd is not None:
-        os.close(fd)
+        with contextlib.suppress(OSError):  # (the descriptor is closed whatever it answers)
+            os.close(fd)
 
 
 def discard(folder, last=()):
     """Remove ``folder``'s files, those named in ``last`` after the others in that order, its
     lock file and then the folder: at any point a folder that is left is still provably dead
-    (its lock file and record are there) or empty."""
+    (its lock file and record are there) or empty.  None when the folder is gone; else the
+    first error (OSError): after one, the files of ``last`` and the lock file stay (so that the
+    next :func:`sweep` finds the folder provably dead and finishes the job), the others are
+    still tried."""
     keep = set(last) | {LOCK}
     try:
         names = sorted(os.listdir(folder))
-    except OSError:
-        return
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return exc
+    failed = []
+
+    def note(function, path, info):
+        failed.append(info[1] if isinstance(info, tuple) else info)
+
     for name in names:
         if name in keep:
             continue
         checkpoint("remove " + name)
         path = os.path.join(folder, name)
-        if os.path.isdir(path) and not os.path.islink(path):
-            shutil.rmtree(path, ignore_errors=True)
-        else:
-            with contextlib.suppress(OSError):
+        try:
+            if os.path.isdir(path) and not os.path.islink(path):
+                shutil.rmtree(path, onerror=note)
+            else:
                 os.unlink(path)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            failed.append(exc)
+    if failed:
+        return failed[0]
     for name in list(last) + [LOCK]:
         if name in names:
             checkpoint("remove " + name)
-            with contextlib.suppress(OSError):
+            try:
                 os.unlink(os.path.join(folder, name))
+            except FileNotFoundError:
+                pass
+            except OSError as exc:
+                return exc
     checkpoint("remove folder")
-    with contextlib.suppress(OSError):
+    try:
         os.rmdir(folder)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        return exc
+    return None
 
 
 def _record(folder):
@@ -483,8 +512,7 @@ def sweep(prefixes, dir=None, dead=None, other=None, again=False):
                 if dead is not None:
                     gone = dead(entry.path)
                 else:
-                    discard(entry.path)
-                    gone = True
+                    gone = discard(entry.path) is None
             finally:
                 os.close(fd)
         else:

@@ -623,3 +623,40 @@ def test_summary_only_too_large_names_the_largest_runs_that_fit(monkeypatch):
     budget.check_montecarlo("gaussian", runs, 1, 2, None, summary_only=True)
     with pytest.raises(ValueError):
         budget.check_montecarlo("gaussian", 2 * runs, 1, 2, None, summary_only=True)
+
+
+# -- the report on standard output ------------------------------------------------------------
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (a full disk)")
+def test_a_report_that_cannot_be_written_before_any_result_is_a_failure(tmp_path):
+    """Standard output on a full disk (/dev/full): a command whose product is its report
+    fails, in one line on standard error."""
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "driftfmu", "--help"], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=BOUND,
+                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 1
+    assert _one_line(r.stderr) == "driftfmu: error: standard output: No space left on device"
+
+
+@pytest.mark.integration
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (a full disk)")
+def test_a_report_lost_after_the_results_are_in_place_is_a_warning(python_fmus, tmp_path):
+    """Issue 39: the results in place and then standard output fails: the run succeeded, so
+    exit 0, and one warning line says the report is lost and the results are in place
+    (before: exit 1, as if nothing were written)."""
+    results = tmp_path / "x.csv"
+    results.write_text("time,x\n" + "".join("%g,%g\n" % (k * 0.001, k * 0.01)
+                                           for k in range(20)))
+    target = tmp_path / "inputs.csv"
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "driftfmu", "inputs",
+                            str(python_fmus["Accelerometer"]), str(results), "--output-file",
+                            str(target)], stdout=full, stderr=subprocess.PIPE, text=True,
+                           timeout=BOUND, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    assert _one_line(r.stderr) == ("driftfmu: warning: standard output: No space left on "
+                                   "device; the results are in place (this report of them is "
+                                   "lost)")
+    assert target.read_text().startswith("time,")
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".driftfmu-")]
