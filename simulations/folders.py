@@ -42,6 +42,7 @@ them.  Where the platform has no ``flock`` (Windows) or the file system refuses 
 folders are made without it (directly in the temporary folder on Windows) and never swept.
 """
 import contextlib
+import errno
 import json
 import os
 import secrets
@@ -49,6 +50,9 @@ import shutil
 import socket
 import stat
 import tempfile
+
+from driftfmu.simulations import trust
+from driftfmu.simulations.errors import UsageError
 
 try:
     import fcntl
@@ -95,8 +99,6 @@ def _open_parent(path, create=True):
     ``create``; None if missing and not): no one but this user (and root) can change the
     folders on the way to it (:func:`driftfmu.simulations.trust.path_problem`), and it is a
     folder of this user's, not a symbolic link, with no permission for anyone else."""
-    from driftfmu.simulations import trust
-    from driftfmu.simulations.errors import UsageError
     allowed = ("allowed: a folder of this user's (uid %d) with mode 0700, which driftfmu makes "
                "where none is, in a temporary folder that no other user can change; remove it "
                "or set TMPDIR to another folder" % os.geteuid())
@@ -113,6 +115,8 @@ def _open_parent(path, create=True):
                 os.mkdir(path, 0o700)
             continue
         except OSError as exc:
+            if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
+                raise  # (an I/O error: not a usage error)
             what = "is a symbolic link" if os.path.islink(path) else "is not a folder"
             raise UsageError("the work folder %s %s (%s); %s"
                              % (path, what, exc.strerror, allowed)) from None
@@ -137,8 +141,6 @@ def private_subfolder(name, create=True):
     locks of destinations), checked as the private folder is (this user's, mode 0700, not a
     link): made where missing with ``create``, else None where missing.  The name does not
     start with a prefix of :data:`TEMPORARY`: no sweep removes it.  The caller closes it."""
-    from driftfmu.simulations import trust
-    from driftfmu.simulations.errors import UsageError
     pfd = _open_parent(_parent_path(), create=create)
     if pfd is None:
         return None
@@ -153,6 +155,8 @@ def private_subfolder(name, create=True):
                     os.mkdir(name, 0o700, dir_fd=pfd)
                 continue
             except OSError as exc:
+                if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
+                    raise  # (an I/O error: not a usage error)
                 raise UsageError("the work folder %s is not a folder (%s); allowed: a folder "
                                  "of this user's with mode 0700, which driftfmu makes; remove "
                                  "it" % (private_path(name), exc.strerror)) from None

@@ -28,7 +28,11 @@ import re
 import stat
 import warnings
 
-from driftfmu.simulations import folders
+try:
+    import grp
+    import pwd
+except ImportError:  # Windows
+    grp = pwd = None
 
 
 class UntrustedFile(UserWarning):
@@ -44,12 +48,12 @@ def _me():
 def _group_is_mine(gid, uid):
     """True when group ``gid`` has no member but user ``uid`` (by its primary group or by the
     group's member list) and has that user as a member: a user private group."""
+    if grp is None:
+        return False
     try:
-        import grp
-        import pwd
         group = grp.getgrgid(gid)
         me = pwd.getpwuid(uid).pw_name
-    except (ImportError, KeyError):
+    except KeyError:
         return False
     if any(member != me for member in group.gr_mem):
         return False
@@ -85,6 +89,10 @@ def others_can_write(st, owners=None):
 #: Symbolic links followed at most on one path (the kernel's limit).
 MAX_LINKS = 40
 
+#: The answers of ``lstat`` that make a path unusable (a problem to say); any other error (an
+#: I/O error) is raised: it says nothing about who can write there.
+_UNUSABLE = (FileNotFoundError, NotADirectoryError, PermissionError)
+
 
 def path_problem(path, final=None):
     """Why another user could change what ``path`` names (see the module), or None.  The path
@@ -103,7 +111,7 @@ def path_problem(path, final=None):
     current = os.sep
     try:
         st = os.lstat(current)
-    except OSError as exc:
+    except _UNUSABLE as exc:
         return "%s: %s" % (current, exc.strerror)
     links = 0
     while parts:
@@ -121,7 +129,7 @@ def path_problem(path, final=None):
         entry = os.path.join(current, name)
         try:
             est = os.lstat(entry)
-        except OSError as exc:
+        except _UNUSABLE as exc:
             return "%s: %s" % (entry, exc.strerror)
         if shared and est.st_uid not in (me, 0):
             return ("%s is owned by uid %d in %s, which every user can write to"
@@ -184,6 +192,7 @@ def library_folder():
     """A descriptor of ``<private folder>/libraries`` (:func:`folders.private_subfolder`:
     made with mode 0700 where missing, refused in one line where not private).  The caller
     closes it."""
+    from driftfmu.simulations import folders
     return folders.private_subfolder(LIBRARIES)
 
 
@@ -260,6 +269,7 @@ def load_library(stem, build, what):
     to ``install``, which moves it into the libraries folder (one rename) under the name that
     records its SHA-256.  A file named as the library that fails a check is removed and said
     in one line (:class:`UntrustedFile`).  ``what`` names the library for people."""
+    from driftfmu.simulations import folders
     dir_fd = folders.private_subfolder(LIBRARIES, create=False)
     try:
         for name, digest in _candidates(dir_fd, stem) if dir_fd is not None else ():
