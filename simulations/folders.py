@@ -29,8 +29,9 @@ and only that:
   descriptor it is not told to pass, so driftfmu starts each program that works in a folder
   (a compiler, the doctor's trial host) with ``pass_fds=held_fds(folder)``
   (:func:`held_fds`): a program still running after its parent was killed keeps the folder.
-  (``os.exec*``, ``os.fork`` and ``close_fds=False`` keep the descriptor as they are.)  A
-  folder is removed only once its lock is free.
+  (``os.exec*``, ``os.fork`` and ``close_fds=False`` keep the descriptor as they are; a worker
+  or program that ends with its parent, by a parent-death signal, lets the folder go as it
+  ends.)  A folder is removed only once its lock is free.
 - **Half made.**  A process killed inside :func:`make` leaves a folder that is empty or holds
   only the half-made lock file :data:`PART` (no longer locked): nothing that anyone wrote, so it
   is removed too.  A process that finds its half-made folder removed under it makes another.

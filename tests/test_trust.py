@@ -92,6 +92,7 @@ def genuine(tmp_path_factory):
     """A folder with the genuine kernel.so and loop.so, compiled once for this module."""
     tmp = tmp_path_factory.mktemp("genuine")
     env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+    env.pop("DRIFTFMU_KERNEL", None)  # (the kernel switched off is never compiled nor loaded)
     for place in ("kernel", "loop"):
         r = subprocess.run([sys.executable, "-c", LOADER, place], env=env,
                            capture_output=True, text=True, timeout=BOUND)
@@ -120,6 +121,7 @@ def machine(tmp_path, genuine):
     cc.write_text(FAKE_CC.replace("@COUNT@", str(count)).replace("@GENUINE@", str(genuine)))
     cc.chmod(0o755)
     env = dict(os.environ, TMPDIR=str(shared), CC=str(cc), PYTHONPATH=str(ROOT))
+    env.pop("DRIFTFMU_KERNEL", None)
 
     class Machine:
         private = shared / ("driftfmu-%d" % os.geteuid())
@@ -507,6 +509,7 @@ def test_run_native_and_montecarlo_never_run_a_library_planted_in_the_temporary_
     montecarlo gaussian`` as root run their own, and the planted code never runs."""
     from driftfmu.simulations import fastcosim, kernel
     env = dict(os.environ, TMPDIR=str(shared_tmp), PYTHONPATH=str(ROOT))
+    env.pop("DRIFTFMU_KERNEL", None)
     marker = shared_tmp / "marker"
     source = shared_tmp / "planted.c"
     assert as_other("sh", "-c", "cat > %s" % source, input=PLANTED_C).returncode == 0
@@ -579,3 +582,53 @@ def test_build_native_refuses_a_library_cache_of_another_user_before_building(sh
     assert "the library cache %s cannot be trusted: %s is owned by uid %d in %s, which every " \
         "user can write to" % (cache, cache, OTHER, shared_tmp) in line and "--no-cache" in line
     assert not (tmp_path / "out").exists()
+
+
+#: A Python host that loads the Accelerometer unzipped into a folder whose name pythonfmu
+#: cannot read ("a%20b": the loader shim reaches it through a link in a folder of its own in
+#: TMPDIR), and prints, while the instance lives, what TMPDIR holds: name, mode, owner, and
+#: for a folder its entries and where they lead.
+SHIM_HOST = textwrap.dedent("""
+    import json, os, sys
+    from fmpy import extract, read_model_description
+    from fmpy.fmi2 import FMU2Slave
+    fmu, folder = sys.argv[1], sys.argv[2]
+    extract(fmu, unzipdir=folder)
+    md = read_model_description(folder)
+    s = FMU2Slave(guid=md.guid, unzipDirectory=folder,
+                  modelIdentifier=md.coSimulation.modelIdentifier, instanceName="a")
+    s.instantiate()
+    tmp = os.environ["TMPDIR"]
+    seen = []
+    for name in sorted(os.listdir(tmp)):
+        path = os.path.join(tmp, name)
+        st = os.lstat(path)
+        inside = {n: os.path.realpath(os.path.join(path, n)) for n in os.listdir(path)} \\
+            if os.path.isdir(path) and not os.path.islink(path) else None
+        seen.append([name, st.st_mode & 0o7777, st.st_uid, inside])
+    s.freeInstance()
+    print(json.dumps(seen))
+""")
+
+
+@AS_ROOT
+@pytest.mark.integration
+def test_the_loader_shims_link_to_the_resources_lives_in_a_folder_of_its_own(
+        python_fmus, shared_tmp, tmp_path):
+    """Where pythonfmu cannot read an FMU's folder name, the loader shim hands it a link to
+    the resources from a folder it makes in TMPDIR (``mkdtemp``: a new name, mode 0700, this
+    user's), beside the other user's folders of a shared temporary folder; pythonfmu imports
+    the model's code through that link, which leads to the host's own folder."""
+    for name in ("driftfmu-aaaaaa", "driftfmu-r0"):
+        assert as_other("mkdir", "-m", "777", shared_tmp / name).returncode == 0
+    folder = tmp_path / "a%20b"
+    r = subprocess.run([sys.executable, "-c", SHIM_HOST, str(python_fmus["Accelerometer"]),
+                        str(folder)], capture_output=True, text=True, timeout=BOUND,
+                       env=dict(os.environ, TMPDIR=str(shared_tmp), PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    mine = [entry for entry in json.loads(r.stdout) if entry[2] == os.geteuid()]
+    assert len(mine) == 1, r.stdout
+    name, mode, uid, inside = mine[0]
+    assert name.startswith("driftfmu-") and mode == 0o700
+    assert inside == {"r0": str(folder / "resources")}
+    assert not [p for p in shared_tmp.iterdir() if p.stat().st_uid == os.geteuid()]  # removed
