@@ -55,14 +55,8 @@ def _group_is_mine(gid, uid):
         me = pwd.getpwuid(uid).pw_name
     except KeyError:
         return False
-    if any(member != me for member in group.gr_mem):
-        return False
-    members = set(group.gr_mem)
-    for user in pwd.getpwall():
-        if user.pw_gid == gid:
-            if user.pw_uid != uid:
-                return False
-            members.add(user.pw_name)
+    members = set(group.gr_mem) | {user.pw_name for user in pwd.getpwall()
+                                   if user.pw_gid == gid}
     return members == {me}
 
 
