@@ -1,4 +1,4 @@
-"""Internal (not a stable API).
+"""Internal (not a stable API; use the functions of driftfmu instead).
 
 What driftfmu loads or runs comes from folders that no one but this user (and root) can change.
 
