@@ -93,7 +93,8 @@ def path_problem(path, final=None):
     is walked as the kernel resolves it; each folder passed must be this user's or root's, and
     one that others can write must be sticky, with the entry taken from it this user's or
     root's.  ``final(st)``: the check of the folder ``path`` names (default
-    :func:`others_can_write`); a missing path is a problem too."""
+    :func:`others_can_write`); a missing path, or one this user may not look into, is a problem
+    too; an I/O error is raised (OSError)."""
     me = _me()
     if me is None:
         return None
