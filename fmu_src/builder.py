@@ -537,7 +537,9 @@ def _make_loader(work, log):
                               "-I%s" % _fmi2_headers(), "-I%s" % (SRC_DIR / "native"),
                               '-DDRIFTFMU_BUILD_LIBPYTHON="%s"' % soname,
                               "-o", str(shim), str(LOADER_SOURCE), "-ldl", "-lpthread"]
-        result = subprocess.run(command, capture_output=True, text=True)
+        # the work folder's lock held by the compiler too (folders.held_fds)
+        result = subprocess.run(command, capture_output=True, text=True,
+                                pass_fds=folders.held_fds(work))
         if result.returncode == 0:
             return "shim", shim
         problem = "compiling %s failed:\n%s" % (LOADER_SOURCE, result.stderr.strip())
@@ -564,7 +566,7 @@ def _linux_binaries(model_identifier, library, loader, work):
         path = work / (model_identifier + ".so")
         path.write_bytes(library)
         subprocess.run(["patchelf", "--add-needed", libpython_soname(), str(path)], check=True,
-                       capture_output=True)
+                       capture_output=True, pass_fds=folders.held_fds(work))
         return {folder + model_identifier + ".so": path.read_bytes()}
     return {folder + model_identifier + ".so": library}
 

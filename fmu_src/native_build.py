@@ -40,6 +40,7 @@ import os
 import re
 import shlex
 import shutil
+import stat
 import subprocess
 import sys
 import time
@@ -476,7 +477,9 @@ def compile_library(platform, sources_dir, c_files, target):
         extra = tuple(extra) + ("-Wl,-install_name,@rpath/%s" % target.name,)
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
             + [str(sources_dir / f) for f in c_files] + _libraries(platform, command))
-    result = subprocess.run(args, capture_output=True, text=True, cwd=target.parent)
+    # the work folder's lock held by the compiler too (folders.held_fds)
+    result = subprocess.run(args, capture_output=True, text=True, cwd=target.parent,
+                            pass_fds=folders.held_fds(target.parent))
     if result.returncode != 0:  # the first line says who failed and why (the command's one line)
         lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
         why = next((line for line in lines if "error" in line.lower()),
@@ -508,15 +511,16 @@ def _compile_all(name, fmi_version, sources, c_files, work, platforms, cache=Non
         data = _read_cache_entry(hit) if hit is not None else None
         if data is not None:
             with contextlib.suppress(OSError):
-                os.utime(hit)  # recently used (a cache kept across runs prunes by age)
+                os.utime(hit, follow_symlinks=False)  # recently used (pruned by age)
             return platform, (data, compiler(platform)[2])
         path, label = compile_library(platform, sources, c_files, target)
         data = path.read_bytes()
         if hit is not None:  # a cache that cannot be written (read-only, full) is skipped
             part = hit.with_name("%s.%d.part" % (key, os.getpid()))
             try:
-                hit.parent.mkdir(parents=True, exist_ok=True)
-                part.write_bytes(cache_entry(data))
+                fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(cache_entry(data))
                 os.replace(part, hit)  # whole or absent, also for a build running beside
             except OSError:
                 with contextlib.suppress(OSError):
@@ -599,6 +603,35 @@ def user_cache():
     return Path(base) / "driftfmu" / "native-libraries"
 
 
+def open_cache(folder):
+    """The library cache ``folder`` (a path) once checked, or None when it cannot be made (a
+    cache that cannot be written is skipped).  The folders of its path that are missing are
+    made with mode 0700; one that another user could change (owned by another user, writable
+    by others, reached through a folder or a symbolic link they control:
+    :func:`driftfmu.simulations.trust.path_problem`) is refused in one line (UsageError): what
+    it holds goes into FMUs that run on this machine and elsewhere."""
+    from driftfmu.simulations import trust
+    from driftfmu.simulations.errors import UsageError
+    folder = Path(os.path.abspath(folder))
+    missing = []
+    top = folder
+    while not os.path.lexists(top) and top != top.parent:
+        missing.append(top)
+        top = top.parent
+    try:
+        for path in reversed(missing):
+            with contextlib.suppress(FileExistsError):
+                os.mkdir(path, 0o700)
+    except OSError:
+        return None
+    problem = trust.path_problem(folder)
+    if problem:
+        raise UsageError("the library cache %s cannot be trusted: %s; allowed: a folder that "
+                         "no other user can change (DRIFTFMU_CACHE names another; driftfmu "
+                         "build --no-cache uses none)" % (folder, problem))
+    return folder
+
+
 def prune_cache(folder, days=CACHE_DAYS):
     """Remove the entries of the library cache ``folder`` not used (read or written) for
     ``days`` days, and parts of writes that were cut short an hour ago or more.  Only files
@@ -628,13 +661,24 @@ def cache_entry(data):
 
 
 def _read_cache_entry(path):
-    """The library in the cache entry ``path``, or None when there is none or it is not whole
-    (a file damaged on disk, cut short, or of another format): then it is compiled again and
-    the entry replaced, never shipped in an FMU."""
+    """The library in the cache entry ``path``, or None when there is none, when it is not a
+    regular file of this user's (or root's) that no one else can write
+    (:func:`driftfmu.simulations.trust.others_can_write`; not a symbolic link), or when it is
+    not whole (a file damaged on disk, cut short, or of another format): then it is compiled
+    again and the entry replaced, never shipped in an FMU."""
+    from driftfmu.simulations import trust
     try:
-        raw = path.read_bytes()
-    except OSError:  # not there (or removed meanwhile)
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError:  # not there (or removed meanwhile), or a symbolic link
         return None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if not stat.S_ISREG(st.st_mode) or trust.others_can_write(st):
+            return None
+        try:
+            raw = fh.read()
+        except OSError:
+            return None
     if not raw.startswith(CACHE_MAGIC):
         return None
     digest, newline, data = raw[len(CACHE_MAGIC):].partition(b"\n")
@@ -681,7 +725,7 @@ def compiler_version(command):
     try:  # in a folder of its own: zig cc -target ... --version leaves an empty a.o behind
         with folders.temporary("driftfmu_cc_") as work:
             done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
-                                  timeout=60, cwd=work)
+                                  timeout=60, cwd=work, pass_fds=folders.held_fds(work))
     except (OSError, subprocess.SubprocessError):
         return ""
     return done.stdout if done.returncode == 0 else ""
@@ -763,7 +807,9 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
         the FMUs for its hosts first and then, reusing those, every platform's); its entries
         unused for :data:`CACHE_DAYS` days are removed first (:func:`prune_cache`).  Each
         entry carries its library's SHA-256: one that does not match (damaged on disk, cut
-        short) is compiled again and replaced, never shipped.  Default: none.
+        short) is compiled again and replaced, never shipped; so is one that is not this
+        user's (or root's), or that others can write.  A folder that another user could
+        change is refused (UsageError, :func:`open_cache`).  Default: none.
 
     Returns
     -------
@@ -778,6 +824,8 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
         raise NativeBuildError("platforms %s are not known; allowed: %s"
                                % (", ".join(unknown), ", ".join(PLATFORMS)))
     missing = [p for p in PLATFORMS if p not in platforms]
+    if cache is not None:
+        cache = open_cache(cache)
     if cache is not None:
         prune_cache(cache)
     from concurrent.futures import ThreadPoolExecutor

@@ -287,6 +287,8 @@ def check_build_args(args):
         problem = native_build.compiler_problem("linux64")
         if problem:
             raise UsageError("build --native needs a C compiler: %s" % problem)
+        if not args.no_cache:  # a cache another user could change is refused before the build
+            native_build.open_cache(native_build.user_cache())
     if args.ssp:
         ssp = Path(args.ssp)
         if ssp.is_dir():
@@ -470,7 +472,8 @@ def check_out(args):
 def check_folder(option, value, what="", writable=True):
     """Usage error unless ``value`` names a folder that exists and can be written to, or that
     can be created: its nearest existing parent is a folder this process can write to (tried
-    with a temporary folder, so it holds for root and for read-only file systems alike).  With
+    with a staging folder made and removed there, :func:`driftfmu.simulations.output.probe`,
+    so it holds for root and for read-only file systems alike).  With
     ``writable=False`` only an empty path and a file where the folder or a parent should be."""
     if not value.strip():
         raise UsageError("%s %r is empty; allowed: a folder path, e.g. results/run1"
@@ -486,9 +489,9 @@ def check_folder(option, value, what="", writable=True):
                          % (option, value, parent))
     if not writable:
         return
-    import tempfile
+    from driftfmu.simulations.output import probe
     try:
-        os.rmdir(tempfile.mkdtemp(prefix=".driftfmu-write-test-", dir=parent))
+        probe(parent)  # (killed meanwhile: a staging folder, which the next run removes)
     except OSError as exc:
         raise UsageError("%s %s cannot be written: no folder can be made in %s%s (%s); "
                          "allowed: a folder you can write to" % (
@@ -576,7 +579,54 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     sys.stderr.write("driftfmu: warning: %s\n" % first_line(message))
 
 
+class ReportLost(Exception):
+    """Writing to standard output failed (the OSError is the cause)."""
+
+
+class _Report:
+    """Standard output while a command runs: an error writing to it is a :class:`ReportLost`,
+    told apart from an error writing the results."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except OSError as exc:
+            raise ReportLost(exc) from exc
+
+    def flush(self):
+        try:
+            return self._stream.flush()
+        except OSError as exc:
+            raise ReportLost(exc) from exc
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def _main(argv, previous):
+    from driftfmu.simulations import output
+    commits = output.COMMITS[0]
+    stdout = sys.stdout
+    sys.stdout = _Report(stdout)
+    try:
+        return _command(argv, previous)
+    except ReportLost as exc:
+        # the report of the run is lost; the exit status says what happened to the results
+        reason = first_line(exc.__cause__)
+        if output.COMMITS[0] > commits:
+            sys.stderr.write("driftfmu: warning: standard output: %s; the results are in place "
+                             "(this report of them is lost)\n" % reason)
+            return 0
+        sys.stderr.write("driftfmu: error: standard output: %s\n" % reason)
+        return EXIT_FAILED
+    finally:
+        sys.stdout = stdout
+
+
+def _command(argv, previous):
     try:
         parser = make_parser()  # imports NumPy, matplotlib's helpers, the plugins
         for signum in previous:
@@ -591,8 +641,11 @@ def _main(argv, previous):
         except UsageError as exc:
             parser.error(first_line(exc))
         args.func(args)
+        sys.stdout.flush()  # the report's last lines: an error writing them is told here
     except KeyboardInterrupt:
         return _main_interrupted()
+    except ReportLost:
+        raise
     except Exception as exc:  # one readable line, not a traceback
         if _interrupted:  # whatever the interrupted code raised on its way out
             return _main_interrupted()

@@ -302,8 +302,10 @@ def _run_instantiate(code, fmu, timeout=120):
     from driftfmu.simulations import folders
     with folders.temporary("driftfmu_doctor_") as folder:
         try:
+            # the work folder's lock held by the host too (folders.held_fds)
             r = subprocess.run([sys.executable, "-c", code, str(fmu), folder],
-                               capture_output=True, text=True, timeout=timeout)
+                               capture_output=True, text=True, timeout=timeout,
+                               pass_fds=folders.held_fds(folder))
         except subprocess.TimeoutExpired:
             return (FAIL, "instantiating the FMU in a Python host did not finish in %g s"
                     % timeout)

@@ -233,52 +233,57 @@ LOOP_FLAGS = ("-O2", "-shared", "-fPIC")
 
 
 def loop_target():
-    """Path of the compiled C loop in the temporary folder, named by the hash of what its
-    bytes depend on: :data:`LOOP_SOURCE`, :data:`LOOP_FLAGS` and the compiler
+    """The name of the compiled C loop in the libraries folder, ``loop-<hash>`` (its file:
+    ``loop-<hash>-<SHA-256 of its bytes>.so``), the hash of what its bytes depend on:
+    :data:`LOOP_SOURCE`, :data:`LOOP_FLAGS` and the compiler
     (:func:`driftfmu.simulations.kernel.compiler_identity`)."""
     import hashlib
-    import os
-    import tempfile
     from driftfmu.simulations import kernel
     digest = hashlib.sha256("\0".join(
         (LOOP_SOURCE, " ".join(LOOP_FLAGS),
-         kernel.compiler_identity(kernel.compiler_command()))).encode()).hexdigest()[:12]
-    return os.path.join(tempfile.gettempdir(), "driftfmu-loop-%s-%d.so" % (digest, os.getuid()))
+         kernel.compiler_identity(kernel.compiler_command()))).encode()).hexdigest()[:16]
+    return "loop-%s" % digest
+
+
+def _build_loop(install):
+    """Compile :data:`LOOP_SOURCE` in a work folder registered for removal
+    (:func:`~driftfmu.simulations.cosim.new_extract_folder`: a worker stopped by SIGTERM removes
+    it) and hand the library to ``install``, which moves it into the libraries folder in one
+    rename: a worker stopped at any point leaves the whole library or nothing."""
+    import os
+    import subprocess
+    from driftfmu.simulations import folders, kernel
+    compiler = kernel.compiler_command()
+    work = new_extract_folder(prefix="driftfmu_loop_")
+    try:
+        source = os.path.join(work, "loop.c")
+        with open(source, "w") as fh:
+            fh.write(LOOP_SOURCE)
+        partial = os.path.join(work, "loop.so")
+        # the work folder's lock held by the compiler too (folders.held_fds)
+        subprocess.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
+                       check=True, capture_output=True, pass_fds=folders.held_fds(work))
+        install(partial)
+    finally:
+        _remove(work)
 
 
 def loop_library():
     """The compiled C loop (ctypes function), or None when no C compiler works.  Compiled once
-    into the temporary directory, named by the source's hash, written atomically: compiled in
-    a work folder registered for removal (:func:`~driftfmu.simulations.cosim.new_extract_folder`,
-    in the same temporary directory) and renamed from there in one step, so a worker stopped at
-    any point leaves either the whole library or nothing, never a partial file."""
+    into the private folder's libraries and checked before it is loaded
+    (:func:`driftfmu.simulations.trust.load_library`)."""
     if _LOOP_LIBRARY:
         return _LOOP_LIBRARY[0]
-    import os
     import subprocess
-    from driftfmu.simulations import kernel
-    target = loop_target()
+    from driftfmu.simulations import trust
     function = None
     try:
-        if not os.path.exists(target):
-            compiler = kernel.compiler_command()
-            # registered where a worker told to stop (SIGTERM) removes it, as the FMUs' folders
-            work = new_extract_folder(prefix="driftfmu_loop_")
-            try:
-                source = os.path.join(work, "loop.c")
-                with open(source, "w") as fh:
-                    fh.write(LOOP_SOURCE)
-                partial = os.path.join(work, "loop.so")
-                subprocess.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
-                               check=True, capture_output=True)
-                os.replace(partial, target)  # one rename: the work folder is beside target
-            finally:
-                _remove(work)
-        function = ctypes.CDLL(target).driftfmu_loop
+        function = trust.load_library(loop_target(), _build_loop,
+                                      "the fast master's loop").driftfmu_loop
         function.restype = c_int
         function.argtypes = [ctypes.c_long, ctypes.c_long, c_double, c_double, c_void_p,
                              ctypes.c_ssize_t, c_int, c_void_p, c_int, c_void_p, c_void_p]
-    except (OSError, subprocess.SubprocessError):
+    except (OSError, subprocess.SubprocessError, AttributeError):
         function = None
     _LOOP_LIBRARY.append(function)
     return function

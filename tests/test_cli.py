@@ -382,10 +382,15 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
         pass
     left = _group(p.pid)
     # the compiled batch kernel (simulations/kernel.py) and the fast master's compiled loop
-    # (simulations/fastcosim.py) are caches kept in TMPDIR by design; anything else left there
-    # is a temporary file the interrupt should have removed
-    files = sorted(f for f in os.listdir(tmp) if not f.startswith("driftfmu-kernel-")
-                   and not (f.startswith("driftfmu-loop-") and f.endswith(".so")))
+    # (simulations/fastcosim.py) are kept in the private folder's libraries by design, and
+    # the folder of the destinations' locks stays (empty); anything else left in TMPDIR is a
+    # temporary file the interrupt should have removed
+    private = "driftfmu-%d" % os.geteuid()
+    kept = {private, os.path.join(private, "libraries"), os.path.join(private, "locks")}
+    files = sorted(os.path.relpath(os.path.join(top, f), tmp)
+                   for top, dirs, names in os.walk(tmp) for f in dirs + names
+                   if os.path.relpath(os.path.join(top, f), tmp) not in kept
+                   and os.path.relpath(top, tmp) != os.path.join(private, "libraries"))
     return p.returncode, err, left, files, workers
 
 

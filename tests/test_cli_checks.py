@@ -2,6 +2,7 @@
 
 Every usage error exits 2 with one line naming the value and what is allowed, before anything
 is built, run or written."""
+import json
 import os
 import re
 import signal
@@ -626,3 +627,42 @@ def test_summary_only_too_large_names_the_largest_runs_that_fit(monkeypatch):
     budget.check_montecarlo("gaussian", runs, 1, 2, None, summary_only=True)
     with pytest.raises(ValueError):
         budget.check_montecarlo("gaussian", 2 * runs, 1, 2, None, summary_only=True)
+
+
+# -- the report on standard output ------------------------------------------------------------
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (a full disk)")
+def test_a_report_that_cannot_be_written_before_any_result_is_a_failure(tmp_path):
+    """Standard output on a full disk (/dev/full): a command whose product is its report
+    fails, in one line on standard error."""
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "driftfmu", "--help"], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=BOUND,
+                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 1
+    assert _one_line(r.stderr) == "driftfmu: error: standard output: No space left on device"
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (a full disk)")
+def test_a_report_lost_after_the_results_are_in_place_is_a_warning(tmp_path):
+    """Issue 39: the results in place (``identify``'s identify.json) and then standard output
+    fails: the run succeeded, so exit 0, and one warning line says the report is lost and the
+    results are in place (before: exit 1, as if nothing were written)."""
+    import numpy as np
+    t = np.arange(2000) * 1e-3
+    x = np.sin(2 * np.pi * 10 * t)
+    z = 0.1 + x + 0.01 * x * x + 1e-3 * np.random.default_rng(1).normal(size=t.size)
+    recording = tmp_path / "rec.csv"
+    np.savetxt(recording, np.column_stack([t, x, z]), delimiter=",", header="time,x,z",
+               comments="")
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "driftfmu", "identify", str(recording),
+                            "--f", "10", "--out", str(tmp_path / "out")], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=BOUND,
+                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    assert _last_line(r.stderr) == ("driftfmu: warning: standard output: No space left on "
+                                    "device; the results are in place (this report of them "
+                                    "is lost)")
+    assert json.loads((tmp_path / "out" / "identify.json").read_text())
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["identify.json"]

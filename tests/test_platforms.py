@@ -397,6 +397,28 @@ def test_a_damaged_cache_entry_is_compiled_again_and_replaced_never_shipped(
     assert entry.read_bytes() == whole
 
 
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0,
+                    reason="only root can give a file to another user")
+@pytest.mark.parametrize("damage", ["another user's", "writable by others"])
+def test_a_cache_entry_another_user_could_have_written_is_compiled_again_never_shipped(
+        damage, cached_excitation, tmp_path):
+    """A whole entry with a planted library (its checksum right) that another user owns, or
+    that others may write: the build compiles the library again, ships the bytes of a build
+    without a cache and replaces the entry with one of this user's (simulations/trust.py)."""
+    plain, written = cached_excitation
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    entry = cache / written.name
+    entry.write_bytes(native_build.cache_entry(b"planted"))
+    if damage == "another user's":
+        os.chown(entry, 4242, 4242)
+    else:
+        entry.chmod(0o666)
+    assert _build_excitation(tmp_path / "second", cache=cache).read_bytes() == plain
+    assert entry.read_bytes() == written.read_bytes()
+    assert (entry.stat().st_uid, entry.stat().st_mode & 0o777) == (os.geteuid(), 0o600)
+
+
 def test_the_cache_key_does_not_name_where_ziglang_is_installed(tmp_path, monkeypatch):
     """ziglang in another virtual environment (another Python running ``-m ziglang``, clang's
     ``InstalledDir`` elsewhere) is the same compiler: the same key.  Another ziglang version,
