@@ -54,9 +54,15 @@ def test_the_ssps_defaults_are_the_parameters_defaults():
 
 @pytest.mark.integration
 @pytest.mark.parametrize("n,Ts", [(2000, 1e-3), (37, 2e-3), (1, 1e-3), (1000, 3e-4)])
-def test_the_ssps_default_experiment_ends_at_the_last_sample(python_fmus, n, Ts):
+def test_the_ssps_default_experiment_ends_at_the_last_sample(python_fmus, n, Ts, tmp_path):
+    import zipfile
+    import xml.etree.ElementTree as ET
     starts = gaussian.start_values(Ts=Ts, seed=3, A=0.4)
-    root = ssp.system_structure(python_fmus, starts, n, Ts)
+    archive = ssp.build_ssp(python_fmus, tmp_path / "chain.ssp", starts, n, Ts)
+    with zipfile.ZipFile(archive) as z:
+        root = ET.fromstring(z.read("SystemStructure.ssd"))
+        sets = {name: ET.fromstring(z.read(name)) for name in z.namelist()
+                if name.endswith(".ssv")}
     experiment = root.find("{%s}DefaultExperiment" % ssp.NS["ssd"])
     assert float(experiment.get("startTime")) == 0.0
     assert float(experiment.get("stopTime")) == (n - 1) * Ts  # sample n's instant, to the bit
@@ -64,8 +70,10 @@ def test_the_ssps_default_experiment_ends_at_the_last_sample(python_fmus, n, Ts)
     assert float(master.get("stepSize")) == Ts
     written = {}
     for comp in root.iter("{%s}Component" % ssp.NS["ssd"]):
-        for p in comp.iter("{%s}Parameter" % ssp.NS["ssv"]):
-            written[comp.get("name"), p.get("name")] = p[0].get("value")
+        # each component's values: its parameter set, the .ssv its ParameterBinding names
+        for binding in comp.iter("{%s}ParameterBinding" % ssp.NS["ssd"]):
+            for p in sets[binding.get("source")].iter("{%s}Parameter" % ssp.NS["ssv"]):
+                written[comp.get("name"), p.get("name")] = p[0].get("value")
     expected = {(fmu, name): value for fmu, values in starts.items()
                 for name, value in values.items()}
     assert set(written) == set(expected)

@@ -135,7 +135,17 @@ def test_the_container_exposes_every_output_and_every_parameter(native_fmus, tmp
     assert by["output"] == outputs
     assert by["parameter"] == {"%s.%s" % (n.lower(), s["name"]) for n in container.NAMES
                                for s in slaves[n].VARIABLES if s["causality"] == "parameter"}
-    assert by["input"] == {"u_in"}  # the inputs no connection drives
+    # the inputs no connection drives (driftfmu._api.CONNECTIONS), named as the container
+    # names them: qualified with their FMU where two FMUs have an input of that name
+    from driftfmu._api import CONNECTIONS
+    driven = {(d, i) for _, _, d, i in CONNECTIONS}
+    free = [(n, s["name"]) for n in container.NAMES for s in slaves[n].VARIABLES
+            if s["causality"] == "input" and (n, s["name"]) not in driven]
+    count = {}
+    for _, name in free:
+        count[name] = count.get(name, 0) + 1
+    assert "u_in" in {name for _, name in free}
+    assert by["input"] == {name if count[name] == 1 else "%s.%s" % (n, name) for n, name in free}
 
 
 def test_the_description_follows_the_tables(monkeypatch):
@@ -143,11 +153,11 @@ def test_the_description_follows_the_tables(monkeypatch):
     output, an input that no connection drives as an input; a name two FMUs output is
     qualified with its FMU."""
     slave = native_build.slave_class("Accelerometer")
-    extra = (dict(slave.VARIABLES[0], name="theta", causality="input"),
+    extra = (dict(slave.VARIABLES[0], name="q_extra", causality="input"),
              dict(slave.VARIABLES[0], name="x_hat", causality="output"))
     monkeypatch.setattr(slave, "VARIABLES", tuple(slave.VARIABLES) + extra)
     d = container.description()
-    assert ["theta", "Accelerometer.fmu", "theta"] in d["input"]
+    assert ["q_extra", "Accelerometer.fmu", "q_extra"] in d["input"]
     assert ["Accelerometer.fmu", "x_hat", "Accelerometer.x_hat"] in d["output"]
     assert ["DriftEstimator.fmu", "x_hat", "DriftEstimator.x_hat"] in d["output"]
     assert ["Accelerometer.fmu", "z", "z"] in d["output"]
