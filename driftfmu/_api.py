@@ -314,10 +314,10 @@ def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
 
 
 def _variables(path: Path) -> Dict[str, Any]:
-    from driftfmu.fmu_src.schemas import read_model_description
-    from driftfmu.simulations.cosim import check_fmu_file
-    check_fmu_file(path)  # before fmpy, whose message names neither the file nor a remedy
-    return {v.name: v for v in read_model_description(str(path)).modelVariables}
+    from driftfmu.simulations.cosim import checked_fmu
+    # what the masters rely on, before fmpy (whose messages name neither the file nor a
+    # remedy) and before any FMU runs (simulations/fmucheck.py)
+    return {v.name: v for v in checked_fmu(str(path)).modelVariables}
 
 
 def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:

@@ -229,8 +229,16 @@ def parameter_set(ssp):
 
 def simulate(ssp, n, Ts=1e-3):
     """Simulate ``n`` rows of the archive with ``fmpy.ssp.simulation.simulate_ssp``, its start
-    values applied; returns fmpy's structured array (columns ``<Component>.<connector>``)."""
+    values applied; returns fmpy's structured array (columns ``<Component>.<connector>``).
+
+    The archive is checked first (:func:`driftfmu.simulations.fmucheck.check_ssp`: its FMUs as
+    the masters check an FMU, each parameter by component and name, each connection): a
+    problem is one FileProblem line naming the archive, the component and the parameter, not
+    fmpy's bare ``KeyError`` or "fmi2ExitInitializationMode failed with status 3"."""
     from fmpy.ssp.simulation import simulate_ssp
+
+    from driftfmu.simulations import fmucheck
+    fmucheck.check_ssp(ssp)
 
     # simulate_ssp makes rows at t = 0, Ts, ... while t < stop_time (t summed step by step)
     return simulate_ssp(str(ssp), start_time=0.0, stop_time=(n - 0.5) * Ts, step_size=Ts,
