@@ -393,7 +393,9 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         A structured array with a first field ``time`` and one field per input variable it
         drives (``"x"`` or ``"Accelerometer.x"``), like FMPy's ``input``.  At each
         communication point ``t`` the input takes the value of the last row with
-        ``time <= t`` (zero-order hold; the first row before its time).  An input that an
+        ``time <= t`` (zero-order hold; the first row before its time), a time within the
+        FMUs' millionth of a step of ``t``, or within what a running sum of times can have
+        rounded (``0.001 + 0.001 + ...``), counting as ``t`` (docs/hosts.md).  An input that an
         FMU of ``fmus`` already drives through a connection cannot also be given here.
     output : sequence of str, optional
         Variables to record (``"z"`` or ``"Accelerometer.z"``); a plain name is recorded from
@@ -534,11 +536,17 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
             raise UsageError("input has fields %r; allowed: a structured array whose first "
                              "field is 'time'" % (fields,))
         times = np.asarray(input["time"], dtype=float)
-        if times.ndim != 1 or times.size == 0 or np.any(np.diff(times) < 0):
-            raise UsageError("input['time'] must be a non-empty, non-decreasing 1-D array")
+        if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)) or \
+                np.any(np.diff(times) < 0):
+            raise UsageError("input['time'] must be a non-empty, non-decreasing 1-D array of "
+                             "finite times")
+        # a row at or before a communication point within the tolerance of
+        # simulations/times.py (the FMUs' own, and what a running sum of times can round)
+        from driftfmu.simulations import times as timing
         grid = start_time + step_size * np.arange(n_steps)
-        rows = np.clip(np.searchsorted(times, grid + 1e-9 * step_size, side="right") - 1,
-                       0, times.size - 1)
+        rows = np.clip(np.searchsorted(
+            times, grid + timing.tolerance(grid, start_time, step_size) * step_size,
+            side="right") - 1, 0, times.size - 1)
         for key in fields[1:]:
             fmu, var = _split_name(key, names)
             targets = [fmu] if fmu else [n for n in names if var in variables[n]
