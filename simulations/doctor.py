@@ -17,6 +17,7 @@ checks of an FMU.  Nothing is read whole beyond the bounds of
 :mod:`driftfmu.simulations.fmucheck`, so a zip bomb is refused by what it declares.
 """
 import ast
+import functools
 import json
 import platform
 import struct
@@ -91,8 +92,10 @@ def _imports(source):
     return eager, lazy - eager
 
 
+@functools.lru_cache(maxsize=None)
 def _loadable(soname):
-    """True when the dynamic loader of this host finds and loads ``soname``."""
+    """True when the dynamic loader of this host finds and loads ``soname`` (asked once per
+    process: an SSP's FMUs ask alike)."""
     code = "import ctypes,sys; ctypes.CDLL(sys.argv[1])"
     return subprocess.run([sys.executable, "-c", code, soname], capture_output=True,
                           timeout=30).returncode == 0

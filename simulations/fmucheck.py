@@ -283,14 +283,16 @@ def range_problems(desc):
                 None if low is None else "%s >= %s" % (v.name, v.min),
                 None if high is None else "%s <= %s" % (v.name, v.max)) if b)
             problems.append(("the start value of %s is %s, outside its declared range"
-                             % (v.name, v.start), bounds + _rule(v.name, desc.model)))
+                             % (v.name, v.start), bounds + _rule(v.name, desc.model, bounds)))
     return problems
 
 
-def _rule(name, model):
-    """``" (driftfmu's rule: ...)"`` for a parameter of driftfmu's ``model``, else ``""``."""
+def _rule(name, model, bounds=""):
+    """``" (driftfmu's rule for <name>: ...)"`` for a parameter of driftfmu's ``model`` whose
+    rule says more than its declared ``bounds``, else ``""``."""
     from driftfmu.models import parameters
-    if table(model) is None or name not in parameters.PARAMETERS:
+    if table(model) is None or name not in parameters.PARAMETERS or \
+            parameters.allowed(name) in (bounds, "an integer " + bounds):
         return ""
     return " (driftfmu's rule for %s: %s)" % (name, parameters.allowed(name))
 
@@ -314,7 +316,11 @@ def table(model):
 
 
 def _declared(spec):
-    return "%s %s %s" % (spec["type"], spec["causality"], spec["name"])
+    return "%s %s" % (spec["type"], spec["causality"])
+
+
+def _a(word):
+    return ("an " if word[:1] in "AEIOUaeiou" else "a ") + word
 
 
 def table_problems(desc):
@@ -352,7 +358,7 @@ def table_problems(desc):
                 "%d, as in %s: a host reads and writes by value reference, so it would get "
                 "another variable's values" % (vr, model)))
         if v.type != types[spec["type"]]:
-            problems.append(("%s is a %s variable" % (v.name, v.type),
+            problems.append(("%s is %s variable" % (v.name, _a(v.type)),
                              "%s, as in %s" % (types[spec["type"]], model)))
         if v.causality != spec["causality"]:
             problems.append(("%s has causality %s" % (v.name, v.causality),
@@ -674,8 +680,25 @@ def inspect(path, expected=None, validate=True, binaries=True, machine="any", la
             problems.append(say(path, "", "it has no modelDescription.xml", "an FMU (a zip "
                                 "archive with modelDescription.xml at its root)"))
             return Inspection(None, None, problems, checked)
-        data = read_member(path, zf, "modelDescription.xml")
-        desc = parse_description(path, data)
+        try:
+            desc = parse_description(path, read_member(path, zf, "modelDescription.xml"))
+        except FileProblem as exc:
+            return Inspection(None, None, problems + [str(exc)], checked)
+        # driftfmu's own checks first: they name the variable (fmpy's parser says "KeyError:
+        # 14" of a value reference that two variables share)
+        if expected is not None and desc.model != expected and table(desc.model) is None:
+            # (an FMU of another of driftfmu's models under this name: the master's check of
+            # the variables names what it lacks)
+            problems.append(say(path, "modelDescription.xml", "it is an FMU of the model %r"
+                                % desc.model, "driftfmu's %s (the file's name says so)"
+                                % expected))
+        for what, want in range_problems(desc)[:1]:
+            problems.append(say(path, "modelDescription.xml", what, want))
+        found = table_problems(desc)
+        for what, want in found[:1]:
+            problems.append(say(path, "modelDescription.xml", what, want + (
+                " (%d more difference%s from the table)" % (len(found) - 1, "s" * (
+                    len(found) > 2)) if len(found) > 1 else "") + "; " + REBUILD))
         md = None
         try:
             from driftfmu.fmu_src.schemas import prime
@@ -686,30 +709,17 @@ def inspect(path, expected=None, validate=True, binaries=True, machine="any", la
             found = [str(p).strip() for p in getattr(exc, "problems", None) or []]
             text = "; ".join(found) or (str(exc).strip().splitlines() or
                                         [type(exc).__name__])[0]
-            problems.append(say(path, "modelDescription.xml", "cannot be read (%s)" % text,
-                                "a model description that follows the FMI standard; if "
-                                "the FMU is one of driftfmu's, %s" % REBUILD))
+            problems.append(say(path, "modelDescription.xml", "cannot be read (%s: %s)" % (
+                type(exc).__name__, text) if not found else "does not validate (%s)" % text,
+                "a model description that follows the FMI standard; if the FMU is one of "
+                "driftfmu's, %s" % REBUILD))
         checked.append("modelDescription.xml: FMI %d.0 co-simulation, %d variables%s"
                        % (desc.fmi, len(desc.variables),
                           ", validated against the FMI schema" if validate and md else ""))
-        if expected is not None and desc.model != expected and table(desc.model) is None:
-            # (an FMU of another of driftfmu's models under this name: the master's check of
-            # the variables names what it lacks)
-            problems.append(say(path, "modelDescription.xml", "it is an FMU of the model %r"
-                                % desc.model, "driftfmu's %s (the file's name says so)"
-                                % expected))
-        found = table_problems(desc)
-        for what, want in found[:1]:
-            problems.append(say(path, "modelDescription.xml", what, want + (
-                " (%d more difference%s from the table)" % (len(found) - 1, "s" * (
-                    len(found) > 2)) if len(found) > 1 else "") + "; " + REBUILD))
         if table(desc.model) is not None:
             checked.append("modelDescription.xml against driftfmu's %s table: every "
                            "variable's name, value reference, type, causality, variability, "
                            "start value, min and max, the modelIdentifier" % desc.model)
-        ranges = range_problems(desc)
-        for what, want in ranges[:1]:
-            problems.append(say(path, "modelDescription.xml", what, want))
         checked.append("every start value within its declared min and max")
         if binaries:
             missing = binary_presence_problem(path, desc, names)
@@ -880,7 +890,8 @@ def inspect_ssp(path, folder, machine="any", label=None):
                 continue
             fmus[name] = (source, str(fmu))
             try:
-                found = inspect(fmu, machine=machine, label="%s: %s" % (path, source))
+                found = inspect(fmu, expected=expected_model(source), machine=machine,
+                                label="%s: %s" % (path, source))
             except FileProblem as exc:
                 problems.append(str(exc))
                 continue
