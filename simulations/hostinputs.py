@@ -76,8 +76,9 @@ INSTANT_TOLERANCE = times.INSTANT_TOLERANCE
 #: The longest line of a result file read, in characters (a row of a thousand numbers of 25
 #: characters each fits 40 times over).
 MAX_LINE = 1 << 20
-#: A number as a result file may write it: decimal, optionally with an exponent.
-NUMBER = re.compile(r"[+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?")
+#: A number as a result file may write it: ASCII decimal digits, optionally with an exponent
+#: (Python's float() also reads '1_000', 'nan' and other scripts' digits; fmpy does not).
+NUMBER = re.compile(r"[+-]?(?:[0-9]+\.?[0-9]*|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 #: (model, input) -> the output wired to it, as ``driftfmu.simulate`` wires the chain.
 WIRING = {
     ("Accelerometer", "x"): "x",
@@ -299,9 +300,9 @@ def plan(fmu, results, Ts=None, start_time=None, hold=()):
                       for path, names_ in headers if want in names_), None)
         if name in hold:
             if found is not None:
-                raise UsageError("%s: %s has the column %s for the input %s, which --hold %s "
-                                 "holds; allowed: one of the two" % (found[0], found[0],
-                                                                      found[1], name, name))
+                raise UsageError("%s has the column %s for the input %s, which --hold %s "
+                                 "holds; allowed: one of the two" % (found[0], found[1], name,
+                                                                     name))
             sources[name] = None
         elif found is None:
             raise UsageError(

@@ -471,21 +471,10 @@ def test_the_ssp_runner_runs_our_ssp_after_its_checks(good, tmp_path):
 
 # -- a zip bomb ---------------------------------------------------------------------------------
 
-def _peak_rss(argv, **kw):
-    """Run ``driftfmu argv`` in a child that reports its own peak resident set size (bytes) on
-    its last line of standard error; returns (exit status, stderr without that line, bytes)."""
-    code = ("import resource, sys\nfrom driftfmu.simulations.cli import main\n"
-            "try:\n    rc = main(sys.argv[1:])\nexcept SystemExit as exc:\n    rc = exc.code\n"
-            "sys.stdout.flush()\n"
-            "sys.stderr.write('peak rss %d\\n' % resource.getrusage(resource.RUSAGE_SELF)"
-            ".ru_maxrss)\nsys.exit(rc)\n")
-    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH", ""))
-    done = subprocess.run([sys.executable, "-c", code] + argv, capture_output=True, text=True,
-                          timeout=1200, env=env, **kw)
-    assert done.returncode >= 0, done.stderr
-    *rest, last = done.stderr.strip().splitlines()
-    assert last.startswith("peak rss "), done.stderr
-    return done.returncode, done.stdout, "\n".join(rest), int(last.split()[-1]) * 1024
+def _peak_rss(argv):
+    """(exit status, stdout, stderr, peak RSS in bytes) of ``driftfmu argv`` in a child."""
+    import peakrss
+    return peakrss.run(argv)
 
 
 #: The memory bound of issue 40.
