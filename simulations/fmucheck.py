@@ -70,11 +70,15 @@ REBUILD = "the file as driftfmu build writes it (rebuild it: driftfmu build)"
 
 
 def size_text(n):
-    """``n`` bytes in words: ``3.0 GiB``, ``16 MiB``, ``512 bytes``."""
+    """``n`` bytes in words: ``3 GiB``, ``16 MiB``, ``512 bytes``; a size that is no whole
+    number of its unit with its bytes too, ``9.6 KiB (9781 bytes)``, so that two sizes a byte
+    apart never read alike."""
     for unit, scale in (("GiB", 1 << 30), ("MiB", MiB), ("KiB", 1 << 10)):
         if n >= scale:
             value = n / scale
-            return ("%d %s" if value == int(value) else "%.1f %s") % (value, unit)
+            if value == int(value):
+                return "%d %s" % (value, unit)
+            return "%.1f %s (%d bytes)" % (value, unit, n)
     return "%d bytes" % n
 
 
@@ -166,9 +170,11 @@ def member_problem(zf, name):
     return None if error is None else "cannot be read from the archive (%s)" % error
 
 
-def read_member(path, zf, name, bound=MAX_READ):
-    """The bytes of member ``name``, read whole only when it declares at most ``bound`` bytes;
-    :class:`FileProblem` naming the member otherwise, or when it cannot be read."""
+def read_member(path, zf, name, bound=None):
+    """The bytes of member ``name``, read whole only when it declares at most ``bound`` bytes
+    (default :data:`MAX_READ`); :class:`FileProblem` naming the member otherwise, or when it
+    cannot be read."""
+    bound = MAX_READ if bound is None else bound
     info = zf.getinfo(name)
     if info.file_size > bound:
         raise FileProblem(say(path, name, "the member declares %s uncompressed"
@@ -486,6 +492,8 @@ def _elf_problem(read, size, unpack, machine):
     head = read(0, 16)
     if head[:4] != b"\x7fELF":
         return "not an ELF shared library (%d bytes, starting %r)" % (size, bytes(head[:4]))
+    if size < 64:
+        return _past("its ELF header", 64, size)
     if head[4] != 2 or head[5] != 1:
         return ("a %s-bit %s-endian ELF file; this host loads 64-bit little-endian libraries"
                 % ({1: "32", 2: "64"}.get(head[4], "?"), {1: "little", 2: "big"}.get(head[5],
@@ -527,7 +535,7 @@ def _pe_problem(read, size, unpack, machine):
     if read(0, 2) != b"MZ":
         return "not a PE library (%d bytes, starting %r)" % (size, bytes(read(0, 4)))
     pe, = unpack("<I", 0x3C)
-    if read(pe, 4) != b"PE\0\0":
+    if unpack("4s", pe)[0] != b"PE\0\0":
         return "a file starting MZ without a PE header"
     cpu, n_sections, _, _, _, opt_size, characteristics = unpack("<HHIIIHH", pe + 4)
     opt = pe + 24

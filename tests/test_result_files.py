@@ -20,15 +20,23 @@ from hypothesis import strategies as st
 from driftfmu.simulations import hostinputs, times
 from driftfmu.simulations.cli import main
 
-pytestmark = pytest.mark.integration
-
 ROOT = Path(__file__).resolve().parent.parent
 HEALTH = list(HealthCheck)
 
 
 @pytest.fixture(scope="module")
-def acc(python_fmus):
-    return str(python_fmus["Accelerometer"])
+def paper(tmp_path_factory):
+    """FMUs on paper (tests/paperfmu.py): ``driftfmu inputs`` reads an FMU's model description
+    and checks its binary, it never loads it."""
+    import paperfmu
+    folder = tmp_path_factory.mktemp("paper")
+    return {m: paperfmu.paper_fmu(folder / ("%s.fmu" % m), m)
+            for m in ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")}
+
+
+@pytest.fixture(scope="module")
+def acc(paper):
+    return str(paper["Accelerometer"])
 
 
 def _run(argv, capsys):
@@ -158,8 +166,7 @@ def test_what_spreadsheets_write_is_read(name, text, acc, tmp_path, capsys):
 
 # -- issue 41: no column of start values for an input nobody gave ---------------------------------
 
-def test_the_estimator_without_the_accelerometers_result_is_refused(python_fmus, tmp_path,
-                                                                    capsys):
+def test_the_estimator_without_the_accelerometers_result_is_refused(paper, tmp_path, capsys):
     """``driftfmu inputs DriftEstimator.fmu exc.csv`` wrote z = 0 for every sample and exited
     0; now it names the input and the columns the files have; with the Accelerometer's result
     it writes z from it; u, which no result here gives, is held only when asked."""
@@ -168,7 +175,7 @@ def test_the_estimator_without_the_accelerometers_result_is_refused(python_fmus,
     acc = tmp_path / "acc.csv"
     acc.write_text("time,z,z_y\n0,0.7,0\n0.001,0.8,0\n")
     out = tmp_path / "de_in.csv"
-    fmu = str(python_fmus["DriftEstimator"])
+    fmu = str(paper["DriftEstimator"])
     rc, _, err = _run(["inputs", fmu, str(exc), "--output-file", str(out)], capsys)
     said = _refused(rc, err, out, None)
     assert said == ("driftfmu: error: DriftEstimator's input z is in none of the results (%s: "
@@ -184,14 +191,14 @@ def test_the_estimator_without_the_accelerometers_result_is_refused(python_fmus,
 
 @pytest.mark.parametrize("model", ["Accelerometer", "DriftEstimator", "DualDriftEstimator",
                                    "Excitation"])
-def test_no_fmu_gets_a_column_of_start_values_for_an_input_no_result_gives(model, python_fmus,
+def test_no_fmu_gets_a_column_of_start_values_for_an_input_no_result_gives(model, paper,
                                                                           tmp_path, capsys):
     """The class: for every FMU, each input that no result gives is refused by name."""
     result = tmp_path / "r.csv"
     result.write_text("time,unrelated\n0,1\n0.001,2\n")
     out = tmp_path / "in.csv"
-    rc, _, err = _run(["inputs", str(python_fmus[model]), str(result), "--output-file",
-                       str(out)], capsys)
+    rc, _, err = _run(["inputs", str(paper[model]), str(result), "--output-file", str(out)],
+                      capsys)
     said = _refused(rc, err, out, None)
     assert "%s's input " % model in said and "is in none of the results" in said, said
 
@@ -353,6 +360,7 @@ def test_a_row_just_before_an_instant(side, accepted, acc, tmp_path, capsys):
 
 # -- simulate's input: the same rule ---------------------------------------------------------------
 
+@pytest.mark.integration
 def test_simulates_input_with_times_summed_by_a_host_is_applied_at_its_points(
         fmus_in_build_layout):
     """``simulate(input=...)`` with a time column summed as a spreadsheet fills it down, from
