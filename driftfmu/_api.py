@@ -543,10 +543,7 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         # a row at or before a communication point within the tolerance of
         # simulations/times.py (the FMUs' own, and what a running sum of times can round)
         from driftfmu.simulations import times as timing
-        grid = start_time + step_size * np.arange(n_steps)
-        rows = np.clip(np.searchsorted(
-            times, grid + timing.tolerance(grid, start_time, step_size) * step_size,
-            side="right") - 1, 0, times.size - 1)
+        rows = timing.held_rows(times, start_time, step_size, n_steps)
         for key in fields[1:]:
             fmu, var = _split_name(key, names)
             targets = [fmu] if fmu else [n for n in names if var in variables[n]

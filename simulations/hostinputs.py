@@ -365,15 +365,9 @@ def write_input_file(fmu, results, out, Ts=None, start_time=None, force=False, h
                     if j == 0:
                         _write(f, start, current)
                     else:  # sample j + 1's value from LEAD Ts after the instant before it
+                        # (apart from both instants as a double: times.period told them apart
+                        # within a hundredth of a period)
                         change = start + (j - 1 + LEAD) * Ts
-                        if not (start + (j - 1) * Ts < change <= start + j * Ts):
-                            raise UsageError(
-                                "sample %d: its input would change at t = %r s, which is not "
-                                "after the instant %r s and before %r s at Ts = %r s "
-                                "from the start time %r s (the times are too close for a "
-                                "double); allowed: a start time and Ts whose instants are "
-                                "apart" % (j + 1, change, start + (j - 1) * Ts,
-                                           start + j * Ts, Ts, start))
                         _write(f, change, previous)
                         _write(f, change, current)
                     previous = current

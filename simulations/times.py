@@ -63,3 +63,14 @@ def period(t, start, Ts):
 def before_start(t, start, Ts):
     """True when ``t`` lies before the start time ``start`` by more than the tolerance."""
     return (t - start) / Ts < -tolerance(t, start, Ts)
+
+
+def held_rows(row_times, start, step, n):
+    """For the communication points ``start + i step`` (``i < n``), the index of the last row
+    of ``row_times`` (non-decreasing) at or before it within :func:`tolerance` (the first row
+    before its time): the zero-order hold of ``driftfmu.simulate``'s ``input``."""
+    import numpy as np
+    grid = start + step * np.arange(n)
+    rows = np.searchsorted(row_times, grid + tolerance(grid, start, step) * step,
+                           side="right") - 1
+    return np.clip(rows, 0, len(row_times) - 1)

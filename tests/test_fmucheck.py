@@ -489,3 +489,113 @@ def test_sizes_are_said_in_words():
     assert fmucheck.size_text(1000) == "1000 bytes"
     assert math.isclose(fmucheck.MAX_MEMBER / 2 ** 20, 256)
     assert Path(fmucheck.__file__).name == "fmucheck.py"
+
+
+# -- the entry points call the checks (without building an FMU) ---------------------------------
+
+def _cut(paper, tmp_path, model="Accelerometer"):
+    src = paper[model, 2]
+    return T.EDITS["the binary cut in half"][0](src, tmp_path / ("%s.fmu" % model))
+
+
+def test_the_master_checks_the_unpacked_binary_before_loading_it(paper, tmp_path, monkeypatch):
+    """cosim.Instance: the library on disk is checked after it is unpacked and before fmpy
+    loads it (were the archive's check passed, a file cut after it is still caught)."""
+    from driftfmu.fmu_src import schemas
+    from driftfmu.simulations import cosim
+    path = _cut(paper, tmp_path)
+    monkeypatch.setattr(fmucheck, "check_fmu", lambda p, expected=None, validate=True:
+                        schemas.read_model_description(p, validate=False))
+
+    def loaded(*args, **kwargs):
+        raise AssertionError("the library was loaded")
+    monkeypatch.setattr(cosim, "FMU2Slave", loaded)
+    with pytest.raises(FileProblem, match="binaries/linux64/Accelerometer.so: truncated"):
+        cosim.Instance("Accelerometer", path)
+
+
+def test_the_fast_master_checks_the_unpacked_binary_before_loading_it(paper, tmp_path,
+                                                                      monkeypatch):
+    from driftfmu.simulations import fastcosim
+    path = _cut(paper, tmp_path)
+    monkeypatch.setattr(fastcosim, "checked_fmu", lambda p, validate: None)
+    monkeypatch.setattr(fastcosim, "_UNPACKED", {})
+    with pytest.raises(FileProblem, match="binaries/linux64/Accelerometer.so: truncated"):
+        fastcosim.unpacked(str(path))
+
+
+def test_an_fmu_that_cannot_be_instantiated_says_the_fmus_own_reason():
+    from driftfmu.simulations.cosim import not_instantiated
+    said = str(not_instantiated("X.fmu", Exception("Failed to instantiate model"), [
+        "X [warning] something else",
+        "X [error] X: fmi2Instantiate: fmuGUID \"{1}\" does not match this FMU"]))
+    assert said.startswith("X.fmu: the FMU could not be instantiated on this host: X: "
+                           "fmi2Instantiate: fmuGUID \"{1}\" does not match this FMU; expected:")
+    said = str(not_instantiated("X.fmu", OSError(8, "Exec format error"), []))
+    assert "on this host: Exec format error; expected" in said
+
+
+def test_the_apis_variables_are_read_from_a_checked_fmu(paper, tmp_path):
+    from driftfmu._api import _variables
+    path = T.EDITS["swapped value references"][0](paper["DriftEstimator", 2],
+                                                   tmp_path / "DriftEstimator.fmu")
+    with pytest.raises(FileProblem, match="x_hat has the value reference 15"):
+        _variables(path)
+    assert "x_hat" in _variables(paper["DriftEstimator", 2])
+
+
+def test_inputs_refuses_an_edited_fmu(paper, tmp_path, capsys):
+    from driftfmu.simulations.cli import main
+    path = T.EDITS["a variable removed"][0](paper["Accelerometer", 2],
+                                             tmp_path / "Accelerometer.fmu")
+    result = tmp_path / "r.csv"
+    result.write_text("time,x,y\n0,1,0\n0.001,2,0\n")
+    assert main(["inputs", str(path), str(result), "--output-file", str(tmp_path / "o.csv")]) \
+        == 2
+    err = capsys.readouterr().err
+    assert err.startswith("driftfmu: error: %s: modelDescription.xml: it has no variable z_y"
+                          % path), err
+
+
+def test_the_ssp_runner_checks_before_fmpy_runs(ssp):
+    from driftfmu.fmu_src import ssp as ssp_module
+    edited = _ssd(ssp, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1))
+    with pytest.raises(FileProblem, match="component Accelerometer: R = -1 is out of range"):
+        ssp_module.simulate(edited, 5)
+
+
+def test_the_doctor_takes_an_ssp_for_an_ssp(ssp, capsys):
+    """It said "will NOT run ... no modelDescription.xml" for the SSP driftfmu builds (the FMUs
+    on paper do not instantiate, so its verdict here is NOT run, for that reason alone)."""
+    from driftfmu.simulations import doctor
+    assert doctor.report(ssp) == 1
+    out = capsys.readouterr().out
+    assert "[  ok  ] an SSP archive with 3 components: Excitation (resources/Excitation.fmu)" \
+        in out, out
+    assert "no modelDescription.xml" not in out
+    assert out.splitlines()[-1].startswith("verdict: this SSP will NOT run on this host as it "
+                                           "is: resources/Excitation.fmu: instantiating it"), out
+
+
+def test_simulates_input_is_held_by_the_rule_of_the_times():
+    """simulate's input rows (times.held_rows): a running sum from 1e4 s, whose sums pass their
+    points by up to 7e-10 of a step, holds each row from its own point; on both sides of the
+    tolerance a row is at the point or after it."""
+    import numpy as np
+    from driftfmu.simulations import times
+    start, step, n = 1e4, 1e-3, 400
+    summed, t = [], start
+    for _ in range(n):
+        summed.append(t)
+        t += step
+    summed = np.array(summed)
+    assert np.any((summed - start) / step > np.arange(n) + 1e-9)  # (the rule of before: late)
+    assert np.array_equal(times.held_rows(summed, start, step, n), np.arange(n))
+    for k in (1, 17, 399):
+        g = start + k * step
+        tol = times.tolerance(g, start, step)
+        for side, held in ((0.25, k), (4.0, k - 1)):
+            rows = summed.copy()
+            rows[k] = g + side * tol * step
+            assert times.held_rows(rows, start, step, n)[k] == held, (k, side)
+    assert np.array_equal(times.held_rows(np.array([0.5]), 0.0, 0.1, 3), [0, 0, 0])
