@@ -27,7 +27,6 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
     fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
-from driftfmu.fmu_src import schemas
 from driftfmu.simulations import folders
 from driftfmu.simulations.errors import UsageError
 

@@ -106,7 +106,7 @@ def archive_problem(path, zf, kind="FMU"):
                        "read" % info.compress_type, "members stored or compressed by %s"
                        % ", ".join(sorted(METHODS.values())))
         if info.file_size > MAX_MEMBER:
-            return say(path, name, "the member declares %s uncompressed (%s in the archive)"
+            return say(path, name, "the member declares %s uncompressed, %s in the archive"
                        % (size_text(info.file_size), size_text(info.compress_size)),
                        "members of at most %s" % size_text(MAX_MEMBER))
         total += info.file_size

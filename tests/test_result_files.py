@@ -6,9 +6,6 @@ naming the file, the line and the value (exit 2, no file written); what spreadsh
 the tolerance; the memory stays bounded for any size (peak RSS of the process); an input no
 result gives is refused unless held (issue 41)."""
 import math
-import os
-import subprocess
-import sys
 from decimal import Decimal
 from pathlib import Path
 
