@@ -346,6 +346,18 @@ def test_a_section_past_the_end_is_named_though_the_segments_fit():
     assert why.startswith("truncated: the file has %d bytes, its section %d" % (len(data), i))
 
 
+def test_a_cut_library_without_section_headers_is_named_by_its_segments():
+    """A library stripped of its section headers (``sstrip``; the loader needs only the
+    program headers) and cut: the loaded segment that reaches past the end is named."""
+    data = bytearray(paperfmu.library())
+    struct.pack_into("<Q", data, 40, 0)           # e_shoff
+    struct.pack_into("<HHH", data, 58, 64, 0, 0)  # e_shentsize, e_shnum, e_shstrndx
+    assert _problem(bytes(data), "Linux") is None
+    cut = bytes(data[:len(data) // 2])
+    assert _problem(cut, "Linux").startswith("truncated: the file has %d bytes, its loaded "
+                                             "segment " % len(cut)), _problem(cut, "Linux")
+
+
 def test_the_binaries_of_an_unpacked_fmu_are_checked_on_disk(paper, tmp_path):
     folder = tmp_path / "unpacked"
     with zipfile.ZipFile(paper["DriftEstimator", 2]) as z:
