@@ -115,3 +115,29 @@ def test_the_written_out_4x4_check_is_the_general_one_near_the_cone(a, zero, nud
     lower = tuple(tuple(P[i][j] for j in range(i + 1)) for i in range(4))
     flat = [v for row in lower for v in row]
     assert covariance._valid4_floats(*flat) == covariance._valid_floats(lower)
+
+
+_PAIRS = [(i, j) for i in range(4) for j in range(i)]
+
+
+@pytest.mark.parametrize("i, j", _PAIRS)
+@pytest.mark.parametrize("scale", [1.0, 1.0 + 2.0 ** -19])
+def test_the_written_out_4x4_check_on_both_sides_of_each_correlation(i, j, scale):
+    """A correlation of 1 between two components (singular, within the slack: valid) and one
+    just past the slack (not valid), for each pair in turn, beside others that are not zero:
+    every pivot's every term takes part, and both checks answer alike."""
+    c = [[1.0 if a == b else 0.1 * ((a + b) % 3 - 1) for b in range(4)] for a in range(4)]
+    base = [row[:] for row in c]
+    base[i][j] = base[j][i] = 0.0
+    for a in range(4):  # the pair's rows free of the others: the pair alone decides
+        for b in range(4):
+            if a != b and {a, b} & {i, j}:
+                base[a][b] = 0.0
+    base[i][j] = base[j][i] = scale * covariance.BOUND if scale > 1 else 1.0
+    variances = (4.0, 0.25, 9.0, 1.0)
+    s = [v ** 0.5 for v in variances]
+    lower = tuple(tuple(base[a][b] * s[a] * s[b] for b in range(a + 1)) for a in range(4))
+    flat = [v for row in lower for v in row]
+    general = covariance._valid_floats(lower)
+    assert general == (scale == 1.0), (i, j, scale)
+    assert covariance._valid4_floats(*flat) == general
