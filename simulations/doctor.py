@@ -171,23 +171,29 @@ def _diagnose_fmu(fmu, zf, names, out):
                    len(names), fmucheck.size_text(fmucheck.MAX_MEMBER),
                    fmucheck.size_text(fmucheck.MAX_ARCHIVE))]
     found = fmucheck.table_problems(desc)
-    if fmucheck.table(desc.model) is not None:
+    model = fmucheck.ours(desc)
+    expected = fmucheck.expected_model(fmu)
+    if model is None and expected is not None and desc.model != expected:
+        out.append((FAIL, "it is an FMU of the model %r, not driftfmu's %s that its file's name "
+                          "says; driftfmu's masters refuse it under this name" % (desc.model,
+                                                                                 expected)))
+    if model is not None:
         checked.append("the model description against driftfmu's %s table (%d variables: "
                        "names, value references, types, causality, variability, start "
-                       "values, min and max; the modelIdentifier)"
-                       % (desc.model, len(fmucheck.table(desc.model))))
+                       "values, min and max; the modelName and modelIdentifier)"
+                       % (model, len(fmucheck.table(model))))
         if found:
             what, want = found[0]
             out.append((FAIL, "its modelDescription.xml is not driftfmu's %s as its code "
                               "runs: %s; expected: %s%s. A host would be silently wrong; "
                               "rebuild the FMU (driftfmu build)" % (
-                                  desc.model, what, want, " (and %d more difference%s)" % (
+                                  model, what, want, " (and %d more difference%s)" % (
                                       len(found) - 1, "s" * (len(found) > 2))
                                   if len(found) > 1 else "")))
         else:
             out.append((OK, "its model description is driftfmu's %s table: every variable's "
                             "name, value reference, type, causality and start value"
-                        % desc.model))
+                        % model))
     checked.append("every start value against its declared min and max")
     for what, want in fmucheck.range_problems(desc)[:1]:
         out.append((FAIL, "its modelDescription.xml gives %s; expected: %s. A host would "

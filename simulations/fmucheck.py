@@ -21,11 +21,12 @@ the part and what is expected (the command line's exit status 2):
   memory; a member that holds more than it declares fails its CRC.
 - **The model description**: well-formed XML of FMI 2.0 or 3.0 with a co-simulation
   interface; every start value inside its declared ``min`` and ``max`` (and a whole number for
-  an integer variable); and, for an FMU whose ``modelName`` is one of driftfmu's models (a class
-  of that name with a ``VARIABLES`` table in ``fmu_src/<Name>.py``), every variable as that
-  table has it: its name, value reference (its index in the table), type, causality,
-  variability, start value, ``min`` and ``max``, no variable the table lacks (but FMI 3.0's
-  independent ``time`` after them), and the model's name as the modelIdentifier.  The FMU's
+  an integer variable); and, for an FMU whose ``modelName`` or modelIdentifier is one of
+  driftfmu's models (a class of that name with a ``VARIABLES`` table in ``fmu_src/<Name>.py``),
+  every variable as that table has it: its name, value reference (its index in the table),
+  type, causality, variability, start value, ``min`` and ``max``, no variable the table lacks
+  (but FMI 3.0's independent ``time`` after them), and the model's name as both the modelName
+  and the modelIdentifier.  The FMU's
   code runs on its table, so a model description that differs makes a host read and write the
   wrong variables (``x_hat`` and ``P`` with swapped value references give swapped columns) or
   take for the FMU's a start value it does not run with.
@@ -289,15 +290,16 @@ def range_problems(desc):
                 None if low is None else "%s >= %s" % (v.name, v.min),
                 None if high is None else "%s <= %s" % (v.name, v.max)) if b)
             problems.append(("the start value of %s is %s, outside its declared range"
-                             % (v.name, v.start), bounds + _rule(v.name, desc.model, bounds)))
+                             % (v.name, v.start), bounds + _rule(v.name, ours(desc),
+                                                                  bounds)))
     return problems
 
 
 def _rule(name, model, bounds=""):
-    """``" (driftfmu's rule for <name>: ...)"`` for a parameter of driftfmu's ``model`` whose
-    rule says more than its declared ``bounds``, else ``""``."""
+    """``" (driftfmu's rule for <name>: ...)"`` for a parameter of driftfmu's ``model`` (None:
+    not one of driftfmu's) whose rule says more than its declared ``bounds``, else ``""``."""
     from driftfmu.models import parameters
-    if table(model) is None or name not in parameters.PARAMETERS or \
+    if model is None or table(model) is None or name not in parameters.PARAMETERS or \
             parameters.allowed(name) in (bounds, "an integer " + bounds):
         return ""
     return " (driftfmu's rule for %s: %s)" % (name, parameters.allowed(name))
@@ -321,6 +323,17 @@ def table(model):
     return _TABLES[model]
 
 
+def ours(desc):
+    """The name of driftfmu's model whose table applies to the model description ``desc``: its
+    modelName, else its modelIdentifier (driftfmu's FMUs name both after the model, so an FMU
+    whose modelName alone was edited is still checked against its table); None for an FMU of
+    no model of driftfmu's."""
+    for name in (desc.model, desc.identifier):
+        if table(name) is not None:
+            return name
+    return None
+
+
 def _declared(spec):
     return "%s %s" % (spec["type"], spec["causality"])
 
@@ -332,14 +345,19 @@ def _a(word):
 def table_problems(desc):
     """How the model description ``desc`` of an FMU of driftfmu's model differs from that
     model's table (:func:`table`): ``[(what, expected)]`` (empty for other models)."""
-    specs = table(desc.model)
-    if specs is None:
+    name = ours(desc)
+    if name is None:
         return []
-    model = "driftfmu's %s" % desc.model
+    specs = table(name)
+    model = "driftfmu's %s" % name
     problems = []
-    if desc.identifier != desc.model:
+    if desc.model != name:
+        problems.append(("the modelName is %s" % desc.model,
+                         "%s, the name of the model its modelIdentifier names (%s)"
+                         % (name, model)))
+    if desc.identifier != name:
         problems.append(("the modelIdentifier is %s" % desc.identifier,
-                         "%s, the name of %s and of its binary" % (desc.model, model)))
+                         "%s, the name of %s and of its binary" % (name, model)))
     types = TABLE_TYPES[desc.fmi]
     by_name = {}
     for v in desc.variables:
@@ -694,7 +712,7 @@ def inspect(path, expected=None, validate=True, binaries=True, machine="any", la
             return Inspection(None, None, problems + [str(exc)], checked)
         # driftfmu's own checks first: they name the variable (fmpy's parser says "KeyError:
         # 14" of a value reference that two variables share)
-        if expected is not None and desc.model != expected and table(desc.model) is None:
+        if expected is not None and desc.model != expected and ours(desc) is None:
             # (an FMU of another of driftfmu's models under this name: the master's check of
             # the variables names what it lacks)
             problems.append(say(path, "modelDescription.xml", "it is an FMU of the model %r"
@@ -724,10 +742,11 @@ def inspect(path, expected=None, validate=True, binaries=True, machine="any", la
         checked.append("modelDescription.xml: FMI %d.0 co-simulation, %d variables%s"
                        % (desc.fmi, len(desc.variables),
                           ", validated against the FMI schema" if validate and md else ""))
-        if table(desc.model) is not None:
+        if ours(desc) is not None:
             checked.append("modelDescription.xml against driftfmu's %s table: every "
                            "variable's name, value reference, type, causality, variability, "
-                           "start value, min and max, the modelIdentifier" % desc.model)
+                           "start value, min and max, the modelName and modelIdentifier"
+                           % ours(desc))
         checked.append("every start value within its declared min and max")
         if binaries:
             missing = binary_presence_problem(path, desc, names)
@@ -838,7 +857,7 @@ def parameter_problem(model, variable, kind, value):
     if variable.type in _INTEGERS + _REALS and number is None:
         return ("%s = %r is not %s" % (name, value, "an integer" if variable.type in _INTEGERS
                                       else "a number"), "a number of the FMU's type")
-    if table(model) is not None and name in parameters.PARAMETERS:
+    if model is not None and table(model) is not None and name in parameters.PARAMETERS:
         problem = parameters.problem(name, number)
         if problem:
             return ("%s = %s is out of range" % (name, value), parameters.allowed(name))
@@ -907,7 +926,7 @@ def inspect_ssp(path, folder, machine="any", label=None):
             if found.desc is None:
                 continue
             variables[name] = {v.name: v for v in found.desc.variables}
-            models[name] = found.desc.model
+            models[name] = ours(found.desc)
             for binding in _children(_child(comp, "ParameterBindings"), "ParameterBinding"):
                 try:
                     given = _parameters(path, zf, name, binding)
@@ -924,7 +943,7 @@ def inspect_ssp(path, folder, machine="any", label=None):
                                             "set" % (name, pname), "one of its parameters: %s"
                                             % ", ".join(settable)))
                         continue
-                    why = parameter_problem(found.desc.model, variable, kind, value)
+                    why = parameter_problem(ours(found.desc), variable, kind, value)
                     if why:
                         problems.append(say(path, part, "component %s: %s" % (name, why[0]),
                                             why[1]))
