@@ -146,6 +146,11 @@ def test_an_fmu_of_another_model_under_our_name_is_named(paper, tmp_path):
     with pytest.raises(FileProblem, match="it is an FMU of the model 'Renamed'; expected: "
                        "driftfmu's DriftEstimator \\(the file's name says so\\)"):
         fmucheck.check_fmu(path, expected=fmucheck.expected_model(path))
+    from driftfmu.simulations import doctor
+    findings = doctor.diagnose(path)
+    assert (doctor.FAIL, "it is an FMU of the model 'Renamed', not driftfmu's DriftEstimator "
+            "that its file's name says; driftfmu's masters refuse it under this name") \
+        in findings, findings
     other = path.rename(tmp_path / "Mine.fmu")
     assert fmucheck.check_fmu(other, expected=fmucheck.expected_model(other)) is not None
 
