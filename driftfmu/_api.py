@@ -426,7 +426,10 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         An FMU, variable, backend, step, time, input value or start value is not allowed
         (one line naming it and what is allowed; a start value is checked against its
         parameter's rule and declared type and range before any FMU runs), or recording the
-        outputs at every communication point would not fit the memory.
+        outputs at every communication point would not fit the memory.  An FMU file that is
+        not what driftfmu relies on (an edited model description, a cut binary, a zip bomb:
+        docs/hosts.md, "Files someone else made") or that cannot be instantiated here is one
+        line naming the file, the part and what is expected, before any FMU runs.
     TypeError
         A keyword the function does not take (the message names every one it takes).
     RuntimeError
