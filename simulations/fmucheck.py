@@ -1,5 +1,4 @@
-"""Internal (not a stable API; use driftfmu.simulate, ``driftfmu doctor`` and ``driftfmu inputs``
-instead).
+"""Internal (not a stable API; use driftfmu.simulate and the driftfmu command instead).
 
 What driftfmu relies on in an FMU someone else could have made, checked before it relies on it.
 
@@ -314,8 +313,8 @@ def table(model):
     if model not in _TABLES:
         found = None
         if re.fullmatch(r"[A-Z][A-Za-z0-9_]*", model or ""):
-            from driftfmu.fmu_src.builder import SRC_DIR
-            if (SRC_DIR / ("%s.py" % model)).is_file():
+            from driftfmu import fmu_src
+            if (Path(fmu_src.__file__).parent / ("%s.py" % model)).is_file():
                 import importlib
                 module = importlib.import_module("driftfmu.fmu_src.%s" % model)
                 found = getattr(getattr(module, model, None), "VARIABLES", None)
