@@ -23,6 +23,7 @@ RUNS = [
     ("bench_fmu_hosts.py", ["--repeats", "5"], ["--steps", "2000", "--repeats", "3"]),
     ("bench_native.py", ["--repeats", "5"],
      ["--steps", "50000", "--python-steps", "2000", "--repeats", "3"]),
+    ("bench_long_step.py", ["--repeats", "3"], ["--samples", "200000", "--repeats", "3"]),
     ("bench_batch.py", ["--repeats", "3"], ["--repeats", "2"]),
     ("bench_sweep.py", ["--repeats", "5"], ["--repeats", "3"]),
     ("bench_adxl203.py", [], []),

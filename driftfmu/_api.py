@@ -339,10 +339,10 @@ def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
 
 
 def _variables(path: Path) -> Dict[str, Any]:
-    from driftfmu.fmu_src.schemas import read_model_description
-    from driftfmu.simulations.cosim import check_fmu_file
-    check_fmu_file(path)  # before fmpy, whose message names neither the file nor a remedy
-    return {v.name: v for v in read_model_description(str(path)).modelVariables}
+    from driftfmu.simulations.cosim import checked_fmu
+    # what the masters rely on, before fmpy (whose messages name neither the file nor a
+    # remedy) and before any FMU runs (simulations/fmucheck.py)
+    return {v.name: v for v in checked_fmu(str(path)).modelVariables}
 
 
 def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
@@ -418,7 +418,9 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         A structured array with a first field ``time`` and one field per input variable it
         drives (``"x"`` or ``"Accelerometer.x"``), like FMPy's ``input``.  At each
         communication point ``t`` the input takes the value of the last row with
-        ``time <= t`` (zero-order hold; the first row before its time).  An input that an
+        ``time <= t`` (zero-order hold; the first row before its time), a time within the
+        FMUs' millionth of a step of ``t``, or within what a running sum of times can have
+        rounded (``0.001 + 0.001 + ...``), counting as ``t`` (docs/hosts.md).  An input that an
         FMU of ``fmus`` already drives through a connection cannot also be given here.
     output : sequence of str, optional
         Variables to record (``"z"`` or ``"Accelerometer.z"``); a plain name is recorded from
@@ -449,7 +451,10 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         An FMU, variable, backend, step, time, input value or start value is not allowed
         (one line naming it and what is allowed; a start value is checked against its
         parameter's rule and declared type and range before any FMU runs), or recording the
-        outputs at every communication point would not fit the memory.
+        outputs at every communication point would not fit the memory.  An FMU file that is
+        not what driftfmu relies on (an edited model description, a cut binary, a zip bomb:
+        docs/hosts.md, "Files someone else made") or that cannot be instantiated here is one
+        line naming the file, the part and what is expected, before any FMU runs.
     TypeError
         A keyword the function does not take (the message names every one it takes).
     RuntimeError
@@ -559,11 +564,14 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
             raise UsageError("input has fields %r; allowed: a structured array whose first "
                              "field is 'time'" % (fields,))
         times = np.asarray(input["time"], dtype=float)
-        if times.ndim != 1 or times.size == 0 or np.any(np.diff(times) < 0):
-            raise UsageError("input['time'] must be a non-empty, non-decreasing 1-D array")
-        grid = start_time + step_size * np.arange(n_steps)
-        rows = np.clip(np.searchsorted(times, grid + 1e-9 * step_size, side="right") - 1,
-                       0, times.size - 1)
+        if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)) or \
+                np.any(np.diff(times) < 0):
+            raise UsageError("input['time'] must be a non-empty, non-decreasing 1-D array of "
+                             "finite times")
+        # a row at or before a communication point within the tolerance of
+        # simulations/times.py (the FMUs' own, and what a running sum of times can round)
+        from driftfmu.simulations import times as timing
+        rows = timing.held_rows(times, start_time, step_size, n_steps)
         for key in fields[1:]:
             fmu, var = _split_name(key, names)
             targets = [fmu] if fmu else [n for n in names if var in variables[n]

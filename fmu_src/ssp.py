@@ -323,12 +323,39 @@ def parameter_set(ssp):
 
 def simulate(ssp, n, Ts=1e-3):
     """Simulate ``n`` rows of the archive with ``fmpy.ssp.simulation.simulate_ssp``, its start
-    values applied; returns fmpy's structured array (columns ``<Component>.<connector>``)."""
+    values applied; returns fmpy's structured array (columns ``<Component>.<connector>``).
+
+    The archive is checked first (:func:`driftfmu.simulations.fmucheck.check_ssp`: its FMUs as
+    the masters check an FMU, each parameter by component and name, each connection): a
+    problem is one FileProblem line naming the archive, the component and the parameter, not
+    fmpy's bare ``KeyError`` or "fmi2ExitInitializationMode failed with status 3"."""
     from fmpy.ssp.simulation import simulate_ssp
 
-    # simulate_ssp makes rows at t = 0, Ts, ... while t < stop_time (t summed step by step)
-    return simulate_ssp(str(ssp), start_time=0.0, stop_time=(n - 0.5) * Ts, step_size=Ts,
-                        parameter_set=parameter_set(ssp))
+    from driftfmu.simulations import fmucheck
+    fmucheck.check_ssp(ssp)
+
+    # simulate_ssp makes rows at t = 0, Ts, ... while t < stop_time (t summed step by step);
+    # its FMUs log through fmpy's printing logger: what they print is kept, and a failure
+    # says the last error they logged (a GUID that is not the binary's), not fmpy's bare
+    # "Failed to instantiate model"
+    import contextlib
+    import io
+    import sys
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(printed):
+            result = simulate_ssp(str(ssp), start_time=0.0, stop_time=(n - 0.5) * Ts,
+                                  step_size=Ts, parameter_set=parameter_set(ssp))
+    except Exception as exc:
+        sys.stdout.write(printed.getvalue())
+        errors = [line for line in printed.getvalue().splitlines()
+                  if line.startswith(("[ERROR]", "[FATAL]"))]
+        from driftfmu.simulations.cosim import CoSimulationError
+        raise CoSimulationError("%s: fmpy's simulate_ssp failed: %s%s" % (
+            ssp, (str(exc).strip().splitlines() or [type(exc).__name__])[0],
+            ": " + errors[-1].split("] ", 1)[-1] if errors else "")) from exc
+    sys.stdout.write(printed.getvalue())
+    return result
 
 
 def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,

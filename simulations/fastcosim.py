@@ -24,8 +24,9 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from driftfmu.fmu_src import schemas
-from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, check_fmu_file, \
-    check_variables, failed, free_all, new_extract_folder
+from driftfmu.simulations import fmucheck
+from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, check_variables, \
+    checked_fmu, failed, free_all, new_extract_folder, not_instantiated
 from driftfmu.simulations.errors import UsageError
 
 
@@ -47,13 +48,20 @@ class FastInstance:
         self.name = name
         self.path = str(path)
         self.unzipdir, self.md = unpacked(path)
+        self.messages = []
         self.fmi = int(self.md.fmiVersion[0])
         self._key = (self.unzipdir, self.md.coSimulation.modelIdentifier, name) if reuse \
             else None
         idle = _IDLE.pop(self._key, None) if reuse else None
         self.vrs = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
-        self.messages = []
+        try:
+            self._load(name, idle, logging_on)
+        except Exception as exc:  # (fmpy's "Failed to instantiate model", an OSError)
+            raise not_instantiated(self.path, exc, self.messages) from exc
+        self.component = self.fmu.component
+
+    def _load(self, name, idle, logging_on):
         identifier = self.md.coSimulation.modelIdentifier
         if self.fmi == 2:
             from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
@@ -81,7 +89,6 @@ class FastInstance:
                                                       c_size_t])
             self.set_real = _raw(lib.fmi3SetFloat64, [c_void_p, c_void_p, c_size_t, c_void_p,
                                                       c_size_t])
-        self.component = self.fmu.component
 
     def _log2(self, env, instance, status, category, message):
         self.messages.append("%s [%s] %s" % (
@@ -149,17 +156,24 @@ def unpacked(path):
     if key not in _UNPACKED:
         # registered where a worker told to stop finds it (batch._worker_stop), removed when
         # the process ends (cosim.new_extract_folder)
-        check_fmu_file(path)
+        checked_fmu(path, validate=False)  # what the masters rely on (simulations/fmucheck.py)
         folder = new_extract_folder(prefix="driftfmu_fast_")
         here = {"Linux": ("linux64", "x86_64-linux"), "Windows": ("win64", "x86_64-windows"),
                 "Darwin": ("darwin64", "x86_64-darwin", "aarch64-darwin")}.get(
                     platform.system(), ())
-        with zipfile.ZipFile(path) as archive:
-            names = [n for n in archive.namelist() if n == "modelDescription.xml"
-                     or n.startswith("resources/")
-                     or any(n.startswith("binaries/%s/" % p) for p in here)]
-            archive.extractall(folder, names)
-        _UNPACKED[key] = (folder, schemas.read_model_description(folder, validate=False))
+        try:
+            with zipfile.ZipFile(path) as archive:
+                names = [n for n in archive.namelist() if n == "modelDescription.xml"
+                         or n.startswith("resources/")
+                         or any(n.startswith("binaries/%s/" % p) for p in here)]
+                archive.extractall(folder, names)
+            md = schemas.read_model_description(folder, validate=False)
+            # before a library is loaded: a cut one would stop this process with SIGBUS
+            fmucheck.check_binaries(path, folder, md)
+        except BaseException:
+            _remove(folder)
+            raise
+        _UNPACKED[key] = (folder, md)
     return _UNPACKED[key]
 
 
