@@ -8,7 +8,7 @@ and the batch engine runs the very same code on arrays of Monte-Carlo runs.  Eve
 is correctly rounded in IEEE 754 double precision (``sqrt`` included), so both paths give
 bit-identical results for the same inputs.  NumPy is imported lazily, only when an array arrives.
 
-``log``, ``exp`` and ``sin2pi`` are computed here by arithmetic only (libm's may differ in the
+``log``, ``exp``, ``sin2pi`` and ``sin`` are computed here by arithmetic only (libm's may differ in the
 last bit between platforms, and between ``math`` and ``numpy``); fmu_src/native/models/ops.c is
 their C port, operation for operation, and the native FMUs give the same bits.
 """
@@ -152,3 +152,14 @@ def sin2pi(cycles):
     for n in range(23, 0, -2):
         poly = poly * t2 + (1.0 if (n // 2) % 2 == 0 else -1.0) / math.factorial(n)
     return sign * t * poly
+
+
+#: ``2 pi`` (exact doubling of ``math.pi``): :func:`sin` divides by it.
+TWO_PI = 2.0 * math.pi
+
+
+def sin(x):
+    """``sin(x)`` of a float or an array (``x`` in radians), by arithmetic only: :func:`sin2pi`
+    of ``x / (2 pi)`` (the division correctly rounded, so the same bits on both paths and in
+    C).  Accuracy: a few ulp of ``x`` (the reduction to cycles rounds once)."""
+    return sin2pi(x / TWO_PI)
