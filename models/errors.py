@@ -235,9 +235,12 @@ def config(seed=1, Ts=1e-3, bias_on=0.0, random_walk=0.0, bias_gm=0.0, tau_gm=1.
 
 def problems(p):
     """Problems of the errors' parameters in mapping ``p`` beyond their plain ranges (one
-    readable line each): the flicker band ``tau_min < tau_max``, at most
-    :data:`FLICKER_DECADES_MAX` decades wide."""
+    readable line each): with a flicker bias (``flicker != 0``), its band ``tau_min <
+    tau_max``, at most :data:`FLICKER_DECADES_MAX` decades wide (without one, the band is not
+    used)."""
     lo, hi = p.get("tau_min", OFF["tau_min"]), p.get("tau_max", OFF["tau_max"])
+    if p.get("flicker", 0.0) == 0.0:
+        return []
     if not (lo > 0.0 and hi > 0.0) or lo - lo != 0.0 or hi - hi != 0.0:
         return []  # (their own range check says what is wrong)
     if not lo < hi:
