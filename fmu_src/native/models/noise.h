@@ -16,6 +16,11 @@
 #define NOISE_STREAM_PHASE 4
 #define NOISE_STREAM_MEASUREMENT_Y 5
 #define NOISE_STREAM_INPUT 6
+/* the sensor's slow errors (models/errors.py); index 0 is the draw before sample 1 */
+#define NOISE_STREAM_TURN_ON 7
+#define NOISE_STREAM_RANDOM_WALK 8
+#define NOISE_STREAM_BIAS_GM 9
+#define NOISE_STREAM_FLICKER 16 /* component i: NOISE_STREAM_FLICKER + i */
 
 #define NOISE_P_LOW 0.02425
 
