@@ -1389,7 +1389,8 @@ def test_windows_build_under_wine_prints_the_linux_bits(tmp_path):
     for name, lin, win in zip(SLAVES, linux, windows):
         lines = lin.splitlines()
         assert len(lines) > 3000 and lines[-1].startswith(("Ts = ", "kind = ", "noise = ",
-                                                           "estimator = ", "f = ", "fc = ")), \
+                                                           "estimator = ", "f = ", "fc = ",
+                                                           "tau_min = ")), \
             lines[-3:]
         for i, (a, b) in enumerate(zip(lines, win.splitlines())):
             assert a == b, "%s, line %d: Linux %r, Windows %r" % (name, i + 1, a, b)
