@@ -14,7 +14,7 @@ state is the hidden ``_err``."""
 
 import math
 
-from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var, _is_number
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, Blocks, SlaveBase, var, _is_number
 from driftfmu.models import adxl203, dualaxis, errors
 from driftfmu.models.noise import normal
 
@@ -136,21 +136,41 @@ class Accelerometer(SlaveBase):
         self._v = (None, self.blocks("v1", seed, lambda k: adxl203.noise(seed, k, 1)),
                    self.blocks("v2", seed, lambda k: adxl203.noise(seed, k, 2)))
         ecfg = self._ecfg = errors.config(**values)
-        # the slow errors' draws (errors.draws), each stream in blocks; an error state to check
-        self._n_rw = self._stream("rw", 0, seed) if ecfg.rw != 0.0 else None
-        self._n_gm = self._stream("gm", 0, seed) if ecfg.gm_sigma != 0.0 else None
-        self._n_fl = tuple(self._stream("fl", i, seed) for i in range(ecfg.fl_n))
+        # the slow errors' draws (errors.draws), each stream in blocks (their warm-up shared:
+        # the streams' samples one by one cost, together, what the measurement noise's do); an
+        # error state to check
+        streams = (ecfg.rw != 0.0) + (ecfg.gm_sigma != 0.0) + ecfg.fl_n
+        warm_up = Blocks.WARM_UP // (1 + streams)
+        self._n_rw = self._stream("rw", 0, seed, warm_up) if ecfg.rw != 0.0 else None
+        self._n_gm = self._stream("gm", 0, seed, warm_up) if ecfg.gm_sigma != 0.0 else None
+        self._n_fl = tuple(self._stream("fl", i, seed, warm_up) for i in range(ecfg.fl_n))
+        self._rows_k0, self._rows = 0, ()  # the draws of a block of samples, as _draws gives them
         self.hidden_valid = self._errors_valid if ecfg.on else None
 
-    def _stream(self, name, i, seed):
+    def _stream(self, name, i, seed, warm_up):
         stream = errors.stream_of(name, i)
-        return self.blocks("%s%d" % (name, i), seed, lambda k: normal(seed, stream, k))
+        return self.blocks("%s%d" % (name, i), seed, lambda k: normal(seed, stream, k), warm_up)
 
     def _draws(self, k):
-        """errors.draws(seed, k, ecfg), from the blocks."""
-        n_rw, n_gm = self._n_rw, self._n_gm
-        return (0.0 if n_rw is None else n_rw(k), 0.0 if n_gm is None else n_gm(k),
-                tuple(f(k) for f in self._n_fl))
+        """errors.draws(seed, k, ecfg), from the blocks: the tuples of a run of samples from
+        them at once where they hold arrays of draws (Blocks.run), one by one otherwise."""
+        i = k - self._rows_k0
+        rows = self._rows
+        if 0 <= i < len(rows):
+            return rows[i]
+        streams = [b for b in (self._n_rw, self._n_gm) + self._n_fl if b is not None]
+        runs = [b.run(k) for b in streams]
+        if not runs or None in runs:
+            n_rw, n_gm = self._n_rw, self._n_gm
+            return (0.0 if n_rw is None else n_rw(k), 0.0 if n_gm is None else n_gm(k),
+                    tuple([f(k) for f in self._n_fl]))
+        n = min(map(len, runs))
+        runs = [r[:n] for r in runs]
+        zeros = [0.0] * n
+        rw = runs.pop(0) if self._n_rw is not None else zeros
+        gm = runs.pop(0) if self._n_gm is not None else zeros
+        self._rows_k0, self._rows = k, list(zip(rw, gm, zip(*runs) if runs else [()] * n))
+        return self._rows[0]
 
     def initial_hidden(self):
         ecfg = self._ecfg
@@ -200,19 +220,15 @@ class Accelerometer(SlaveBase):
 
     #: the filter state e of an axis reaches its output z = Q(a0 + e): a non-finite e makes z
     #: non-finite, or the ADC raises, both refused by the base class.  With a slow error on,
-    #: prepare sets the instance's check of the error state (_errors_valid): an exposure E can
-    #: overflow while the drift it gives stays finite.
+    #: prepare sets the instance's check of the error state (_errors_valid): the walk, the
+    #: Gauss-Markov and flicker biases reach z as they are (a non-finite one makes z
+    #: non-finite), but an exposure E can overflow while the drift it gives stays finite.
     hidden_valid = None
 
     @staticmethod
     def _errors_valid(hidden):
         err = hidden["_err"]
-        if err is None:
-            return True
-        total = err.rw + err.gm + err.E  # (not finite if one is not, or if they overflow:
-        for v in err.fl:                 # then the base class looks at each)
-            total = total + v
-        return total - total == 0.0
+        return err is None or err.E - err.E == 0.0
 
     def hold(self, hidden, k0, n, first):
         if n > 1:  # the samples before the last change only the filter and error states:

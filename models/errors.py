@@ -62,7 +62,7 @@ from . import _ops
 from .noise import STREAM_BIAS_GM, STREAM_FLICKER, STREAM_RANDOM_WALK, STREAM_TURN_ON, normal
 
 #: Most components of the flicker bias (one per decade of its band, at least two).
-FLICKER_MAX = 16
+FLICKER_MAX = 8
 #: Widest band of the flicker bias, in decades of tau_max / tau_min (FLICKER_MAX - 1).
 FLICKER_DECADES_MAX = FLICKER_MAX - 1
 #: ``ln 10``.
@@ -89,6 +89,9 @@ ErrorConfig = namedtuple("ErrorConfig", "on bias_on b_on rw gm_sigma gm_a gm_c f
 #: The state of the processes after a sample: the random walk, the Gauss-Markov bias, the
 #: exposure ``E`` [g^2 s] and the flicker bias's components (a tuple of ``fl_n``).
 ErrorState = namedtuple("ErrorState", "rw gm E fl")
+#: ``ErrorState(rw, gm, E, fl)`` from a tuple, without the keyword handling (every sample of
+#: one FMU instance makes one).
+_new_state = tuple.__new__
 
 
 # -- one pure function per process ------------------------------------------------------------
@@ -146,7 +149,7 @@ def allan_variance_gm(variance, tau, T):
 
     (``2 variance (tau T - tau^2 (1 - e^-r)) / T^2 - variance tau^2 (1 - e^-r)^2 / T^2``).
     Below ``r = 1/2`` the numerator, whose terms cancel to ``2 r^3 / 3``, is summed as its
-    series (:data:`GM_SERIES`), so that it keeps its precision over a band of 15 decades."""
+    series (:data:`GM_SERIES`), so that it keeps its precision over a wide band."""
     r = T / tau
     if r < 0.5:
         poly = GM_SERIES[-1]
@@ -172,11 +175,13 @@ def flicker_sigma(flicker, taus):
 def flicker(components, a, c, n):
     """One step of the flicker bias: every component ``a_i b_i + c_i n_i``; ``(components,
     sample)``, the sample their sum in order."""
-    out = tuple(gauss_markov(b, ai, ci, ni) for b, ai, ci, ni in zip(components, a, c, n))
+    out = []
     total = 0.0
-    for b in out:
+    for b, ai, ci, ni in zip(components, a, c, n):
+        b = ai * b + ci * ni  # (gauss_markov, written out)
+        out.append(b)
         total = total + b
-    return out, total
+    return tuple(out), total
 
 
 def exposure(E, x, Ts, d_inf, E_tau):
@@ -188,7 +193,17 @@ def exposure(E, x, Ts, d_inf, E_tau):
 
 def tilt(x, theta):
     """The acceleration a tilted sensor senses [g]: ``x + sin(theta)``."""
+    if type(theta) is float:  # one FMU instance: the tilt is held, its sine computed once
+        last = _TILT[0]
+        if theta != last[0] or theta == 0.0:  # (-0.0 equals 0.0 but has its own sine)
+            last = _TILT[0] = (theta, _ops.sin(theta))
+        return x + last[1]
     return x + _ops.sin(theta)
+
+
+#: ``(theta, sin(theta))`` of the last tilt (:func:`tilt`; shared by the instances of a process:
+#: a tuple replaced whole, never changed).
+_TILT = [(0.0, 0.0)]
 
 
 def temperature(T, T0, kT_bias, kT_scale):
@@ -200,6 +215,9 @@ def temperature(T, T0, kT_bias, kT_scale):
 
 def saturate(u, limit):
     """``u`` clipped to ``[-limit, limit]`` (the measurement range)."""
+    if type(u) is float:  # (the same choices, written out for one FMU instance)
+        u = limit if u > limit else u
+        return -limit if u < -limit else u
     u = _ops.where(u > limit, limit, u)
     return _ops.where(u < -limit, -limit, u)
 
@@ -299,7 +317,7 @@ def advance(state, x, n_rw, n_gm, n_fl, ecfg):
     if ecfg.d_inf != 0.0:
         E, d = exposure(E, x, ecfg.Ts, ecfg.d_inf, ecfg.E_tau)
         b = b + d
-    return ErrorState(rw, gm, E, fl), b
+    return _new_state(ErrorState, (rw, gm, E, fl)), b
 
 
 def thermal_bias(T, ecfg):
@@ -314,7 +332,7 @@ def sensed(x, theta, T, ecfg):
     ``theta`` is not 0), scaled by the temperature's ``1 + kT_scale (T - T0)`` and clipped to the
     range (each only when on)."""
     u = x
-    if _nonzero(theta):
+    if (theta != 0.0) if type(theta) is float else _nonzero(theta):
         u = tilt(u, theta)
     if ecfg.kT_scale != 0.0:
         u = temperature(T, ecfg.T0, ecfg.kT_bias, ecfg.kT_scale)[0] * u

@@ -107,7 +107,7 @@ PARAMETERS = {p.name: p for p in (
     _p("tau_min", 0.1, 0.0, unit="s", low_open=True, description="shortest correlation time of "
        "the flicker bias's Gauss-Markov components (tau_min < tau_max)"),
     _p("tau_max", 100.0, 0.0, unit="s", low_open=True, description="longest correlation time of "
-       "the flicker bias's Gauss-Markov components (one per decade from tau_min, at most 15 "
+       "the flicker bias's Gauss-Markov components (one per decade from tau_min, at most 7 "
        "decades)"),
     _p("d_inf", 0.0, unit="V", description="exposure drift that never recovers: d_k = d_inf "
        "(1 - exp(-E_k / E_tau)), E_k = E_{k-1} + x_k^2 Ts (class 3; 0: off)"),

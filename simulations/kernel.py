@@ -44,7 +44,7 @@ PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "f
 #: x, zbar, x2bar, the filter's x and P, the drift estimators' state (whose 3rd/4th-order
 #: sums come last), the general sensor's realised drift, and the slow errors' state
 #: (rw, gm, E and the flicker components, models.errors.FLICKER_MAX of them).
-STATE_FIELDS = 5 + 9 + 1 + 3 + 16
+STATE_FIELDS = 5 + 9 + 1 + 3 + 8
 #: models.adxl203.simulate's start values and columns, in the kernel's order.
 EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
 SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",

@@ -211,7 +211,7 @@ def test_gauss_markov_coefficients_are_the_exact_discretisation(sigma, tau, Ts):
 
 
 @pytest.mark.parametrize("tau_min, tau_max", [(0.1, 100.0), (1.0, 1000.0), (0.01, 10.0),
-                                              (0.5, 2.0), (1e-3, 1e12), (0.2, 0.2000001)])
+                                              (0.5, 2.0), (1e-3, 1e4), (0.2, 0.2000001)])
 def test_flicker_components_equal_imu_error_models_for_the_same_parameters(tau_min, tau_max):
     taus, stds, _ = flicker_reference(0.02, tau_min, tau_max, 0.01)
     ours = errors.flicker_taus(tau_min, tau_max)
@@ -224,13 +224,9 @@ def test_flicker_components_equal_imu_error_models_for_the_same_parameters(tau_m
     assert ecfg.fl_sigma == pytest.approx(decimal_flicker_sigma(0.02, ours), rel=1e-14)
     # imu-error-model evaluates each component's curve as written: 1 - exp(-r) rounds by eps
     # and its term (1 - e^-r) / r^2 of about 1 / r, so a component of r = T / tau < 1 carries
-    # an error of eps / r^2 (0.2 at r = 3e-8, a band of 15 decades); where that is small, the
-    # two agree within it
+    # an error of eps / r^2 (2e-9 at r = 3e-4, a band of 7 decades): the two agree within it
     rounding = sum(EPS / min(1.0, math.sqrt(tau_min * tau_max) / t) ** 2 for t in taus)
-    if rounding < 1e-9:
-        assert ecfg.fl_sigma == pytest.approx(stds[0], rel=1e-12 + 10 * rounding)
-    else:
-        assert tau_max / tau_min > 1e9  # (only the widest band here)
+    assert ecfg.fl_sigma == pytest.approx(stds[0], rel=1e-12 + 10 * rounding)
     for a, c, tau in zip(ecfg.fl_a, ecfg.fl_c, taus):
         assert a == pytest.approx(math.exp(-0.01 / tau), rel=4 * EPS)
         assert a * a * ecfg.fl_sigma ** 2 + c * c == pytest.approx(ecfg.fl_sigma ** 2, rel=1e-9)
@@ -240,7 +236,7 @@ def test_the_flicker_band_is_flat_in_allan_deviation_at_the_flicker_level():
     """The closed form of the sum (each component's continuous-time curve, written here): equal
     to ``flicker`` at the band's centre, within 3 % of it from 10 tau_min to tau_max / 10, and
     falling off outside, like white noise below and a bounded bias above."""
-    for tau_min, tau_max in ((0.1, 100.0), (1.0, 1e5), (0.01, 1e6)):
+    for tau_min, tau_max in ((0.1, 100.0), (1.0, 1e5), (0.01, 1e5)):
         taus = np.geomspace(tau_min, tau_max, 1 + math.ceil(math.log10(tau_max / tau_min)))
         sigma = errors.config(flicker=1.0, tau_min=tau_min, tau_max=tau_max).fl_sigma
         curve = lambda T: decimal_allan_deviation(sigma, taus, T)
@@ -356,7 +352,7 @@ def test_a_time_or_exposure_scale_must_be_positive(name):
         name, name)
 
 
-def test_the_flicker_band_must_be_a_band_of_at_most_fifteen_decades():
+def test_the_flicker_band_must_be_a_band_of_at_most_seven_decades():
     band = lambda lo, hi, flicker=0.01: errors.problems(dict(tau_min=lo, tau_max=hi,
                                                              flicker=flicker))
     assert band(1.0, 1.0000000000000002) == []
@@ -364,10 +360,10 @@ def test_the_flicker_band_must_be_a_band_of_at_most_fifteen_decades():
         "tau_min = 1.0 s and tau_max = 1.0 s are not a band; allowed: tau_min < tau_max (the "
         "correlation times of the flicker bias)"]
     assert band(2.0, 1.0)[0].startswith("tau_min = 2.0 s and tau_max = 1.0 s are not a band")
-    assert band(1e-3, 1e12) == []
-    assert band(1e-3, 1.0000001e12) == [
-        "tau_min = 0.001 s and tau_max = 1000000100000.0 s span more than 15 decades; allowed: "
-        "tau_max <= 1e15 tau_min (one flicker component per decade, at most 16)"]
+    assert band(1e-3, 1e4) == []
+    assert band(1e-3, 10000.001) == [
+        "tau_min = 0.001 s and tau_max = 10000.001 s span more than 7 decades; allowed: "
+        "tau_max <= 1e7 tau_min (one flicker component per decade, at most 8)"]
     assert band(-1.0, 0.5) == []  # (its range check's)
     # without a flicker bias the band is not used: nothing to refuse
     assert band(2.0, 1.0, flicker=0.0) == [] and band(5e-324, 1e300, flicker=0.0) == []

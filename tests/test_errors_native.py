@@ -136,7 +136,7 @@ def test_a_native_state_whose_error_part_cannot_be_this_sensors_is_refused(dirs,
             assert words in text(drv) and "refused" in text(drv), (path, text(drv))
         for i, value, words in ((4, 0.1, "err.fl[4] = 0.1 is a flicker component the "
                                           "parameters do not have (4 of them)"),
-                                (15, -0.2, "err.fl[15]"), (2, math.nan, "err.fl[2]")):
+                                (7, -0.2, "err.fl[7]"), (2, math.nan, "err.fl[2]")):
             crafted = ns.read(S, data)
             crafted.h.err.fl[i] = value
             raw = bytearray(bytes(crafted))

@@ -7,6 +7,7 @@
 #include "adxl203.h"
 #include "dualaxis.h"
 #include "model.h"
+#include "noise.h"
 #include "slave.h"
 
 static const SlaveRange EXTRA[] = {{"noise", 0, 1}};
@@ -154,6 +155,14 @@ void model_start(ModelInstance *comp)
     comp->h.lp_pending_set = comp->h.lpy_pending_set = 0;
     comp->h.lp_pending = comp->h.lpy_pending = 0.0;
     comp->h.ecfg = ecfg_of(&comp->v);
+    comp->h.keys.rw = noise_key((uint64_t)comp->v.seed, NOISE_STREAM_RANDOM_WALK);
+    comp->h.keys.gm = noise_key((uint64_t)comp->v.seed, NOISE_STREAM_BIAS_GM);
+    {
+        int i;
+        for (i = 0; i < ERRORS_FLICKER_MAX; i++)
+            comp->h.keys.fl[i] = noise_key((uint64_t)comp->v.seed,
+                                           (uint64_t)(NOISE_STREAM_FLICKER + i));
+    }
     memset(&comp->h.err, 0, sizeof comp->h.err);
     if (comp->h.ecfg.on) comp->h.err = errors_initial_state(comp->v.seed, &comp->h.ecfg);
     comp->h.err_pending = comp->h.err;
@@ -164,13 +173,18 @@ static void axis_errors_sample(const ModelInstance *comp, int64_t *set, double *
                                ErrorState *err, int64_t k, double *z)
 {
     const ErrorConfig *ecfg = &comp->h.ecfg;
+    const ErrorKeys *keys = &comp->h.keys;
     double v = comp->v.noise ? adxl203_noise(comp->v.seed, k, 1) : 0.0, n_rw, n_gm,
            n_fl[ERRORS_FLICKER_MAX];
-    ErrorState state = *err;
-    errors_draws(comp->v.seed, k, ecfg, &n_rw, &n_gm, n_fl);
-    adxl203_measure_errors(*set, *lp, &state, comp->v.x, comp->v.y, v, n_rw, n_gm, n_fl,
+    int64_t i;
+    /* errors_draws(seed, k, ...), from the streams' keys */
+    n_rw = ecfg->rw != 0.0 ? noise_normal_keyed(keys->rw, (uint64_t)k) : 0.0;
+    n_gm = ecfg->gm_sigma != 0.0 ? noise_normal_keyed(keys->gm, (uint64_t)k) : 0.0;
+    for (i = 0; i < ecfg->fl_n; i++)
+        n_fl[i] = noise_normal_keyed(keys->fl[i], (uint64_t)k);
+    /* (every process off: the state stays 0.0, Python's None) */
+    adxl203_measure_errors(*set, *lp, err, comp->v.x, comp->v.y, v, n_rw, n_gm, n_fl,
                            comp->v.theta, comp->v.T, &comp->h.cfg, ecfg, set, lp, z);
-    if (ecfg->on) *err = state; /* (off: Python's None, kept at 0.0) */
 }
 
 /* A number of the error state that is not finite (Accelerometer._errors_valid): its name. */
@@ -251,7 +265,7 @@ const char *model_compute(ModelInstance *comp)
     h->lp_pending = h->lp;
     h->lpy_pending_set = h->lpy_set;
     h->lpy_pending = h->lpy;
-    h->err_pending = h->err;
+    if (h->ecfg.on) h->err_pending = h->err;
     return hold(comp, &h->lp_pending_set, &h->lp_pending, &h->lpy_pending_set, &h->lpy_pending,
                 &h->err_pending, comp->k, 1);
 }
@@ -261,7 +275,8 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     ModelHidden *h = &comp->h;
     int64_t lp_set = h->lp_set, lpy_set = h->lpy_set;
     double lp = h->lp, lpy = h->lpy;
-    ErrorState err = h->err;
+    /* (the error state is advanced in place: the plumbing puts back what a refused step
+     * changed, model.h) */
     if (plan->n > 0) {
         int64_t start = plan->k_first;
         if (plan->first_pending) { /* sample k: committed with the inputs set at t */
@@ -269,11 +284,11 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
             lp = h->lp_pending;
             lpy_set = h->lpy_pending_set;
             lpy = h->lpy_pending;
-            err = h->err_pending;
+            if (h->ecfg.on) h->err = h->err_pending;
             start = plan->k_first + 1;
         }
         if (plan->k_first + plan->n > start) { /* the other instants: inputs held from t */
-            const char *bad = hold(comp, &lp_set, &lp, &lpy_set, &lpy, &err, start,
+            const char *bad = hold(comp, &lp_set, &lp, &lpy_set, &lpy, &h->err, start,
                                    plan->k_first + plan->n - start);
             if (bad) return bad;
         }
@@ -282,7 +297,6 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     h->lp = lp;
     h->lpy_set = lpy_set;
     h->lpy = lpy;
-    h->err = err;
     return NULL; /* a pending sample at t + h: model_compute, from the inputs set there */
 }
 
@@ -365,6 +379,7 @@ int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
            slave_hidden_real(comp, "lp_pending", h->lp_pending, 0) +
            slave_hidden_real(comp, "lpy_pending", h->lpy_pending, 0) +
            slave_hidden_derived(comp, "ecfg", &h->ecfg, &fresh->ecfg, sizeof h->ecfg) +
+           slave_hidden_derived(comp, "keys", &h->keys, &fresh->keys, sizeof h->keys) +
            error_state_problems(comp, "err", &h->err, &fresh->ecfg) +
            error_state_problems(comp, "err_pending", &h->err_pending, &fresh->ecfg);
 }

@@ -120,7 +120,7 @@ void adxl203_measure_errors(int64_t prev_set, double prev, ErrorState *state, do
                             const ErrorConfig *ecfg, int64_t *e_set, double *e, double *z)
 {
     double b, u, V;
-    *state = errors_advance(*state, own, n_rw, n_gm, n_fl, ecfg, &b);
+    errors_advance(state, own, n_rw, n_gm, n_fl, ecfg, state, &b);
     u = errors_sensed(own, theta, T, ecfg);
     if (cfg->plain) {
         *e_set = 0;

@@ -76,7 +76,7 @@ double errors_flicker(const double *components, const double *a, const double *c
 {
     double total = 0.0;
     int64_t i;
-    for (i = 0; i < m; i++)
+    for (i = 0; i < m; i++) /* (component i reads only components[i]: out may be components) */
         out[i] = errors_gauss_markov(components[i], a[i], c[i], n[i]);
     for (i = 0; i < m; i++)
         total = total + out[i];
@@ -157,7 +157,7 @@ int errors_problems(double flicker, double tau_min, double tau_max, driftfmu_rep
         if (report) report(ctx, msg);
         return 1;
     }
-    if (tau_max / tau_min > 1e15) { /* 10.0 ** FLICKER_DECADES_MAX */
+    if (tau_max / tau_min > 1e7) { /* 10.0 ** FLICKER_DECADES_MAX */
         snprintf(msg, sizeof msg, "tau_min = %s s and tau_max = %s s span more than %d "
                  "decades; allowed: tau_max <= 1e%d tau_min (one flicker component per decade, "
                  "at most %d)", r1, r2, ERRORS_FLICKER_DECADES_MAX, ERRORS_FLICKER_DECADES_MAX,
@@ -197,32 +197,26 @@ void errors_draws(int64_t seed, int64_t k, const ErrorConfig *ecfg, double *n_rw
                                (uint64_t)k);
 }
 
-ErrorState errors_advance(ErrorState state, double x, double n_rw, double n_gm,
-                          const double *n_fl, const ErrorConfig *ecfg, double *b)
+void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
+                    const double *n_fl, const ErrorConfig *ecfg, ErrorState *out, double *b)
 {
     double sum = 0.0;
+    if (out != state) *out = *state;
     if (ecfg->bias_on != 0.0)
         sum = sum + ecfg->b_on;
     if (ecfg->rw != 0.0) {
-        state.rw = errors_random_walk(state.rw, ecfg->rw, n_rw);
-        sum = sum + state.rw;
+        out->rw = errors_random_walk(out->rw, ecfg->rw, n_rw);
+        sum = sum + out->rw;
     }
     if (ecfg->gm_sigma != 0.0) {
-        state.gm = errors_gauss_markov(state.gm, ecfg->gm_a, ecfg->gm_c, n_gm);
-        sum = sum + state.gm;
+        out->gm = errors_gauss_markov(out->gm, ecfg->gm_a, ecfg->gm_c, n_gm);
+        sum = sum + out->gm;
     }
-    if (ecfg->fl_n) {
-        double out[ERRORS_FLICKER_MAX];
-        int64_t i;
-        const double total = errors_flicker(state.fl, ecfg->fl_a, ecfg->fl_c, n_fl, ecfg->fl_n,
-                                            out);
-        for (i = 0; i < ecfg->fl_n; i++) state.fl[i] = out[i];
-        sum = sum + total;
-    }
+    if (ecfg->fl_n)
+        sum = sum + errors_flicker(out->fl, ecfg->fl_a, ecfg->fl_c, n_fl, ecfg->fl_n, out->fl);
     if (ecfg->d_inf != 0.0)
-        sum = sum + errors_exposure(state.E, x, ecfg->Ts, ecfg->d_inf, ecfg->E_tau, &state.E);
+        sum = sum + errors_exposure(out->E, x, ecfg->Ts, ecfg->d_inf, ecfg->E_tau, &out->E);
     *b = sum;
-    return state;
 }
 
 double errors_thermal_bias(double T, const ErrorConfig *ecfg)
@@ -255,7 +249,7 @@ ErrorState errors_hold(ErrorState state, double x, int64_t seed, int64_t k0, int
     for (j = 1; j < m; j++) {
         double n_rw, n_gm, n_fl[ERRORS_FLICKER_MAX], b;
         errors_draws(seed, k0 + j, ecfg, &n_rw, &n_gm, n_fl);
-        state = errors_advance(state, x, n_rw, n_gm, n_fl, ecfg, &b);
+        errors_advance(&state, x, n_rw, n_gm, n_fl, ecfg, &state, &b);
     }
     return state;
 }

@@ -11,8 +11,8 @@
 #include "parameters.h"
 
 /* models.errors.FLICKER_MAX, FLICKER_DECADES_MAX, LN10 */
-#define ERRORS_FLICKER_MAX 16
-#define ERRORS_FLICKER_DECADES_MAX 15
+#define ERRORS_FLICKER_MAX 8
+#define ERRORS_FLICKER_DECADES_MAX 7
 #define ERRORS_LN10 2.302585092994046
 
 /* models.errors.ErrorConfig, same fields in the same order (on a flag). */
@@ -41,7 +41,8 @@ double errors_gauss_markov(double b, double a, double c, double n);
 int64_t errors_flicker_taus(double tau_min, double tau_max, double *taus);
 double errors_allan_variance_gm(double variance, double tau, double T);
 double errors_flicker_sigma(double flicker, const double *taus, int64_t m);
-/* One step of the flicker bias: the m components of `components` into `out`; their sum. */
+/* One step of the flicker bias: the m components of `components` into `out` (which may be
+ * `components`); their sum. */
 double errors_flicker(const double *components, const double *a, const double *c,
                       const double *n, int64_t m, double *out);
 /* One step of the exposure drift: the new E into *E_out; the drift d. */
@@ -66,9 +67,10 @@ void errors_draws(int64_t seed, int64_t k, const ErrorConfig *ecfg, double *n_rw
                   double *n_gm, double *n_fl);
 
 /* -- the composition ---------------------------------------------------------------------- */
-/* The processes one sample on: the new state; *b the sum of their samples. */
-ErrorState errors_advance(ErrorState state, double x, double n_rw, double n_gm,
-                          const double *n_fl, const ErrorConfig *ecfg, double *b);
+/* The processes one sample on: the new state into *out (which may be `state`); *b the sum of
+ * their samples. */
+void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
+                    const double *n_fl, const ErrorConfig *ecfg, ErrorState *out, double *b);
 double errors_thermal_bias(double T, const ErrorConfig *ecfg);
 double errors_sensed(double x, double theta, double T, const ErrorConfig *ecfg);
 /* The state after samples k0 + 1 .. k0 + m - 1 with x held. */

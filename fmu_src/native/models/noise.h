@@ -39,5 +39,8 @@ double noise_central(double p);
 double noise_inverse_normal_cdf(double p);
 /* Standard normal draw for sample k of stream under seed. */
 double noise_normal(uint64_t seed, uint64_t stream, uint64_t k);
+/* The same draw from the stream's key (noise_key(seed, stream)), for a caller that keeps the
+ * key instead of deriving it at every sample (C only: Python's key is cached, _key_int). */
+double noise_normal_keyed(uint64_t key, uint64_t k);
 
 #endif
