@@ -165,12 +165,6 @@ def quantise(V, cfg):
     full scale."""
     if not cfg.levels:
         return V
-    if type(V) is float and V - V == 0.0:  # one FMU instance, a finite V: the same steps
-        lo, lsb = cfg.lo, cfg.lsb
-        code = float(math.floor(V / lsb + 0.5 if lo == 0.0 else (V - lo) / lsb + 0.5))
-        top = cfg.levels - 1.0
-        code = 0.0 if code < 0.0 else (top if code > top else code)
-        return code * lsb if lo == 0.0 else lo + code * lsb
     if cfg.lo == 0.0:
         code = _ops.floor(V / cfg.lsb + 0.5)
     else:

@@ -504,6 +504,22 @@ def test_random_walk_variance_and_autocorrelation_equal_imu_error_models():
         assert_correlation(rw[j], rw[k], math.sqrt(j / k))
 
 
+def test_the_processes_draw_independent_noise():
+    """The walk's, the Gauss-Markov bias's and the flicker components' innovations of one
+    sample are uncorrelated over the seeds (their own streams; a shared stream would make them
+    equal): every pair within five standard errors, 1 / sqrt(n), of 0."""
+    Ts = 0.01
+    se, states = ensemble(1, Ts, random_walk=0.1, bias_gm=0.1, tau_gm=0.05, flicker=0.01,
+                          tau_min=0.02, tau_max=20.0)
+    e, s0, s1 = se.ecfg, states[0], states[1]
+    innovations = [(s1.rw - s0.rw) / e.rw, (s1.gm - e.gm_a * s0.gm) / e.gm_c] + \
+        [(b1 - a * b0) / c for b0, b1, a, c in zip(s0.fl, s1.fl, e.fl_a, e.fl_c)]
+    for i in range(len(innovations)):
+        assert_variance(innovations[i], 1.0)
+        for j in range(i):
+            assert_correlation(innovations[i], innovations[j], 0.0)
+
+
 def test_flicker_components_variance_and_autocorrelation_equal_imu_error_models():
     Ts, level, tau_min, tau_max = 0.02, 0.01, 0.03, 3.0
     m = 1 + math.ceil(math.log10(tau_max / tau_min) - 1e-9)
