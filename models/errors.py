@@ -351,11 +351,6 @@ def hold(state, x, seed, k0, m, ecfg):
     return state
 
 
-def plain(state):
-    """The JSON form of a state (the FMU state's): ``[rw, gm, E, [fl_0, ...]]``."""
-    return [state.rw, state.gm, state.E, list(state.fl)]
-
-
 def state_problems(state, ecfg):
     """Why ``state`` (an :class:`ErrorState` read back from an FMU state) cannot be the state of
     a sensor with ``ecfg``: a number that is not finite, a negative exposure, a process that is
