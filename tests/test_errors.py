@@ -274,6 +274,23 @@ def test_exposure_drift_equals_its_closed_form_for_a_sinusoidal_state():
     assert held == [held[0]] * 100 and held[0] == pytest.approx(last, rel=1e-12)
 
 
+def test_the_exposure_is_of_the_true_acceleration_not_of_the_tilted_or_scaled_reading():
+    """A sensor at rest tilted by 30 degrees and off its reference temperature reads 0.5 g but
+    gains no exposure; shaken, it gains that of x alone (the letter's state)."""
+    Ts = 1e-3
+    se = sensor_errors(1, Ts, d_inf=0.05, E_tau=0.1, kT_scale=0.01, T0=290.0, theta=math.pi / 6,
+                       T=300.0)
+    for k in range(1, 101):
+        z = se.measure(0.0, 0.0, k)
+    assert se.state.E == 0.0 and z == pytest.approx(1.1 * 0.5, rel=1e-14)
+    total = 0.0
+    for k in range(101, 301):
+        x = 0.7 * math.sin(k / 9.0)
+        se.measure(x, 0.0, k)
+        total += x * x * Ts
+    assert se.state.E == pytest.approx(total, rel=1e-12)
+
+
 def test_tilt_and_temperature_against_hand_computation():
     a0, a1, a2, a3 = 0.3, 0.9, 0.02, 0.004
     T0, kT_bias, kT_scale = 298.15, 0.002, -0.001
