@@ -204,10 +204,12 @@ def test_inputs_command_refuses_a_result_that_skips_samples(fmus_in_build_layout
     assert out.read_text() == "mine\n" and "--force" in capsys.readouterr().err
     assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--force"]) == 0
     lines = out.read_text().splitlines()
-    assert lines[0] == "time,x,y"          # every input, the one no file has at its start
-    assert lines[1:] == ["0.0,0.5,0.0", "0.00025,0.5,0.0", "0.00025,0.25,0.0",
-                         "0.00125,0.25,0.0", "0.00125,0.125,0.0"]
-    assert "y held at its start value" in capsys.readouterr().out
+    # every input, those no file has at their start (y; the tilt and temperature, issue 42)
+    assert lines[0] == "time,x,y,theta,T"
+    assert lines[1:] == [row + ",0.0,0.0,298.15" for row in (
+        "0.0,0.5", "0.00025,0.5", "0.00025,0.25", "0.00125,0.25", "0.00125,0.125")]
+    printed = capsys.readouterr().out
+    assert "y held at its start value" in printed and "T held at its start value" in printed
 
 
 @pytest.mark.parametrize("kind", ["python", "native/fmi2", "native/fmi3"])
