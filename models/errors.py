@@ -58,7 +58,7 @@ too.
 import math
 from collections import namedtuple
 
-from . import _ops
+from . import _ops, sensor
 from .noise import STREAM_BIAS_GM, STREAM_FLICKER, STREAM_RANDOM_WALK, STREAM_TURN_ON, normal
 
 #: Most components of the flicker bias (one per decade of its band, at least two).
@@ -213,6 +213,41 @@ def temperature(T, T0, kT_bias, kT_scale):
     return 1.0 + kT_scale * dT, kT_bias * dT
 
 
+def class2(x, theta, T, T0, kT_bias, kT_scale):
+    """The letter's class 2 (reversible, state independent) at true acceleration ``x`` [g]:
+    ``(u, c)``, the acceleration the sensing element senses [g] and the offset the temperature
+    adds to the output [V],
+
+    .. math:: u = (1 + k_{T,scale} \\Delta T)(x + \\sin\\theta), \\qquad
+              c = k_{T,bias} \\Delta T, \\qquad \\Delta T = T - T_0
+
+    (:func:`tilt` only when ``theta`` is not 0, the scale factor only when ``kT_scale`` is not
+    0: the same bits as ``x`` when they are).  The one definition of class 2: the sensor senses
+    ``u`` (:func:`sensed`) and adds ``c``; the DriftEstimator removes what they make at ``x =
+    0`` (:func:`class2_offset`)."""
+    scale, c = temperature(T, T0, kT_bias, kT_scale)
+    u = x
+    if (theta != 0.0) if type(theta) is float else _nonzero(theta):
+        u = tilt(u, theta)
+    if (kT_scale != 0.0) if type(kT_scale) is float else _nonzero(kT_scale):
+        u = scale * u
+    return u, c
+
+
+def class2_offset(theta, T, a1, a2, T0, kT_bias, kT_scale, a3=0.0, a4=0.0):
+    """The class-2 offset [V]: what the tilt and the temperature add to the output of the
+    sensor ``h`` at ``x = 0`` (:func:`class2` at ``x = 0``, through ``h`` without ``a0``),
+
+    .. math:: dc_{class2} = k_{T,bias} \\Delta T + a_1 g + a_2 g^2 + a_3 g^3 + a_4 g^4,
+              \\qquad g = (1 + k_{T,scale} \\Delta T) \\sin\\theta
+
+    0 with ``theta = 0`` and ``kT_bias = kT_scale = 0``.  The DriftEstimator subtracts it from
+    ``z`` before filtering (docs/method.md, section 11); given the sensor's coefficients it
+    removes the offset the sensor's :func:`class2` makes."""
+    g, c = class2(0.0, theta, T, T0, kT_bias, kT_scale)
+    return c + sensor.h(g, 0.0, a1, a2, a3, a4)
+
+
 def saturate(u, limit):
     """``u`` clipped to ``[-limit, limit]`` (the measurement range)."""
     if type(u) is float:  # (the same choices, written out for one FMU instance)
@@ -328,14 +363,10 @@ def thermal_bias(T, ecfg):
 
 
 def sensed(x, theta, T, ecfg):
-    """The acceleration the sensing element sees [g]: the tilt's ``x + sin(theta)`` (when
-    ``theta`` is not 0), scaled by the temperature's ``1 + kT_scale (T - T0)`` and clipped to the
-    range (each only when on)."""
-    u = x
-    if (theta != 0.0) if type(theta) is float else _nonzero(theta):
-        u = tilt(u, theta)
-    if ecfg.kT_scale != 0.0:
-        u = temperature(T, ecfg.T0, ecfg.kT_bias, ecfg.kT_scale)[0] * u
+    """The acceleration the sensing element sees [g]: :func:`class2`'s (the tilt's ``x +
+    sin(theta)`` when ``theta`` is not 0, scaled by the temperature's ``1 + kT_scale (T - T0)``
+    when ``kT_scale`` is not 0), clipped to the range (when on)."""
+    u = class2(x, theta, T, ecfg.T0, ecfg.kT_bias, ecfg.kT_scale)[0]
     if ecfg.range != 0.0:
         u = saturate(u, ecfg.range)
     return u

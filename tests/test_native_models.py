@@ -178,7 +178,7 @@ SIGNATURES = {
                                  ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p,
                                  ctypes.c_char_p, ctypes.c_size_t),
     "parameters_allowed": (ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t),
-    "sensor_tilt": (D, D), "sensor_class2": (D,) + (D,) * 9,
+    "errors_class2": (None, D, D, D, D, D, D, PD, PD), "errors_class2_offset": (D,) + (D,) * 9,
     "bias_factor": (D, D, D), "bias_init": (Bias, D, D),
     "bias_expected": (D,) + (D,) * 7, "bias_spread": (D, D, D, D),
     "bias_predict": (None, D, D, Bias, D, D, D, D, D, D, PD, PD, ctypes.POINTER(Bias)),
@@ -555,17 +555,24 @@ def _bias_tuple(b):
     return (b.b, b.Pxb, b.Pbb)
 
 
-def test_class2_offset_equals_models(c):
+def test_class2_and_its_offset_equal_models(c):
+    """errors.class2 (the sensor's) and class2_offset (the DriftEstimator's), the one definition
+    of class 2 in both twins: the same bits, with theta 0, -0.0 and the coefficients off too."""
     rng = random.Random(RNG_SEED + 30)
+    u, g = D(), D()
     for _ in range(3000):
-        theta, T, T0 = rng.uniform(-50, 50), rng.uniform(200, 400), rng.uniform(250, 350)
+        theta = rng.choice((0.0, -0.0, rng.uniform(-50, 50), rng.uniform(-50, 50)))
+        T, T0 = rng.uniform(200, 400), rng.uniform(250, 350)
+        x = rng.choice((0.0, -0.0, rng.uniform(-3, 3)))
         a1, a2 = rng.uniform(0.2, 2), rng.uniform(-1, 1)
         a3, a4 = rng.choice(((0.0, 0.0), (rng.uniform(-1, 1), rng.uniform(-1, 1))))
         kb, ks = rng.choice((0.0, rng.uniform(-1e-2, 1e-2))), rng.choice((0.0, rng.uniform(-1e-3,
                                                                                            1e-3)))
-        assert same(sensor.tilt(theta), c.sensor_tilt(theta))
-        assert same(sensor.class2(theta, T, a1, a2, T0, kb, ks, a3, a4),
-                    c.sensor_class2(theta, T, a1, a2, T0, kb, ks, a3, a4))
+        c.errors_class2(x, theta, T, T0, kb, ks, ctypes.byref(u), ctypes.byref(g))
+        py_u, py_c = errors.class2(x, theta, T, T0, kb, ks)
+        assert same(py_u, u.value) and same(py_c, g.value)
+        assert same(errors.class2_offset(theta, T, a1, a2, T0, kb, ks, a3, a4),
+                    c.errors_class2_offset(theta, T, a1, a2, T0, kb, ks, a3, a4))
 
 
 def test_bias_filter_equals_models(c):

@@ -4,6 +4,7 @@
 #include "errors.h"
 #include "noise.h"
 #include "ops.h"
+#include "sensor.h"
 
 /* models.errors.GM_SERIES: (-1)^n (4 - 2^n) / n! for n = 3 .. 22 (Python's repr). */
 static const double GM_SERIES[20] = {
@@ -98,6 +99,24 @@ void errors_temperature(double T, double T0, double kT_bias, double kT_scale, do
     const double dT = T - T0;
     *scale = 1.0 + kT_scale * dT;
     *bias = kT_bias * dT;
+}
+
+void errors_class2(double x, double theta, double T, double T0, double kT_bias, double kT_scale,
+                   double *u, double *c)
+{
+    double scale;
+    errors_temperature(T, T0, kT_bias, kT_scale, &scale, c);
+    *u = x;
+    if (theta != 0.0) *u = errors_tilt(*u, theta);
+    if (kT_scale != 0.0) *u = scale * *u;
+}
+
+double errors_class2_offset(double theta, double T, double a1, double a2, double T0,
+                            double kT_bias, double kT_scale, double a3, double a4)
+{
+    double g, c;
+    errors_class2(0.0, theta, T, T0, kT_bias, kT_scale, &g, &c);
+    return c + sensor_h_general(g, 0.0, a1, a2, a3, a4);
 }
 
 double errors_saturate(double u, double limit)
@@ -229,13 +248,8 @@ double errors_thermal_bias(double T, const ErrorConfig *ecfg)
 
 double errors_sensed(double x, double theta, double T, const ErrorConfig *ecfg)
 {
-    double u = x;
-    if (theta != 0.0) u = errors_tilt(u, theta);
-    if (ecfg->kT_scale != 0.0) {
-        double scale, bias;
-        errors_temperature(T, ecfg->T0, ecfg->kT_bias, ecfg->kT_scale, &scale, &bias);
-        u = scale * u;
-    }
+    double u, c;
+    errors_class2(x, theta, T, ecfg->T0, ecfg->kT_bias, ecfg->kT_scale, &u, &c);
     if (ecfg->range != 0.0) u = errors_saturate(u, ecfg->range);
     return u;
 }

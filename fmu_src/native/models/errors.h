@@ -50,6 +50,14 @@ double errors_exposure(double E, double x, double Ts, double d_inf, double E_tau
 double errors_tilt(double x, double theta);
 void errors_temperature(double T, double T0, double kT_bias, double kT_scale, double *scale,
                         double *bias);
+/* The letter's class 2 at x: the sensed acceleration (1 + kT_scale dT)(x + sin theta) into *u
+ * (the tilt only when theta != 0, the scale only when kT_scale != 0), the thermal offset
+ * kT_bias dT into *c. */
+void errors_class2(double x, double theta, double T, double T0, double kT_bias, double kT_scale,
+                   double *u, double *c);
+/* The class-2 offset at x = 0: c + h(u; 0, a1, a2, a3, a4) of errors_class2(0, ...). */
+double errors_class2_offset(double theta, double T, double a1, double a2, double T0,
+                            double kT_bias, double kT_scale, double a3, double a4);
 double errors_saturate(double u, double limit);
 
 /* -- the constants, the initial state, the draws ------------------------------------------ */

@@ -27,8 +27,8 @@ UNITS = {
     "Accelerometer": ("Accelerometer_step.c", "adxl203.c", "errors.c", "dualaxis.c",
                       "harmonic.c", "chain.c", "ekf.c", "drift.c", "sensor.c",
                       "covariance.c") + MATH_UNITS,
-    "DriftEstimator": ("DriftEstimator_step.c", "bias.c", "dualaxis.c", "harmonic.c", "chain.c",
-                       "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
+    "DriftEstimator": ("DriftEstimator_step.c", "bias.c", "errors.c", "dualaxis.c", "harmonic.c",
+                       "chain.c", "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
     "DualDriftEstimator": ("DualDriftEstimator_step.c", "dualaxis.c", "harmonic.c", "chain.c",
                            "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
 }
