@@ -70,8 +70,14 @@ SINGLE = ("a0", "a1", "a2", "R", "Q", "x0", "P0", "A", "process", "f", "Qh")
 #: loops; the units' functions are not interposable from outside the library) and no errno
 #: for sqrt; from 110 to 58 ns per sample-run of the Gaussian chain on the development
 #: machine (52 ns with the per-run noise keys of batch_kernel.c), at a load average of about 20.
+#: No straight-line (SLP) vectorisation: GCC 12's SLP pass recognises a*b - c*d, a*b + c*d
+#: pairs as complex arithmetic and emits fused multiply-subtract-adds (vfmsubadd) in spite of
+#: -ffp-contract=off (found in dualaxis_estimator_predict, and in dualaxis_estimator_step after
+#: an unrelated change of ops.c moved the inlining); the loops are vectorised as before, at the
+#: same speed.
 SPEED_FLAGS = ("-O3", "-fno-math-errno", "-flto", "-fno-semantic-interposition",
-               "--param=max-inline-insns-auto=300", "--param=max-inline-insns-single=600")
+               "--param=max-inline-insns-auto=300", "--param=max-inline-insns-single=600",
+               "-fno-tree-slp-vectorize")
 #: And, where the compiler takes them, the instructions of this machine's processor in
 #: vectors of up to 512 bits: the vectorised Gaussian chain (run_gaussian_vector) then advances
 #: eight runs per instruction (AVX-512; 0.29 instead of 0.34 s for the default sweep's runs
