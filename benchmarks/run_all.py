@@ -24,6 +24,9 @@ RUNS = [
     ("bench_native.py", ["--repeats", "5"],
      ["--steps", "50000", "--python-steps", "2000", "--repeats", "3"]),
     ("bench_long_step.py", ["--repeats", "3"], ["--samples", "200000", "--repeats", "3"]),
+
+    ("bench_errors.py", ["--repeats", "5"],
+     ["--steps", "100000", "--python-steps", "10000", "--repeats", "3"]),
     ("bench_batch.py", ["--repeats", "3"], ["--repeats", "2"]),
     ("bench_sweep.py", ["--repeats", "5"], ["--repeats", "3"]),
     ("bench_adxl203.py", [], []),

@@ -680,7 +680,10 @@ def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str 
         (the input gain, in the Excitation and the filter; with ``B != 0`` the Excitation's
         known input ``u`` is wired to the DriftEstimator) and the known input ``u_k`` itself:
         ``drive`` (0 none, 1 Gaussian white ``N(0, Qu)``, 2 the sinusoid
-        ``Xu sin(2 pi fu t)``), ``Qu``, ``Xu``, ``fu``.
+        ``Xu sin(2 pi fu t)``), ``Qu``, ``Xu``, ``fu``.  The Accelerometer's slow errors
+        (docs/method.md section 10), off by default: ``bias_on, random_walk, bias_gm, tau_gm,
+        flicker, tau_min, tau_max, d_inf, E_tau, T0, kT_bias, kT_scale, range, bits`` and the
+        start values of its inputs ``theta``, ``T`` (the chain leaves them unconnected).
 
     Returns
     -------
@@ -828,8 +831,12 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
         section 9), off by default: for ``"gaussian"`` ``a3, a4, B, drive, Qu, Xu, fu`` as in
         [`run_gaussian`][driftfmu.run_gaussian]; for ``"sinusoidal"`` ``a3, a4`` (batch
         engine only).  The
-        realised and expected drifts then count the ``a3``, ``a4`` terms; the batch engine
-        runs the general model in NumPy (the compiled kernel has the letter's sensor only).
+        realised and expected drifts then count the ``a3``, ``a4`` terms.  The sensor's slow
+        errors (docs/method.md section 10), off by default, for both kinds (the sinusoidal
+        one on the batch engine): ``bias_on, random_walk, bias_gm, tau_gm, flicker, tau_min,
+        tau_max`` (class 4), ``d_inf, E_tau`` (class 3), ``theta, T, T0, kT_bias, kT_scale``
+        (class 2; the tilt and temperature held over the runs), ``range`` and ``bits``;
+        the filter keeps the letter's model, so they are what it does not know.
 
     Returns
     -------
@@ -889,7 +896,10 @@ def sweep(a2: Optional[Sequence[float]] = None, R: Optional[Sequence[float]] = N
         ``scheduler`` (a Dask address), ``client``, ``chunk``, ``fmu_dir``) and the general
         sensor, off by default: ``a4``, one value for every grid point or several, which make
         the grid ``(a4, R)`` at one ``a2`` (Fig. 2 over ``a4``), and ``a3, B, drive, Qu, Xu,
-        fu`` as in [`run_gaussian`][driftfmu.run_gaussian], shared by every grid point.
+        fu`` as in [`run_gaussian`][driftfmu.run_gaussian], shared by every grid point; the
+        sensor's slow errors likewise (``bias_on, random_walk, bias_gm, tau_gm, flicker,
+        tau_min, tau_max, d_inf, E_tau, theta, T, T0, kT_bias, kT_scale, range, bits``,
+        docs/method.md section 10).
 
     Returns
     -------

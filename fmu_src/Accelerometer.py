@@ -5,12 +5,22 @@ Accelerometer FMU: the weakly nonlinear sensor z = a0 + a1 x + a2 x^2 + a3 x^3 +
 dual-axis part (cubic term, cross-axis coupling, output low-pass, ratiometric output, ADC,
 noise density) of :mod:`driftfmu.models.adxl203`, every extra off by default; or (``dual = 1``) the
 dual-axis bilinear sensor of :mod:`driftfmu.models.dualaxis`, z = a0 + a1 x + a2 x^2 + bx x y + v_x and
-z_y = a0y + a1y y + a2y y^2 + by x y + v_y."""
+z_y = a0y + a1y y + a2y y^2 + by x y + v_y.
+
+The first axis also has the slow errors of :mod:`driftfmu.models.errors` (the letter's drift
+classes 2 to 4: turn-on bias, random walk, Gauss-Markov and flicker bias, exposure drift, the
+tilt and temperature inputs ``theta`` and ``T``, and the range), every one off by default; their
+state is the hidden ``_err``."""
 
 import math
 
-from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, var
-from driftfmu.models import adxl203, dualaxis
+from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, Blocks, SlaveBase, var, _is_number
+from driftfmu.models import adxl203, dualaxis, errors
+from driftfmu.models.noise import normal
+
+#: The parameters that switch a slow error on (:mod:`driftfmu.models.errors`; 0: off).
+ERROR_SWITCHES = ("bias_on", "random_walk", "bias_gm", "flicker", "d_inf", "kT_bias",
+                  "kT_scale", "range")
 
 
 class Accelerometer(SlaveBase):
@@ -45,16 +55,36 @@ class Accelerometer(SlaveBase):
         var("by", "parameter"),
         var("Ry", "parameter"),
         var("a4", "parameter"),
+        # the slow errors of models.errors (the letter's drift classes 2 to 4) and the range
+        var("bias_on", "parameter"),
+        var("random_walk", "parameter"),
+        var("bias_gm", "parameter"),
+        var("tau_gm", "parameter"),
+        var("flicker", "parameter"),
+        var("tau_min", "parameter"),
+        var("tau_max", "parameter"),
+        var("d_inf", "parameter"),
+        var("E_tau", "parameter"),
+        var("T0", "parameter"),
+        var("kT_bias", "parameter"),
+        var("kT_scale", "parameter"),
+        var("range", "parameter"),
+        var("theta", "input"),
+        var("T", "input"),
     )
-    DEPENDENCIES = {"z": ["x", "y"], "z_y": ["x", "y"]}
+    DEPENDENCIES = {"z": ["x", "y", "theta", "T"], "z_y": ["x", "y"]}
     DESCRIPTION = ("Weakly nonlinear accelerometer z_k = a0 + a1 x_k + a2 x_k^2 + a3 x_k^3 "
                    "+ a4 x_k^4 + v_k, "
                    "v_k ~ N(0, R); optional ADXL203-like extras (cross-axis, output "
                    "low-pass, ratiometric supply, ADC, noise density, second axis); or (dual = 1) the "
                    "dual-axis bilinear sensor z_x = a0 + a1 x + a2 x^2 + bx x y + v_x, "
-                   "z_y = a0y + a1y y + a2y y^2 + by x y + v_y")
-    #: Output filter states after the last sample (None before the first), per axis.
-    HIDDEN = ("_lp", "_lpy")
+                   "z_y = a0y + a1y y + a2y y^2 + by x y + v_y; slow errors of the first axis "
+                   "(the letter's drift classes 2-4: turn-on bias, random walk, Gauss-Markov and "
+                   "flicker bias, exposure drift, tilt theta and temperature T inputs) and a "
+                   "measurement range, off by default")
+    #: Output filter states after the last sample (None before the first), per axis, and the
+    #: slow errors' state (:class:`driftfmu.models.errors.ErrorState`; None while all are off).
+    HIDDEN = ("_lp", "_lpy", "_err")
     #: (z alone while the second axis is off: z_y keeps its value)
     OUTPUTS = ("z", "z_y")
     default_experiment = DEFAULT_EXPERIMENT
@@ -65,6 +95,13 @@ class Accelerometer(SlaveBase):
         if self.dual and self.a4 != 0.0:
             problems.append("dual = 1 is not allowed with a4 = %r; allowed: dual = 1 with a4 = 0 "
                             "(the bilinear sensor is of 2nd order)" % (self.a4,))
+        problems += errors.problems(self.parameter_values())
+        on = [name for name in ERROR_SWITCHES if getattr(self, name) != 0.0]
+        if self.dual and on:
+            problems.append("dual = 1 is not allowed with %s; allowed: dual = 1 with %s = 0 (the "
+                            "slow errors and the range act on the single-axis sensor)"
+                            % (", ".join("%s = %r" % (n, getattr(self, n)) for n in on),
+                               ", ".join(ERROR_SWITCHES)))
         if not problems:
             cfg = adxl203.config(**self.parameter_values())
             for name in ("a0", "a1", "a2", "a3", "sigma", "a4"):
@@ -74,17 +111,71 @@ class Accelerometer(SlaveBase):
                         "the parameters give the effective %s = %r (a1, a2, a3, a4 and the noise "
                         "are scaled by S(Vs)/S(5 V) and density by sqrt(1/(2 Ts))); allowed: "
                         "parameters whose effective values are finite" % (name, value))
+            for name in ("lo", "lsb"):
+                value = getattr(cfg, name)
+                if not math.isfinite(value):
+                    problems.append(
+                        "the ADC over a0 +- |a1| range gives %s = %r; allowed: a0, a1 and range "
+                        "whose span is finite" % (name, value))
+            ecfg = errors.config(**self.parameter_values())
+            for name in ("b_on", "rw", "gm_c", "fl_sigma"):
+                value = getattr(ecfg, name)
+                if not math.isfinite(value):
+                    problems.append(
+                        "the parameters give the slow errors' %s = %r (b_on = bias_on n_0, rw = "
+                        "random_walk sqrt(Ts), gm_c = bias_gm sqrt(1 - exp(-2 Ts/tau_gm)), "
+                        "fl_sigma = flicker over the Allan deviation of the unit components); "
+                        "allowed: parameters whose effective values are finite" % (name, value))
         return problems
 
     def prepare(self):
-        self._cfg = adxl203.config(**self.parameter_values())
-        self._axes = dualaxis.axes(self.parameter_values())
+        values = self.parameter_values()
+        self._cfg = adxl203.config(**values)
+        self._axes = dualaxis.axes(values)
         seed = self.seed  # the noise draws of both axes, a pure function of k: in blocks
         self._v = (None, self.blocks("v1", seed, lambda k: adxl203.noise(seed, k, 1)),
                    self.blocks("v2", seed, lambda k: adxl203.noise(seed, k, 2)))
+        ecfg = self._ecfg = errors.config(**values)
+        # the slow errors' draws (errors.draws), each stream in blocks (their warm-up shared:
+        # the streams' samples one by one cost, together, what the measurement noise's do); an
+        # error state to check
+        streams = (ecfg.rw != 0.0) + (ecfg.gm_sigma != 0.0) + ecfg.fl_n
+        warm_up = Blocks.WARM_UP // (1 + streams)
+        self._n_rw = self._stream("rw", 0, seed, warm_up) if ecfg.rw != 0.0 else None
+        self._n_gm = self._stream("gm", 0, seed, warm_up) if ecfg.gm_sigma != 0.0 else None
+        self._n_fl = tuple(self._stream("fl", i, seed, warm_up) for i in range(ecfg.fl_n))
+        self._rows_k0, self._rows = 0, ()  # the draws of a block of samples, as _draws gives them
+        self.hidden_valid = self._errors_valid if ecfg.on else None
+
+    def _stream(self, name, i, seed, warm_up):
+        stream = errors.stream_of(name, i)
+        return self.blocks("%s%d" % (name, i), seed, lambda k: normal(seed, stream, k), warm_up)
+
+    def _draws(self, k):
+        """errors.draws(seed, k, ecfg), from the blocks: the tuples of a run of samples from
+        them at once where they hold arrays of draws (Blocks.run), one by one otherwise."""
+        i = k - self._rows_k0
+        rows = self._rows
+        if 0 <= i < len(rows):
+            return rows[i]
+        streams = [b for b in (self._n_rw, self._n_gm) + self._n_fl if b is not None]
+        runs = [b.run(k) for b in streams]
+        if not runs or None in runs:
+            n_rw, n_gm = self._n_rw, self._n_gm
+            return (0.0 if n_rw is None else n_rw(k), 0.0 if n_gm is None else n_gm(k),
+                    tuple([f(k) for f in self._n_fl]))
+        n = min(map(len, runs))
+        runs = [r[:n] for r in runs]
+        zeros = [0.0] * n
+        rw = runs.pop(0) if self._n_rw is not None else zeros
+        gm = runs.pop(0) if self._n_gm is not None else zeros
+        self._rows_k0, self._rows = k, list(zip(rw, gm, zip(*runs) if runs else [()] * n))
+        return self._rows[0]
 
     def initial_hidden(self):
-        return {"_lp": None, "_lpy": None}
+        ecfg = self._ecfg
+        return {"_lp": None, "_lpy": None,
+                "_err": errors.initial_state(self.seed, ecfg) if ecfg.on else None}
 
     def _axis(self, prev, own, other, k, axis, output):
         v = self._v[axis](k) if self.noise else 0.0  # (adxl203.noise)
@@ -95,19 +186,31 @@ class Accelerometer(SlaveBase):
             e = adxl203.lowpass(prev, adxl203.sense(own, other, v, cfg), cfg.alpha)
             self._not_finite(output, cfg.a0 + e, k)
 
+    def _axis_errors(self, prev, err, k):
+        """The first axis with the slow errors (adxl203.measure_errors): (lp, err, z)."""
+        v = self._v[1](k) if self.noise else 0.0  # (adxl203.noise)
+        ecfg = self._ecfg
+        lp, err, z = adxl203.measure_errors(prev, err or OFF_STATE, self.x, self.y, v,
+                                            self._draws(k), self.theta, self.T, self._cfg, ecfg)
+        return lp, err if ecfg.on else None, z
+
     def _dual(self, k):
         v = (self._v[1](k), self._v[2](k)) if self.noise else (0.0, 0.0)  # (adxl203.noise)
         z, z_y = dualaxis.measure(self.x, self.y, *self._axes, *v)
-        return {"_lp": None, "_lpy": None}, (z, z_y)
+        return {"_lp": None, "_lpy": None, "_err": None}, (z, z_y)
 
     def sample(self, hidden, k, first):
         if self.dual:
             return self._dual(k)
-        lp, z = self._axis(hidden["_lp"], self.x, self.y, k, 1, "z")
+        if self._ecfg.on or self.theta != 0.0:
+            lp, err, z = self._axis_errors(hidden["_lp"], hidden["_err"], k)
+        else:
+            lp, z = self._axis(hidden["_lp"], self.x, self.y, k, 1, "z")
+            err = None
         if self.axes != 2:
-            return {"_lp": lp, "_lpy": None}, (z,)
+            return {"_lp": lp, "_lpy": None, "_err": err}, (z,)
         lpy, z_y = self._axis(hidden["_lpy"], self.y, self.x, k, 2, "z_y")
-        return {"_lp": lp, "_lpy": lpy}, (z, z_y)
+        return {"_lp": lp, "_lpy": lpy, "_err": err}, (z, z_y)
 
     def show(self, outputs):
         if len(outputs) == 1:
@@ -116,17 +219,59 @@ class Accelerometer(SlaveBase):
             self.z, self.z_y = outputs
 
     #: the filter state e of an axis reaches its output z = Q(a0 + e): a non-finite e makes z
-    #: non-finite, or the ADC raises, both refused by the base class
+    #: non-finite, or the ADC raises, both refused by the base class.  With a slow error on,
+    #: prepare sets the instance's check of the error state (_errors_valid): the walk, the
+    #: Gauss-Markov and flicker biases reach z as they are (a non-finite one makes z
+    #: non-finite), but an exposure E can overflow while the drift it gives stays finite.
     hidden_valid = None
 
+    @staticmethod
+    def _errors_valid(hidden):
+        err = hidden["_err"]
+        return err is None or err.E - err.E == 0.0
+
     def hold(self, hidden, k0, n, first):
-        if n > 1:  # the samples before the last change only the filter state: adxl203.hold
-            lp, lpy, cfg = hidden["_lp"], hidden["_lpy"], self._cfg  # (the same bits, faster)
+        if n > 1:  # the samples before the last change only the filter and error states:
+            lp, lpy, err, cfg = hidden["_lp"], hidden["_lpy"], hidden["_err"], self._cfg
+            if err is not None:  # (adxl203.hold, errors.hold: the same bits, faster)
+                ecfg, x = self._ecfg, self.x
+                for k in range(k0, k0 + n - 1):
+                    err = errors.advance(err, x, *self._draws(k), ecfg)[0]
             if cfg.alpha is not None:
-                lp = adxl203.hold(lp, self.x, self.y, self.seed, k0 - 1, n, cfg, axis=1,
+                own = self.x
+                if self._ecfg.on or self.theta != 0.0:
+                    own = errors.sensed(own, self.theta, self.T, self._ecfg)
+                lp = adxl203.hold(lp, own, self.y, self.seed, k0 - 1, n, cfg, axis=1,
                                   noise_on=self.noise)
                 if self.axes == 2:
                     lpy = adxl203.hold(lpy, self.y, self.x, self.seed, k0 - 1, n, cfg, axis=2,
                                        noise_on=self.noise)
-            hidden, k0 = {"_lp": lp, "_lpy": lpy}, k0 + n - 1
+            hidden, k0 = {"_lp": lp, "_lpy": lpy, "_err": err}, k0 + n - 1
         return self.sample(hidden, k0, first)
+
+    # -- the error state in an FMU state ------------------------------------------------------
+    def parse_hidden(self, name, value):
+        if name != "_err":
+            return super().parse_hidden(name, value)
+        if value is None:
+            return None
+        if not (isinstance(value, list) and len(value) == 4 and isinstance(value[3], list)):
+            raise ValueError("not [rw, gm, E, [flicker components]]")
+        for v in value[:3] + value[3]:
+            if not (_is_number(v) and math.isfinite(v)):
+                raise ValueError("%r is not a finite number" % (v,))
+        return errors.ErrorState(float(value[0]), float(value[1]), float(value[2]),
+                                 tuple(float(v) for v in value[3]))
+
+    def hidden_problems(self, hidden):
+        err = hidden["_err"]
+        if err is None:
+            return []
+        if not self._ecfg.on:
+            return ["the hidden state _err is set although every slow error is off (%s = 0); "
+                    "allowed: null" % ", ".join(ERROR_SWITCHES)]
+        return ["hidden state _err: %s" % p for p in errors.state_problems(err, self._ecfg)]
+
+
+#: The error state of a sensor whose errors are off but whose tilt is not 0 (nothing to keep).
+OFF_STATE = errors.ErrorState(0.0, 0.0, 0.0, ())

@@ -10,7 +10,7 @@ temperature inputs removed from z before filtering."""
 import math
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, SlaveBase, check_estimator_plain, var
-from driftfmu.models import bias, chain, covariance, drift, harmonic, parameters, sensor
+from driftfmu.models import bias, chain, covariance, drift, errors, harmonic, parameters
 
 #: The covariance of the harmonic filter as the refusals name it: the output P and the hidden
 #: P12, P22 (rows of the lower triangle), and the matrix as a whole.
@@ -175,10 +175,10 @@ class DriftEstimator(SlaveBase):
         return {"_state": state, "_bias": None}, self._outputs(state)
 
     def _general_sample(self, hidden, first):
-        """A sample with the bias state or the class-2 offset: the offset (models.sensor.class2)
+        """A sample with the bias state or the class-2 offset: the offset (models.errors.class2_offset)
         is removed from z, and the bias filter (models.bias) or the letter's runs on the rest."""
         state, b, u = hidden["_state"], hidden["_bias"], self.u
-        offset = sensor.class2(self.theta, self.T, *self._class2_args) \
+        offset = errors.class2_offset(self.theta, self.T, *self._class2_args) \
             if self.theta != 0.0 or self._kT else 0.0
         z = self.z - offset
         if b is None:  # the letter's filter on z (either process model)

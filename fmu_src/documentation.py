@@ -63,7 +63,22 @@ EQUATIONS = {
         "ratiometric output at supply Vs, a bits-bit ADC over 0..Vs, noise from density\n"
         "dual = 1:   z_k   = a0  + a1 x_k  + a2 x_k^2  + bx x_k y_k + v_k\n"
         "            z_y,k = a0y + a1y y_k + a2y y_k^2 + by x_k y_k + v_y,k,   v_y,k ~ N(0, Ry)\n"
-        "noise = 0: v_k = 0"),
+        "noise = 0: v_k = 0\n"
+        "slow errors of the first axis (the letter's drift classes 2-4; each 0 = off):\n"
+        "  u_k = clip_range((1 + kT_scale (T_k - T0)) (x_k + sin(theta_k)))   sensed [g]\n"
+        "  z_k = Q(h(u_k) + v_k + b_on + rw_k + gm_k + fl_k + d_k + kT_bias (T_k - T0))\n"
+        "  b_on = bias_on n_0                                   turn-on, once per seed\n"
+        "  rw_k = rw_{k-1} + random_walk sqrt(Ts) n_k,  rw_0 = 0  random walk\n"
+        "  gm_k = a gm_{k-1} + bias_gm sqrt(1 - a^2) n_k,  a = exp(-Ts/tau_gm),\n"
+        "         gm_0 = bias_gm n_0 (stationary)                bias instability\n"
+        "  fl_k = sum_i fl_i,k, fl_i,k = a_i fl_i,k-1 + s sqrt(1 - a_i^2) n_i,k,\n"
+        "         a_i = exp(-Ts/tau_i), tau_i = one per decade from tau_min to tau_max,\n"
+        "         s: Allan deviation = flicker at sqrt(tau_min tau_max)  flicker (1/f)\n"
+        "  E_k = E_{k-1} + x_k^2 Ts,  d_k = d_inf (1 - exp(-E_k / E_tau))  exposure [g^2 s]\n"
+        "  clip_range: to [-range, range] when range > 0; Q: the bits-bit ADC, over\n"
+        "  a0 +- |a1| range when range > 0 and Vs = 0\n"
+        "  each process draws its own noise stream n (a pure function of seed and k); the\n"
+        "  FMU state holds rw, gm, E and the flicker components (hidden _err)"),
     "DriftEstimator": (
         "process = 1 (Gauss-Markov):  x- = A x+_{k-1} + B u_k,   P- = A^2 P+_{k-1} + Q\n"
         "process = 2: a harmonic oscillator at f (process noise Qh), no input term\n"
@@ -142,6 +157,13 @@ INPUT_USE = {
     ("Accelerometer", "y"):
         "only with a second axis: z_y when axes = 2, z too when cross != 0, both when "
         "dual = 1 (the terms bx x y, by x y); ignored otherwise (the defaults)",
+    ("Accelerometer", "theta"):
+        "the tilt [rad]: the first axis senses x + sin(theta) (the letter's g-offset); 0 "
+        "(the start value): no tilt; ignored when dual = 1",
+    ("Accelerometer", "T"):
+        "the temperature [K], only when kT_bias != 0 or kT_scale != 0 (the first axis's bias "
+        "kT_bias (T - T0) and scale factor 1 + kT_scale (T - T0)); ignored otherwise (the "
+        "defaults)",
     ("DriftEstimator", "z"): "always: the measurement z_k",
     ("DriftEstimator", "u"):
         "only when B != 0 and process = 1 (the prediction x- = A x+ + B u_k); connect the "

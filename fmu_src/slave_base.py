@@ -121,8 +121,10 @@ class Blocks:
     SIZE = 1024
     WARM_UP = 4096
 
-    def __init__(self, f):
+    def __init__(self, f, warm_up=None):
         self._f = f
+        if warm_up is not None:  # (a slave with many streams: their one-by-one samples add up)
+            self.WARM_UP = warm_up
         self._k0 = self._end = 0  # the block holds k0 .. end - 1 (nothing yet)
         self._values = None       # (None over a block where f runs sample by sample)
         self._warm = 0            # samples computed one by one before NumPy was imported
@@ -133,6 +135,15 @@ class Blocks:
             values = self._values
             return values[i] if values is not None else self._f(k)
         return self._fill(k)
+
+    def run(self, k):
+        """The stored values from sample ``k`` to the end of its block (an ``array('d')``),
+        after ``self(k)``; None where ``f`` runs on the one ``k`` (no NumPy, the warm-up, a
+        block that is not all finite), the caller then calls ``self(k)`` sample by sample."""
+        self(k)
+        if self._values is None or not self._k0 <= k < self._end:
+            return None
+        return self._values[k - self._k0:]
 
     def _fill(self, k):
         if self._warm < self.WARM_UP and not _numpy_imported():
@@ -748,16 +759,16 @@ class SlaveBase(Fmi2Slave):
     def prepare(self):
         """Derived constants from the (checked) parameters."""
 
-    def blocks(self, name, parameters, f):
+    def blocks(self, name, parameters, f, warm_up=None):
         """The :class:`Blocks` of ``f`` under ``name``, the same object while ``parameters``
         (those ``f`` depends on) keep their bits, so that ``prepare`` after a state restore
         keeps the samples already computed (a master that rolls back every step pays no new
-        block)."""
+        block).  ``warm_up``: its :attr:`Blocks.WARM_UP` (default the class's)."""
         kept = self.__dict__.setdefault("_kept_blocks", {})
         key = repr(parameters)  # (repr tells -0.0 from 0.0, and gives every float's bits)
         entry = kept.get(name)
         if entry is None or entry[0] != key:
-            entry = kept[name] = (key, Blocks(f))
+            entry = kept[name] = (key, Blocks(f, warm_up))
         return entry[1]
 
     def initial_hidden(self):

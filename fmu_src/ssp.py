@@ -4,7 +4,8 @@ The wired chain Excitation -> Accelerometer -> DriftEstimator as an SSP 1.0 arch
 
 ``DriftChain.ssp`` holds ``SystemStructure.ssd`` and the three FMUs under ``resources/``.  The
 SSD declares each FMU's outputs, its connected inputs and its bound parameters as connectors
-(unconnected inputs keep their start values and get no connector), the two
+(unconnected inputs get no connector: they keep their start values, or the values bound to
+them, as the Accelerometer's tilt ``theta`` and temperature ``T`` with its slow errors), the two
 connections of the master (``Excitation.x -> Accelerometer.x``, ``Accelerometer.z ->
 DriftEstimator.z``) and, when the DriftEstimator's ``B != 0``, the known input's
 ``Excitation.u -> DriftEstimator.u`` (eq. 1, :func:`connections`), each component's parameter
@@ -121,9 +122,11 @@ def system_structure(fmus, start_values, n, Ts):
             "source": "resources/%s.fmu" % name})
         connectors = ET.SubElement(comp, _q("ssd", "Connectors"))
         for v in md.modelVariables:
-            # an input no connection feeds gets no connector: fmpy (0.3.32) would wire it to
-            # the source of the previous input (get_connections keeps a stale start path)
-            if v.causality == "output" or v.name in starts or (name, v.name) in wired:
+            # an input no connection feeds gets no connector, bound or not (the tilt and the
+            # temperature): fmpy (0.3.32) would wire it to the source of the previous input
+            # (get_connections keeps a stale start path)
+            if v.causality == "output" or (name, v.name) in wired or (
+                    v.name in starts and v.causality != "input"):
                 c = ET.SubElement(connectors, _q("ssd", "Connector"),
                                   {"name": v.name, "kind": v.causality})
                 ET.SubElement(c, _q("ssc", v.type))
@@ -374,7 +377,11 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
 
     ``general``: the general model's ``a3, a4, B, drive, Qu, Xu, fu`` (as
     :func:`chain_start_values`); with ``B != 0`` the known input ``u`` is a connection too,
-    delayed like the others (the columns ``Excitation.u`` and ``DriftEstimator.u``).
+    delayed like the others (the columns ``Excitation.u`` and ``DriftEstimator.u``).  The
+    Accelerometer's slow errors (:data:`driftfmu.models.chain.SENSOR_ERRORS_OFF`, bound as its
+    start values, ``theta`` and ``T`` those of its unconnected inputs) advance with the FMU's
+    own sample counter and the input it holds, as its ``z``: the sample it commits in a step
+    and the pending one it shows after it both see the input set before the step.
     """
     unknown = set(general) - set(GENERAL_OFF)
     if unknown:
@@ -383,8 +390,27 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
     a3, a4, B = g["a3"], g["a4"], g["B"]
     if P0 is None:
         P0 = Q / (1.0 - A * A)
+    model = {k: v for k, v in general.items() if k not in chain.SENSOR_ERRORS_OFF}
     xs = chain.simulate(n + 1, seed, a0=a0, a1=a1, a2=a2, A=A, Q=Q, R=R, x0=x0, P0=P0,
-                        Ts=Ts, **general)["x"]  # x_1 .. x_{n+1}
+                        Ts=Ts, **model)["x"]  # x_1 .. x_{n+1}
+    slow = chain.SensorErrors(seed, a0, a1, a2, R, a3, a4, Ts,
+                              {k: v for k, v in general.items()
+                               if k in chain.SENSOR_ERRORS_OFF})
+
+    def accelerometer(u, k):
+        """z_k of the input u held, from the committed error state (not committing)."""
+        v = sensor.measurement_noise(seed, k)
+        if slow.plain:
+            return sensor.measure(u, a0, a1, a2, R, v, a3, a4)
+        committed = slow.state
+        z = slow.measure(u, v, k)
+        slow.state = committed
+        return z
+
+    def commit(u, k):
+        """The Accelerometer commits sample k with the input u (its error state moves)."""
+        if not slow.plain:
+            slow.measure(u, sensor.measurement_noise(seed, k), k)
     us = [excitation.input_sample(g["drive"], seed, k, g["Qu"], g["Xu"], g["fu"], Ts)
           for k in range(1, n + 2)]          # u_1 .. u_{n+1}
     wired = B != 0.0
@@ -396,9 +422,8 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
         u_acc = u_est = u_in = 0.0           # fmpy: the connectors start at 0
     elif initial == "outputs":
         u_acc = xs[0]                        # x_1, and z of sample 1 from x_1: the outputs
-        u_est = sensor.measure(u_acc, a0, a1, a2, R,  # read in Initialization Mode follow the
-                               sensor.measurement_noise(seed, 1), a3, a4)  # inputs set there
-        u_in = us[0] if wired else 0.0       # u_1
+        u_est = accelerometer(u_acc, 1)      # read in Initialization Mode follow the inputs
+        u_in = us[0] if wired else 0.0       # set there; u_1
 
     else:
         raise ValueError("initial = %r is not allowed; allowed: 'zero' or 'outputs'"
@@ -407,7 +432,8 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
     t = 0.0
     for i in range(n):
         x = xs[i + 1]                        # x_{i+2}
-        z = sensor.measure(u_acc, a0, a1, a2, R, sensor.measurement_noise(seed, i + 2), a3, a4)
+        commit(u_acc, i + 1)                 # sample i+1, committed in the step from t_i
+        z = accelerometer(u_acc, i + 2)      # the pending sample i+2 it shows after it
         committed = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
         shown = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
         dcs = drift.estimates(shown.drift, a2, a3, a4)

@@ -8,7 +8,7 @@ and the batch engine runs the very same code on arrays of Monte-Carlo runs.  Eve
 is correctly rounded in IEEE 754 double precision (``sqrt`` included), so both paths give
 bit-identical results for the same inputs.  NumPy is imported lazily, only when an array arrives.
 
-``log``, ``exp`` and ``sin2pi`` are computed here by arithmetic only (libm's may differ in the
+``log``, ``exp``, ``sin2pi`` and ``sin`` are computed here by arithmetic only (libm's may differ in the
 last bit between platforms, and between ``math`` and ``numpy``); fmu_src/native/models/ops.c is
 their C port, operation for operation, and the native FMUs give the same bits.
 """
@@ -113,6 +113,14 @@ def exp(x):
     ``EXP_LOW <= x <= EXP_HIGH`` (subnormal results lose bits); ``inf`` above, ``0.0`` below,
     ``nan`` for ``nan``.
     """
+    if type(x) is float and EXP_LOW <= x <= EXP_HIGH:  # one FMU instance: the same steps,
+        n = float(math.floor(x * INV_LN2 + 0.5))       # the loop below written out
+        r = (x - n * LN2_HI) - n * LN2_LO
+        c = _EXP_COEFF
+        poly = (((((((((((((c[14] * r + c[13]) * r + c[12]) * r + c[11]) * r + c[10]) * r
+                         + c[9]) * r + c[8]) * r + c[7]) * r + c[6]) * r + c[5]) * r + c[4])
+                    * r + c[3]) * r + c[2]) * r + c[1]) * r + c[0]
+        return math.ldexp(poly, int(n))
     big = x > EXP_HIGH
     tiny = x < EXP_LOW
     nan = x != x
@@ -123,9 +131,9 @@ def exp(x):
         x_in, x = x, where(big | tiny | nan, 0.0, x)
     n = floor(x * INV_LN2 + 0.5)
     r = (x - n * LN2_HI) - n * LN2_LO
-    poly = 1.0 / math.factorial(14)
-    for k in range(13, -1, -1):
-        poly = poly * r + 1.0 / math.factorial(k)
+    poly = _EXP_COEFF[14]
+    for c in _EXP_DOWN:
+        poly = poly * r + c
     y = ldexp(poly, n)
     if is_scalar(y):
         return y
@@ -149,6 +157,26 @@ def sin2pi(cycles):
     t2 = t * t
     # Horner form of t - t^3/3! + t^5/5! - ... + t^23/23!
     poly = 0.0
-    for n in range(23, 0, -2):
-        poly = poly * t2 + (1.0 if (n // 2) % 2 == 0 else -1.0) / math.factorial(n)
+    for c in _SIN_DOWN:
+        poly = poly * t2 + c
     return sign * t * poly
+
+
+#: ``1.0 / k!`` for ``k = 0 .. 14`` (:func:`exp`'s Taylor coefficients) and those of ``k = 13
+#: .. 0`` in Horner order; ``(+-1) / n!`` for ``n = 23, 21, .., 1`` (:func:`sin2pi`'s, in Horner
+#: order): computed once, the values the functions used to compute at every call.
+_EXP_COEFF = tuple(1.0 / math.factorial(k) for k in range(15))
+_EXP_DOWN = tuple(_EXP_COEFF[k] for k in range(13, -1, -1))
+_SIN_DOWN = tuple((1.0 if (n // 2) % 2 == 0 else -1.0) / math.factorial(n)
+                  for n in range(23, 0, -2))
+
+
+#: ``2 pi`` (exact doubling of ``math.pi``): :func:`sin` divides by it.
+TWO_PI = 2.0 * math.pi
+
+
+def sin(x):
+    """``sin(x)`` of a float or an array (``x`` in radians), by arithmetic only: :func:`sin2pi`
+    of ``x / (2 pi)`` (the division correctly rounded, so the same bits on both paths and in
+    C).  Accuracy: a few ulp of ``x`` (the reduction to cycles rounds once)."""
+    return sin2pi(x / TWO_PI)

@@ -22,7 +22,13 @@ Every extra effect is off by default, and then the output is the letter's sensor
   ``a1, a2, a3`` are therefore the coefficients at the nominal 5 V supply;
 * ADC quantisation to ``bits`` bits over ``[0, Vfs)``, ``Vfs = Vs`` (a ratiometric converter
   referenced to the supply) or 5 V when ``Vs = 0``; codes are clipped to the converter's range,
-  which also models the output rails.
+  which also models the output rails.  For any other sensor (``Vs = 0``) with a measurement
+  range (``range > 0`` [g]) the converter spans instead ``[a0 - |a1| range, a0 + |a1| range)``,
+  the linear characteristic over the range (``lo`` of :class:`Config` is its lowest level).
+
+The sensor's slow errors (:mod:`driftfmu.models.errors`: the letter's drift classes 2 to 4 and
+the range) enter through :func:`measure_errors`: the tilt, the temperature's scale factor and
+the range act on the sensed acceleration, the biases and drifts on the voltage before the ADC.
 
 Per sample, with ``s`` the pre-filter signal in volts above zero-g:
 
@@ -36,7 +42,7 @@ arithmetic-only :func:`driftfmu.models._ops.exp`, so that the C port gives the s
 import math
 from collections import namedtuple
 
-from . import _ops, excitation, parameters, sensor
+from . import _ops, errors, excitation, parameters, sensor
 from .noise import STREAM_MEASUREMENT, STREAM_MEASUREMENT_Y, normal
 
 #: Nominal supply of the datasheet's headline figures [V].
@@ -67,7 +73,7 @@ ADXL203 = dict(a0=2.5, a1=SENSITIVITY_5V, a2=0.01, a3=0.002, R=1e-4, cross=0.015
                fc=round(BANDWIDTH_RULE / 4.7e-9, 6), Vs=5.0, bits=12, density=110e-6, axes=2)
 PRESETS = {"adxl203": ADXL203}
 
-Config = namedtuple("Config", "plain a0 a1 a2 a3 R sigma cross alpha lsb levels a4")
+Config = namedtuple("Config", "plain a0 a1 a2 a3 R sigma cross alpha lsb levels a4 lo")
 
 
 def settling_samples(fc, Ts, time_constants=10):
@@ -109,18 +115,25 @@ def problems(p):
 
 
 def config(a0=0.0, a1=1.0, a2=0.01, R=1e-4, a3=0.0, cross=0.0, fc=0.0, Vs=0.0, bits=0,
-           density=0.0, Ts=1e-3, a4=0.0, **_ignored):
-    """Constants of the sensor, computed once from the (scalar) parameters.  ``plain``: no
-    extra on, the letter's general sensor ``h(x) + sqrt(R) v`` (any ``a3``, ``a4``)."""
+           density=0.0, Ts=1e-3, a4=0.0, range=0.0, **_ignored):
+    """Constants of the sensor, computed once from the parameters (scalars; ``a0 .. a4`` and
+    ``R`` may be arrays of per-run values).  ``plain``: no extra on, the letter's general
+    sensor ``h(x) + sqrt(R) v`` (any ``a3``, ``a4``).  ``lo``: the ADC's lowest level (0.0 but
+    for a converter over the measurement range)."""
     plain = (cross == 0.0 and fc == 0.0 and Vs == 0.0 and bits == 0 and density == 0.0)
     scale = sensitivity(Vs) / sensitivity(VS_NOMINAL) if Vs > 0.0 else 1.0
     z0 = Vs / 2.0 if Vs > 0.0 else a0
     a1e, a2e, a3e = a1 * scale, a2 * scale, a3 * scale
-    sigma = a1e * noise_sigma(density, Ts) if density > 0.0 else math.sqrt(R)
+    sigma = a1e * noise_sigma(density, Ts) if density > 0.0 else _ops.sqrt(R)
     alpha = _ops.exp(-2.0 * math.pi * fc * Ts) if fc > 0.0 else None
     levels = 2 ** int(bits) if bits > 0 else 0
-    lsb = (Vs if Vs > 0.0 else VS_NOMINAL) / levels if levels else 0.0
-    return Config(plain, z0, a1e, a2e, a3e, R, sigma, cross, alpha, lsb, levels, a4 * scale)
+    lo = 0.0
+    if levels and Vs <= 0.0 and range > 0.0:  # over a0 +- |a1| range
+        span = abs(a1e) * range
+        lo, lsb = z0 - span, 2.0 * span / levels
+    else:
+        lsb = (Vs if Vs > 0.0 else VS_NOMINAL) / levels if levels else 0.0
+    return Config(plain, z0, a1e, a2e, a3e, R, sigma, cross, alpha, lsb, levels, a4 * scale, lo)
 
 
 def noise(seed, k, axis=1):
@@ -146,16 +159,22 @@ def lowpass(prev, s, alpha):
 
 
 def quantise(V, cfg):
-    """ADC: nearest code of ``V`` on the grid ``lsb``, clipped to ``[0, levels - 1]``; a
-    non-finite ``V`` (an overflow upstream) stays as it is, so that the FMU names it instead of
-    showing full scale."""
+    """ADC: nearest code of ``V - lo`` on the grid ``lsb``, clipped to ``[0, levels - 1]``, as
+    the voltage ``lo + code lsb`` (``lo = 0.0``: ``code lsb``, the same bits); a non-finite
+    ``V`` (an overflow upstream) stays as it is, so that the FMU names it instead of showing
+    full scale."""
     if not cfg.levels:
         return V
-    code = _ops.floor(V / cfg.lsb + 0.5)
+    if cfg.lo == 0.0:
+        code = _ops.floor(V / cfg.lsb + 0.5)
+    else:
+        code = _ops.floor((V - cfg.lo) / cfg.lsb + 0.5)
     code = _ops.where(code < 0.0, 0.0, code)
     top = cfg.levels - 1.0
     code = _ops.where(code > top, top, code)
-    return _ops.where(V - V == 0.0, code * cfg.lsb, V)
+    if cfg.lo == 0.0:
+        return _ops.where(V - V == 0.0, code * cfg.lsb, V)
+    return _ops.where(V - V == 0.0, cfg.lo + code * cfg.lsb, V)
 
 
 def measure(prev, own, other, v, cfg):
@@ -168,6 +187,34 @@ def measure(prev, own, other, v, cfg):
         return None, sensor.measure(own, cfg.a0, cfg.a1, cfg.a2, cfg.R, v, cfg.a3, cfg.a4)
     e = lowpass(prev, sense(own, other, v, cfg), cfg.alpha)
     return e, quantise(cfg.a0 + e, cfg)
+
+
+def measure_errors(prev, state, own, other, v, draws, theta, T, cfg, ecfg):
+    """One sample of the first axis with the slow errors of :mod:`driftfmu.models.errors`:
+    ``(filter state, error state, output z)``.
+
+    ``state`` is the :class:`~driftfmu.models.errors.ErrorState` after the previous sample,
+    ``draws`` the sample's ``(n_rw, n_gm, n_fl)`` (:func:`driftfmu.models.errors.draws`),
+    ``theta`` and ``T`` the tilt [rad] and temperature [K] inputs.  The processes advance with
+    the true acceleration ``own`` (the exposure's); the sensor senses
+    :func:`driftfmu.models.errors.sensed` of it; the processes' bias and the temperature's are
+    added to the voltage before the ADC:
+
+    .. math:: z = \\mathrm{Q}\\big(h(u) + \\sqrt{R}\\, v + b + k_{T,b} (T - T_0)\\big)
+
+    (with the extras of :func:`measure`: ``a0 + e`` in place of ``h(u) + sqrt(R) v``).
+    """
+    state, b = errors.advance(state, own, draws[0], draws[1], draws[2], ecfg)
+    u = errors.sensed(own, theta, T, ecfg)
+    if cfg.plain:
+        e, V = None, sensor.measure(u, cfg.a0, cfg.a1, cfg.a2, cfg.R, v, cfg.a3, cfg.a4)
+    else:
+        e = lowpass(prev, sense(u, other, v, cfg), cfg.alpha)
+        V = cfg.a0 + e
+    V = V + b
+    if ecfg.kT_bias != 0.0:
+        V = V + errors.thermal_bias(T, ecfg)
+    return e, state, quantise(V, cfg)
 
 
 def hold(prev, own, other, seed, k0, m, cfg, axis=1, noise_on=True):

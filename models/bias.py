@@ -29,7 +29,7 @@ and Joseph's form ``P+ = (I - K H) P- (I - K H)^T + K R' K^T`` (the 2-state scal
 a white state, ``A = 0``, the whole drift ``a2 Q``) is left in the innovation, and the bias state
 would absorb the state-dependent drift that EKF1-3 report as well: counted twice.  With the
 expectation the filter attributes ``a2 (x-^2 + P-)`` to the state and only what its model does
-not explain to ``b`` (docs/method.md, section 10).  For a quadratic ``h`` the update is then
+not explain to ``b`` (docs/method.md, section 11).  For a quadratic ``h`` the update is then
 the exact Gaussian moment update (the covariances of ``x, b`` with ``z`` and the variance of
 ``z`` under the prior); the cubic and quartic terms enter through ``E[h]`` and ``H`` (their
 extra variance is not added).  With ``a2 = a3 = a4 = 0`` it is the linear Kalman filter of

@@ -8,7 +8,7 @@ reference that the co-simulation is checked against) or on arrays of seeds (a ba
 """
 from collections import namedtuple
 
-from . import drift, ekf, excitation, sensor
+from . import drift, ekf, errors, excitation, sensor
 from .noise import STREAM_MEASUREMENT, STREAM_PROCESS, normal
 
 #: Filter state after ``drift.k`` samples: posterior mean and variance, estimator sums.
@@ -57,10 +57,51 @@ def expected_drift(a2, kind=excitation.GAUSSIAN, A=0.0, Q=0.01, X=1.0, a4=0.0, B
     return sensor.drift(a2, var_x, a4, m4)
 
 
+#: The sensor's slow errors (:mod:`driftfmu.models.errors`: its parameters, the tilt and
+#: temperature inputs held constant over a run) and the ADC's ``bits``, with their off values:
+#: what :func:`simulate` and the batch engine take beyond the general model.
+SENSOR_ERRORS_OFF = dict(errors.OFF, **errors.INPUTS, bits=0)
+
+
+def check_sensor_errors(values, function="simulate()"):
+    """Raise TypeError for a name that is not one of :data:`SENSOR_ERRORS_OFF`."""
+    unknown = sorted(set(values) - set(SENSOR_ERRORS_OFF))
+    if unknown:
+        raise TypeError("%s got unknown parameter(s) %s; allowed: %s"
+                        % (function, ", ".join(unknown), ", ".join(SENSOR_ERRORS_OFF)))
+
+
+class SensorErrors:
+    """The slow errors of the chain's sensor for one run or a batch of runs (seeds an int or an
+    array): :meth:`measure` is the Accelerometer's first axis, sample by sample, with its
+    :class:`driftfmu.models.errors.ErrorState`; ``plain`` when every term is off and the tilt
+    is 0 (then the chain calls :func:`driftfmu.models.sensor.measure` itself, the same bits)."""
+
+    def __init__(self, seed, a0, a1, a2, R, a3, a4, Ts, values):
+        from . import adxl203
+        v = dict(SENSOR_ERRORS_OFF, **values)
+        self.ecfg = errors.config(seed=seed, Ts=Ts, **v)
+        self.cfg = adxl203.config(a0=a0, a1=a1, a2=a2, R=R, a3=a3, a4=a4, bits=v["bits"],
+                                  range=v["range"], Ts=Ts)
+        self.theta, self.T, self.seed = v["theta"], v["T"], seed
+        self.plain = not self.ecfg.on and not errors._nonzero(self.theta) and not v["bits"]
+        self.state = errors.initial_state(seed, self.ecfg)
+
+    def measure(self, x, v, k, draws=None):
+        """Output ``z_k`` of the true acceleration ``x`` and measurement draw ``v`` (``draws``:
+        the processes' draws of sample ``k``, by default :func:`driftfmu.models.errors.draws`)."""
+        from . import adxl203
+        if draws is None:
+            draws = errors.draws(self.seed, k, self.ecfg)
+        _, self.state, z = adxl203.measure_errors(None, self.state, x, 0.0, v, draws,
+                                                  self.theta, self.T, self.cfg, self.ecfg)
+        return z
+
+
 def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0=None,
              Ts=1e-3, estimator=1, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0,
              filter_A=None, filter_Q=None, measure_noise=True, a3=0.0, a4=0.0, B=0.0,
-             drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0):
+             drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0, **sensor_errors):
     """Run the chain for samples ``k = 1..n``; return a dict of the results columns.
 
     ``seed`` is an int (one run; each column a list of floats) or a ``uint64`` array of shape
@@ -71,8 +112,13 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
     (sensor and filter), and the known input ``u`` (``drive``, ``Qu``, ``Xu``, ``fu``) entering
     the Gauss-Markov excitation and the filter's prediction through ``B``; the expected drift is
     then ``a2 E[x^2] + a4 E[x^4]`` of :func:`driftfmu.models.excitation.state_moments`.  Their
-    defaults give the letter's chain, same bits.
+    defaults give the letter's chain, same bits.  ``sensor_errors``: the sensor's slow errors
+    and range (:data:`SENSOR_ERRORS_OFF`: :mod:`driftfmu.models.errors`' parameters, the tilt
+    ``theta`` and temperature ``T`` held over the run, the ADC's ``bits``), as the Accelerometer
+    FMU computes them; off by default (the same bits).  The filter keeps the letter's model:
+    the errors are what it does not know.
     """
+    check_sensor_errors(sensor_errors)
     fA = A if filter_A is None else filter_A
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
@@ -83,6 +129,10 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
     cols = {c: [] for c in COLUMNS}
     x = x0
     est = estimator_init(x0, P0)
+    slow = SensorErrors(seed, a0, a1, a2, R, a3, a4, Ts, sensor_errors) if sensor_errors \
+        else None
+    if slow is not None and slow.plain:
+        slow = None
     for k in range(1, n + 1):
         u = excitation.input_sample(drive, seed, k, Qu, Xu, fu, Ts)
         if kind == excitation.GAUSSIAN:
@@ -90,7 +140,10 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
         else:
             x = excitation.sine(k, X, f, Ts, phi)
         v = normal(seed, STREAM_MEASUREMENT, k) if measure_noise else 0.0
-        z = sensor.measure(x, a0, a1, a2, R, v, a3, a4)
+        if slow is None:
+            z = sensor.measure(x, a0, a1, a2, R, v, a3, a4)
+        else:
+            z = slow.measure(x, v, k)
         est = estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
         dcs = drift.estimates(est.drift, a2, a3, a4)
         row = ((k - 1) * Ts, x, z, est.x, est.P, dcs[0], dcs[1], dcs[2],

@@ -32,6 +32,12 @@ STREAM_SENSOR_Y = 3     # second-axis excitation of the accelerometer
 STREAM_PHASE = 4        # random phase / amplitude draws of an experiment
 STREAM_MEASUREMENT_Y = 5  # v_k of the accelerometer's second axis
 STREAM_INPUT = 6        # Gaussian known input u_k of the process model (eq. 1)
+# the sensor's slow errors (models/errors.py), one stream each; index 0 is the draw before
+# sample 1 (a turn-on value, a stationary initial state)
+STREAM_TURN_ON = 7      # turn-on bias, drawn once per seed
+STREAM_RANDOM_WALK = 8  # bias random walk
+STREAM_BIAS_GM = 9      # Gauss-Markov bias instability
+STREAM_FLICKER = 16     # flicker bias: component i draws from stream STREAM_FLICKER + i
 
 
 def _mix(z):
@@ -61,7 +67,8 @@ def _key_int(seed, stream):
 
 
 def bits(seed, stream, k):
-    """64 random bits for sample ``k`` (``k >= 1``) of ``stream`` under ``seed``."""
+    """64 random bits for sample ``k`` (``k >= 1``; ``k = 0`` is the draw before sample 1) of
+    ``stream`` under ``seed``."""
     if (type(k) is int and type(seed) is int) or (_ops.is_scalar(k) and _ops.is_scalar(seed)):
         # one FMU instance, every sample: the short way
         return _mix((_key_int(int(seed) & MASK64, stream) + ((int(k) * GOLDEN) & MASK64))

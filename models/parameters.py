@@ -56,7 +56,8 @@ PARAMETERS = {p.name: p for p in (
     _p("Vs", 0.0, 0.0, 6.0, unit="V", description="supply voltage of the ratiometric output: "
        "zero-g Vs/2, sensitivity scaled like the datasheet's (0: off, a0 and a1 as given; "
        "otherwise 3 <= Vs <= 6, the datasheet's supply range)"),
-    _p("bits", 0, 0, 24, description="ADC resolution over [0, Vs) or [0, 5 V) (0: off)"),
+    _p("bits", 0, 0, 24, description="ADC resolution over [0, Vs), else over a0 +- |a1| range "
+       "when range > 0, else over [0, 5 V) (0: off)"),
     _p("density", 0.0, 0.0, unit="g/sqrt(Hz)", description="noise density; sigma = density "
        "sqrt(fs/2) replaces R (0: off, noise from R)"),
     _p("axes", 1, 1, 2, description="accelerometer axes: 1 x only, 2 x and y"),
@@ -89,7 +90,7 @@ PARAMETERS = {p.name: p for p in (
     _p("Qu", 0.0, 0.0, unit="g2", description="variance sigma_u^2 of the Gaussian known input"),
     _p("Xu", 0.0, 0.0, unit="g", description="amplitude of the sinusoidal known input"),
     _p("fu", 0.0, 0.0, unit="Hz", description="frequency of the sinusoidal known input"),
-    # -- the DriftEstimator's bias state and its class-2 (tilt, temperature) offset -------------
+    # -- the DriftEstimator's bias state (its class-2 coefficients are the sensor's below) -----
     _p("bias", 0, 0, 1, description="bias state of the filter: 0 off (the letter's filter), 1 "
        "on: state [x, b], b_k = exp(-Ts/tau_b) b_{k-1} + w_b, z_k = h(x_k) + b_k + v_k"),
     _p("Qb", 0.0, 0.0, unit="V2", description="process noise variance Qb of the bias per sample "
@@ -98,12 +99,42 @@ PARAMETERS = {p.name: p for p in (
        "b_k = b_{k-1} + w_b; > 0: Gauss-Markov b_k = exp(-Ts/tau_b) b_{k-1} + w_b)"),
     _p("b0", 0.0, unit="V", description="initial bias estimate b_0 of the filter"),
     _p("Pb0", 1e-4, 0.0, unit="V2", description="initial error variance of the bias estimate"),
-    _p("T0", 298.15, 0.0, unit="K", description="reference temperature T0 of the temperature "
-       "coefficients", low_open=True),
-    _p("kT_bias", 0.0, unit="V/K", description="temperature coefficient of the offset: "
-       "a0 + kT_bias (T - T0) (0: off)"),
+    # -- the sensor's slow errors: the letter's drift classes 2 to 4, range and resolution ----
+    #    (models.errors; every one off by default)
+    _p("bias_on", 0.0, 0.0, unit="V", description="turn-on bias: standard deviation of the "
+       "offset bias_on n drawn once per seed (class 4; 0: off)"),
+    _p("random_walk", 0.0, 0.0, unit="V/sqrt(s)", description="bias random walk K: b_k = "
+       "b_{k-1} + K sqrt(Ts) n_k, Allan deviation K sqrt(tau/3) (class 4; 0: off)"),
+    _p("bias_gm", 0.0, 0.0, unit="V", description="bias instability as a first-order "
+       "Gauss-Markov process: its stationary standard deviation (class 4; 0: off)"),
+    _p("tau_gm", 1.0, 0.0, unit="s", low_open=True, description="correlation time of the "
+       "Gauss-Markov bias: b_k = exp(-Ts/tau_gm) b_{k-1} + bias_gm sqrt(1 - exp(-2 Ts/tau_gm)) "
+       "n_k"),
+    _p("flicker", 0.0, 0.0, unit="V", description="1/f (flicker) bias: its Allan deviation, flat "
+       "over the band tau_min..tau_max (IEEE 952's bias instability B = flicker / 0.664; "
+       "class 4; 0: off)"),
+    _p("tau_min", 0.1, 0.0, unit="s", low_open=True, description="shortest correlation time of "
+       "the flicker bias's Gauss-Markov components (tau_min < tau_max)"),
+    _p("tau_max", 100.0, 0.0, unit="s", low_open=True, description="longest correlation time of "
+       "the flicker bias's Gauss-Markov components (one per decade from tau_min, at most 7 "
+       "decades)"),
+    _p("d_inf", 0.0, unit="V", description="exposure drift that never recovers: d_k = d_inf "
+       "(1 - exp(-E_k / E_tau)), E_k = E_{k-1} + x_k^2 Ts (class 3; 0: off)"),
+    _p("E_tau", 1.0, 0.0, unit="g2.s", low_open=True, description="exposure at which the "
+       "exposure drift has reached 1 - 1/e of d_inf"),
+    _p("theta", 0.0, unit="rad", description="tilt: the sensor measures x + sin(theta) [g], the "
+       "letter's g-offset (class 2)"),
+    _p("T", 298.15, unit="K", description="temperature of the sensor (class 2, with kT_bias "
+       "and kT_scale)"),
+    _p("T0", 298.15, 0.0, unit="K", description="reference temperature of kT_bias and kT_scale",
+       low_open=True),
+    _p("kT_bias", 0.0, unit="V/K", description="temperature coefficient of the bias: the output "
+       "adds kT_bias (T - T0) (class 2; 0: off)"),
     _p("kT_scale", 0.0, unit="1/K", description="temperature coefficient of the scale factor: "
-       "the sensor senses (1 + kT_scale (T - T0)) times the acceleration (0: off)"),
+       "the sensor senses (1 + kT_scale (T - T0)) times the acceleration (class 2; 0: off)"),
+    _p("range", 0.0, 0.0, unit="g", description="measurement range: the sensed acceleration is "
+       "clipped to [-range, range] (saturation); with bits > 0 and Vs = 0 the ADC spans a0 +- "
+       "|a1| range (0: off)"),
 )}
 
 

@@ -11,8 +11,6 @@ evaluated).  The even-order terms make a state-dependent DC offset (the drift)
 ``E[h(x)] - a0 - a1 E[x] = a2 E[x^2] + a3 E[x^3] + a4 E[x^4]``, which for a zero-mean Gaussian
 state is ``a2 sigma_x^2 + 3 a4 sigma_x^4`` (eqs. 4-5; the odd ``a3`` term averages to zero).
 """
-import math
-
 from . import _ops
 from .noise import STREAM_MEASUREMENT, normal
 
@@ -83,34 +81,3 @@ def drift(a2, variance, a4=0.0, m4=None):
     if m4 is None:
         m4 = 3.0 * variance * variance
     return a2 * variance + a4 * m4
-
-
-# -- the letter's class 2: tilt and temperature (reversible, state-independent drift) -----------
-#: ``2 pi``, the divisor that turns an angle in radians into cycles for :func:`_ops.sin2pi`.
-TWO_PI = 2.0 * math.pi
-
-
-def tilt(theta):
-    """``sin(theta)`` by arithmetic only (:func:`driftfmu.models._ops.sin2pi`): the share of
-    gravity along the sensitive axis [g] of a sensor tilted by ``theta`` [rad]."""
-    return _ops.sin2pi(theta / TWO_PI)
-
-
-def class2(theta, T, a1, a2, T0, kT_bias, kT_scale, a3=0.0, a4=0.0):
-    """The class-2 offset [V]: what the sensor's tilt and temperature add to its output at
-    ``x = 0``.
-
-    The sensor with class-2 terms senses ``u = (1 + kT_scale (T - T0)) (x + sin(theta))`` [g] (the tilt puts a share of
-    gravity on its axis, the temperature scales the sensing element) and its output moves by
-    ``kT_bias (T - T0)`` [V]:
-
-    .. math:: z = h\\big((1 + k_{T,scale} \\Delta T)(x + \\sin\\theta)\\big)
-              + k_{T,bias} \\Delta T + v, \\qquad \\Delta T = T - T_0
-
-    so its output at ``x = 0`` is ``a0`` plus ``kT_bias dT + h((1 + kT_scale dT) sin theta; 0,
-    a1, a2, a3, a4)``, which this returns.  With ``theta = 0`` and ``kT_bias = kT_scale = 0`` it
-    is 0.  The DriftEstimator subtracts it from ``z`` before filtering (docs/method.md,
-    section 10).
-    """
-    dT = T - T0
-    return kT_bias * dT + h((1.0 + kT_scale * dT) * tilt(theta), 0.0, a1, a2, a3, a4)

@@ -121,7 +121,7 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
              Ts=1e-3, kind=excitation.GAUSSIAN, X=1.0, f=150.0, phi=0.0, filter_A=None,
              filter_Q=None, record=(), block=BLOCK, progress=None, kernel="auto", a3=0.0,
              a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0, bias=0, Qb=0.0,
-             tau_b=0.0, b0=0.0, Pb0=1e-4):
+             tau_b=0.0, b0=0.0, Pb0=1e-4, **sensor_errors):
     """Run ``len(seeds)`` Monte-Carlo runs of the chain for samples ``k = 1..n`` at once.
 
     Run ``r`` is the co-simulation of Excitation -> Accelerometer -> DriftEstimator with both
@@ -163,6 +163,13 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         ``"auto"``: the compiled kernel (:mod:`driftfmu.simulations.kernel`) when a C compiler
         is present, NumPy otherwise; ``"numpy"``: NumPy; ``"c"``: the kernel (RuntimeError
         without a compiler).  All give the same bits.
+    **sensor_errors
+        The sensor's slow errors and range (:data:`driftfmu.models.chain.SENSOR_ERRORS_OFF`:
+        ``bias_on, random_walk, bias_gm, tau_gm, flicker, tau_min, tau_max, d_inf, E_tau, T0,
+        kT_bias, kT_scale, range``, the tilt ``theta`` and temperature ``T`` held over the runs,
+        the ADC's ``bits``), one value for all runs, as the Accelerometer FMU computes them
+        (:class:`driftfmu.models.chain.SensorErrors`; each run's processes draw from its own
+        seed's streams); off by default, the same bits.
 
     Returns
     -------
@@ -186,6 +193,7 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     fQ = Q if filter_Q is None else filter_Q
     if P0 is None:
         P0 = default_P0(fA, fQ)
+    slow = _sensor_errors(seeds, a0, a1, a2, R, a3, a4, Ts, sensor_errors)
     lib = _kernel_library(kernel)
     if lib is not None:
         if kind == excitation.GAUSSIAN and drive not in excitation.DRIVES:
@@ -194,8 +202,9 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
                                                     P0=P0, Ts=Ts, X=X, f=f, phi=phi, fA=fA,
                                                     fQ=fQ, a3=a3, a4=a4, B=B, drive=drive,
                                                     Qu=Qu, Xu=Xu, fu=fu, bias=bias, Qb=Qb,
-                                                    tau_b=tau_b, b0=b0, Pb0=Pb0), kind, record,
-                                progress)
+                                                    tau_b=tau_b, b0=b0, Pb0=Pb0,
+                                                    **sensor_errors),
+                                kind, record, progress, slow is not None)
     shape = (runs,)
     x = np.broadcast_to(np.asarray(x0, dtype=float), shape).copy()
     est = chain.estimator_init(x.copy(), np.broadcast_to(np.asarray(P0, dtype=float),
@@ -220,6 +229,8 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
         if gaussian:
             W = noise.normal(row, noise.STREAM_PROCESS, ks)
         V = sensor.measurement_noise(row, ks)
+        if slow is not None:
+            draws = _error_draws(row, ks, slow.ecfg)
         for i in range(ks.shape[0]):
             k = k0 + i
             u = excitation.input_sample(drive, row[0], k, Qu, Xu, fu, Ts) if inputs else 0.0
@@ -227,7 +238,11 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
                 x = excitation.gauss_markov(x, A, Q, W[i], fB, u)
             else:
                 x = excitation.sine(k, X, f, Ts, phi)
-            z = sensor.measure(x, a0, a1, a2, R, V[i], a3, a4)
+            if slow is None:
+                z = sensor.measure(x, a0, a1, a2, R, V[i], a3, a4)
+            else:
+                z = slow.measure(x, V[i], k, (draws[0][i], draws[1][i],
+                                              tuple(d[i] for d in draws[2])))
             if b is None:
                 est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
             else:
@@ -248,6 +263,35 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
     for name, arr in traj.items():
         out[name] = np.ascontiguousarray(arr.T)
     return out
+
+
+def _sensor_errors(seeds, a0, a1, a2, R, a3, a4, Ts, values):
+    """The :class:`driftfmu.models.chain.SensorErrors` of the runs, or None when every slow
+    error, the tilt and the ADC are off (the letter's sensor: the engines call
+    :func:`driftfmu.models.sensor.measure`, the same bits).  UsageError for a name that is not
+    one of them or a per-run array of one (they are one value for all runs)."""
+    if not values:
+        return None
+    unknown = sorted(set(values) - set(chain.SENSOR_ERRORS_OFF))
+    if unknown:
+        raise UsageError("simulate() got unknown parameter(s) %s; allowed: %s"
+                         % (", ".join(unknown), ", ".join(chain.SENSOR_ERRORS_OFF)))
+    arrays = sorted(k for k, v in values.items() if not _ops.is_scalar(v))
+    if arrays:
+        raise UsageError("%s must be one value for all runs, not an array; allowed: a number"
+                         % ", ".join(arrays))
+    slow = chain.SensorErrors(seeds, a0, a1, a2, R, a3, a4, Ts, values)
+    return None if slow.plain else slow
+
+
+def _error_draws(row, ks, ecfg):
+    """The slow errors' draws of the samples ``ks`` (a column) of the runs ``row``:
+    ``(n_rw, n_gm, (n_fl_0, ...))``, each ``(len(ks), runs)`` (0.0 for a process that is
+    off), as :func:`driftfmu.models.errors.draws` gives them sample by sample."""
+    zero = np.zeros((ks.shape[0], 1))
+    return (noise.normal(row, noise.STREAM_RANDOM_WALK, ks) if ecfg.rw != 0.0 else zero,
+            noise.normal(row, noise.STREAM_BIAS_GM, ks) if ecfg.gm_sigma != 0.0 else zero,
+            tuple(noise.normal(row, noise.STREAM_FLICKER + i, ks) for i in range(ecfg.fl_n)))
 
 
 def _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4, b=None):
@@ -360,7 +404,7 @@ def _kernel_library(kernel):
     return lib
 
 
-def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
+def _simulate_kernel(lib, n, seeds, params, kind, record, progress, slow=False):
     """:func:`simulate` in the compiled kernel: the same loop over samples, in blocks of about
     1/32 of ``n`` for ``progress``, else of :data:`KERNEL_CALL` sample-runs; the same finals
     computed by the same models/ code."""
@@ -370,7 +414,7 @@ def _simulate_kernel(lib, n, seeds, params, kind, record, progress):
     quadratic = not sensor.higher(a3, a4)
     on = params["bias"] == 1
     general = not quadratic or not (_ops.is_scalar(params["B"]) and params["B"] == 0.0) or on
-    state = compiled.Batch(lib, seeds, params, kind, n, record, general, quadratic)
+    state = compiled.Batch(lib, seeds, params, kind, n, record, general, quadratic, slow)
     step = max(BLOCK, -(-n // 32) if progress is not None else KERNEL_CALL // max(1, runs))
     for k0 in range(1, n + 1, step):
         k1 = min(k0 + step, n + 1)

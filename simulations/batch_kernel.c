@@ -13,6 +13,7 @@
 #include "covariance.h"
 #include "drift.h"
 #include "dualaxis.h"
+#include "errors.h"
 #include "excitation.h"
 #include "harmonic.h"
 #include "noise.h"
@@ -20,8 +21,8 @@
 
 /* One run of simulations.batch.simulate between blocks: the excitation, the filter, the two
  * running means, the general sensor's realised drift, the bias filter's part and where its
- * covariance first left the PSD cone (twenty-two 8-byte fields, the layout of a (runs, 22)
- * float64 array: kernel.py's STATE_FIELDS). */
+ * covariance first left the PSD cone, and the sensor's slow errors (thirty-three 8-byte
+ * fields, the layout of a (runs, 33) float64 array: kernel.py's STATE_FIELDS). */
 typedef struct {
     double x, zbar, x2bar;
     EstimatorState est;
@@ -29,23 +30,46 @@ typedef struct {
     Bias b;       /* the bias part (bias = 1 only; 0 otherwise) */
     double bad_k; /* the first sample whose covariance (P, Pxb, Pbb) is not valid (0: none) */
     double bad[3];/* that covariance */
+    ErrorState err; /* models.errors' state (chain.SensorErrors; the slow errors only) */
 } RunState;
 
 /* The per-run parameters of batch.simulate, in this order, each an array of `runs` values
- * (the general model's last: a3, a4, B, the known input's drive, Qu, Xu, fu). */
+ * (the general model's: a3, a4, B, the known input's drive, Qu, Xu, fu; then the sensor's
+ * slow errors, chain.SENSOR_ERRORS_OFF: models.errors' parameters, the tilt and temperature
+ * held over a run, the ADC's bits). */
 enum { P_A0, P_A1, P_A2, P_A, P_Q, P_R, P_X0, P_P0, P_TS, P_X, P_F, P_PHI, P_FA, P_FQ,
        P_A3, P_A4, P_B, P_DRIVE, P_QU, P_XU, P_FU, P_BIAS, P_QB, P_TAU_B, P_B0, P_PB0,
+       P_BIAS_ON, P_RANDOM_WALK, P_BIAS_GM, P_TAU_GM, P_FLICKER, P_TAU_MIN, P_TAU_MAX,
+       P_D_INF, P_E_TAU, P_THETA, P_T, P_T0, P_KT_BIAS, P_KT_SCALE, P_RANGE, P_BITS,
        N_PARAMS };
+
+/* The slow errors' constants of run r (chain.SensorErrors: errors.config with the run's seed,
+ * adxl203.config with its sensor and the ADC). */
+static void slow_config(const double *const *p, int64_t r, uint64_t seed, ErrorConfig *ecfg,
+                        Config *cfg)
+{
+    *ecfg = errors_config((int64_t)seed, p[P_TS][r], p[P_BIAS_ON][r], p[P_RANDOM_WALK][r],
+                          p[P_BIAS_GM][r], p[P_TAU_GM][r], p[P_FLICKER][r], p[P_TAU_MIN][r],
+                          p[P_TAU_MAX][r], p[P_D_INF][r], p[P_E_TAU][r], p[P_T0][r],
+                          p[P_KT_BIAS][r], p[P_KT_SCALE][r], p[P_RANGE][r]);
+    *cfg = adxl203_config_ranged(p[P_A0][r], p[P_A1][r], p[P_A2][r], p[P_R][r], p[P_A3][r], 0.0,
+                                 0.0, 0.0, (int64_t)p[P_BITS][r], 0.0, p[P_TS][r], p[P_A4][r],
+                                 p[P_RANGE][r]);
+}
 
 /* batch.TRAJECTORIES and batch.BIAS_OUTPUTS, in this order; a NULL pointer is a trajectory not
  * recorded. */
 enum { T_X, T_Z, T_XHAT, T_P, T_DC1, T_DC2, T_DC3, T_EMPIRICAL, T_REALISED, T_BHAT, T_PBB,
        T_PXB, N_TRAJ };
 
-/* The state of every run before sample 1: x = x0, the filter at (x0, P0), means 0. */
-void driftfmu_batch_init(int64_t runs, const double *const *p, RunState *state)
+/* The state of every run before sample 1: x = x0, the filter at (x0, P0), means 0, the slow
+ * errors' initial state (errors.initial_state of the run's seed; all 0.0 while they are off). */
+void driftfmu_batch_init(int64_t runs, const uint64_t *seeds, const double *const *p,
+                         RunState *state)
 {
     for (int64_t r = 0; r < runs; r++) {
+        ErrorConfig ecfg;
+        Config cfg;
         state[r].x = p[P_X0][r];
         state[r].zbar = 0.0;
         state[r].x2bar = 0.0;
@@ -58,6 +82,8 @@ void driftfmu_batch_init(int64_t runs, const double *const *p, RunState *state)
         }
         state[r].bad_k = 0.0;
         state[r].bad[0] = state[r].bad[1] = state[r].bad[2] = 0.0;
+        slow_config(p, r, seeds[r], &ecfg, &cfg);
+        state[r].err = errors_initial_state((int64_t)seeds[r], &ecfg);
     }
 }
 
@@ -163,14 +189,16 @@ static int run_gaussian_vector(int64_t k0, int64_t k1, int64_t r0, int lanes,
  * trajectories are (runs, n) arrays, sample k in column k - 1.  `general`: the batch has the
  * general sensor or the known input (a3, a4 or B not 0; batch.simulate's NumPy path then calls
  * the same functions with them, the letter's with zeros, which the C functions of the letter's
- * sensor are); `quadratic`: a3 = a4 = 0 in every run (no realised h to average). */
+ * sensor are); `quadratic`: a3 = a4 = 0 in every run (no realised h to average); `slow`: the
+ * sensor's slow errors, tilt or ADC are on (chain.SensorErrors not plain: its measure, that is
+ * adxl203_measure_errors, gives z). */
 void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const uint64_t *seeds,
-                        int64_t kind, int64_t general, int64_t quadratic,
+                        int64_t kind, int64_t general, int64_t quadratic, int64_t slow,
                         const double *const *p, RunState *state, double *const *traj)
 {
     const int gaussian = kind == EXCITATION_GAUSSIAN;
     int64_t done = 0;  /* runs before this index ran in run_gaussian_vector */
-    if (gaussian && !traj && !general)
+    if (gaussian && !traj && !general && !slow)
         while (done < runs && run_gaussian_vector(k0, k1, done, runs - done < VLANES ?
                                                   (int)(runs - done) : VLANES, seeds, p, state))
             done += VLANES;
@@ -180,12 +208,15 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
         double q[N_PARAMS][LANES];  /* this block's parameters, out of reach of the stores */
         double Fb[LANES];           /* the bias filter's bias_factor(tau_b, Ts) */
         uint64_t key_process[LANES], key_measurement[LANES];
+        ErrorConfig ecfg[LANES];
+        Config cfg[LANES];
         for (int i = 0; i < lanes; i++) {
             s[i] = state[r0 + i];
             for (int j = 0; j < N_PARAMS; j++) q[j][i] = p[j][r0 + i];
             key_process[i] = noise_key(seeds[r0 + i], NOISE_STREAM_PROCESS);
             key_measurement[i] = noise_key(seeds[r0 + i], NOISE_STREAM_MEASUREMENT);
             Fb[i] = bias_factor(q[P_TAU_B][i], q[P_TS][i]);
+            if (slow) slow_config(p, r0 + i, seeds[r0 + i], &ecfg[i], &cfg[i]);
         }
         for (int64_t k = k0; k < k1; k++) {
             for (int i = 0; i < lanes; i++) {
@@ -204,8 +235,19 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                 } else {
                     s[i].x = excitation_sine(k, q[P_X][i], q[P_F][i], q[P_TS][i], q[P_PHI][i]);
                 }
-                z = sensor_measure_general(s[i].x, a0, a1, a2, R,
-                                           keyed_normal(key_measurement[i], k), a3, a4);
+                if (slow) { /* chain.SensorErrors.measure */
+                    double n_rw, n_gm, n_fl[ERRORS_FLICKER_MAX];
+                    int64_t e_set;
+                    double e;
+                    errors_draws((int64_t)seeds[r0 + i], k, &ecfg[i], &n_rw, &n_gm, n_fl);
+                    adxl203_measure_errors(0, 0.0, &s[i].err, s[i].x, 0.0,
+                                           keyed_normal(key_measurement[i], k), n_rw, n_gm,
+                                           n_fl, q[P_THETA][i], q[P_T][i], &cfg[i], &ecfg[i],
+                                           &e_set, &e, &z);
+                } else {
+                    z = sensor_measure_general(s[i].x, a0, a1, a2, R,
+                                               keyed_normal(key_measurement[i], k), a3, a4);
+                }
                 if (q[P_BIAS][i] != 0.0) { /* models.bias.estimator_step and check */
                     s[i].est = bias_estimator_step(s[i].est, &s[i].b, z, a0, a1, a2, q[P_FA][i],
                                                    q[P_FQ][i], R, Fb[i], q[P_QB][i], a3, a4, B,

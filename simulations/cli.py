@@ -22,7 +22,7 @@ import time
 import warnings
 from pathlib import Path
 
-from driftfmu.models import parameters
+from driftfmu.models import chain, parameters
 from driftfmu.simulations import checks
 from driftfmu.simulations.errors import (DataError, EXIT_FAILED, EXIT_INTERRUPTED,  # noqa: F401
                                          EXIT_USAGE, UsageError)
@@ -308,8 +308,12 @@ def check_build_args(args):
         parameter_values(start_values(args.start_values))  # refused before anything is built
 
 
-#: The general model's parameters (issue 16, docs/method.md section 9): off by default.
-GENERAL = ("a3", "a4", "B", "drive", "Qu", "Xu", "fu")
+#: The sensor's slow errors, tilt, temperature, range and ADC (issue 42, docs/method.md
+#: section 10; models.chain.SENSOR_ERRORS_OFF): off by default.
+SENSOR_ERRORS = tuple(chain.SENSOR_ERRORS_OFF)
+#: The general model's parameters (issue 16, docs/method.md section 9) and the sensor's slow
+#: errors: off by default.
+GENERAL = ("a3", "a4", "B", "drive", "Qu", "Xu", "fu") + SENSOR_ERRORS
 
 
 def cmd_run_gaussian(args):

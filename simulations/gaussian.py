@@ -9,7 +9,7 @@ sample, and reports the drift estimates against the three references.
 import math
 from pathlib import Path
 
-from driftfmu.models import chain, drift, excitation, parameters
+from driftfmu.models import chain, drift, errors, excitation, parameters
 from driftfmu.simulations import output
 from driftfmu.simulations.cosim import cosimulate
 from driftfmu.simulations.errors import UsageError
@@ -19,8 +19,14 @@ CONNECTIONS = (("Excitation", "x", "Accelerometer", "x"),
                ("Accelerometer", "z", "DriftEstimator", "z"))
 #: The known input u (eq. 1) from the Excitation to the filter's prediction, wired when B != 0.
 INPUT_CONNECTION = ("Excitation", "u", "DriftEstimator", "u")
-#: The general model's parameters (issue 16) and their off values: the letter's case.
-GENERAL_OFF = dict(a3=0.0, a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0)
+#: The general model's parameters (issue 16) and the sensor's slow errors (issue 42:
+#: :data:`driftfmu.models.chain.SENSOR_ERRORS_OFF`, the letter's drift classes 2 to 4, the tilt
+#: and temperature held over a run, the range and the ADC's bits), with their off values: the
+#: letter's case.
+GENERAL_OFF = dict(dict(a3=0.0, a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0,
+                        fu=0.0), **chain.SENSOR_ERRORS_OFF)
+#: The Accelerometer's inputs among them (start values of inputs the master does not connect).
+SENSOR_INPUTS = ("theta", "T")
 
 
 def connections(B=0.0):
@@ -115,8 +121,10 @@ def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3
     The sensor and the filter share the model ``a0, a1, a2, R``; the filter's process model is
     the excitation's ``(A, Q)``; ``P0`` defaults to ``Q / (1 - A^2)``.  ``general``: the
     general model's ``a3, a4`` (sensor and filter), ``B`` (excitation and filter) and the
-    known input ``drive, Qu, Xu, fu`` (excitation); only those given (and not off) are set, so
-    the letter's run sets exactly what it always set.
+    known input ``drive, Qu, Xu, fu`` (excitation), and the sensor's slow errors
+    (:data:`driftfmu.models.chain.SENSOR_ERRORS_OFF`: the Accelerometer's parameters, and the
+    start values of its inputs ``theta`` and ``T``, which the chain leaves unconnected); only
+    those given (and not off) are set, so the letter's run sets exactly what it always set.
     """
     unknown = set(general) - set(GENERAL_OFF)
     if unknown:
@@ -127,10 +135,11 @@ def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3
     on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
     sensor_terms = {k: on[k] for k in ("a3", "a4") if k in on}
     inputs = {k: on[k] for k in ("B", "drive", "Qu", "Xu", "fu") if k in on}
+    slow = {k: on[k] for k in chain.SENSOR_ERRORS_OFF if k in on}
     return {
         "Excitation": dict(kind=excitation.GAUSSIAN, A=A, Q=Q, x0=x0, Ts=Ts, seed=seed,
                            **inputs),
-        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1, **sensor_terms),
+        "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1, **sensor_terms, **slow),
         "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator,
                                **sensor_terms, **({"B": on["B"]} if "B" in on else {})),
     }
@@ -169,7 +178,7 @@ def run_gaussian(out=None, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, n=200
     params["P0"] = P0
     general = dict(GENERAL_OFF, **general)
     params.update({k: v for k, v in general.items() if v != GENERAL_OFF[k]})
-    problems = parameters.check(params)
+    problems = parameters.check(params) + errors.problems(params)
     if problems:
         raise UsageError("; ".join(problems))
     if estimator not in (1, 2, 3):

@@ -32,17 +32,22 @@ HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
 #: The C units of models/ the kernel calls (with their own dependencies).
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c", "bias.c")
+         "harmonic.c", "adxl203.c", "errors.c", "parameters.c", "dualaxis.c", "covariance.c",
+         "bias.c")
 #: Order of the per-run parameter arrays of ``driftfmu_batch_run`` (batch.simulate's names;
-#: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``; the general model's last, ``drive`` as a
-#: float).
+#: ``fA``, ``fQ`` are the filter's ``A`` and ``Q``; the general model's, ``drive`` as a
+#: float; then the sensor's slow errors, chain.SENSOR_ERRORS_OFF's, ``bits`` as a float).
 PARAMS = ("a0", "a1", "a2", "A", "Q", "R", "x0", "P0", "Ts", "X", "f", "phi", "fA", "fQ",
-          "a3", "a4", "B", "drive", "Qu", "Xu", "fu", "bias", "Qb", "tau_b", "b0", "Pb0")
+          "a3", "a4", "B", "drive", "Qu", "Xu", "fu", "bias", "Qb", "tau_b", "b0", "Pb0",
+          "bias_on", "random_walk", "bias_gm", "tau_gm", "flicker", "tau_min", "tau_max",
+          "d_inf", "E_tau", "theta", "T", "T0", "kT_bias", "kT_scale", "range", "bits")
 #: Fields of one run's state (``RunState``): float64 but the drift counter ``k`` (int64):
 #: x, zbar, x2bar, the filter's x and P, the drift estimators' state (whose 3rd/4th-order
-#: sums come last), the general sensor's realised drift, the bias part (b, Pxb, Pbb), and the
-#: first sample whose covariance (P, Pxb, Pbb) was not valid (0: none) with that covariance.
-STATE_FIELDS = 5 + 9 + 1 + 3 + 4
+#: sums come last), the general sensor's realised drift, the bias part (b, Pxb, Pbb), the
+#: first sample whose covariance (P, Pxb, Pbb) was not valid (0: none) with that covariance,
+#: and the slow errors' state (rw, gm, E and the flicker components,
+#: models.errors.FLICKER_MAX of them).
+STATE_FIELDS = 5 + 9 + 1 + 3 + 4 + 3 + 8
 #: models.adxl203.simulate's start values and columns, in the kernel's order.
 EXCITATION = ("kind", "A", "Q", "x0", "X", "f", "phi", "Xy", "phiy", "seed")
 SENSOR = ("a0", "a1", "a2", "R", "a3", "cross", "fc", "Vs", "bits", "density", "seed", "noise",
@@ -65,8 +70,14 @@ SINGLE = ("a0", "a1", "a2", "R", "Q", "x0", "P0", "A", "process", "f", "Qh")
 #: loops; the units' functions are not interposable from outside the library) and no errno
 #: for sqrt; from 110 to 58 ns per sample-run of the Gaussian chain on the development
 #: machine (52 ns with the per-run noise keys of batch_kernel.c), at a load average of about 20.
+#: No straight-line (SLP) vectorisation: GCC 12's SLP pass recognises a*b - c*d, a*b + c*d
+#: pairs as complex arithmetic and emits fused multiply-subtract-adds (vfmsubadd) in spite of
+#: -ffp-contract=off (found in dualaxis_estimator_predict, and in dualaxis_estimator_step after
+#: an unrelated change of ops.c moved the inlining); the loops are vectorised as before, at the
+#: same speed.
 SPEED_FLAGS = ("-O3", "-fno-math-errno", "-flto", "-fno-semantic-interposition",
-               "--param=max-inline-insns-auto=300", "--param=max-inline-insns-single=600")
+               "--param=max-inline-insns-auto=300", "--param=max-inline-insns-single=600",
+               "-fno-tree-slp-vectorize")
 #: And, where the compiler takes them, the instructions of this machine's processor in
 #: vectors of up to 512 bits: the vectorised Gaussian chain (run_gaussian_vector) then advances
 #: eight runs per instruction (AVX-512; 0.29 instead of 0.34 s for the default sweep's runs
@@ -195,9 +206,9 @@ def _load(lib):
     """``lib`` (the loaded kernel) with its functions' prototypes."""
     i64, d = ctypes.c_int64, ctypes.c_double
     lib.driftfmu_batch_init.restype = None
-    lib.driftfmu_batch_init.argtypes = [i64, _P, _P]
+    lib.driftfmu_batch_init.argtypes = [i64, _P, _P, _P]
     lib.driftfmu_batch_run.restype = None
-    lib.driftfmu_batch_run.argtypes = [i64, i64, i64, i64, _P, i64, i64, i64, _P, _P, _P]
+    lib.driftfmu_batch_run.argtypes = [i64, i64, i64, i64, _P, i64, i64, i64, i64, _P, _P, _P]
     lib.driftfmu_adxl203.restype = ctypes.c_int
     lib.driftfmu_adxl203.argtypes = [i64, d, _P, _P, _P, _P, _P]
     lib.driftfmu_dual.restype = ctypes.c_int
@@ -216,31 +227,38 @@ class Batch:
     ``params`` maps the names of :data:`PARAMS` to floats or ``(runs,)`` arrays.  :meth:`run`
     advances every run over samples ``k0 .. k1 - 1``; :meth:`state` gives the run states.
     ``general``: the general sensor or the known input in the batch; ``quadratic``: ``a3 =
-    a4 = 0`` in every run (:func:`driftfmu.simulations.batch.simulate`'s flags).
+    a4 = 0`` in every run; ``slow``: the sensor's slow errors, tilt or ADC are on
+    (:func:`driftfmu.simulations.batch.simulate`'s flags).  The parameters of
+    :data:`PARAMS` missing from ``params`` take their off values.
     """
 
-    def __init__(self, lib, seeds, params, kind, n, record, general=False, quadratic=True):
+    def __init__(self, lib, seeds, params, kind, n, record, general=False, quadratic=True,
+                 slow=False):
+        from driftfmu.models import chain
         from driftfmu.simulations.batch import BIAS_OUTPUTS, TRAJECTORIES
         self.lib = lib
         self.seeds = np.ascontiguousarray(seeds, dtype=np.uint64)
         runs = self.seeds.shape[0]
+        params = dict(chain.SENSOR_ERRORS_OFF, **params)
         self.params = [np.ascontiguousarray(np.broadcast_to(np.asarray(params[name],
                                                                        dtype=float), (runs,)))
                        for name in PARAMS]
         self.param_ptrs = _pointers(self.params)
         self.kind, self.n, self.runs = int(kind), int(n), runs
         self.general, self.quadratic = int(bool(general)), int(bool(quadratic))
+        self.slow = int(bool(slow))
         self.traj = {name: np.empty((runs, n)) for name in record}
         self.traj_ptrs = _pointers([self.traj.get(name) for name in
                                     TRAJECTORIES + BIAS_OUTPUTS]) if self.traj else None
         self.buffer = np.zeros((runs, STATE_FIELDS))
-        lib.driftfmu_batch_init(runs, self.param_ptrs, self.buffer.ctypes.data)
+        lib.driftfmu_batch_init(runs, self.seeds.ctypes.data, self.param_ptrs,
+                                self.buffer.ctypes.data)
 
     def run(self, k0, k1):
         """Samples ``k0 .. k1 - 1`` (1-based) of every run."""
         self.lib.driftfmu_batch_run(k0, k1, self.n, self.runs, self.seeds.ctypes.data,
-                                    self.kind, self.general, self.quadratic, self.param_ptrs,
-                                    self.buffer.ctypes.data, self.traj_ptrs)
+                                    self.kind, self.general, self.quadratic, self.slow,
+                                    self.param_ptrs, self.buffer.ctypes.data, self.traj_ptrs)
 
     def state(self):
         """``(x, zbar, x2bar, est, hbar)``: arrays ``(runs,)``, a chain.EstimatorState of

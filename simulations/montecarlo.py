@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from driftfmu.models import chain, drift, excitation
+from driftfmu.models import chain, drift, errors, excitation
 from driftfmu.simulations import batch, checks, output
 from driftfmu.simulations.gaussian import GENERAL_OFF, SETTLE_BAND, plot_title, settle_hold
 from driftfmu.simulations.sinusoidal import check_frequency
@@ -114,8 +114,8 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
 
 
 #: The general model's parameters of the sinusoidal population: the sensor's (a sinusoidal
-#: state has no input term).
-SINE_GENERAL = ("a3", "a4")
+#: state has no input term) and its slow errors (issue 42).
+SINE_GENERAL = ("a3", "a4") + tuple(chain.SENSOR_ERRORS_OFF)
 
 
 def general_on(general, allowed=tuple(GENERAL_OFF), function=None):
@@ -129,6 +129,7 @@ def general_on(general, allowed=tuple(GENERAL_OFF), function=None):
                               checks.keywords_of(function, allowed))
     on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
     batch.check_parameters(on)
+    checks.refuse(errors.problems(on))
     return on
 
 
@@ -194,7 +195,7 @@ def montecarlo_gaussian(runs=1000, n=1000, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.0
     summary["parameters"] = dict(params, runs=runs, engine=engine,
                                  P0=batch.default_P0(A, Q) if P0 is None else P0, **on)
     summary["dc_expected"] = chain.expected_drift(a2, excitation.GAUSSIAN, A=A, Q=Q, **{
-        k: v for k, v in on.items() if k != "a3"}, Ts=Ts)
+        k: v for k, v in on.items() if k in ("a4", "B", "drive", "Qu", "Xu", "fu")}, Ts=Ts)
     summary["seconds"] = seconds
     summary["trajectories_kept"] = int(result["fig1_dc1"].shape[0])
     result["summary"] = summary

@@ -876,12 +876,17 @@ def general_text(general):
     ``drive, Qu, Xu, fu``), for a title: ``"a4 = 0.05 V/g⁴, B = 1, known input u: sinusoidal,
     Xu = 1 g, fu = 5 Hz"``; ``""`` for the letter's sensor."""
     from driftfmu.models import excitation
-    general = {k: v for k, v in (general or {}).items() if v}
+    from driftfmu.models import chain
+    general = {k: v for k, v in (general or {}).items()
+               if v != chain.SENSOR_ERRORS_OFF.get(k, 0.0)}
     parts = [value_text(k, general[k]) for k in ("a3", "a4", "B") if k in general]
     drive = general.get("drive", excitation.DRIVE_OFF)
     if drive != excitation.DRIVE_OFF:
         parts.append("known input u: %s" % excitation.DRIVES.get(drive, drive))
         parts += [value_text(k, general[k]) for k in ("Qu", "Xu", "fu") if k in general]
+    slow = [value_text(k, general[k]) for k in chain.SENSOR_ERRORS_OFF if k in general]
+    if slow:  # the sensor's slow errors (issue 42)
+        parts.append("slow errors: " + ", ".join(slow))
     return ", ".join(parts)
 
 

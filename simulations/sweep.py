@@ -27,7 +27,7 @@ import time
 
 import numpy as np
 
-from driftfmu.models import chain, excitation, parameters
+from driftfmu.models import chain, errors, excitation, parameters
 from driftfmu.simulations import batch, budget, checks, output
 from driftfmu.simulations.errors import UsageError
 
@@ -42,8 +42,9 @@ CSV_COLUMNS = (("a2", "R", "dc_expected")
 #: Columns of ``sweep.csv`` of a sweep over ``a4``.
 A4_CSV_COLUMNS = ("a4",) + CSV_COLUMNS[1:]
 #: The general model's parameters shared by all grid points, off by default (``a4`` may also
-#: be a grid).
-GENERAL_OFF = dict(a3=0.0, a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0, fu=0.0)
+#: be a grid), and the sensor's slow errors (issue 42: chain.SENSOR_ERRORS_OFF).
+GENERAL_OFF = dict(dict(a3=0.0, a4=0.0, B=0.0, drive=excitation.DRIVE_OFF, Qu=0.0, Xu=0.0,
+                        fu=0.0), **chain.SENSOR_ERRORS_OFF)
 
 
 def check_grid(name, values):
@@ -81,7 +82,10 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
         letter's sensor), or several: a sweep over ``(a4, R)`` at one ``a2``.
     **general
         The general model's ``a3, B, drive, Qu, Xu, fu`` (the names and checks of
-        ``driftfmu run gaussian``), shared by every grid point; off by default.
+        ``driftfmu run gaussian``) and the sensor's slow errors and range (``bias_on,
+        random_walk, bias_gm, tau_gm, flicker, tau_min, tau_max, d_inf, E_tau, theta, T, T0,
+        kT_bias, kT_scale, range, bits``: docs/method.md section 10), shared by every grid
+        point; off by default.
     a0, a1, Q, A, Ts : float
         The other model parameters, shared by all grid points (the letter: a1 = 1, Q = 0.01).
     runs, n, seed : int
@@ -120,6 +124,7 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
     batch.check_parameters(dict(a0=a0, a1=a1, Q=Q, A=A, n=n, Ts=Ts))
     on = {k: v for k, v in general.items() if v != GENERAL_OFF[k]}
     batch.check_parameters(on)
+    checks.refuse(errors.problems(on))
     checks.refuse([checks.choice_problem("engine", engine, batch.ENGINES)])
     xs = a4s if axis == "a4" else a2
     points = len(xs) * len(R)
@@ -239,8 +244,8 @@ def write(out, result, plot=True):
             subtitle = "%s, %s, A = %g; %d runs of n = %d samples per point" % (
                 output.value_text("a1", p["a1"]), output.value_text("Q", p["Q"]), p["A"],
                 p["runs"], p["n"])
-            fixed = output.general_text({k: p[k] for k in ("a3", "a4", "B", "drive", "Qu", "Xu",
-                                                           "fu") if k in p and k != axis})
+            fixed = output.general_text({k: p[k] for k in GENERAL_OFF
+                                         if k in p and k != axis})
             if axis != "a2":
                 fixed = ", ".join([output.value_text("a2", p["a2"])] + ([fixed] if fixed else []))
             if fixed:
@@ -369,7 +374,7 @@ def add_cli(groups):
 
 
 #: The general model's options of ``driftfmu sweep`` besides ``--a4``.
-GENERAL_CLI = ("a3", "B", "drive", "Qu", "Xu", "fu")
+GENERAL_CLI = ("a3", "B", "drive", "Qu", "Xu", "fu") + tuple(chain.SENSOR_ERRORS_OFF)
 
 
 def cmd_sweep(args):

@@ -1,6 +1,7 @@
 """The bias state of the DriftEstimator's filter (models/bias.py) and the class-2 offset
-(models/sensor.py ``class2``), against computations written here independently: dense matrices
-with NumPy, Gauss-Hermite quadrature of the Gaussian prior, ``math.sin`` and ``math.exp``.
+(models/errors.py ``class2_offset``), against computations written here independently: dense
+matrices with NumPy, Gauss-Hermite quadrature of the Gaussian prior, ``math.sin`` and
+``math.exp``.
 """
 import math
 import random
@@ -8,7 +9,7 @@ import random
 import numpy as np
 import pytest
 
-from driftfmu.models import bias, chain, covariance, drift, sensor
+from driftfmu.models import bias, chain, covariance, drift, errors, sensor
 from driftfmu.simulations import batch
 from driftfmu.simulations.errors import UsageError
 
@@ -101,13 +102,13 @@ def test_class2_is_the_sensors_output_at_x_0_by_hand():
         dT = T - T0
         g = (1 + ks * dT) * math.sin(theta)  # the sensed acceleration at x = 0
         want = kb * dT + a1 * g + a2 * g ** 2 + a3 * g ** 3 + a4 * g ** 4
-        got = sensor.class2(theta, T, a1, a2, T0, kb, ks, a3, a4)
+        got = errors.class2_offset(theta, T, a1, a2, T0, kb, ks, a3, a4)
         assert got == pytest.approx(want, rel=1e-14, abs=1e-16)
-    assert sensor.class2(0.0, 350.0, a1, a2, T0, 0.0, 0.0) == 0.0
-    assert sensor.tilt(math.pi / 6) == pytest.approx(0.5, rel=1e-15)
+    assert errors.class2_offset(0.0, 350.0, a1, a2, T0, 0.0, 0.0) == 0.0
+    assert errors.tilt(0.0, math.pi / 6) == pytest.approx(0.5, rel=1e-15)
     thetas = np.linspace(-3, 3, 41)
-    assert sensor.class2(thetas, 300.0, a1, a2, T0, 1e-3, 2e-4).tobytes() == np.array(
-        [sensor.class2(float(t), 300.0, a1, a2, T0, 1e-3, 2e-4) for t in thetas]).tobytes()
+    assert errors.class2_offset(thetas, 300.0, a1, a2, T0, 1e-3, 2e-4).tobytes() == np.array(
+        [errors.class2_offset(float(t), 300.0, a1, a2, T0, 1e-3, 2e-4) for t in thetas]).tobytes()
 
 
 def test_floats_and_arrays_give_the_same_bits():

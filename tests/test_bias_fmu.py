@@ -3,7 +3,7 @@ the ``make`` fixture the pythonfmu FMU and its native twin with the same calls a
 
 - bias = 1: the outputs are models/bias.py's (batch.estimate over the same measurements),
   predict-only samples inside a step too; z_comp = z - dc - b_hat;
-- class 2: the offset models.sensor.class2 of the tilt and temperature inputs is removed from z
+- class 2: the offset models.errors.class2_offset of the tilt and temperature inputs is removed from z
   before filtering (both process models), shown as dc_class2; a tilt set back to 0 gives the
   letter's filter again;
 - bad values get one line each and change nothing, on both sides of every bound; a covariance
@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator
-from driftfmu.models import bias, chain, drift, harmonic, sensor
+from driftfmu.models import bias, chain, drift, errors, harmonic
 from driftfmu.simulations import batch
 
 from test_bias import PAST_PRECISION
@@ -89,7 +89,7 @@ def test_the_class2_offset_is_removed_before_filtering(process):
         set_var(s, "z", float(z))
         set_var(s, "theta", theta)
         set_var(s, "T", T)
-        offset = sensor.class2(theta, T, 1.0, 0.05, 300.0, 2e-3, 5e-4)
+        offset = errors.class2_offset(theta, T, 1.0, 0.05, 300.0, 2e-3, 5e-4)
         g = (1 + 5e-4 * (T - 300)) * math.sin(theta)
         assert offset == pytest.approx(2e-3 * (T - 300) + g + 0.05 * g * g, rel=1e-13)
         est = harmonic.estimator_step(est, float(z) - offset, 0.0, 1.0, 0.05, 1e-4, process,
@@ -118,8 +118,8 @@ def test_a_tilt_set_back_to_0_gives_the_letters_filter_again():
                 [get(plain, n) for n in DriftEstimator.OUTPUTS[:7]]
             assert get(tilted, "dc_class2") == 0.0
         else:
-            assert get(tilted, "dc_class2") == sensor.class2(0.2, 298.15, 1.0, 0.01, 298.15, 0,
-                                                               0)
+            assert get(tilted, "dc_class2") == errors.class2_offset(0.2, 298.15, 1.0, 0.01, 298.15,
+                                                                      0.0, 0.0)
         for s in (tilted, plain):
             assert s.do_step(k * 1e-3, 1e-3)
 

@@ -547,7 +547,9 @@ def test_new_parameters_are_appended_and_off_by_default():
     from driftfmu.fmu_src.Excitation import Excitation
     new = {Excitation: ("Qy", "rho"),
            Accelerometer: ("dual", "bx", "a0y", "a1y", "a2y", "by", "Ry")}
-    later = ("a4", "B", "drive", "Qu", "Xu", "fu", "u", "u_in")  # appended after them (issue 16)
+    later = ("a4", "B", "drive", "Qu", "Xu", "fu", "u", "u_in",  # appended after them (issue 16)
+             "bias_on", "random_walk", "bias_gm", "tau_gm", "flicker", "tau_min", "tau_max",
+             "d_inf", "E_tau", "T0", "kT_bias", "kT_scale", "range", "theta", "T")  # (issue 42)
     for cls, names in new.items():
         table = [s["name"] for s in cls.VARIABLES]
         while table[-1] in later:

@@ -13,7 +13,7 @@
   and the constant ``a2 E[x^2]`` are told apart only through the model's ``a2``: the filter
   attributes ``a2 (x-^2 + P-)`` to the state, the rest to ``b`` (a first-order EKF, which
   expects ``h(x-)``, puts the whole drift of a white state into ``b``), and with ``a2`` wrong
-  the split moves while the sum ``dc + b_hat`` stays the offset (docs/method.md, section 10).
+  the split moves while the sum ``dc + b_hat`` stays the offset (docs/method.md, section 11).
 """
 import math
 

@@ -22,8 +22,11 @@ INPUTS = {"gaussian": dict(drive=excitation.GAUSSIAN, Qu=0.3),
 
 
 def test_new_variables_are_appended_with_ranges_and_units():
-    tables = {Excitation: ("B", "drive", "Qu", "Xu", "fu", "u", "u_in"), Accelerometer: ("a4",),
-              DriftEstimator: ("a3", "a4", "B", "u")}
+    slow_errors = ("bias_on", "random_walk", "bias_gm", "tau_gm", "flicker", "tau_min",
+                   "tau_max", "d_inf", "E_tau", "T0", "kT_bias", "kT_scale", "range", "theta",
+                   "T")  # appended after a4 (issue 42)
+    tables = {Excitation: ("B", "drive", "Qu", "Xu", "fu", "u", "u_in"),
+              Accelerometer: ("a4",) + slow_errors, DriftEstimator: ("a3", "a4", "B", "u")}
     # (appended after them since: the DriftEstimator's bias state and class-2 rows)
     after = {DriftEstimator: len(DriftEstimator.VARIABLES) - 25}
     for cls, names in tables.items():

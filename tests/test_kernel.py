@@ -230,3 +230,19 @@ def test_sweep_and_montecarlo_give_the_same_bits_with_the_kernel_or_numpy(lib, m
             assert a[key].tobytes() == b[key].tobytes(), key
     for col in with_kernel[0]["table"]:
         assert with_kernel[0]["table"][col].tobytes() == without[0]["table"][col].tobytes()
+
+
+def test_the_kernel_has_no_fused_multiply_add(lib):
+    """-ffp-contract=off forbids fusing a*b + c; the kernel is compiled without the SLP
+    vectoriser, whose complex-arithmetic patterns fuse anyway on GCC 12 (kernel.SPEED_FLAGS):
+    no FMA instruction in the library, where it can be disassembled (x86-64 with objdump)."""
+    import platform
+    import re
+    import shutil
+    import subprocess
+    if platform.machine() not in ("x86_64", "AMD64") or not shutil.which("objdump"):
+        pytest.skip("needs x86-64 and objdump")
+    text = subprocess.run(["objdump", "-d", lib._name], capture_output=True, text=True,
+                          check=True).stdout
+    fused = sorted(set(re.findall(r"\bv?f(?:n?m(?:add|sub)\w*)", text)))
+    assert fused == [], fused

@@ -89,7 +89,7 @@ def test_bad_general_parameters_are_refused():
                                          "drive >= 0 and drive <= 2"):
         montecarlo.montecarlo_gaussian(runs=2, n=5, drive=5)
     with pytest.raises(ValueError, match="unexpected keyword argument 'B'; allowed: runs, n, "
-                                         ".*, summary_only, a3, a4$"):
+                                         ".*, summary_only, a3, a4, bias_on, .*, bits$"):
         montecarlo.montecarlo_sinusoidal(runs=2, n=5, B=1.0)
     with pytest.raises(SystemExit) as exc:
         main(["montecarlo", "gaussian", "--a4", "nan"])

@@ -15,12 +15,13 @@ import pytest
 
 from driftfmu.fmu_src.native.models import generate
 from driftfmu.models import _ops, adxl203, bias, chain, covariance, drift, dualaxis, ekf, \
-    excitation, harmonic, noise, parameters, sensor
+    errors, excitation, harmonic, noise, parameters, sensor
 from waiting import BOUND
 
 CC = shutil.which("gcc") or shutil.which("cc")
 UNITS = ("ops.c", "noise.c", "excitation.c", "sensor.c", "ekf.c", "drift.c", "chain.c",
-         "harmonic.c", "adxl203.c", "parameters.c", "dualaxis.c", "covariance.c", "bias.c")
+         "harmonic.c", "adxl203.c", "errors.c", "parameters.c", "dualaxis.c", "covariance.c",
+         "bias.c")
 
 D, I64, U64 = ctypes.c_double, ctypes.c_int64, ctypes.c_uint64
 PD, PI64 = ctypes.POINTER(D), ctypes.POINTER(I64)
@@ -45,10 +46,23 @@ class Bias(ctypes.Structure):
 class Config(ctypes.Structure):
     _fields_ = [("plain", I64), ("a0", D), ("a1", D), ("a2", D), ("a3", D), ("R", D),
                 ("sigma", D), ("cross", D), ("has_alpha", I64), ("alpha", D), ("lsb", D),
-                ("levels", I64), ("a4", D)]
+                ("levels", I64), ("a4", D), ("lo", D)]
 
 
 REPORT = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_char_p)
+
+FLMAX = errors.FLICKER_MAX
+
+
+class ErrorConfig(ctypes.Structure):
+    _fields_ = [("on", I64)] + [(n, D) for n in ("bias_on", "b_on", "rw", "gm_sigma", "gm_a",
+                                                 "gm_c")] + \
+        [("fl_n", I64), ("fl_sigma", D), ("fl_a", D * FLMAX), ("fl_c", D * FLMAX)] + \
+        [(n, D) for n in ("d_inf", "E_tau", "Ts", "T0", "kT_bias", "kT_scale", "range")]
+
+
+class ErrorState(ctypes.Structure):
+    _fields_ = [("rw", D), ("gm", D), ("E", D), ("fl", D * FLMAX)]
 
 
 class Axis(ctypes.Structure):
@@ -92,7 +106,7 @@ SIGNATURES = {
     "ops_ldexp": (D, D, I64), "ops_log": (D, D), "ops_exp": (D, D), "ops_sin2pi": (D, D),
     "noise_mix": (U64, U64), "noise_key": (U64, U64, U64), "noise_bits": (U64, U64, U64, U64),
     "noise_uniform": (D, U64, U64, U64), "noise_inverse_normal_cdf": (D, D),
-    "noise_normal": (D, U64, U64, U64),
+    "noise_normal": (D, U64, U64, U64), "noise_normal_keyed": (D, U64, U64),
     "excitation_gauss_markov": (D, D, D, D, D),
     "excitation_gaussian_sample": (D, D, D, D, I64, I64),
     "excitation_sine": (D, I64, D, D, D, D),
@@ -129,6 +143,32 @@ SIGNATURES = {
                      PD),
     "adxl203_problems": (ctypes.c_int, D, D, REPORT, ctypes.c_void_p),
     "parameters_repr_float": (ctypes.c_int, D, ctypes.c_char_p, ctypes.c_size_t),
+    "ops_sin": (D, D),
+    "errors_turn_on": (D, D, I64),
+    "errors_random_walk": (D, D, D, D),
+    "errors_gauss_markov_coefficients": (None, D, D, D, PD, PD),
+    "errors_gauss_markov": (D, D, D, D, D),
+    "errors_flicker_taus": (I64, D, D, PD),
+    "errors_allan_variance_gm": (D, D, D, D),
+    "errors_flicker_sigma": (D, D, PD, I64),
+    "errors_flicker": (D, PD, PD, PD, PD, I64, PD),
+    "errors_exposure": (D, D, D, D, D, D, PD),
+    "errors_tilt": (D, D, D),
+    "errors_temperature": (None, D, D, D, D, PD, PD),
+    "errors_saturate": (D, D, D),
+    "errors_config": (ErrorConfig, I64) + (D,) * 14,
+    "errors_problems": (ctypes.c_int, D, D, D, REPORT, ctypes.c_void_p),
+    "errors_initial_state": (ErrorState, I64, ctypes.POINTER(ErrorConfig)),
+    "errors_draws": (None, I64, I64, ctypes.POINTER(ErrorConfig), PD, PD, PD),
+    "errors_advance": (None, ctypes.POINTER(ErrorState), D, D, D, PD, ctypes.POINTER(ErrorConfig),
+                       ctypes.POINTER(ErrorState), PD),
+    "errors_thermal_bias": (D, D, ctypes.POINTER(ErrorConfig)),
+    "errors_sensed": (D, D, D, D, ctypes.POINTER(ErrorConfig)),
+    "errors_hold": (ErrorState, ErrorState, D, I64, I64, I64, ctypes.POINTER(ErrorConfig)),
+    "adxl203_config_ranged": (Config, D, D, D, D, D, D, D, D, I64, D, D, D, D),
+    "adxl203_measure_errors": (None, I64, D, ctypes.POINTER(ErrorState), D, D, D, D, D, PD, D,
+                               D, ctypes.POINTER(Config), ctypes.POINTER(ErrorConfig), PI64,
+                               PD, PD),
     "covariance_valid2": (ctypes.c_int, D, D, D),
     "covariance_valid": (ctypes.c_int, ctypes.c_int, PD),
     "covariance_refusal": (None, ctypes.c_int, PD, ctypes.POINTER(ctypes.c_char_p),
@@ -138,7 +178,7 @@ SIGNATURES = {
                                  ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p,
                                  ctypes.c_char_p, ctypes.c_size_t),
     "parameters_allowed": (ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t),
-    "sensor_tilt": (D, D), "sensor_class2": (D,) + (D,) * 9,
+    "errors_class2": (None, D, D, D, D, D, D, PD, PD), "errors_class2_offset": (D,) + (D,) * 9,
     "bias_factor": (D, D, D), "bias_init": (Bias, D, D),
     "bias_expected": (D,) + (D,) * 7, "bias_spread": (D, D, D, D),
     "bias_predict": (None, D, D, Bias, D, D, D, D, D, D, PD, PD, ctypes.POINTER(Bias)),
@@ -356,6 +396,14 @@ def test_sin2pi_equals_models_bit_for_bit_over_large_cycle_counts(c):
         assert same(_ops.sin2pi(x), c.ops_sin2pi(x)), x
 
 
+def test_sin_equals_models_bit_for_bit(c):
+    rng = random.Random(RNG_SEED + 40)
+    xs = signed(rng, 3000, 10.0) + magnitudes(rng, 1000, -12, 12) + [0.0, -0.0, math.pi,
+                                                                      math.pi / 2, -math.pi / 2]
+    for x in xs:
+        assert same(_ops.sin(x), c.ops_sin(x)), x
+
+
 def test_sqrt_floor_frexp_ldexp_equal_python(c):
     rng = random.Random(RNG_SEED + 3)
     m, e = D(), I64()
@@ -390,6 +438,8 @@ def test_noise_bits_uniform_normal_equal_models_for_many_seeds_streams_and_k(c):
         assert same(noise.uniform(seed, stream, k), c.noise_uniform(seed, stream, k))
         assert same(noise.normal(seed, stream, k), c.noise_normal(seed, stream, k)), \
             (seed, stream, k)
+        assert same(noise.normal(seed, stream, k),
+                    c.noise_normal_keyed(noise.key(seed, stream), k)), (seed, stream, k)
     # a k beyond 64 bits wraps as Python's (k * GOLDEN) & MASK64 does
     k = 2 ** 64 + 12345
     assert noise.bits(7, 2, k) == c.noise_bits(7, 2, k & noise.MASK64)
@@ -505,17 +555,24 @@ def _bias_tuple(b):
     return (b.b, b.Pxb, b.Pbb)
 
 
-def test_class2_offset_equals_models(c):
+def test_class2_and_its_offset_equal_models(c):
+    """errors.class2 (the sensor's) and class2_offset (the DriftEstimator's), the one definition
+    of class 2 in both twins: the same bits, with theta 0, -0.0 and the coefficients off too."""
     rng = random.Random(RNG_SEED + 30)
+    u, g = D(), D()
     for _ in range(3000):
-        theta, T, T0 = rng.uniform(-50, 50), rng.uniform(200, 400), rng.uniform(250, 350)
+        theta = rng.choice((0.0, -0.0, rng.uniform(-50, 50), rng.uniform(-50, 50)))
+        T, T0 = rng.uniform(200, 400), rng.uniform(250, 350)
+        x = rng.choice((0.0, -0.0, rng.uniform(-3, 3)))
         a1, a2 = rng.uniform(0.2, 2), rng.uniform(-1, 1)
         a3, a4 = rng.choice(((0.0, 0.0), (rng.uniform(-1, 1), rng.uniform(-1, 1))))
         kb, ks = rng.choice((0.0, rng.uniform(-1e-2, 1e-2))), rng.choice((0.0, rng.uniform(-1e-3,
                                                                                            1e-3)))
-        assert same(sensor.tilt(theta), c.sensor_tilt(theta))
-        assert same(sensor.class2(theta, T, a1, a2, T0, kb, ks, a3, a4),
-                    c.sensor_class2(theta, T, a1, a2, T0, kb, ks, a3, a4))
+        c.errors_class2(x, theta, T, T0, kb, ks, ctypes.byref(u), ctypes.byref(g))
+        py_u, py_c = errors.class2(x, theta, T, T0, kb, ks)
+        assert same(py_u, u.value) and same(py_c, g.value)
+        assert same(errors.class2_offset(theta, T, a1, a2, T0, kb, ks, a3, a4),
+                    c.errors_class2_offset(theta, T, a1, a2, T0, kb, ks, a3, a4))
 
 
 def test_bias_filter_equals_models(c):
@@ -725,6 +782,161 @@ def test_adxl203_problems_same_messages(c, Vs, fc):
     assert n == len(got)
 
 
+# -- errors: the sensor's slow errors -----------------------------------------------------------
+
+ERROR_ARGS = ("seed", "Ts", "bias_on", "random_walk", "bias_gm", "tau_gm", "flicker", "tau_min",
+              "tau_max", "d_inf", "E_tau", "T0", "kT_bias", "kT_scale", "range")
+
+
+def random_errors(rng, every=False):
+    """Parameters of the slow errors, each on with probability 1/2 (all with ``every``)."""
+    on = (lambda: True) if every else (lambda: rng.random() < 0.5)
+    lo = 10.0 ** rng.uniform(-4, 1)
+    return dict(bias_on=rng.uniform(0, 0.3) if on() else 0.0,
+                random_walk=10.0 ** rng.uniform(-4, 0) if on() else 0.0,
+                bias_gm=rng.uniform(0, 0.2) if on() else 0.0, tau_gm=10.0 ** rng.uniform(-4, 3),
+                flicker=10.0 ** rng.uniform(-4, -1) if on() else 0.0, tau_min=lo,
+                tau_max=lo * 10.0 ** rng.uniform(0.01, 6.9),
+                d_inf=rng.uniform(-0.2, 0.2) if on() else 0.0, E_tau=10.0 ** rng.uniform(-3, 2),
+                T0=rng.uniform(250, 320), kT_bias=rng.uniform(-0.01, 0.01) if on() else 0.0,
+                kT_scale=rng.uniform(-0.01, 0.01) if on() else 0.0,
+                range=rng.uniform(0.5, 3) if on() else 0.0)
+
+
+def c_errors(c, p):
+    return c.errors_config(*(p[n] for n in ERROR_ARGS))
+
+
+def error_state(py, cs, fl_n):
+    """The Python ErrorState against the C one: every field and every component bit for bit,
+    the components beyond fl_n 0.0."""
+    assert_same((py.rw, py.gm, py.E) + tuple(py.fl) + (0.0,) * (FLMAX - fl_n),
+                (cs.rw, cs.gm, cs.E) + tuple(cs.fl), "ErrorState")
+
+
+def test_error_processes_equal_models_function_for_function(c):
+    rng = random.Random(RNG_SEED + 41)
+    o2 = outs(2)
+    for _ in range(2000):
+        b, n, a, cc = rng.gauss(0, 1), rng.gauss(0, 1), rng.uniform(0, 1), rng.uniform(0, 1)
+        seed = rng.randrange(2 ** 31)
+        assert same(errors.turn_on(b, seed), c.errors_turn_on(b, seed))
+        assert same(errors.random_walk(b, a, n), c.errors_random_walk(b, a, n))
+        assert same(errors.gauss_markov(b, a, cc, n), c.errors_gauss_markov(b, a, cc, n))
+        sigma, tau, Ts = rng.uniform(0, 2), 10.0 ** rng.uniform(-6, 6), 10.0 ** rng.uniform(-6, 0)
+        c.errors_gauss_markov_coefficients(sigma, tau, Ts, *refs(o2))
+        assert_same(errors.gauss_markov_coefficients(sigma, tau, Ts), vals(o2), "coefficients")
+        T = 10.0 ** rng.uniform(-8, 8)
+        assert same(errors.allan_variance_gm(sigma, tau, T),
+                    c.errors_allan_variance_gm(sigma, tau, T)), (sigma, tau, T)
+        lo = 10.0 ** rng.uniform(-5, 3)
+        hi = lo * 10.0 ** rng.choice((rng.uniform(1e-9, 7), 1.0, 2.0, 7.0))
+        taus = (D * FLMAX)()
+        m = c.errors_flicker_taus(lo, hi, taus)
+        py_taus = errors.flicker_taus(lo, hi)
+        assert m == len(py_taus)
+        assert_same(py_taus, taus[:m], "flicker_taus")
+        assert same(errors.flicker_sigma(sigma, py_taus), c.errors_flicker_sigma(sigma, taus, m))
+        comps = [rng.gauss(0, 1) for _ in range(m)]
+        aa = [rng.uniform(0, 1) for _ in range(m)]
+        cs_ = [rng.uniform(0, 1) for _ in range(m)]
+        ns = [rng.gauss(0, 1) for _ in range(m)]
+        out = (D * FLMAX)()
+        total = c.errors_flicker((D * FLMAX)(*comps), (D * FLMAX)(*aa), (D * FLMAX)(*cs_),
+                                 (D * FLMAX)(*ns), m, out)
+        py_out, py_total = errors.flicker(comps, aa, cs_, ns)
+        assert_same(py_out + (py_total,), tuple(out[:m]) + (total,), "flicker")
+        E, x, d_inf, E_tau = rng.uniform(0, 5), rng.uniform(-3, 3), rng.uniform(-1, 1), \
+            10.0 ** rng.uniform(-3, 3)
+        E_out = D()
+        d = c.errors_exposure(E, x, Ts, d_inf, E_tau, ctypes.byref(E_out))
+        assert_same(errors.exposure(E, x, Ts, d_inf, E_tau), (E_out.value, d), "exposure")
+        theta, T, T0 = rng.uniform(-7, 7), rng.uniform(200, 400), rng.uniform(250, 320)
+        assert same(errors.tilt(x, theta), c.errors_tilt(x, theta))
+        kb, ks = rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01)
+        c.errors_temperature(T, T0, kb, ks, *refs(o2))
+        assert_same(errors.temperature(T, T0, kb, ks), vals(o2), "temperature")
+        limit = rng.uniform(0.1, 3)
+        for u in (x, limit, -limit, 10 * x, math.nan, math.inf, -math.inf):
+            assert same(errors.saturate(u, limit), c.errors_saturate(u, limit)), (u, limit)
+
+
+def test_error_config_state_draws_and_composition_equal_models(c):
+    """config, initial_state, draws, advance, sensed, thermal_bias, hold and the composed
+    sample (adxl203.measure_errors, through the plain and the extras' path, with the ADC over
+    the range) over random parameters and inputs, every field bit for bit."""
+    rng = random.Random(RNG_SEED + 42)
+    for case in range(300):
+        p = dict(random_errors(rng, every=case % 3 == 0), seed=rng.randrange(2 ** 31),
+                 Ts=10.0 ** rng.uniform(-5, -1))
+        ecfg = errors.config(**p)
+        cfg_c = c_errors(c, p)
+        assert (ecfg.on, ecfg.fl_n) == (bool(cfg_c.on), cfg_c.fl_n)
+        reals = ("bias_on", "b_on", "rw", "gm_sigma", "gm_a", "gm_c", "fl_sigma", "d_inf",
+                 "E_tau", "Ts", "T0", "kT_bias", "kT_scale", "range")
+        assert_same([getattr(ecfg, n) for n in reals], [getattr(cfg_c, n) for n in reals],
+                    "ErrorConfig")
+        assert_same(ecfg.fl_a + ecfg.fl_c, cfg_c.fl_a[:ecfg.fl_n] + cfg_c.fl_c[:ecfg.fl_n],
+                    "flicker coefficients")
+        assert not any(cfg_c.fl_a[ecfg.fl_n:]) and not any(cfg_c.fl_c[ecfg.fl_n:])
+        pe = ctypes.byref(cfg_c)
+        state, cstate = errors.initial_state(p["seed"], ecfg), \
+            c.errors_initial_state(p["seed"], pe)
+        error_state(state, cstate, ecfg.fl_n)
+        sp = dict(random_sensor(rng, every_extra=rng.random() < 0.4), Ts=p["Ts"],
+                  range=p["range"])
+        sp["fc"] = min(sp["fc"], 0.4 / sp["Ts"])
+        if rng.random() < 0.3:  # the ADC over the range
+            sp.update(Vs=0.0, bits=rng.randint(1, 16))
+        cfg = adxl203.config(**sp)
+        ccfg = c.adxl203_config_ranged(*(sp[n] for n in CONFIG_ARGS), 0.0, sp["range"])
+        assert_config(cfg, ccfg)
+        assert same(cfg.lo, ccfg.lo)
+        lp, lp_set, lp_c = None, 0, 0.0
+        cs_state = ErrorState(cstate.rw, cstate.gm, cstate.E, cstate.fl)
+        for k in range(1, 30):
+            x, y, v = rng.uniform(-2, 2), rng.uniform(-2, 2), rng.gauss(0, 1)
+            theta, T = rng.choice((0.0, rng.uniform(-2, 2))), rng.uniform(230, 350)
+            n_rw, n_gm, n_fl = D(), D(), (D * FLMAX)()
+            c.errors_draws(p["seed"], k, pe, ctypes.byref(n_rw), ctypes.byref(n_gm), n_fl)
+            draws = errors.draws(p["seed"], k, ecfg)
+            assert_same((draws[0], draws[1]) + draws[2],
+                        (n_rw.value, n_gm.value) + tuple(n_fl[:ecfg.fl_n]), "draws")
+            assert same(errors.sensed(x, theta, T, ecfg), c.errors_sensed(x, theta, T, pe))
+            assert same(errors.thermal_bias(T, ecfg), c.errors_thermal_bias(T, pe))
+            b = D()
+            st2, b_py = errors.advance(state, x, *draws, ecfg)
+            cst2 = ErrorState()
+            c.errors_advance(ctypes.byref(cs_state), x, n_rw, n_gm, n_fl, pe,
+                             ctypes.byref(cst2), ctypes.byref(b))
+            error_state(st2, cst2, ecfg.fl_n)
+            assert same(b_py, b.value)
+            e_set, e, z = I64(), D(), D()
+            c.adxl203_measure_errors(lp_set, lp_c, ctypes.byref(cs_state), x, y, v, n_rw, n_gm,
+                                     n_fl, theta, T, ctypes.byref(ccfg), pe,
+                                     ctypes.byref(e_set), ctypes.byref(e), ctypes.byref(z))
+            lp, state, zp = adxl203.measure_errors(lp, state, x, y, v, draws, theta, T, cfg,
+                                                   ecfg)
+            assert same(zp, z.value), (k, p, sp)
+            assert (lp is not None) == bool(e_set.value)
+            if lp is not None:
+                assert same(lp, e.value)
+            lp_set, lp_c = e_set.value, e.value
+            error_state(state, cs_state, ecfg.fl_n)
+        m = rng.randint(1, 9)
+        held = errors.hold(state, 0.7, p["seed"], 29, m, ecfg)
+        error_state(held, c.errors_hold(cs_state, 0.7, p["seed"], 29, m, pe), ecfg.fl_n)
+
+
+@pytest.mark.parametrize("flicker, tau_min, tau_max", [
+    (0.01, 1.0, 1.0), (0.01, 2.0, 1.0), (0.01, 1e-3, 1e4), (0.01, 1e-3, 10000.001),
+    (0.0, 2.0, 1.0), (0.01, -1.0, 2.0), (0.01, 0.1, float("nan")), (1e-9, 0.3, 3e6)])
+def test_errors_problems_same_messages(c, flicker, tau_min, tau_max):
+    n, got = collect(c.errors_problems, flicker, tau_min, tau_max)
+    assert got == errors.problems(dict(flicker=flicker, tau_min=tau_min, tau_max=tau_max))
+    assert n == len(got)
+
+
 # -- covariance -------------------------------------------------------------------------------
 
 def _random_lower(rng, n):
@@ -829,7 +1041,7 @@ def test_allowed_and_problem_messages_equal_models(c):
 from pathlib import Path  # noqa: E402
 
 from driftfmu.fmu_src import slave_base  # noqa: E402
-from driftfmu.fmu_src.Accelerometer import Accelerometer  # noqa: E402
+from driftfmu.fmu_src.Accelerometer import ERROR_SWITCHES, Accelerometer  # noqa: E402
 from driftfmu.fmu_src.DriftEstimator import DriftEstimator  # noqa: E402
 from driftfmu.fmu_src.DualDriftEstimator import DualDriftEstimator  # noqa: E402
 from driftfmu.fmu_src.Excitation import Excitation  # noqa: E402
@@ -1053,8 +1265,11 @@ def random_values(name, rng):
         p.update(noise=rng.choice((0, 1)), seed=rng.randrange(2 ** 31),
                  axes=rng.choice((1, 2)), Ts=rng.choice((1e-3, 1e-4)))
         p["fc"] = min(p["fc"], 0.4 / p["Ts"])
+        if rng.random() < 0.5:  # the slow errors (models.errors)
+            p.update(random_errors(rng))
         if rng.random() < 0.4:  # the dual-axis bilinear sensor (models.dualaxis)
             p.update({n: 0 if n == "bits" else 0.0 for n in dualaxis.EXTRAS})
+            p.update({n: 0.0 for n in ERROR_SWITCHES})
             p.update(random_dual_sensor(rng), dual=1)
         return p
     if name == "DualDriftEstimator":
@@ -1150,7 +1365,15 @@ BAD = {"Ts": (0.0, -1e-3, 1e-12, 1e-9, 5.0), "R": (0.0, -1.0, 5e-324), "A": (1.0
        "Qy": (-0.1,), "rho": (1.5, -1.0, float("nan")), "Ry": (0.0, -1.0), "a1y": (0.0,),
        "dual": (1, 2, -1), "P0y": (-1.0,), "bias": (2, -1, 1), "Qb": (-1e-9,),
        "tau_b": (-0.1,), "Pb0": (-1.0,), "T0": (0.0, -1.0),
+       "bias_on": (-0.1, 0.2), "random_walk": (-1.0, 0.5), "bias_gm": (-0.1, 0.3),
+       "flicker": (-0.01, 0.02), "tau_gm": (0.0, -2.0), "tau_min": (0.0, 1e-14, 200.0),
+       "tau_max": (0.05, 1e20), "E_tau": (0.0, -1.0), "range": (-1.0, 1.0),
+       "kT_scale": (0.01,),
        **({"a2": (1e308,), "a3": (1.7e308,)} if VARIABLE_STEPS else {})}
+#: effective values of the slow errors that overflow: random_walk sqrt(Ts), bias_on n_0
+BAD["random_walk"] += (1e308,)
+BAD["bias_on"] += (1.7e308,)
+BAD["Ts"] += (100.0,)
 
 
 @pytest.mark.parametrize("name", list(SLAVES))
@@ -1267,7 +1490,8 @@ def test_windows_build_under_wine_prints_the_linux_bits(tmp_path):
     for name, lin, win in zip(SLAVES, linux, windows):
         lines = lin.splitlines()
         assert len(lines) > 3000 and lines[-1].startswith(("Ts = ", "kind = ", "noise = ",
-                                                           "estimator = ", "f = ", "fc = ")), \
+                                                           "estimator = ", "f = ", "fc = ",
+                                                           "tau_min = ")), \
             lines[-3:]
         for i, (a, b) in enumerate(zip(lines, win.splitlines())):
             assert a == b, "%s, line %d: Linux %r, Windows %r" % (name, i + 1, a, b)

@@ -194,6 +194,54 @@ def test_libcosim_runs_the_archive_with_the_input(general_archive, tmp_path, rep
     assert max(diffs.values()) == 0.0, diffs
 
 
+#: The Accelerometer's slow errors (issue 42): its parameters bound as start values, and the
+#: tilt and temperature as the start values of its inputs (bound without a connector).
+ERRORS = dict(a2=0.02, seed=5, bias_on=0.03, random_walk=0.01, bias_gm=0.02, tau_gm=0.01,
+              flicker=0.01, tau_min=0.002, tau_max=2.0, d_inf=0.05, E_tau=0.01, theta=0.2,
+              T=305.0, kT_bias=0.001, kT_scale=0.002, range=1.5, bits=14)
+
+
+@pytest.fixture(scope="module")
+def errors_archive(built_fmus, tmp_path_factory):
+    return ssp.build_ssp(built_fmus, tmp_path_factory.mktemp("ssp_e") / "DriftChain.ssp", n=N,
+                         start_values=ssp.chain_start_values(**ERRORS))
+
+
+def test_archive_with_the_slow_errors_binds_them_and_fmpy_gives_the_jacobi_reference(
+        errors_archive, report):
+    from fmpy.ssp.ssd import find_components, read_ssd
+    ssd = read_ssd(str(errors_archive))                # schema-valid
+    values = {p.name: p.value for p in ssp.parameter_set(errors_archive).parameters}
+    for name in ("bias_on", "random_walk", "bias_gm", "flicker", "d_inf", "theta", "T",
+                 "kT_scale", "range", "bits"):
+        assert float(values["Accelerometer." + name]) == ERRORS[name], name
+    acc = next(c for c in find_components(ssd.system) if c.name == "Accelerometer")
+    assert {c.name for c in acc.connectors} >= {"z", "x", "bias_gm", "range"}
+    assert not {"theta", "T"} & {c.name for c in acc.connectors}  # (unconnected inputs)
+    res = ssp.simulate(errors_archive, N)
+    ref = ssp.jacobi_reference(N, **ERRORS)
+    diffs = {c: _max_diff(res[c], ref[c]) for c in ref}
+    report("SSP fmpy.ssp simulate_ssp with every slow error on: %d steps, max |diff| vs the "
+           "Jacobi reference = %.3g" % (N, max(diffs.values())))
+    assert max(diffs.values()) == 0.0, diffs
+    plain = ssp.jacobi_reference(N, a2=0.02, seed=5)
+    assert _max_diff(ref["Accelerometer.z"], plain["Accelerometer.z"]) > 0.1
+
+
+def test_libcosim_runs_the_archive_with_the_slow_errors(errors_archive, tmp_path, report):
+    try:
+        drivers.libcosim()
+    except drivers.ImporterMissing as exc:
+        pytest.skip(str(exc))
+    record = {"Excitation": ["x"], "Accelerometer": ["z"], "DriftEstimator": ssp.DRIFT_OUTPUTS}
+    cols = drivers.run_libcosim_ssp(errors_archive, tmp_path, N, 1e-3, record)
+    ref = ssp.jacobi_reference(N, initial="outputs", **ERRORS)
+    diffs = {c: _max_diff(v, ref[c]) for c, v in cols.items()}
+    report("SSP libcosim with every slow error on: %d steps, max |diff| vs the Jacobi "
+           "reference = %.3g" % (N, max(diffs.values())))
+    assert max(diffs.values()) == 0.0, diffs
+
+
 # -- OpenModelica's OMSimulator and ecos ------------------------------------------------------
 def _oms(node, tag):
     return node.find("%s" % "/".join("{%s}%s" % (ssp.NS[p], t) for p, t in

@@ -346,16 +346,25 @@ typedef struct {
 #define VALUE_AT(v, i) ((char *)&(v) + MODEL_VARIABLES[i].offset)
 #define VALUE_SIZE(i) (MODEL_VARIABLES[i].type == TYPE_REAL ? sizeof(double) : sizeof(int))
 
+/* The part of ModelHidden a hook may change: from MODEL_HIDDEN_CHANGEABLE (model.h; a model
+ * whose hidden state starts with constants its parameters give may say where they end) to the
+ * end, by default all of it. */
+#ifndef MODEL_HIDDEN_CHANGEABLE
+#define MODEL_HIDDEN_CHANGEABLE 0
+#endif
+#define HIDDEN_TAIL(h) ((char *)&(h) + MODEL_HIDDEN_CHANGEABLE)
+#define HIDDEN_TAIL_SIZE (sizeof(ModelHidden) - MODEL_HIDDEN_CHANGEABLE)
+
 /* What a model hook may change (model.h: the outputs and the hidden state), saved before it
  * runs so that a failed step or refresh can be undone: the outputs one by one (the unrolled
- * loop copies exactly them) and the hidden state whole. */
+ * loop copies exactly them) and the hidden state from MODEL_HIDDEN_CHANGEABLE on. */
 static inline void save_changeable(Backup *b, const ModelInstance *comp)
 {
     ALL_VARIABLES
     for (int i = 0; i < N_VARIABLES; i++)
         if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT)
             memcpy(VALUE_AT(b->v, i), VALUE_AT(comp->v, i), VALUE_SIZE(i));
-    b->h = comp->h;
+    memcpy(HIDDEN_TAIL(b->h), HIDDEN_TAIL(comp->h), HIDDEN_TAIL_SIZE);
 }
 
 static NOINLINE void restore_changeable(ModelInstance *comp, const Backup *b)
@@ -363,7 +372,7 @@ static NOINLINE void restore_changeable(ModelInstance *comp, const Backup *b)
     for (int i = 0; i < N_VARIABLES; i++)
         if (MODEL_VARIABLES[i].causality == CAUSALITY_OUTPUT)
             memcpy(VALUE_AT(comp->v, i), VALUE_AT(b->v, i), VALUE_SIZE(i));
-    comp->h = b->h;
+    memcpy(HIDDEN_TAIL(comp->h), HIDDEN_TAIL(b->h), HIDDEN_TAIL_SIZE);
 }
 
 /* The output guard: the name of the first real output of `v` that is not finite, or NULL. */

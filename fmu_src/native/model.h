@@ -103,7 +103,10 @@ typedef struct {
 /* ---- MODEL HOOKS (one set per model, provided by fmu_src/native/models/) ------------------ */
 
 /* model_compute and model_advance change the outputs of comp->v and comp->h, nothing else: the
- * plumbing saves exactly those before it calls them, and puts them back when one fails. */
+ * plumbing saves exactly those before it calls them, and puts them back when one fails.  A
+ * model whose ModelHidden starts with constants that only model_start sets (derived from the
+ * parameters) may define MODEL_HIDDEN_CHANGEABLE in its logic header, the offset where the
+ * part the hooks change begins: the plumbing then saves that part only (default 0: all). */
 
 /* Check the parameters at the end of initialisation: log every problem with model_log_error
  * (the same words as the Python FMU) and return their number (0: all good). */

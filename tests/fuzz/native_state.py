@@ -37,15 +37,26 @@ DualModel = _struct("DualModel", [("process", I64)] + [(n, D) for n in (
 Config = _struct("Config", [("plain", I64)] + [(n, D) for n in (
     "a0", "a1", "a2", "a3", "R", "sigma", "cross")] + [("has_alpha", I64), ("alpha", D),
                                                         ("lsb", D), ("levels", I64),
-                                                        ("a4", D)])
+                                                        ("a4", D), ("lo", D)])
+FLICKER_MAX = 8  # models.errors.FLICKER_MAX
+ErrorConfig = _struct("ErrorConfig", [("on", I64)] + [(n, D) for n in (
+    "bias_on", "b_on", "rw", "gm_sigma", "gm_a", "gm_c")] + [
+    ("fl_n", I64), ("fl_sigma", D), ("fl_a", D * FLICKER_MAX), ("fl_c", D * FLICKER_MAX)] + [
+    (n, D) for n in ("d_inf", "E_tau", "Ts", "T0", "kT_bias", "kT_scale", "range")])
+ErrorState = _struct("ErrorState", [("rw", D), ("gm", D), ("E", D),
+                                    ("fl", D * FLICKER_MAX)])
+ErrorKeys = _struct("ErrorKeys", [("rw", c_uint64), ("gm", c_uint64),
+                                  ("fl", c_uint64 * FLICKER_MAX)])
 
 #: ModelHidden of each model (fmu_src/native/models/<Model>_step.h).
 HIDDEN = {
     "Excitation": [("x", D), ("y", D), ("has_pending", c_int32), ("x_pending", D),
                    ("y_pending", D)],
-    "Accelerometer": [("cfg", Config), ("ax", Axis), ("ay", Axis), ("lp_set", I64),
-                      ("lpy_set", I64), ("lp", D), ("lpy", D), ("lp_pending_set", I64),
-                      ("lpy_pending_set", I64), ("lp_pending", D), ("lpy_pending", D)],
+    "Accelerometer": [("cfg", Config), ("ax", Axis), ("ay", Axis), ("ecfg", ErrorConfig),
+                      ("keys", ErrorKeys), ("lp_set", I64), ("lpy_set", I64), ("lp", D),
+                      ("lpy", D), ("lp_pending_set", I64), ("lpy_pending_set", I64),
+                      ("lp_pending", D), ("lpy_pending", D), ("err", ErrorState),
+                      ("err_pending", ErrorState)],
     "DriftEstimator": [("C", D), ("S", D), ("state", HarmonicState),
                        ("pending", HarmonicState), ("Fb", D), ("bias", Bias),
                        ("bias_pending", Bias)],
@@ -53,7 +64,7 @@ HIDDEN = {
                            ("state", DualEstimator), ("pending", DualEstimator)],
 }
 #: Hidden values derived from the parameters (model_start computes them).
-DERIVED = {"Excitation": (), "Accelerometer": ("cfg", "ax", "ay"),
+DERIVED = {"Excitation": (), "Accelerometer": ("cfg", "ax", "ay", "ecfg", "keys"),
            "DriftEstimator": ("C", "S", "Fb"), "DualDriftEstimator": ("ax", "ay", "m")}
 #: Hidden variances (>= 0).
 VARIANCES = {"P", "P22", "Pxx", "Pyy", "P11", "P33", "P44", "Pbb"}

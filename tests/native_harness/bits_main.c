@@ -39,11 +39,16 @@ static const Start RUN[] = {
     {"axes", 2}, {"noise", 1}, {"process", 2}, {"Qh", 1e-8}, {"P0", 1.0}, {"Ts", 1e-4},
     {"A", 0.3}, {"Q", 0.02}, {"estimator", 1},
     {"bx", 0.02}, {"by", -0.015}, {"a2y", 0.008}, {"a0y", 0.3}, {"Ry", 2e-5}, {"Qy", 0.01},
-    {"rho", 0.4}, {"P0y", 0.5}};
+    {"rho", 0.4}, {"P0y", 0.5},
+    /* the Accelerometer's slow errors (models/errors.py), every one on */
+    {"bias_on", 0.05}, {"random_walk", 0.02}, {"bias_gm", 0.03}, {"tau_gm", 0.02},
+    {"flicker", 0.01}, {"tau_min", 0.003}, {"tau_max", 3.0}, {"d_inf", 0.04}, {"E_tau", 0.5},
+    {"T0", 0.5}, {"kT_bias", 0.002}, {"kT_scale", -0.003}, {"range", 1.8}};
 static const Start BAD[] = {{"Ts", 1e-12}, {"process", 2}, {"R", -1.0}, {"f", 7e3}, {"Vs", 2.0}, {"fc", 3e3},
                             {"seed", -3}, {"A", 1.0}, {"kind", 3}, {"estimator", 0},
                             {"noise", 2}, {"a1", 0.0}, {"Qh", -2.5e-9}, {"Ry", 0.0},
-                            {"rho", 1.5}};
+                            {"rho", 1.5}, {"flicker", 0.01}, {"tau_min", 4.0},
+                            {"tau_max", 2.0}, {"bias_gm", -0.5}};
 
 static void set_all(ModelInstance *comp, const Start *s, size_t n)
 {
@@ -68,6 +73,7 @@ int main(void)
         put("log", ops_log(ldexp(u, i * 7 - 1074 < -1074 ? -1074 : i * 7 - 1074)));
         put("exp", ops_exp(-745.0 + 1454.0 * u));
         put("sin2pi", ops_sin2pi((u - 0.5) * ldexp(1.0, i % 60)));
+        put("sin", ops_sin((u - 0.5) * ldexp(1.0, i % 40)));
         put("normal", noise_normal((uint64_t)i, 2, UINT64_C(0xFFFFFFFFFFFFFFFF) - (uint64_t)i));
     }
     /* Python's repr of doubles (the messages), from random bit patterns and short decimals */

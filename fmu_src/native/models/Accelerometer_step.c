@@ -2,18 +2,67 @@
  * check_parameters) as the MODEL HOOKS of model.h; see Accelerometer_step.h. */
 #include <math.h>
 #include <stdio.h>
+#include <string.h>
 
 #include "adxl203.h"
 #include "dualaxis.h"
 #include "model.h"
+#include "noise.h"
 #include "slave.h"
 
 static const SlaveRange EXTRA[] = {{"noise", 0, 1}};
 
 static Config config_of(const ModelVariables *v)
 {
-    return adxl203_config_general(v->a0, v->a1, v->a2, v->R, v->a3, v->cross, v->fc, v->Vs,
-                                  v->bits, v->density, v->Ts, v->a4);
+    return adxl203_config_ranged(v->a0, v->a1, v->a2, v->R, v->a3, v->cross, v->fc, v->Vs,
+                                 v->bits, v->density, v->Ts, v->a4, v->range);
+}
+
+static ErrorConfig ecfg_of(const ModelVariables *v)
+{
+    return errors_config(v->seed, v->Ts, v->bias_on, v->random_walk, v->bias_gm, v->tau_gm,
+                         v->flicker, v->tau_min, v->tau_max, v->d_inf, v->E_tau, v->T0,
+                         v->kT_bias, v->kT_scale, v->range);
+}
+
+/* Accelerometer.ERROR_SWITCHES: the parameters that switch a slow error on. */
+#define N_SWITCHES 8
+static const char *const SWITCHES[N_SWITCHES] = {"bias_on", "random_walk", "bias_gm", "flicker",
+                                                 "d_inf", "kT_bias", "kT_scale", "range"};
+
+static void switch_values(const ModelVariables *v, double *out)
+{
+    out[0] = v->bias_on;
+    out[1] = v->random_walk;
+    out[2] = v->bias_gm;
+    out[3] = v->flicker;
+    out[4] = v->d_inf;
+    out[5] = v->kT_bias;
+    out[6] = v->kT_scale;
+    out[7] = v->range;
+}
+
+/* The dual-axis sensor with a slow error on (Accelerometer.check_parameters). */
+static int dual_errors_problem(ModelInstance *comp)
+{
+    char msg[PARAMETERS_MESSAGE_MAX], on[PARAMETERS_MESSAGE_MAX] = "", r[40];
+    double values[N_SWITCHES];
+    size_t used = 0;
+    int i, any = 0;
+    switch_values(&comp->v, values);
+    for (i = 0; i < N_SWITCHES; i++) {
+        if (values[i] == 0.0) continue;
+        parameters_repr_float(values[i], r, sizeof r);
+        used += (size_t)snprintf(on + used, sizeof on - used, "%s%s = %s", any ? ", " : "",
+                                 SWITCHES[i], r);
+        if (used >= sizeof on) used = sizeof on - 1;
+        any = 1;
+    }
+    if (!any) return 0;
+    snprintf(msg, sizeof msg, "dual = 1 is not allowed with %s; allowed: dual = 1 with bias_on, "
+             "random_walk, bias_gm, flicker, d_inf, kT_bias, kT_scale, range = 0 (the slow errors "
+             "and the range act on the single-axis sensor)", on);
+    return slave_problem(comp, msg);
 }
 
 static void report(void *ctx, const char *message) { slave_problem((ModelInstance *)ctx, message); }
@@ -32,6 +81,8 @@ int model_check(ModelInstance *comp)
                  "with a4 = 0 (the bilinear sensor is of 2nd order)", r);
         n += slave_problem(comp, msg);
     }
+    n += errors_problems(v->flicker, v->tau_min, v->tau_max, report, comp);
+    if (v->dual) n += dual_errors_problem(comp);
     if (n == 0) { /* the effective values of the config must be finite */
         Config cfg = config_of(v);
         const char *names[6] = {"a0", "a1", "a2", "a3", "sigma", "a4"};
@@ -54,6 +105,42 @@ int model_check(ModelInstance *comp)
                 n += slave_problem(comp, msg);
             }
         }
+        {
+            const char *adc[2] = {"lo", "lsb"};
+            double adc_values[2];
+            adc_values[0] = cfg.lo;
+            adc_values[1] = cfg.lsb;
+            for (i = 0; i < 2; i++) {
+                if (!isfinite(adc_values[i])) {
+                    char msg[PARAMETERS_MESSAGE_MAX], r[40];
+                    parameters_repr_float(adc_values[i], r, sizeof r);
+                    snprintf(msg, sizeof msg, "the ADC over a0 +- |a1| range gives %s = %s; "
+                             "allowed: a0, a1 and range whose span is finite", adc[i], r);
+                    n += slave_problem(comp, msg);
+                }
+            }
+        }
+        {
+            const ErrorConfig ecfg = ecfg_of(v);
+            const char *slow[4] = {"b_on", "rw", "gm_c", "fl_sigma"};
+            double slow_values[4];
+            slow_values[0] = ecfg.b_on;
+            slow_values[1] = ecfg.rw;
+            slow_values[2] = ecfg.gm_c;
+            slow_values[3] = ecfg.fl_sigma;
+            for (i = 0; i < 4; i++) {
+                if (!isfinite(slow_values[i])) {
+                    char msg[PARAMETERS_MESSAGE_MAX], r[40];
+                    parameters_repr_float(slow_values[i], r, sizeof r);
+                    snprintf(msg, sizeof msg, "the parameters give the slow errors' %s = %s "
+                             "(b_on = bias_on n_0, rw = random_walk sqrt(Ts), gm_c = bias_gm "
+                             "sqrt(1 - exp(-2 Ts/tau_gm)), fl_sigma = flicker over the Allan "
+                             "deviation of the unit components); allowed: parameters whose "
+                             "effective values are finite", slow[i], r);
+                    n += slave_problem(comp, msg);
+                }
+            }
+        }
     }
     return n;
 }
@@ -67,6 +154,49 @@ void model_start(ModelInstance *comp)
     comp->h.lp = comp->h.lpy = 0.0;
     comp->h.lp_pending_set = comp->h.lpy_pending_set = 0;
     comp->h.lp_pending = comp->h.lpy_pending = 0.0;
+    comp->h.ecfg = ecfg_of(&comp->v);
+    comp->h.keys.rw = noise_key((uint64_t)comp->v.seed, NOISE_STREAM_RANDOM_WALK);
+    comp->h.keys.gm = noise_key((uint64_t)comp->v.seed, NOISE_STREAM_BIAS_GM);
+    {
+        int i;
+        for (i = 0; i < ERRORS_FLICKER_MAX; i++)
+            comp->h.keys.fl[i] = noise_key((uint64_t)comp->v.seed,
+                                           (uint64_t)(NOISE_STREAM_FLICKER + i));
+    }
+    memset(&comp->h.err, 0, sizeof comp->h.err);
+    if (comp->h.ecfg.on) comp->h.err = errors_initial_state(comp->v.seed, &comp->h.ecfg);
+    comp->h.err_pending = comp->h.err;
+}
+
+/* Accelerometer._axis_errors: the first axis with the slow errors. */
+static void axis_errors_sample(const ModelInstance *comp, int64_t *set, double *lp,
+                               ErrorState *err, int64_t k, double *z)
+{
+    const ErrorConfig *ecfg = &comp->h.ecfg;
+    const ErrorKeys *keys = &comp->h.keys;
+    double v = comp->v.noise ? adxl203_noise(comp->v.seed, k, 1) : 0.0, n_rw, n_gm,
+           n_fl[ERRORS_FLICKER_MAX];
+    int64_t i;
+    /* errors_draws(seed, k, ...), from the streams' keys */
+    n_rw = ecfg->rw != 0.0 ? noise_normal_keyed(keys->rw, (uint64_t)k) : 0.0;
+    n_gm = ecfg->gm_sigma != 0.0 ? noise_normal_keyed(keys->gm, (uint64_t)k) : 0.0;
+    for (i = 0; i < ecfg->fl_n; i++)
+        n_fl[i] = noise_normal_keyed(keys->fl[i], (uint64_t)k);
+    /* (every process off: the state stays 0.0, Python's None) */
+    adxl203_measure_errors(*set, *lp, err, comp->v.x, comp->v.y, v, n_rw, n_gm, n_fl,
+                           comp->v.theta, comp->v.T, &comp->h.cfg, ecfg, set, lp, z);
+}
+
+/* A number of the error state that is not finite (Accelerometer._errors_valid): its name. */
+static const char *errors_not_finite(const ErrorState *err, int64_t fl_n)
+{
+    int64_t i;
+    if (!isfinite(err->rw)) return "hidden state _err.rw";
+    if (!isfinite(err->gm)) return "hidden state _err.gm";
+    if (!isfinite(err->E)) return "hidden state _err.E";
+    for (i = 0; i < fl_n; i++)
+        if (!isfinite(err->fl[i])) return "hidden state _err.fl";
+    return NULL;
 }
 
 /* Accelerometer._axis: one sample of an axis. */
@@ -78,14 +208,15 @@ static void axis_sample(const ModelInstance *comp, int64_t *set, double *lp, dou
 }
 
 /* Accelerometer.sample over n >= 1 samples from k0 with the inputs held (Accelerometer.hold:
- * without a filter only the last leaves a trace); the outputs of the last.  Returns the name of
- * a value that is not finite, or NULL. */
+ * without a filter and without a slow error's state only the last leaves a trace); the outputs
+ * of the last.  Returns the name of a value that is not finite, or NULL. */
 static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_t *lpy_set,
-                        double *lpy, int64_t k0, int64_t n)
+                        double *lpy, ErrorState *err, int64_t k0, int64_t n)
 {
     int64_t i;
     double z = comp->v.z, z_y = comp->v.z_y;
-    if (!comp->h.cfg.has_alpha && n > 1) {
+    const int errors = comp->h.ecfg.on || comp->v.theta != 0.0;
+    if (!comp->h.cfg.has_alpha && !comp->h.ecfg.on && n > 1) {
         k0 = k0 + n - 1;
         n = 1;
     }
@@ -106,7 +237,10 @@ static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_
         return NULL;
     }
     for (i = 0; i < n; i++) {
-        axis_sample(comp, lp_set, lp, comp->v.x, comp->v.y, k0 + i, 1, &z);
+        if (errors)
+            axis_errors_sample(comp, lp_set, lp, err, k0 + i, &z);
+        else
+            axis_sample(comp, lp_set, lp, comp->v.x, comp->v.y, k0 + i, 1, &z);
         if (comp->v.axes != 2) {
             *lpy_set = 0;
             *lpy = 0.0;
@@ -120,6 +254,7 @@ static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_
     if (comp->v.axes == 2 && !isfinite(z_y)) return "z_y";
     if (*lp_set && !isfinite(*lp)) return "hidden state _lp";
     if (*lpy_set && !isfinite(*lpy)) return "hidden state _lpy";
+    if (comp->h.ecfg.on) return errors_not_finite(err, comp->h.ecfg.fl_n);
     return NULL;
 }
 
@@ -130,8 +265,9 @@ const char *model_compute(ModelInstance *comp)
     h->lp_pending = h->lp;
     h->lpy_pending_set = h->lpy_set;
     h->lpy_pending = h->lpy;
+    if (h->ecfg.on) h->err_pending = h->err;
     return hold(comp, &h->lp_pending_set, &h->lp_pending, &h->lpy_pending_set, &h->lpy_pending,
-                comp->k, 1);
+                &h->err_pending, comp->k, 1);
 }
 
 const char *model_advance(ModelInstance *comp, const StepPlan *plan)
@@ -139,6 +275,8 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     ModelHidden *h = &comp->h;
     int64_t lp_set = h->lp_set, lpy_set = h->lpy_set;
     double lp = h->lp, lpy = h->lpy;
+    /* (the error state is advanced in place: the plumbing puts back what a refused step
+     * changed, model.h) */
     if (plan->n > 0) {
         int64_t start = plan->k_first;
         if (plan->first_pending) { /* sample k: committed with the inputs set at t */
@@ -146,10 +284,11 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
             lp = h->lp_pending;
             lpy_set = h->lpy_pending_set;
             lpy = h->lpy_pending;
+            if (h->ecfg.on) h->err = h->err_pending;
             start = plan->k_first + 1;
         }
         if (plan->k_first + plan->n > start) { /* the other instants: inputs held from t */
-            const char *bad = hold(comp, &lp_set, &lp, &lpy_set, &lpy, start,
+            const char *bad = hold(comp, &lp_set, &lp, &lpy_set, &lpy, &h->err, start,
                                    plan->k_first + plan->n - start);
             if (bad) return bad;
         }
@@ -159,6 +298,71 @@ const char *model_advance(ModelInstance *comp, const StepPlan *plan)
     h->lpy_set = lpy_set;
     h->lpy = lpy;
     return NULL; /* a pending sample at t + h: model_compute, from the inputs set there */
+}
+
+/* models.errors.state_problems of an error state of the restored hidden state (`which`: err
+ * or err_pending), the C form: while every slow error is off the state is all 0.0 (Python's
+ * None); otherwise every number is finite, the exposure E >= 0, a process that is off has 0.0,
+ * the components beyond the flicker bias's fl_n are 0.0. */
+static int error_state_problems(ModelInstance *comp, const char *which, const ErrorState *s,
+                                const ErrorConfig *ecfg)
+{
+    static const ErrorState zero;
+    char name[64], b[32];
+    int n = 0;
+    int64_t i;
+    if (!ecfg->on) {
+        const double *values = &s->rw; /* rw, gm, E, fl[0 ..]: the struct's doubles in order */
+        const char *names[3] = {"rw", "gm", "E"};
+        if (memcmp(s, &zero, sizeof zero) == 0) return 0;
+        for (i = 0; i < 3 + ERRORS_FLICKER_MAX; i++)
+            if (memcmp(&values[i], &zero.rw, sizeof(double)) != 0) break;
+        if (i < 3)
+            snprintf(name, sizeof name, "%s.%s", which, names[i]);
+        else
+            snprintf(name, sizeof name, "%s.fl[%d]", which, (int)(i - 3));
+        model_log_error(comp, "hidden %s = %s although every slow error is off (bias_on, "
+                        "random_walk, bias_gm, flicker, d_inf, kT_bias, kT_scale, range = 0); "
+                        "allowed: 0.0", name,
+                        (parameters_repr_float(values[i < 3 + ERRORS_FLICKER_MAX ? i : 0], b,
+                                               sizeof b), b));
+        return 1;
+    }
+    n += SLAVE_HIDDEN_REAL(comp, which, s, rw, 0) + SLAVE_HIDDEN_REAL(comp, which, s, gm, 0);
+    snprintf(name, sizeof name, "%s.E", which);
+    if (!isfinite(s->E)) {
+        n += slave_hidden_real(comp, name, s->E, 0);
+    } else if (!(s->E >= 0.0)) {
+        model_log_error(comp, "hidden %s = %s is a negative exposure; allowed: E >= 0 (a sum "
+                        "of x^2 Ts)", name, (parameters_repr_float(s->E, b, sizeof b), b));
+        n++;
+    }
+    {
+        const struct { const char *field, *what; int on; double value; } off[3] = {
+            {"rw", "random_walk", ecfg->rw != 0.0, s->rw},
+            {"gm", "bias_gm", ecfg->gm_sigma != 0.0, s->gm},
+            {"E", "d_inf", ecfg->d_inf != 0.0, s->E}};
+        for (i = 0; i < 3; i++) {
+            if (off[i].on || off[i].value == 0.0 || !isfinite(off[i].value)) continue;
+            model_log_error(comp, "hidden %s.%s = %s although %s = 0 (off); allowed: %s.%s = "
+                            "0.0", which, off[i].field,
+                            (parameters_repr_float(off[i].value, b, sizeof b), b), off[i].what,
+                            which, off[i].field);
+            n++;
+        }
+    }
+    for (i = 0; i < ERRORS_FLICKER_MAX; i++) {
+        snprintf(name, sizeof name, "%s.fl[%d]", which, (int)i);
+        if (!isfinite(s->fl[i])) {
+            n += slave_hidden_real(comp, name, s->fl[i], 0);
+        } else if (i >= ecfg->fl_n && s->fl[i] != 0.0) {
+            model_log_error(comp, "hidden %s = %s is a flicker component the parameters do not "
+                            "have (%d of them); allowed: 0.0", name,
+                            (parameters_repr_float(s->fl[i], b, sizeof b), b), (int)ecfg->fl_n);
+            n++;
+        }
+    }
+    return n;
 }
 
 int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
@@ -173,5 +377,9 @@ int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
            slave_hidden_flag(comp, "lpy_pending_set", h->lpy_pending_set) +
            slave_hidden_real(comp, "lp", h->lp, 0) + slave_hidden_real(comp, "lpy", h->lpy, 0) +
            slave_hidden_real(comp, "lp_pending", h->lp_pending, 0) +
-           slave_hidden_real(comp, "lpy_pending", h->lpy_pending, 0);
+           slave_hidden_real(comp, "lpy_pending", h->lpy_pending, 0) +
+           slave_hidden_derived(comp, "ecfg", &h->ecfg, &fresh->ecfg, sizeof h->ecfg) +
+           slave_hidden_derived(comp, "keys", &h->keys, &fresh->keys, sizeof h->keys) +
+           error_state_problems(comp, "err", &h->err, &fresh->ecfg) +
+           error_state_problems(comp, "err_pending", &h->err_pending, &fresh->ecfg);
 }

@@ -7,6 +7,7 @@
 #include "chain.h"
 #include "covariance.h"
 #include "drift.h"
+#include "errors.h"
 #include "harmonic.h"
 #include "model.h"
 #include "parameters.h"
@@ -47,13 +48,13 @@ void model_start(ModelInstance *comp)
 static int bias_on(const ModelVariables *v) { return v->bias == 1; }
 static int kT_on(const ModelVariables *v) { return v->kT_bias != 0.0 || v->kT_scale != 0.0; }
 
-/* DriftEstimator._general_sample's offset: models.sensor.class2 with a tilt or a temperature
+/* DriftEstimator._general_sample's offset: models.errors.class2_offset with a tilt or a temperature
  * coefficient, else 0 (then z - 0.0 is z: the letter's sample, the same bits). */
 static double class2_offset(const ModelVariables *v)
 {
     if (v->theta != 0.0 || kT_on(v))
-        return sensor_class2(v->theta, v->T, v->a1, v->a2, v->T0, v->kT_bias, v->kT_scale, v->a3,
-                             v->a4);
+        return errors_class2_offset(v->theta, v->T, v->a1, v->a2, v->T0, v->kT_bias, v->kT_scale,
+                                    v->a3, v->a4);
     return 0.0;
 }
 

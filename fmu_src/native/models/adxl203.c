@@ -1,4 +1,5 @@
 /* adxl203: C port of models/adxl203.py (what the Accelerometer FMU uses); see adxl203.h. */
+#include <math.h>
 #include <stdio.h>
 
 #include "adxl203.h"
@@ -26,6 +27,13 @@ Config adxl203_config_general(double a0, double a1, double a2, double R, double 
                               double cross, double fc, double Vs, int64_t bits, double density,
                               double Ts, double a4)
 {
+    return adxl203_config_ranged(a0, a1, a2, R, a3, cross, fc, Vs, bits, density, Ts, a4, 0.0);
+}
+
+Config adxl203_config_ranged(double a0, double a1, double a2, double R, double a3,
+                             double cross, double fc, double Vs, int64_t bits, double density,
+                             double Ts, double a4, double range)
+{
     Config c;
     double scale, z0;
     c.plain = (cross == 0.0 && fc == 0.0 && Vs == 0.0 && bits == 0 && density == 0.0);
@@ -43,7 +51,14 @@ Config adxl203_config_general(double a0, double a1, double a2, double R, double 
     c.alpha = fc > 0.0 ? ops_exp(-2.0 * OPS_PI * fc * Ts) : 0.0;
     /* 2 ** bits; the parameter check allows bits <= 24 (saturated at 2^62 beyond) */
     c.levels = bits > 0 ? (int64_t)1 << (bits < 62 ? bits : 62) : 0;
-    c.lsb = c.levels ? (Vs > 0.0 ? Vs : ADXL203_VS_NOMINAL) / (double)c.levels : 0.0;
+    c.lo = 0.0;
+    if (c.levels && Vs <= 0.0 && range > 0.0) { /* over a0 +- |a1| range */
+        const double span = fabs(c.a1) * range;
+        c.lo = z0 - span;
+        c.lsb = 2.0 * span / (double)c.levels;
+    } else {
+        c.lsb = c.levels ? (Vs > 0.0 ? Vs : ADXL203_VS_NOMINAL) / (double)c.levels : 0.0;
+    }
     return c;
 }
 
@@ -73,11 +88,15 @@ double adxl203_quantise(double V, const Config *cfg)
     double code, top;
     if (!cfg->levels) return V;
     if (!(V - V == 0.0)) return V; /* non-finite: named by the FMU, not clipped */
-    code = ops_floor(V / cfg->lsb + 0.5);
+    if (cfg->lo == 0.0)
+        code = ops_floor(V / cfg->lsb + 0.5);
+    else
+        code = ops_floor((V - cfg->lo) / cfg->lsb + 0.5);
     code = code < 0.0 ? 0.0 : code;
     top = (double)cfg->levels - 1.0;
     code = code > top ? top : code;
-    return code * cfg->lsb;
+    if (cfg->lo == 0.0) return code * cfg->lsb;
+    return cfg->lo + code * cfg->lsb;
 }
 
 void adxl203_measure(int64_t prev_set, double prev, double own, double other, double v,
@@ -93,6 +112,29 @@ void adxl203_measure(int64_t prev_set, double prev, double own, double other, do
                          cfg->alpha);
     *e_set = 1;
     *z = adxl203_quantise(cfg->a0 + *e, cfg);
+}
+
+void adxl203_measure_errors(int64_t prev_set, double prev, ErrorState *state, double own,
+                            double other, double v, double n_rw, double n_gm,
+                            const double *n_fl, double theta, double T, const Config *cfg,
+                            const ErrorConfig *ecfg, int64_t *e_set, double *e, double *z)
+{
+    double b, u, V;
+    errors_advance(state, own, n_rw, n_gm, n_fl, ecfg, state, &b);
+    u = errors_sensed(own, theta, T, ecfg);
+    if (cfg->plain) {
+        *e_set = 0;
+        *e = 0.0;
+        V = sensor_measure_general(u, cfg->a0, cfg->a1, cfg->a2, cfg->R, v, cfg->a3, cfg->a4);
+    } else {
+        *e = adxl203_lowpass(prev_set, prev, adxl203_sense(u, other, v, cfg), cfg->has_alpha,
+                             cfg->alpha);
+        *e_set = 1;
+        V = cfg->a0 + *e;
+    }
+    V = V + b;
+    if (ecfg->kT_bias != 0.0) V = V + errors_thermal_bias(T, ecfg);
+    *z = adxl203_quantise(V, cfg);
 }
 
 void adxl203_hold(int64_t prev_set, double prev, double own, double other, int64_t seed,

@@ -5,6 +5,7 @@
 
 #include <stdint.h>
 
+#include "errors.h"
 #include "parameters.h"
 
 #define ADXL203_VS_NOMINAL 5.0
@@ -25,6 +26,7 @@ typedef struct {
     double lsb;
     int64_t levels;
     double a4;
+    double lo; /* the ADC's lowest level (0.0 but over a measurement range) */
 } Config;
 
 double adxl203_bandwidth(double C);
@@ -36,6 +38,10 @@ Config adxl203_config(double a0, double a1, double a2, double R, double a3, doub
 Config adxl203_config_general(double a0, double a1, double a2, double R, double a3,
                               double cross, double fc, double Vs, int64_t bits, double density,
                               double Ts, double a4);
+/* With the measurement range [g] (Python's keyword range; the above is range = 0). */
+Config adxl203_config_ranged(double a0, double a1, double a2, double R, double a3,
+                             double cross, double fc, double Vs, int64_t bits, double density,
+                             double Ts, double a4, double range);
 /* Measurement-noise draw of axis (1: x, 2: y) at sample k. */
 double adxl203_noise(int64_t seed, int64_t k, int64_t axis);
 double adxl203_sense(double own, double other, double v, const Config *cfg);
@@ -45,6 +51,13 @@ double adxl203_quantise(double V, const Config *cfg);
 /* One sample of an axis: (*e_set, *e) is the filter state (e_set = 0: None), *z the output. */
 void adxl203_measure(int64_t prev_set, double prev, double own, double other, double v,
                      const Config *cfg, int64_t *e_set, double *e, double *z);
+/* One sample of the first axis with the slow errors (models.adxl203.measure_errors): the
+ * filter state (*e_set, *e), the error state *state (advanced in place), the output *z;
+ * draws: n_rw, n_gm and n_fl[ERRORS_FLICKER_MAX]. */
+void adxl203_measure_errors(int64_t prev_set, double prev, ErrorState *state, double own,
+                            double other, double v, double n_rw, double n_gm,
+                            const double *n_fl, double theta, double T, const Config *cfg,
+                            const ErrorConfig *ecfg, int64_t *e_set, double *e, double *z);
 /* Filter state after samples k0+1 .. k0+m-1 with the input held; a no-op without filter. */
 void adxl203_hold(int64_t prev_set, double prev, double own, double other, int64_t seed,
                   int64_t k0, int64_t m, const Config *cfg, int64_t axis, int64_t noise_on,

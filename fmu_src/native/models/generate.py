@@ -24,10 +24,11 @@ MATH_UNITS = ("slave.c", "ops.c", "noise.c", "parameters.c")
 #: The C units of each FMU: its step logic and the models/ units it needs.
 UNITS = {
     "Excitation": ("Excitation_step.c", "excitation.c") + MATH_UNITS,
-    "Accelerometer": ("Accelerometer_step.c", "adxl203.c", "dualaxis.c", "harmonic.c",
-                      "chain.c", "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
-    "DriftEstimator": ("DriftEstimator_step.c", "bias.c", "dualaxis.c", "harmonic.c", "chain.c",
-                       "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
+    "Accelerometer": ("Accelerometer_step.c", "adxl203.c", "errors.c", "dualaxis.c",
+                      "harmonic.c", "chain.c", "ekf.c", "drift.c", "sensor.c",
+                      "covariance.c") + MATH_UNITS,
+    "DriftEstimator": ("DriftEstimator_step.c", "bias.c", "errors.c", "dualaxis.c", "harmonic.c",
+                       "chain.c", "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
     "DualDriftEstimator": ("DualDriftEstimator_step.c", "dualaxis.c", "harmonic.c", "chain.c",
                            "ekf.c", "drift.c", "sensor.c", "covariance.c") + MATH_UNITS,
 }

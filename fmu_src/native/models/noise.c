@@ -68,3 +68,9 @@ double noise_normal(uint64_t seed, uint64_t stream, uint64_t k)
 {
     return noise_inverse_normal_cdf(noise_uniform(seed, stream, k));
 }
+
+double noise_normal_keyed(uint64_t key, uint64_t k)
+{
+    const uint64_t bits = noise_mix(key + k * NOISE_GOLDEN);
+    return noise_inverse_normal_cdf(((double)(bits >> 12) + 0.5) * 2.220446049250313e-16);
+}

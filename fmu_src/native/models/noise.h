@@ -16,6 +16,11 @@
 #define NOISE_STREAM_PHASE 4
 #define NOISE_STREAM_MEASUREMENT_Y 5
 #define NOISE_STREAM_INPUT 6
+/* the sensor's slow errors (models/errors.py); index 0 is the draw before sample 1 */
+#define NOISE_STREAM_TURN_ON 7
+#define NOISE_STREAM_RANDOM_WALK 8
+#define NOISE_STREAM_BIAS_GM 9
+#define NOISE_STREAM_FLICKER 16 /* component i: NOISE_STREAM_FLICKER + i */
 
 #define NOISE_P_LOW 0.02425
 
@@ -34,5 +39,8 @@ double noise_central(double p);
 double noise_inverse_normal_cdf(double p);
 /* Standard normal draw for sample k of stream under seed. */
 double noise_normal(uint64_t seed, uint64_t stream, uint64_t k);
+/* The same draw from the stream's key (noise_key(seed, stream)), for a caller that keeps the
+ * key instead of deriving it at every sample (C only: Python's key is cached, _key_int). */
+double noise_normal_keyed(uint64_t key, uint64_t k);
 
 #endif

@@ -89,3 +89,5 @@ double ops_sin2pi(double cycles)
         poly = poly * t2 + SIN_COEFF[n / 2];
     return sign * t * poly;
 }
+
+double ops_sin(double x) { return ops_sin2pi(x / OPS_TWO_PI); }

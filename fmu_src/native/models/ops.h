@@ -1,4 +1,4 @@
-/* ops: C port of models/_ops.py (elementwise helpers, arithmetic-only log, exp and sin2pi).
+/* ops: C port of models/_ops.py (elementwise helpers, arithmetic-only log, exp, sin2pi, sin).
  *
  * Same order of operations as the Python, so that IEEE 754 double arithmetic gives the same
  * bits.  Compile every unit with -std=c99 -O2 -ffp-contract=off -fno-fast-math.  Only exact or
@@ -13,6 +13,8 @@
 #define OPS_LN2 0.6931471805599453
 #define OPS_SQRT_HALF 0.7071067811865476
 #define OPS_PI 3.141592653589793
+/* 2 pi (models._ops.TWO_PI, the exact double of pi): ops_sin divides by it. */
+#define OPS_TWO_PI 6.283185307179586
 /* exp: ln 2 split (fdlibm), 1 / ln 2, and the range limits of models._ops.exp. */
 #define OPS_LN2_HI 0.6931471803691238
 #define OPS_LN2_LO 1.9082149292705877e-10
@@ -34,5 +36,7 @@ double ops_log(double x);
 double ops_exp(double x);
 /* sin(2 pi c) by arithmetic only (models._ops.sin2pi). */
 double ops_sin2pi(double cycles);
+/* sin(x), x in radians, by arithmetic only: ops_sin2pi(x / (2 pi)) (models._ops.sin). */
+double ops_sin(double x);
 
 #endif

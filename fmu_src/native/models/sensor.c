@@ -66,13 +66,3 @@ double sensor_measure_bilinear(double own, double other, double a0, double a1, d
 {
     return sensor_h_bilinear(own, other, a0, a1, a2, b) + ops_sqrt(R) * v;
 }
-
-double sensor_tilt(double theta) { return ops_sin2pi(theta / SENSOR_TWO_PI); }
-
-double sensor_class2(double theta, double T, double a1, double a2, double T0, double kT_bias,
-                     double kT_scale, double a3, double a4)
-{
-    double dT = T - T0;
-    return kT_bias * dT + sensor_h_general((1.0 + kT_scale * dT) * sensor_tilt(theta), 0.0, a1,
-                                           a2, a3, a4);
-}

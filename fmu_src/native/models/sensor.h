@@ -25,12 +25,4 @@ double sensor_h_bilinear(double own, double other, double a0, double a1, double 
 double sensor_measure_bilinear(double own, double other, double a0, double a1, double a2,
                                double b, double R, double v);
 
-/* models.sensor.TWO_PI (2 pi, exactly the Python float) and the class-2 terms: tilt = sin(theta)
- * by arithmetic only; class2 = kT_bias (T - T0) + h((1 + kT_scale (T - T0)) sin theta; 0, a1,
- * a2, a3, a4), the offset of the tilt and temperature at x = 0. */
-#define SENSOR_TWO_PI (2.0 * 3.141592653589793)
-double sensor_tilt(double theta);
-double sensor_class2(double theta, double T, double a1, double a2, double T0, double kT_bias,
-                     double kT_scale, double a3, double a4);
-
 #endif

@@ -1,0 +1,191 @@
+"""Cost of one step of the Accelerometer FMU with the sensor's slow errors (issue 42) off and
+on, against the Accelerometer of the code before them, in the same run.
+
+Three Accelerometers, each alone in the C host tests/hosts/chain_host.c (no Python in the
+process for the native FMU; the loader shim's Python for the Python FMU), stepping one sample
+per step with its inputs held (x = 0.5 g; with the errors, theta = 0.1 rad and T = 300 K) and
+its output z read at every step:
+
+1. before: built from the commit before the slow errors (``--before``, default
+   :data:`BEFORE`, exported with ``git archive`` and built in a child process);
+2. off: this tree, every new parameter at its default (the letter's sensor);
+3. on: this tree, every slow error on (turn-on bias, random walk, Gauss-Markov bias, a flicker
+   bias over 0.1 .. 100 s (four components), exposure drift, tilt, temperature bias and scale,
+   range, a 16-bit ADC over the range).
+
+Goals: off costs no more than before (within the scatter of alternating runs: at most 1.05
+times), on at most 2 times before.  Each figure is the median of ``--repeats`` runs, the three
+alternating run by run, for the Python FMU and the native FMI 2.0 FMU.  Where valgrind is
+installed, the native FMU's instructions per step are counted too (callgrind, the difference of
+two run lengths: the host's start and the FMU's loading cancel): a count does not depend on
+what else runs on the machine, as a wall time does.
+
+    python benchmarks/bench_errors.py [--steps 400000] [--python-steps 40000] [--repeats 5]
+"""
+import argparse
+import os
+import re
+import shutil
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent
+sys.path.insert(0, str(ROOT / "tests" / "hosts"))
+
+import chain  # noqa: E402
+
+import figures  # noqa: E402
+
+#: The commit the slow errors branched from: main before issue 42.
+BEFORE = "9ff02a8"
+#: Every slow error on (models/errors.py), and the ADC over the range.
+ALL_ON = dict(bias_on=0.05, random_walk=0.002, bias_gm=0.003, tau_gm=1.0, flicker=0.001,
+              tau_min=0.1, tau_max=100.0, d_inf=0.04, E_tau=50.0, T0=298.15, kT_bias=0.002,
+              kT_scale=-0.001, range=1.7, bits=16)
+INPUTS_ON = dict(x=0.5, theta=0.1, T=300.0)
+#: What the child process that builds the Accelerometer of a tree runs (PYTHONPATH: the tree).
+BUILD = """
+import sys
+from driftfmu.fmu_src.builder import build_fmus
+from driftfmu.fmu_src.native_build import build_native_fmus
+out = sys.argv[1]
+build_fmus(out, names=("Accelerometer",), log=lambda line: None)
+build_native_fmus(out + "/native", names=("Accelerometer",), fmi_versions=(2,),
+                  platforms=["x86_64-linux"], log=lambda line: None)
+"""
+
+
+def build(tree, out):
+    """The Python and native FMI 2.0 Accelerometer FMUs of the source ``tree``:
+    ``{"python": path, "native": path}``."""
+    env = dict(os.environ, PYTHONPATH=str(tree))
+    subprocess.run([sys.executable, "-c", BUILD, str(out)], check=True, env=env, cwd=str(tree))
+    return {"python": Path(out) / "Accelerometer.fmu",
+            "native": Path(out) / "native" / "fmi2" / "Accelerometer.fmu"}
+
+
+def export(ref, folder):
+    """The tree of commit ``ref`` (``git archive``) in ``folder``."""
+    folder.mkdir(parents=True)
+    archive = subprocess.run(["git", "-C", str(ROOT), "archive", ref], check=True,
+                             capture_output=True).stdout
+    subprocess.run(["tar", "-x", "-C", str(folder)], input=archive, check=True)
+    return folder
+
+
+def step_ns(host, fmu, start, steps, work, env=None):
+    """ns per step of the Accelerometer ``fmu`` alone in the C host, z read at every step."""
+    unpacked = {"Accelerometer": chain.unpack(fmu, work / "Accelerometer")}
+    text, keys = chain.script(2, unpacked, {"Accelerometer": start}, (),
+                              {"Accelerometer": ["z"]}, steps, 1e-3, quiet=True)
+    _, ns, _ = chain.run(host, text, keys, work, env=env)
+    return ns
+
+
+def instructions(host, fmu, start, work, steps=(20000, 40000)):
+    """Instructions per step of the Accelerometer ``fmu`` alone in the C host (callgrind: the
+    difference of the counts of two run lengths over the difference of the steps)."""
+    counts = []
+    for n in steps:
+        folder = work / ("n%d" % n)
+        folder.mkdir()
+        unpacked = {"Accelerometer": chain.unpack(fmu, folder / "Accelerometer")}
+        text, _ = chain.script(2, unpacked, {"Accelerometer": start}, (),
+                               {"Accelerometer": ["z"]}, n, 1e-3, quiet=True)
+        (folder / "script.txt").write_text(text)
+        done = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
+                               str(host), "script.txt"], cwd=folder, capture_output=True,
+                              text=True)
+        counts.append(int(re.search(r"Collected : (\d+)", done.stderr).group(1)))
+    return (counts[1] - counts[0]) / (steps[1] - steps[0])
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--steps", type=int, default=400000, help="steps of the native runs")
+    ap.add_argument("--python-steps", type=int, default=40000,
+                    help="steps of the runs with the Python FMU")
+    ap.add_argument("--repeats", type=int, default=5)
+    ap.add_argument("--before", default=BEFORE,
+                    help="git commit of the Accelerometer before the slow errors (default: %s)"
+                         % BEFORE)
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
+    args = ap.parse_args(argv)
+    load = figures.load()
+    measured = {}
+    with tempfile.TemporaryDirectory() as tmp:
+        tmp = Path(tmp)
+        fmus = {"before": build(export(args.before, tmp / "before"), tmp / "fmus_before"),
+                "now": build(ROOT, tmp / "fmus_now")}
+        host = chain.compile_host(tmp / "chain_host")
+        starts = {"before": dict(x=0.5), "off": dict(x=0.5), "on": dict(ALL_ON, **INPUTS_ON)}
+        which = {"before": "before", "off": "now", "on": "now"}
+        for r in range(args.repeats):
+            for backend in ("native", "python"):
+                steps = args.steps if backend == "native" else args.python_steps
+                env = chain.python_fmu_env() if backend == "python" else None
+                for label in ("before", "off", "on"):
+                    work = tmp / ("r%d_%s_%s" % (r, backend, label))
+                    work.mkdir()
+                    measured.setdefault((backend, label), []).append(step_ns(
+                        host, fmus[which[label]][backend], starts[label], steps, work, env))
+                    shutil.rmtree(work)
+        counted = {}
+        if shutil.which("valgrind"):
+            for label in ("before", "off", "on"):
+                work = tmp / ("ir_%s" % label)
+                work.mkdir()
+                counted[label] = instructions(host, fmus[which[label]]["native"],
+                                              starts[label], work)
+    median = {key: statistics.median(v) for key, v in measured.items()}
+    print("machine: %s; load average %s"
+          % (figures.machine(), " ".join("%.1f" % x for x in os.getloadavg())))
+    print("one Accelerometer step in the C host, median of %d runs (%d native, %d Python "
+          "steps); before = %s" % (args.repeats, args.steps, args.python_steps, args.before))
+    rows = []
+    met_all = True
+    for backend, title in (("native", "native FMI 2.0"), ("python", "Python")):
+        b, off, on = (median[(backend, k)] for k in ("before", "off", "on"))
+        print("  %-15s before %8.1f ns, off %8.1f ns (%.3f), on %8.1f ns (%.3f); runs: %s"
+              % (title, b, off, off / b, on, on / b, " | ".join(
+                  "%s %s" % (k, " ".join("%.0f" % x for x in measured[(backend, k)]))
+                  for k in ("before", "off", "on"))))
+        against = "the %s Accelerometer before the slow errors (%s)" % (title, args.before)
+        met_off, met_on = off / b <= 1.05, on / b <= 2.0
+        met_all = met_all and met_off and met_on
+        rows += [
+            figures.row("one step of the %s Accelerometer before the slow errors" % title,
+                        b / 1e3, "µs"),
+            figures.row("the same, this code, every slow error off", off / 1e3, "µs", against,
+                        off / b, "<= 1.05 (no more than before)", met_off),
+            figures.row("the same, every slow error on", on / 1e3, "µs", against, on / b,
+                        "<= 2", met_on),
+        ]
+    if counted:
+        b, off, on = (counted[k] for k in ("before", "off", "on"))
+        print("  native FMI 2.0 instructions per step (callgrind): before %.0f, off %.0f (%.3f), "
+              "on %.0f (%.3f)" % (b, off, off / b, on, on / b))
+        against = "the native FMI 2.0 Accelerometer before the slow errors (%s)" % args.before
+        rows += [
+            figures.row("instructions of one step of the native FMI 2.0 Accelerometer before "
+                        "the slow errors (callgrind)", b, "instructions"),
+            figures.row("the same, this code, every slow error off", off, "instructions",
+                        against, off / b, "<= 1.05 (no more than before)", off / b <= 1.05),
+            figures.row("the same, every slow error on", on, "instructions", against, on / b,
+                        "<= 2", on / b <= 2.0),
+        ]
+    print("goals (off <= 1.05 x before, on <= 2 x before): %s" % ("met" if met_all
+                                                                 else "NOT met"))
+    figures.record(__file__, argv, rows, load,
+                   "Median of %d alternating runs; %d steps of the native FMU, %d of the Python "
+                   "FMU; one sample per step, z read at every step." % (
+                       args.repeats, args.steps, args.python_steps))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,299 @@
+"""The Accelerometer FMU's slow errors (issue 42), on the slave class (no FMU built): its output
+is models/' (so tests/test_errors.py's evidence is the FMU's), sample by sample and through any
+communication step and FMU state restore; the error state is in the FMU state and a state whose
+error part cannot be this sensor's is refused; bad parameters and inputs get one line each and
+change nothing."""
+import copy
+import json
+import math
+import random
+
+import numpy as np
+import pytest
+
+from driftfmu.fmu_src.Accelerometer import ERROR_SWITCHES, Accelerometer
+from driftfmu.models import adxl203, chain, errors, excitation
+
+ALL_ON = dict(bias_on=0.05, random_walk=0.02, bias_gm=0.03, tau_gm=0.02, flicker=0.01,
+              tau_min=0.003, tau_max=3.0, d_inf=0.04, E_tau=0.5, T0=290.0, kT_bias=0.002,
+              kT_scale=-0.003, range=1.8)
+
+
+def vr(slave, name):
+    return next(i for i, s in enumerate(slave.VARIABLES) if s["name"] == name)
+
+
+def put(slave, name, value):
+    spec = slave.VARIABLES[vr(slave, name)]
+    call = slave.set_real if spec["type"] == "Real" else slave.set_integer
+    return call([vr(slave, name)], [value])
+
+
+def get(slave, name):
+    return slave.get_real([vr(slave, name)])[0]
+
+
+def messages(slave):
+    out = [m.msg for m in slave.log_queue]
+    slave.log_queue.clear()
+    return out
+
+
+def slave(**values):
+    s = Accelerometer(instance_name="a")
+    for name, value in values.items():
+        setattr(s, name, value)
+    s.setup_experiment(0.0)
+    s.enter_initialization_mode()
+    s.exit_initialization_mode()
+    return s
+
+
+def initialised(**values):
+    s = slave(**values)
+    assert s._initialised, messages(s)
+    return s
+
+
+def snapshot(s):
+    values = [s.get_real([i])[0] if spec["type"] == "Real" else s.get_integer([i])[0]
+              for i, spec in enumerate(s.VARIABLES)]
+    return json.dumps(s._get_fmu_state(), sort_keys=True), values
+
+
+# -- the FMU's output is models/' ------------------------------------------------------------------
+
+def test_every_sample_equals_models_with_every_term_on_and_the_inputs_moving():
+    """The slave stepped sample by sample with x, theta and T changing: z equals
+    adxl203.measure_errors with errors.draws, bit for bit (the ADC over the range too)."""
+    values = dict(ALL_ON, a0=0.4, a1=1.2, a2=0.03, a3=0.01, R=1e-5, seed=77, Ts=1e-3, bits=14)
+    s = initialised(**values)
+    cfg = adxl203.config(**values)
+    ecfg = errors.config(**values)
+    state = errors.initial_state(77, ecfg)
+    rng = random.Random(5)
+    lp = None
+    for k in range(1, 3001):
+        x, theta, T = rng.uniform(-2, 2), rng.uniform(-1, 1), rng.uniform(250, 330)
+        for name, v in (("x", x), ("theta", theta), ("T", T)):
+            put(s, name, v)
+        lp, state, z = adxl203.measure_errors(lp, state, x, 0.0, adxl203.noise(77, k), errors.draws(
+            77, k, ecfg), theta, T, cfg, ecfg)
+        assert get(s, "z") == z, k
+        assert s.do_step((k - 1) * 1e-3, 1e-3) is not False
+    assert s._committed["_err"] == state
+
+
+@pytest.mark.parametrize("values", [dict(random_walk=0.02), dict(bias_gm=0.1, tau_gm=1.0),
+                                    dict(flicker=0.01, tau_min=0.1, tau_max=100.0),
+                                    dict(bias_on=0.3), dict(d_inf=0.2)])
+def test_the_fmu_output_is_the_series_of_the_statistical_evidence(values):
+    """x = 0, no measurement noise, a0 = a2 = 0, a1 = 1: the slave's z is
+    chain.SensorErrors' (what tests/test_errors.py measures the Allan deviation of) for the
+    same seed, bit for bit."""
+    Ts = 0.01
+    s = initialised(a0=0.0, a1=1.0, a2=0.0, noise=0, seed=3, Ts=Ts, **values)
+    se = chain.SensorErrors(3, 0.0, 1.0, 0.0, 1e-4, 0.0, 0.0, Ts, values)
+    for k in range(1, 2001):
+        put(s, "x", 0.25 if k % 7 else -0.5)
+        assert get(s, "z") == se.measure(0.25 if k % 7 else -0.5, 0.0, k), k
+        s.do_step((k - 1) * Ts, Ts)
+
+
+def test_any_communication_step_and_a_restored_state_give_the_same_bits():
+    """Whole, multiple and fractional steps (the hold between communication points advances
+    every process by the samples it spans, with the inputs held) and an FMU state restored and
+    stepped again: every sample a master sees equals the sample-by-sample run's."""
+    values = dict(ALL_ON, seed=9, Ts=1e-3, fc=200.0)
+    inputs = dict(x=0.6, theta=0.2, T=310.0)
+    ref = initialised(**values)
+    zs = {}
+    for k in range(1, 601):
+        for name, v in inputs.items():
+            put(ref, name, v)
+        zs[k] = get(ref, "z")
+        ref.do_step((k - 1) * 1e-3, 1e-3)
+    rng = random.Random(2)
+    s = initialised(**values)
+    for name, v in inputs.items():
+        put(s, name, v)
+    t, seen, saved = 0.0, 0, None
+    while s.k < 560:
+        if s._at_sample:
+            assert get(s, "z") == zs[s.k], s.k
+            seen += 1
+        if saved is None and s.k > 200 and s._at_sample:
+            saved = (copy.deepcopy(s._get_fmu_state()), s.k)
+        h = 1e-3 * rng.choice((1, 1, 2, 5, 0.5, 0.25, 1.5))
+        assert s.do_step(t, h) is not False
+        t += h
+    assert seen > 100
+    state, k = saved
+    s._set_fmu_state(state)
+    assert not messages(s) and s.k == k
+    assert get(s, "z") == zs[k]
+    s.do_step(0.0, 7e-3)
+    assert get(s, "z") == zs[k + 7]
+
+
+def test_held_inputs_over_a_long_step_equal_single_samples():
+    """One step of 50 samples equals 50 steps of one with the inputs held (errors.hold's
+    loop, with the filter on and off)."""
+    for fc in (0.0, 100.0):
+        values = dict(ALL_ON, seed=4, Ts=1e-3, fc=fc)
+        a, b = initialised(**values), initialised(**values)
+        for s in (a, b):
+            put(s, "x", 0.7)
+            put(s, "T", 301.0)
+        a.do_step(0.0, 0.05)
+        for k in range(50):
+            b.do_step(k * 1e-3, 1e-3)
+        assert get(a, "z") == get(b, "z") and a._committed["_err"] == b._committed["_err"]
+
+
+def test_with_every_term_off_the_state_has_no_error_part_and_the_tilt_still_acts():
+    s = initialised()
+    assert s._committed["_err"] is None and s._get_fmu_state()["_err"] is None
+    put(s, "x", 0.5)
+    plain = get(s, "z")
+    put(s, "theta", math.pi / 6)  # sin = 1/2: the sensor senses 1 g
+    assert get(s, "z") == pytest.approx(adxl203.sensor.h(1.0, 0.0, 1.0, 0.01) +
+                                        (plain - adxl203.sensor.h(0.5, 0.0, 1.0, 0.01)),
+                                        abs=1e-15)
+    s.do_step(0.0, 1e-3)
+    assert s._committed["_err"] is None
+    # dual = 1 ignores the tilt and the temperature (documented: inputs of the first axis)
+    d = initialised(dual=1)
+    put(d, "x", 0.5)
+    z = get(d, "z")
+    put(d, "theta", 1.0)
+    put(d, "T", 400.0)
+    assert get(d, "z") == z
+
+
+# -- the error state in the FMU state -------------------------------------------------------------
+
+def _stepped(**values):
+    s = initialised(**dict(ALL_ON, seed=5, **values))
+    for k in range(30):
+        put(s, "x", 0.3)
+        s.do_step(k * 1e-3, 1e-3)
+    return s
+
+
+def test_the_error_state_round_trips_through_serialised_bytes():
+    s = _stepped()
+    state = s._get_fmu_state()
+    assert len(state["_err"]) == 4 and len(state["_err"][3]) == s._ecfg.fl_n == 4
+    data = Accelerometer._fmu_state_to_bytes(state)
+    other = _stepped()
+    for k in range(5):
+        other.do_step(0.03 + k * 1e-3, 1e-3)
+    other._set_fmu_state(Accelerometer._fmu_state_from_bytes(data))
+    assert not messages(other)
+    assert snapshot(other) == snapshot(s)
+
+
+@pytest.mark.parametrize("change, words", [
+    (lambda e: e[3].pop(), "3 flicker components; allowed: 4"),
+    (lambda e: e[3].append(0.1), "5 flicker components; allowed: 4"),
+    (lambda e: e.__setitem__(2, -1e-12), "E = -1e-12 is a negative exposure"),
+    (lambda e: e.__setitem__(1, math.inf), "inf is not a finite number"),
+    (lambda e: e[3].__setitem__(0, math.nan), "nan is not a finite number"),
+    (lambda e: e.__setitem__(0, "0.1"), "'0.1' is not a finite number"),
+    (lambda e: e.pop(), "not [rw, gm, E, [flicker components]]"),
+])
+def test_an_error_state_that_cannot_be_this_sensors_is_refused_and_changes_nothing(change,
+                                                                                  words):
+    s = _stepped()
+    before = snapshot(s)
+    state = copy.deepcopy(s._get_fmu_state())
+    change(state["_err"])
+    s._set_fmu_state(state)
+    log = messages(s)
+    assert any(words in m for m in log) and "nothing was changed" in log[-1], log
+    assert snapshot(s) == before
+
+
+@pytest.mark.parametrize("off, name", [("random_walk", "rw"), ("bias_gm", "gm"),
+                                       ("d_inf", "E")])
+def test_a_process_that_is_off_must_have_a_zero_state(off, name):
+    s = _stepped(**{off: 0.0})
+    before = snapshot(s)
+    state = copy.deepcopy(s._get_fmu_state())
+    state["_err"][("rw", "gm", "E").index(name)] = 0.25
+    s._set_fmu_state(state)
+    log = messages(s)
+    assert any("%s = 0.25 although %s = 0 (off)" % (name, off) in m for m in log), log
+    assert snapshot(s) == before
+    state["_err"][("rw", "gm", "E").index(name)] = 0.0  # the same state with 0: accepted
+    s._set_fmu_state(state)
+    assert not messages(s)
+
+
+def test_an_error_state_with_every_term_off_or_missing_with_one_on_is_refused():
+    plain = initialised()
+    plain.do_step(0.0, 1e-3)
+    state = copy.deepcopy(plain._get_fmu_state())
+    before = snapshot(plain)
+    state["_err"] = [0.0, 0.0, 0.0, []]
+    plain._set_fmu_state(state)
+    assert "every slow error is off" in messages(plain)[-1]
+    assert snapshot(plain) == before
+    s = _stepped()
+    state = copy.deepcopy(s._get_fmu_state())
+    before = snapshot(s)
+    state["_err"] = None
+    s._set_fmu_state(state)
+    assert "_err of an initialised instance is missing" in messages(s)[-1]
+    assert snapshot(s) == before
+
+
+# -- bad values: one line, what is allowed, nothing changed -------------------------------------
+
+@pytest.mark.parametrize("name", ["theta", "T"])
+@pytest.mark.parametrize("value", [math.nan, math.inf, -math.inf])
+def test_a_non_finite_tilt_or_temperature_is_refused_and_changes_nothing(name, value):
+    s = _stepped()
+    before = snapshot(s)
+    put(s, name, value)
+    log = messages(s)
+    assert log == ["a: fmi2SetReal: %s = %r is not finite; input accepts finite values only"
+                   % (name, value)]
+    assert snapshot(s) == before
+    assert s.do_step(0.03, 1e-3) is not False
+
+
+@pytest.mark.parametrize("values, words", [
+    (dict(bias_gm=-0.1), "bias_gm = -0.1 is out of range; allowed: bias_gm >= 0"),
+    (dict(flicker=-1e-3), "flicker = -0.001 is out of range; allowed: flicker >= 0"),
+    (dict(random_walk=-1.0), "random_walk = -1.0 is out of range; allowed: random_walk >= 0"),
+    (dict(bias_on=-2.0), "bias_on = -2.0 is out of range; allowed: bias_on >= 0"),
+    (dict(flicker=0.01, tau_min=3.0, tau_max=3.0),
+     "tau_min = 3.0 s and tau_max = 3.0 s are not a band; allowed: tau_min < tau_max"),
+    (dict(flicker=0.01, tau_min=4.0, tau_max=3.0), "are not a band"),
+    (dict(tau_gm=0.0), "tau_gm = 0.0 is out of range; allowed: tau_gm > 0"),
+    (dict(E_tau=-1.0), "E_tau = -1.0 is out of range; allowed: E_tau > 0"),
+    (dict(range=-1.0), "range = -1.0 is out of range; allowed: range >= 0"),
+    (dict(dual=1, flicker=0.01), "dual = 1 is not allowed with flicker = 0.01"),
+    (dict(random_walk=1e308, Ts=100.0), "the slow errors' rw = inf"),
+    (dict(bits=8, range=1e308, a1=1e10), "the ADC over a0 +- |a1| range gives lsb = inf"),
+])
+def test_a_bad_parameter_is_refused_with_one_line_saying_what_is_allowed(values, words):
+    s = slave(**values)
+    log = messages(s)
+    assert not s._initialised and any(words in m for m in log), log
+    assert all("allowed" in m for m in log)
+
+
+def test_an_exposure_that_overflows_is_refused_and_changes_nothing():
+    s = _stepped()
+    before = snapshot(s)
+    put(s, "x", 1e200)  # x^2 Ts overflows; the drift d_inf (1 - exp(-inf)) would not
+    z = s.get_real([vr(s, "z")])
+    log = messages(s)
+    assert any("hidden state _err.E would be inf at sample 31" in m for m in log), log
+    put(s, "x", 0.3)
+    messages(s)
+    assert snapshot(s)[0] == before[0]
+    assert s.do_step(0.03, 1e-3) is not False

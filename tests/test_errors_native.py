@@ -1,0 +1,195 @@
+"""The Accelerometer's slow errors (issue 42) in the built FMUs: the Python FMU, the native FMI
+2.0 and the native FMI 3.0 FMU give the same bits with every term on (inputs moving, steps of
+any size, a state round trip through serialised bytes); a non-finite tilt or temperature is
+refused by each, with one line and nothing changed; and each refuses a serialised state whose
+error part cannot be its sensor's (the native one field by field, the flicker components too)."""
+import json
+import math
+import random
+
+import pytest
+
+from fuzz import differential as diff
+from fuzz import native_state as ns
+
+pytestmark = pytest.mark.integration
+OK, WARNING, ERROR = diff.OK, diff.WARNING, diff.ERROR
+
+#: Every term on (four flicker components: 3 decades).
+ALL_ON = dict(bias_on=0.05, random_walk=0.02, bias_gm=0.03, tau_gm=0.02, flicker=0.01,
+              tau_min=0.003, tau_max=3.0, d_inf=0.04, E_tau=0.5, T0=290.0, kT_bias=0.002,
+              kT_scale=-0.003, range=1.8, a3=0.01, fc=300.0)
+
+
+@pytest.fixture(scope="module")
+def dirs(python_fmus, native_fmus, tmp_path_factory):
+    return diff.unzip_all(python_fmus, native_fmus, tmp_path_factory.mktemp("errors"))
+
+
+def driver(dirs, backend):
+    return diff.Driver(dirs["Accelerometer"][backend], 3 if backend.endswith("3") else 2)
+
+
+def call(drv, op, *args):
+    drv.logged = []
+    return getattr(drv, op)(*args)[0]
+
+
+def text(drv):
+    return " ".join(m for _, m in drv.logged)
+
+
+def started(drv, values=ALL_ON, seed=21):
+    for op in (("setup", 0.0), ("enter",)):
+        assert call(drv, *op) == OK, text(drv)
+    assert call(drv, "setr", list(values), list(values.values())) == OK, text(drv)
+    assert call(drv, "seti", ["seed"], [seed]) == OK
+    assert call(drv, "exit") == OK, text(drv)
+
+
+def test_the_three_fmus_give_the_same_bits_with_every_term_on(dirs):
+    rng = random.Random(8)
+    plan = []
+    for _ in range(150):
+        plan.append(([rng.uniform(-2, 2), rng.uniform(-1, 1), rng.uniform(260, 330)],
+                     1e-3 * rng.choice((1, 1, 2, 3, 0.5, 0.25, 1.5, 4))))
+    runs = {}
+    for backend in diff.BACKENDS:
+        drv = driver(dirs, backend)
+        try:
+            started(drv)
+            t, out = 0.0, []
+            for i, (inputs, h) in enumerate(plan):
+                assert call(drv, "setr", ["x", "theta", "T"], inputs) == OK, text(drv)
+                status, z = drv.getr(["z"])
+                assert status == OK, text(drv)
+                out.append(z[0])
+                if i == 60:
+                    assert call(drv, "gst", 0) == OK
+                    saved, at = drv.ser(0)[1], (t, len(out))
+                assert call(drv, "step", t, h) == OK, text(drv)
+                t += h
+            # the state at step 60 through its bytes, and the same steps again
+            assert call(drv, "des", saved, 1) == OK and call(drv, "sst", 1) == OK, text(drv)
+            t, n = at
+            for inputs, h in plan[60:90]:
+                assert call(drv, "setr", ["x", "theta", "T"], inputs) == OK
+                out.append(drv.getr(["z"])[1][0])
+                call(drv, "step", t, h)
+                t += h
+            assert out[-30:] == out[n - 1:n + 29]
+            runs[backend] = out
+        finally:
+            drv.free()
+    assert runs["native-fmi2"] == runs["python"]
+    assert runs["native-fmi3"] == runs["python"]
+    assert len(set(runs["python"])) > 100  # (they move)
+
+
+@pytest.mark.parametrize("backend", diff.BACKENDS)
+@pytest.mark.parametrize("name", ["theta", "T"])
+def test_a_non_finite_tilt_or_temperature_is_refused_with_one_line(dirs, backend, name):
+    drv = driver(dirs, backend)
+    try:
+        started(drv)
+        assert call(drv, "setr", ["x", "theta", "T"], [0.3, 0.2, 300.0]) == OK
+        call(drv, "step", 0.0, 1e-3)
+        before = drv.getr(["z"])[1]
+        call(drv, "gst", 0)
+        state = drv.ser(0)[1]
+        for value in (math.nan, math.inf, -math.inf):
+            assert call(drv, "setr", [name], [value]) == ERROR
+            lines = [m for _, m in drv.logged]
+            assert len(lines) == 1 and ("%s = %r is not finite" % (name, value)) in lines[0] \
+                and "finite values" in lines[0], lines
+        assert drv.getr(["z"])[1] == before
+        call(drv, "gst", 0)
+        assert drv.ser(0)[1] == state or backend == "python"  # (JSON: the same state anew)
+        assert call(drv, "step", 1e-3, 1e-3) == OK
+    finally:
+        drv.free()
+
+
+@pytest.mark.parametrize("backend", ["native-fmi2", "native-fmi3"])
+def test_a_native_state_whose_error_part_cannot_be_this_sensors_is_refused(dirs, backend):
+    S = ns.snapshot_type(dirs["Accelerometer"][backend])
+    drv = driver(dirs, backend)
+    try:
+        started(drv, dict(ALL_ON, random_walk=0.0))  # (the walk off: its state must stay 0)
+        call(drv, "setr", ["x"], [0.4])
+        for k in range(5):
+            call(drv, "step", k * 1e-3, 1e-3)
+        call(drv, "gst", 0)
+        data = drv.ser(0)[1]
+        s = ns.read(S, data)
+        assert s.h.ecfg.fl_n == 4 and s.h.err.E > 0.0 and s.h.err.fl[3] != 0.0
+        z = drv.getr(["z"])
+        call(drv, "gst", 1)
+        before = (z, drv.ser(1)[1])
+        cases = [("h.err.E", -1e-9, "negative exposure"), ("h.err.rw", 0.5, "err.rw = 0.5"),
+                 ("h.err_pending.rw", 0.5, "err_pending.rw"),
+                 ("h.err.gm", math.nan, "err.gm"), ("h.err_pending.E", math.inf, "err_pending.E"),
+                 ("h.ecfg.fl_n", 5, "ecfg"), ("h.ecfg.gm_a", 0.5, "ecfg")]
+        for path, value, words in cases:
+            blob = ns.crafted(S, data, path, value)
+            assert call(drv, "des", blob, 2) == ERROR, path
+            assert words in text(drv) and "refused" in text(drv), (path, text(drv))
+        for i, value, words in ((4, 0.1, "err.fl[4] = 0.1 is a flicker component the "
+                                          "parameters do not have (4 of them)"),
+                                (7, -0.2, "err.fl[7]"), (2, math.nan, "err.fl[2]")):
+            crafted = ns.read(S, data)
+            crafted.h.err.fl[i] = value
+            raw = bytearray(bytes(crafted))
+            crafted.checksum = ns.checksum(raw)
+            assert call(drv, "des", bytes(crafted), 2) == ERROR, i
+            assert words in text(drv), text(drv)
+        z = drv.getr(["z"])
+        call(drv, "gst", 1)
+        assert (z, drv.ser(1)[1]) == before  # nothing changed
+        assert call(drv, "des", data, 2) == OK and call(drv, "sst", 2) == OK
+    finally:
+        drv.free()
+
+
+def test_a_native_state_with_every_term_off_must_have_no_error_state(dirs):
+    S = ns.snapshot_type(dirs["Accelerometer"]["native-fmi2"])
+    drv = driver(dirs, "native-fmi2")
+    try:
+        started(drv, {})
+        call(drv, "step", 0.0, 1e-3)
+        call(drv, "gst", 0)
+        data = drv.ser(0)[1]
+        crafted = ns.read(S, data)
+        crafted.h.err.fl[7] = 1e-3
+        raw = bytearray(bytes(crafted))
+        crafted.checksum = ns.checksum(raw)
+        assert call(drv, "des", bytes(crafted), 1) == ERROR
+        assert "err.fl[7] = 0.001 although every slow error is off" in text(drv), text(drv)
+    finally:
+        drv.free()
+
+
+def test_the_python_fmus_serialised_error_state_is_checked(dirs):
+    drv = driver(dirs, "python")
+    try:
+        started(drv)
+        call(drv, "setr", ["x"], [0.4])
+        call(drv, "step", 0.0, 2e-3)
+        call(drv, "gst", 0)
+        state = json.loads(drv.ser(0)[1])
+        z = drv.getr(["z"])
+        call(drv, "gst", 1)
+        before = (z, drv.ser(1)[1])
+        for err, words in (([0.0, 0.0, -1.0, state["_err"][3]], "negative exposure"),
+                           (state["_err"][:3] + [state["_err"][3][:2]], "2 flicker components"),
+                           (None, "_err of an initialised instance is missing")):
+            blob = json.dumps(dict(state, _err=err)).encode()
+            status = call(drv, "des", blob, 2)
+            if status <= WARNING:
+                status = call(drv, "sst", 2)
+            assert status == ERROR and words in text(drv), text(drv)
+        z = drv.getr(["z"])
+        call(drv, "gst", 1)
+        assert (z, drv.ser(1)[1]) == before
+    finally:
+        drv.free()
