@@ -33,7 +33,6 @@ import platform
 import re
 import shlex
 import shutil
-import subprocess
 import sys
 import sysconfig
 import tempfile
@@ -43,7 +42,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 SRC_DIR = Path(__file__).resolve().parent
 NAMES = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
@@ -537,7 +536,7 @@ def _make_loader(work, log):
                               "-I%s" % _fmi2_headers(), "-I%s" % (SRC_DIR / "native"),
                               '-DDRIFTFMU_BUILD_LIBPYTHON="%s"' % soname,
                               "-o", str(shim), str(LOADER_SOURCE), "-ldl", "-lpthread"]
-        result = subprocess.run(command, capture_output=True, text=True)
+        result = lifetime.run(command, capture_output=True, text=True)
         if result.returncode == 0:
             return "shim", shim
         problem = "compiling %s failed:\n%s" % (LOADER_SOURCE, result.stderr.strip())
@@ -563,7 +562,7 @@ def _linux_binaries(model_identifier, library, loader, work):
     if kind == "dt_needed":
         path = work / (model_identifier + ".so")
         path.write_bytes(library)
-        subprocess.run(["patchelf", "--add-needed", libpython_soname(), str(path)], check=True,
+        lifetime.run(["patchelf", "--add-needed", libpython_soname(), str(path)], check=True,
                        capture_output=True)
         return {folder + model_identifier + ".so": path.read_bytes()}
     return {folder + model_identifier + ".so": library}

@@ -49,7 +49,7 @@ from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
 from driftfmu.fmu_src import builder, schemas
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 NATIVE_DIR = Path(__file__).resolve().parent / "native"
 MODELS_DIR = NATIVE_DIR / "models"
@@ -476,7 +476,7 @@ def compile_library(platform, sources_dir, c_files, target):
         extra = tuple(extra) + ("-Wl,-install_name,@rpath/%s" % target.name,)
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
             + [str(sources_dir / f) for f in c_files] + _libraries(platform, command))
-    result = subprocess.run(args, capture_output=True, text=True, cwd=target.parent)
+    result = lifetime.run(args, capture_output=True, text=True, cwd=target.parent)
     if result.returncode != 0:  # the first line says who failed and why (the command's one line)
         lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
         why = next((line for line in lines if "error" in line.lower()),
@@ -680,7 +680,7 @@ def compiler_version(command):
     library cache kept from run to run must not serve what an older compiler made."""
     try:  # in a folder of its own: zig cc -target ... --version leaves an empty a.o behind
         with folders.temporary("driftfmu_cc_") as work:
-            done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
+            done = lifetime.run(list(command) + ["--version"], capture_output=True, text=True,
                                   timeout=60, cwd=work)
     except (OSError, subprocess.SubprocessError):
         return ""

@@ -607,11 +607,15 @@ def bounded_map(pool, fn, items, ahead, meanwhile=None):
             yield pending.pop(fut), fut.result()
 
 
-def _worker_init():
-    """Start of a worker process: Ctrl-C is the parent's to handle (it stops the workers);
-    SIGTERM from the parent removes the FMUs this worker has extracted, then exits at once."""
+def _worker_init(owner=None):
+    """Start of a worker process of the pool that process ``owner`` made: it ends when that
+    process is gone, however it ended (:func:`driftfmu.simulations.lifetime.end_with_parent`);
+    Ctrl-C is the parent's to handle (it stops the workers); SIGTERM from the parent removes
+    the FMUs this worker has extracted, then exits at once."""
     import signal
     import warnings
+    from driftfmu.simulations import lifetime
+    lifetime.end_with_parent(owner)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_stop)
     if hasattr(signal, "pthread_sigmask"):  # forked with both blocked (see process_pool)
@@ -640,8 +644,10 @@ def _worker_stop(signum, frame):
 def process_pool(workers, preload="driftfmu.simulations.batch"):
     """A ``ProcessPoolExecutor`` of ``workers`` processes (:func:`mp_context`) that, when the
     block fails or is interrupted (Ctrl-C), cancels what is queued and stops its workers at once
-    instead of waiting for their tasks to finish."""
-    pool = _Pool(max_workers=workers, mp_context=mp_context(preload), initializer=_worker_init)
+    instead of waiting for their tasks to finish.  Its workers end when this process is gone,
+    however it ended (SIGKILL: :mod:`driftfmu.simulations.lifetime`)."""
+    pool = _Pool(max_workers=workers, mp_context=mp_context(preload), initializer=_worker_init,
+                 initargs=(os.getpid(),))
     try:
         yield pool
     except BaseException:
@@ -732,8 +738,24 @@ def mp_context(preload="driftfmu.simulations.batch"):
     if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload([preload])
+        _multiprocessing_folder()
         return ctx
     return multiprocessing.get_context()
+
+
+def _multiprocessing_folder():
+    """multiprocessing's own temporary folder, where the fork server listens (``pymp-*`` in
+    the temporary folder, which a process killed outright leaves for good), made a work folder
+    of driftfmu's (:func:`driftfmu.simulations.folders.make`): removed when this process ends,
+    and by the next run's sweep when it was killed.  Once per process."""
+    import multiprocessing
+    from driftfmu.simulations import folders
+    config = getattr(multiprocessing.process.current_process(), "_config", None)
+    if not isinstance(config, dict) or config.get("tempdir") or folders.fcntl is None:
+        return
+    folder = folders.make("driftfmu_mp_")
+    multiprocessing.util.Finalize(None, folders.remove, args=(folder,), exitpriority=-100)
+    config["tempdir"] = folder
 
 
 def gather(results):

@@ -20,6 +20,8 @@ import zipfile
 import zlib
 from pathlib import Path
 
+from driftfmu.simulations import lifetime
+
 OK, WARN, FAIL = "ok", "warning", "problem"
 #: The line of an FMU whose binary for this platform cannot load here (named by a problem
 #: above): instantiating it would only repeat that, in the loader's words.
@@ -81,7 +83,7 @@ def _imports(source):
 def _loadable(soname):
     """True when the dynamic loader of this host finds and loads ``soname``."""
     code = "import ctypes,sys; ctypes.CDLL(sys.argv[1])"
-    return subprocess.run([sys.executable, "-c", code, soname], capture_output=True,
+    return lifetime.run([sys.executable, "-c", code, soname], capture_output=True,
                           timeout=30).returncode == 0
 
 
@@ -302,7 +304,7 @@ def _run_instantiate(code, fmu, timeout=120):
     from driftfmu.simulations import folders
     with folders.temporary("driftfmu_doctor_") as folder:
         try:
-            r = subprocess.run([sys.executable, "-c", code, str(fmu), folder],
+            r = lifetime.run([sys.executable, "-c", code, str(fmu), folder],
                                capture_output=True, text=True, timeout=timeout)
         except subprocess.TimeoutExpired:
             return (FAIL, "instantiating the FMU in a Python host did not finish in %g s"

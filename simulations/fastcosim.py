@@ -256,7 +256,7 @@ def loop_library():
         return _LOOP_LIBRARY[0]
     import os
     import subprocess
-    from driftfmu.simulations import kernel
+    from driftfmu.simulations import kernel, lifetime
     target = loop_target()
     function = None
     try:
@@ -269,7 +269,7 @@ def loop_library():
                 with open(source, "w") as fh:
                     fh.write(LOOP_SOURCE)
                 partial = os.path.join(work, "loop.so")
-                subprocess.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
+                lifetime.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
                                check=True, capture_output=True)
                 os.replace(partial, target)  # one rename: the work folder is beside target
             finally:

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
@@ -112,7 +112,7 @@ def compiler_command():
 @functools.lru_cache(maxsize=None)
 def _version(command):
     try:
-        done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
+        done = lifetime.run(list(command) + ["--version"], capture_output=True, text=True,
                               timeout=60)
     except (OSError, subprocess.SubprocessError):
         return ""
@@ -162,7 +162,7 @@ def _build():
                 "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
                 str(s) for s in sources] + ["-o", str(partial), "-lm"]
             try:
-                subprocess.run(command, check=True, capture_output=True, env=env)
+                lifetime.run(command, check=True, capture_output=True, env=env)
                 break
             except subprocess.CalledProcessError:
                 if not extra:
