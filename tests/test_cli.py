@@ -16,7 +16,7 @@ import pytest
 from driftfmu.simulations import cli
 from driftfmu.simulations.adxl203 import default_held_out
 from driftfmu.simulations.cli import main
-from waiting import BOUND, wait_for
+from waiting import BOUND, sigint_default, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -357,7 +357,7 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
                else ["-m", "driftfmu"])
     p = subprocess.Popen([sys.executable, *command, *argv], cwd=tmp_path, env=env,
                          start_new_session=True, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
     try:
         if wait_for_main:
             wait_for(lambda: _main_started(p.pid), "start of main()", p, poll=0.002)
@@ -474,7 +474,7 @@ def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
         env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
         p = subprocess.Popen([sys.executable, "-m", "driftfmu", *argv], cwd=tmp_path, env=env,
                              start_new_session=True, stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+                             stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
         try:
             wait_for(busy, "runs of the sweep on the cluster", p, poll=0.05)
             os.killpg(p.pid, signal.SIGINT)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations.cli import main
-from waiting import BOUND, wait_for
+from waiting import BOUND, sigint_default, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -501,7 +501,7 @@ def test_a_signal_during_the_native_build_leaves_every_path_as_it_was(signum, tm
     p = subprocess.Popen([sys.executable, str(script), str(started), "build", "--native",
                           "--out", str(work / "fmus"), "--ssp", str(work / "chain.ssp"),
                           "--force"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True)
+                         text=True, preexec_fn=sigint_default)
     try:
         wait_for(started.exists, "start of the native build", p)
         p.send_signal(signum)

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations import cli
-from waiting import BOUND
+from waiting import BOUND, sigint_default
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -187,7 +187,8 @@ def test_a_long_experiment_says_how_long_it_will_take_and_shows_its_first_set(py
         [sys.executable, "-m", "driftfmu", "experiment", "adxl203", "--freqs", "100",
          "--sets", "1000", "--n", "20000", "--workers", "1",
          "--fmu-dir", str(python_fmus["Excitation"].parent), "--out", str(tmp_path / "res")],
-        cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        preexec_fn=sigint_default)
     lines = queue.Queue()
     threading.Thread(target=_stderr_lines, args=(proc, lines), daemon=True).start()
     seen = []
