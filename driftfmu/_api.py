@@ -335,7 +335,9 @@ def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
         return parameters.problem(name, value)
     low = None if variable.min is None else float(variable.min)
     high = None if variable.max is None else float(variable.max)
-    if not math.isfinite(value) or (integer and value != int(value)) or \
+    if integer and math.isfinite(value) and value != int(value):
+        return "%s = %r is not an integer; allowed: %s" % (name, value, kind)
+    if not math.isfinite(value) or \
             (low is not None and value < low) or (high is not None and value > high):
         bounds = " and ".join(b for b in (
             None if variable.min is None else "%s >= %s" % (name, variable.min),
