@@ -280,6 +280,8 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False,
                                        backend, order)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
+        from driftfmu.simulations.cli import start_work
+        start_work(progress, min(workers, len(futs)))  # the sets' pace counts from here
         if out is not None and plot:
             _preload_matplotlib()  # while the workers (forked by now) run the sets
         for fut in as_completed(futs):

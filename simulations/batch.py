@@ -513,6 +513,7 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
         Called once in this process while local workers run the tasks (after they started),
         e.g. to import what comes after; before the tasks when they run in this process.
     """
+    from driftfmu.simulations.cli import start_work
     results = [None] * len(tasks)
     done = 0
     if any(task["engine"] in ("batch", "dual") for task in tasks):
@@ -532,6 +533,7 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
         try:
             from dask.distributed import as_completed
             futures = client.map(run_task, tasks, pure=False)
+            start_work(progress, _runs_at_once(tasks, _cluster_threads(client)))
             index = {f.key: i for i, f in enumerate(futures)}
             try:
                 for fut in as_completed(futures):
@@ -550,16 +552,31 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
     if workers == 1 or len(tasks) == 1:
         if meanwhile is not None:
             meanwhile()
+        start_work(progress, _runs_at_once(tasks, 1))
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
     workers = min(workers, len(tasks))
     pool = thread_pool if all(map(in_kernel, tasks)) else process_pool
+    start_work(progress, _runs_at_once(tasks, workers))
     with pool(workers) as pool:
         for i, res in bounded_map(pool, run_task, tasks, ahead=2 * workers,
                                   meanwhile=meanwhile):
             finished(i, res)
     return results
+
+
+def _runs_at_once(tasks, workers):
+    """Runs the first ``workers`` tasks hold: what ``workers`` run at once."""
+    return sum(len(task["seeds"]) for task in tasks[:max(1, workers)])
+
+
+def _cluster_threads(client):
+    """Tasks a Dask cluster runs at once (its workers' threads; 1 when it cannot tell)."""
+    try:
+        return max(1, sum(client.nthreads().values()))
+    except Exception:  # an older or another client: one at a time
+        return 1
 
 
 def in_kernel(task):

@@ -229,6 +229,8 @@ def run_dual_axis(out=None, points=POINTS, runs=None, engine="fmu", seed=1, fmu_
         with batch.process_pool(workers, "driftfmu.simulations.dual_axis") as pool:
             futs = {pool.submit(_fmu_task, (paths, *start_values(sw, v, s), n, Ts, int(sd), backend)):
                     (i, r) for i, (sw, v) in enumerate(grid) for r, sd in enumerate(seeds)}
+            from driftfmu.simulations.cli import start_work
+            start_work(progress, min(workers, len(futs)))  # the runs' pace counts from here
             cols = {}
             for fut in as_completed(futs):
                 cols[futs[fut]] = fut.result()

@@ -434,6 +434,8 @@ def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, re
             loop = _compile_loop(plan, [insts[n] for n in order], start_time, step_size, base,
                                  row_bytes)
         every = max(1, n_steps // 100)
+        from driftfmu.simulations.cli import start_work
+        start_work(progress)  # the FMUs are loaded: the steps' pace counts from here
         for k0 in range(0, n_steps, every):
             k1 = min(n_steps, k0 + every)
             loop(k0, k1)
