@@ -41,13 +41,21 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = self.NEGATIVE_NUMBER
 
+    #: The parser (this one or a sub-command's) that parsed last: the one whose options an
+    #: unrecognised option was meant for.
+    _last = None
+
+    def parse_known_args(self, args=None, namespace=None):
+        _Parser._last = self  # a sub-command's parser is entered after its parents
+        return super().parse_known_args(args, namespace)
+
     def error(self, message):
         choices = self.command_choices()
         if choices and message.startswith("the following arguments are required"):
             # a bare ``driftfmu`` or ``driftfmu run``: the usage and the list of commands
             self.print_help(sys.stderr)
             message = "%s needs one of: %s" % (self.prog, ", ".join(choices))
-        self.exit(EXIT_USAGE, "%s: error: %s\n" % (self.prog.split()[0], message))
+        self.exit(EXIT_USAGE, "%s: error: %s\n" % (self.prog.split()[0], _close(message)))
 
     def command_choices(self):
         """The names of this parser's sub-commands (empty when it has none)."""
@@ -55,6 +63,31 @@ class _Parser(argparse.ArgumentParser):
             if isinstance(action, argparse._SubParsersAction):
                 return list(action.choices)
         return []
+
+
+def _close(message):
+    """argparse's ``message`` with the name meant, as the API's keywords have it: ``invalid
+    choice: 'gausian' (choose from ...)`` and ``unrecognized arguments: --a22 1`` get "(did
+    you mean ...?)" where a choice or an option of the command is close."""
+    import difflib
+    m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)$", message)
+    if m:
+        offered = [c.strip().strip("'\"") for c in m.group(2).split(",")]
+        close = difflib.get_close_matches(m.group(1), offered, n=1)
+        return message + (" (did you mean %r?)" % close[0] if close else "")
+    m = re.match(r"unrecognized arguments: (.*)$", message)
+    if m and _Parser._last is not None:
+        options = [o for a in _Parser._last._actions for o in a.option_strings]
+        meant = []
+        for word in m.group(1).split():
+            name = word.split("=", 1)[0]
+            close = difflib.get_close_matches(name, options, n=1) if name.startswith("-") \
+                else []
+            if close:
+                meant.append("%s for %s" % (close[0], name))
+        if meant:
+            return message + " (did you mean %s?)" % ", ".join(meant)
+    return message
 
 
 def param_type(name):

@@ -623,3 +623,44 @@ def test_summary_only_too_large_names_the_largest_runs_that_fit(monkeypatch):
     budget.check_montecarlo("gaussian", runs, 1, 2, None, summary_only=True)
     with pytest.raises(ValueError):
         budget.check_montecarlo("gaussian", 2 * runs, 1, 2, None, summary_only=True)
+
+
+# -- a name nearly right: what was meant, as the API's keywords have it -------------------------
+
+@pytest.mark.parametrize("argv, line", [
+    (["run", "gausian"], "driftfmu: error: argument EXPERIMENT: invalid choice: 'gausian' "
+                         "(choose from 'gaussian', 'sinusoidal') (did you mean 'gaussian'?)"),
+    (["sweeep"], "(did you mean 'sweep'?)"),
+    (["run", "gaussian", "--a22", "1", "--nn", "3"],
+     "driftfmu: error: unrecognized arguments: --a22 1 --nn 3 (did you mean --a2 for --a22, "
+     "--n for --nn?)"),
+    (["experiment", "dual-axis", "--Xyy=1"], "(did you mean --Xy for --Xyy?)"),
+    (["montecarlo", "gaussian", "--engine", "fmx"],
+     "driftfmu: error: argument --engine: engine = 'fmx' is not allowed (did you mean "
+     "'fmu'?); allowed: 'batch', 'fmu'"),
+    (["run", "gaussian", "--backend", "natve"], "(did you mean 'native'?); allowed: "),
+])
+def test_a_name_nearly_right_is_refused_with_the_name_meant(argv, line, capsys):
+    assert _status(argv) == 2
+    got = _one_line(capsys.readouterr().err)
+    assert got == line if line.startswith("driftfmu:") else line in got, got
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["run", "xyz"], "driftfmu: error: argument EXPERIMENT: invalid choice: 'xyz' (choose from "
+                     "'gaussian', 'sinusoidal')"),
+    (["run", "gaussian", "--zzz", "1"], "driftfmu: error: unrecognized arguments: --zzz 1"),
+    (["run", "gaussian", "--engine", "batch"], "driftfmu: error: unrecognized arguments: "
+                                               "--engine batch"),
+])
+def test_a_name_far_from_any_gets_no_guess(argv, line, capsys):
+    assert _status(argv) == 2
+    assert _one_line(capsys.readouterr().err) == line
+
+
+def test_the_api_names_the_choice_meant_as_the_command_line_does():
+    import driftfmu
+    with pytest.raises(ValueError) as info:
+        driftfmu.montecarlo(runs=2, n=3, engine="fmx")
+    assert str(info.value) == ("engine = 'fmx' is not allowed (did you mean 'fmu'?); allowed: "
+                               "'batch', 'fmu'")
