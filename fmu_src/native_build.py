@@ -487,12 +487,17 @@ def compile_library(platform, sources_dir, c_files, target):
     return target, label
 
 
+#: How to get zig, the compiler of every platform: the extra that installs ziglang.
+ZIG_EXTRA = ('the extra driftfmu[native] (pip install "driftfmu[native]": ziglang, a C '
+             'compiler for every platform)')
+
+
 def _install_hint(platform):
     if platform == "x86_64-linux":
-        return "Debian: apt-get install gcc, or pip install ziglang"
+        return "Debian: apt-get install gcc, or %s" % ZIG_EXTRA
     if platform == "x86_64-windows":
-        return "Debian: apt-get install gcc-mingw-w64-x86-64, or pip install ziglang"
-    return "pip install ziglang"
+        return "Debian: apt-get install gcc-mingw-w64-x86-64, or %s" % ZIG_EXTRA
+    return ZIG_EXTRA
 
 
 # -- one FMU ----------------------------------------------------------------------------------
@@ -732,10 +737,14 @@ def available_platforms(log=print):
         raise NativeBuildError(compiler_problem("x86_64-linux"))
     missing = [p for p in PLATFORMS if p not in out]
     if missing:
-        log("warning: no compiler for %s (%s); the native FMUs carry no binary for %s"
-            % (", ".join(missing), "; ".join(sorted({"%s: %s" % (p, _install_hint(p))
-                                                     for p in missing})),
-               "them" if len(missing) > 1 else "it"))
+        how = {}
+        for p in missing:
+            how.setdefault(_install_hint(p), []).append(p)
+        log("warning: no compiler for %s here, so the native FMUs carry no binary for %s; to "
+            "build %s: %s" % (", ".join(missing), "them" if len(missing) > 1 else "it",
+                              "them" if len(missing) > 1 else "it",
+                              "; ".join("%s: %s" % (", ".join(ps), hint)
+                                        for hint, ps in how.items())))
     return out
 
 

@@ -404,7 +404,8 @@ def make_parser():
     p.add_argument("--native", action="store_true",
                    help="also build the native (C) twins of the FMUs, FMI 2.0 and FMI 3.0 source "
                    "FMUs with binaries for Linux, Windows and macOS on x86-64 and aarch64 (those "
-                   "with a compiler here: gcc, mingw-w64, zig), as DIR/native/fmi2/<Name>.fmu, "
+                   "with a compiler here: gcc, mingw-w64, or zig for all of them, which the "
+                   "extra driftfmu[native] installs), as DIR/native/fmi2/<Name>.fmu, "
                    "DIR/native/fmi2-aarch64/<Name>.fmu (FMI 2.0 for ARM Linux and Windows) and "
                    "DIR/native/fmi3/<Name>.fmu (validated with fmpy); see docs/platforms.md")
     add_backend(p, what="the FMUs of the cross-check artifacts and the SSP export: python, or "

@@ -77,13 +77,14 @@ def expected_binaries(kind, name):
 
 def test_every_platform_has_a_compiler_here():
     need(len(built_platforms()) == len(PLATFORMS),
-         "no compiler for %s (pip install ziglang)"
+         "no compiler for %s (pip install \"driftfmu[native]\")"
          % ", ".join(sorted(set(PLATFORMS) - set(built_platforms()))))
 
 
 @pytest.mark.qualification
 def test_the_fmi2_fmus_for_arm_are_built_when_zig_is_there(fmu_sets):
-    need("aarch64-linux" in built_platforms(), "zig is not installed (pip install ziglang)")
+    need("aarch64-linux" in built_platforms(),
+         "zig is not installed (pip install \"driftfmu[native]\")")
     assert set(fmu_sets[native_build.FMI2_ARM]) == set(NAMES)
     assert all(p.is_file() for p in fmu_sets[native_build.FMI2_ARM].values())
 
@@ -292,6 +293,27 @@ def test_python_fmus_ship_only_the_linux_binaries(built_fmus):
 
 # -- a machine with only the host's compiler ---------------------------------------------------
 
+def test_without_zig_the_warning_names_the_extra_that_gives_the_missing_platforms(monkeypatch):
+    """``pip install -e .`` has no zig: the one warning names each missing platform and what
+    gives it (the extra driftfmu[native], which installs ziglang; mingw-w64 for Windows)."""
+    monkeypatch.setattr(native_build, "zig_command", lambda: None)
+    monkeypatch.setenv("MINGW_CC", "no-such-mingw-gcc")
+    lines = []
+    assert native_build.available_platforms(lines.append) == ["x86_64-linux"]
+    assert lines == [
+        "warning: no compiler for x86_64-windows, aarch64-linux, aarch64-windows, "
+        "x86_64-darwin, aarch64-darwin here, so the native FMUs carry no binary for them; to "
+        "build them: x86_64-windows: Debian: apt-get install gcc-mingw-w64-x86-64, or the "
+        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
+        "every platform); aarch64-linux, aarch64-windows, x86_64-darwin, aarch64-darwin: the "
+        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
+        "every platform)"]
+    project = Path(__file__).resolve().parent.parent / "pyproject.toml"
+    if project.exists():  # a source checkout: the extra it names installs ziglang
+        assert re.search(r'^native = \["ziglang>=[0-9.]+"\]$', project.read_text(), re.M)
+
+
+
 @pytest.mark.qualification  # a build of every FMU
 def test_without_zig_and_mingw_the_build_ships_what_it_can_and_names_the_rest(monkeypatch,
                                                                             tmp_path):
@@ -302,7 +324,7 @@ def test_without_zig_and_mingw_the_build_ships_what_it_can_and_names_the_rest(mo
     warning, = [line for line in lines if line.startswith("warning")]
     for p in PLATFORMS:
         assert (p in warning) == (p != "x86_64-linux"), (p, warning)
-    assert "pip install ziglang" in warning and "gcc-mingw-w64-x86-64" in warning
+    assert 'pip install "driftfmu[native]"' in warning and "gcc-mingw-w64-x86-64" in warning
     assert not (tmp_path / native_build.FMI2_ARM).exists()
     for version, folder in ((2, "linux64"), (3, "x86_64-linux")):
         with zipfile.ZipFile(built[version]["Excitation"]) as archive:
@@ -499,7 +521,9 @@ def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(mo
     with pytest.raises(native_build.NativeBuildError,
                        match="no x86_64-linux compiler: CC='no-such-cc' is not an installed "
                        "program, zig is not installed; allowed: CC naming an installed C "
-                       "compiler, or Debian: apt-get install gcc, or pip install ziglang"):
+                       "compiler, or Debian: apt-get install gcc, or the extra "
+                       "driftfmu\\[native\\] \\(pip install \"driftfmu\\[native\\]\": ziglang, "
+                       "a C compiler for every platform\\)"):
         native_build.build_native_fmus(tmp_path, names=("Excitation",), log=lambda line: None)
     with pytest.raises(native_build.NativeBuildError, match="platforms mac are not known"):
         native_build.build_native_fmus(tmp_path, platforms=("x86_64-linux", "mac"))
