@@ -261,7 +261,7 @@ def test_montecarlo_says_never_for_runs_that_never_settle(capsys):
          "median_settled_from": {"realised": {e: 11.0 for e in ("ekf1", "ekf2", "ekf3")}},
          "ekf1_ekf2_gap_db": {"mean": 0.0, "std": 0.0, "max_abs": 0.0, "of_means": 0.0}}
     from driftfmu.simulations.montecarlo import print_summary
-    print_summary(s, ("realised",))
+    print_summary(s)
     out = capsys.readouterr().out
     assert "never" in out and "median k     11" not in out
 
