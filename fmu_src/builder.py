@@ -76,6 +76,31 @@ class BuildError(RuntimeError):
     """An FMU could not be built, or it was built but does not validate."""
 
 
+def check_fmu_folder(fmu_dir, missing, native=False):
+    """Before the FMUs ``missing`` (file names) are built into ``fmu_dir`` where a run looks for
+    them: a UsageError when ``fmu_dir`` is an existing folder that holds anything but what a
+    build writes there (``*.fmu``, ``native/``, hidden ``.driftfmu*`` staging and locks), so
+    that a run given another folder (a project's, the working folder) does not fill it with
+    FMUs unasked.  A new or empty folder, or one of FMUs, is built into.  ``native``: the
+    missing FMUs are native ones (the command that builds them says so)."""
+    from driftfmu.simulations.errors import UsageError
+    folder = Path(fmu_dir)
+    try:
+        names = sorted(os.listdir(folder)) if folder.is_dir() else []
+    except OSError:
+        names = []
+    other = [n for n in names if not (n.endswith(".fmu") or n == "native"
+                                      or n.startswith(".driftfmu"))]
+    if other:
+        shown = ", ".join(other[:3]) + (", ..." if len(other) > 3 else "")
+        raise UsageError("fmu_dir %s has no %s and holds other files (%s): driftfmu builds "
+                         "missing FMUs only into a folder of its own; allowed: a folder of "
+                         "driftfmu's FMUs, a new or an empty one, or build them there first "
+                         "(driftfmu build%s --out %s)" % (fmu_dir, ", ".join(missing), shown,
+                                                          " --native" if native else "",
+                                                          fmu_dir))
+
+
 def source_files(name, src_dir=SRC_DIR):
     """The project files bundled into FMU ``name``, in the order they are hashed.
 

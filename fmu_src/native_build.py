@@ -808,5 +808,8 @@ def native_fmu_paths(fmu_dir, fmi_version=2):
     folder = Path(fmu_dir) / "native"
     paths = {n: folder / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in NAMES}
     if not all(p.exists() for p in paths.values()):
+        builder.check_fmu_folder(fmu_dir, [p.relative_to(fmu_dir).as_posix()
+                                           for p in paths.values() if not p.exists()],
+                                 native=True)
         build_native_fmus(folder, fmi_versions=(fmi_version,), cache=user_cache())
     return paths

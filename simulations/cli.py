@@ -451,7 +451,8 @@ def add_out(parser, default):
 def add_fmu_dir(parser):
     """The common ``--fmu-dir DIR`` option."""
     parser.add_argument("--fmu-dir", default="build/fmus", metavar="DIR",
-                        help="folder of the FMUs, built there if missing (default: build/fmus)")
+                        help="folder of the FMUs, built there if missing when it holds no "
+                             "other files (default: build/fmus)")
 
 
 #: The FMUs a run can use (``--backend``).
