@@ -838,7 +838,8 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
     _check_folders(out, parameters.get("fmu_dir"))
     budget.check_montecarlo(kind, runs, n, parameters.get("workers"), out,
                             summary_only=parameters.get("summary_only", False), api=True,
-                            announce=False)
+                            announce=False, engine=engine,
+                            backend=parameters.get("backend", "python"))
     return fn(runs=runs, n=n, out=out, engine=engine, plot=out is not None, progress=progress,
               **parameters)
 

@@ -425,7 +425,8 @@ def _with_bar(args, **kw):
     import driftfmu
     from driftfmu.simulations import budget, cli
     budget.check_montecarlo(args.experiment, args.runs, args.n, args.workers, args.out,
-                            summary_only=args.summary_only)
+                            summary_only=args.summary_only, engine=args.engine,
+                            backend=args.backend)
     desc = "montecarlo (%s engine)" % args.engine
     with cli.progress(args.runs, desc, "run", monitor=False) as update:
         return driftfmu.montecarlo(
