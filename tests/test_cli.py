@@ -464,8 +464,10 @@ def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
     dd = pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not "
                              "installed")
     Client, LocalCluster = dd.Client, dd.LocalCluster
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    import dask  # its scratch folder in this test's, not dask-scratch-space in TMPDIR
+    with dask.config.set({"temporary-directory": str(tmp_path)}), \
+            LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                         dashboard_address=None) as cluster, Client(cluster) as client:
         def busy():
             return sum(len(v) for v in client.processing().values())
         argv = HOURS_OF_SWEEP + ["--scheduler", cluster.scheduler_address]
