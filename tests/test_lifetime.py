@@ -113,6 +113,18 @@ def test_a_program_run_ends_with_the_process_that_ran_it(tmp_path):
         _stop_all(p)
 
 
+def test_a_program_run_has_the_parent_death_signal():
+    code = ("import ctypes; s = ctypes.c_int(-1); "
+            "ctypes.CDLL(None).prctl(2, ctypes.byref(s), 0, 0, 0); print(s.value)")
+    r = lifetime.run([sys.executable, "-c", code], capture_output=True, text=True,
+                     timeout=BOUND)
+    assert r.returncode == 0 and r.stdout.split() == [str(int(signal.SIGKILL))], r
+    # a caller's own preexec_fn is kept
+    r = lifetime.run([sys.executable, "-c", code], capture_output=True, text=True,
+                     timeout=BOUND, preexec_fn=lambda: None)
+    assert r.stdout.split() == ["0"], r
+
+
 #: A process that forks a child which calls ``lifetime.end_with_parent(owner)`` for ``owner``
 #: (argv[1]: "parent", "grandparent" or "another") and prints "alive" if it still lives; the
 #: process prints how the child ended.
@@ -214,7 +226,12 @@ _POOL = textwrap.dedent("""
     from driftfmu.simulations import batch
 
     def forever(i):
-        sys.stderr.write("started %d\\n" % os.getpid())
+        import ctypes
+        from driftfmu.simulations import lifetime
+        signum = ctypes.c_int(-1)  # the parent-death signal (PR_GET_PDEATHSIG) ...
+        lifetime._prctl()(2, ctypes.addressof(signum), 0, 0, 0)
+        watch = any(t.name == "driftfmu-owner-watch" for t in threading.enumerate())
+        sys.stderr.write("started %d signal %d watch %s\\n" % (os.getpid(), signum.value, watch))
         sys.stderr.flush()
         while True:
             time.sleep(1)
@@ -242,8 +259,11 @@ def test_the_workers_of_a_pool_end_with_the_process_that_made_it(threads, method
         p = _start([threads], tmp_path, {"TMPDIR": str(tmp)}, python=[str(script)])
         try:
             assert _wait_for_line(p, "method ") == "method " + method
-            _wait_for_line(p, "started ")
-            _wait_for_line(p, "started ")
+            for _ in range(2):  # ... SIGKILL in each worker, and a fork server's worker
+                # watches the process that asked for it (the server is its parent)
+                started = _wait_for_line(p, "started ").split()
+                assert started[2:] == ["signal", str(int(signal.SIGKILL)), "watch",
+                                       str(method == "forkserver")], started
             there = _kill(p)
             # the process and its two workers (and the fork server and multiprocessing's
             # resource tracker, which end once no worker holds their pipes)
