@@ -664,3 +664,26 @@ def test_the_api_names_the_choice_meant_as_the_command_line_does():
         driftfmu.montecarlo(runs=2, n=3, engine="fmx")
     assert str(info.value) == ("engine = 'fmx' is not allowed (did you mean 'fmu'?); allowed: "
                                "'batch', 'fmu'")
+
+
+# -- the native build without zig: the extra that gives the missing platforms ----------------
+
+def test_without_zig_the_warning_names_the_extra_that_gives_the_missing_platforms(monkeypatch):
+    """``pip install -e .`` has no zig: the one warning names each missing platform and what
+    gives it (the extra driftfmu[native], which installs ziglang; mingw-w64 for Windows)."""
+    from driftfmu.fmu_src import native_build
+    monkeypatch.setattr(native_build, "zig_command", lambda: None)
+    monkeypatch.setenv("MINGW_CC", "no-such-mingw-gcc")
+    lines = []
+    assert native_build.available_platforms(lines.append) == ["x86_64-linux"]
+    assert lines == [
+        "warning: no compiler for x86_64-windows, aarch64-linux, aarch64-windows, "
+        "x86_64-darwin, aarch64-darwin here, so the native FMUs carry no binary for them; to "
+        "build them: x86_64-windows: Debian: apt-get install gcc-mingw-w64-x86-64, or the "
+        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
+        "every platform); aarch64-linux, aarch64-windows, x86_64-darwin, aarch64-darwin: the "
+        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
+        "every platform)"]
+    project = ROOT / "pyproject.toml"
+    if project.exists():  # a source checkout: the extra it names installs ziglang
+        assert re.search(r'^native = \["ziglang>=[0-9.]+"\]$', project.read_text(), re.M)

@@ -293,27 +293,6 @@ def test_python_fmus_ship_only_the_linux_binaries(built_fmus):
 
 # -- a machine with only the host's compiler ---------------------------------------------------
 
-def test_without_zig_the_warning_names_the_extra_that_gives_the_missing_platforms(monkeypatch):
-    """``pip install -e .`` has no zig: the one warning names each missing platform and what
-    gives it (the extra driftfmu[native], which installs ziglang; mingw-w64 for Windows)."""
-    monkeypatch.setattr(native_build, "zig_command", lambda: None)
-    monkeypatch.setenv("MINGW_CC", "no-such-mingw-gcc")
-    lines = []
-    assert native_build.available_platforms(lines.append) == ["x86_64-linux"]
-    assert lines == [
-        "warning: no compiler for x86_64-windows, aarch64-linux, aarch64-windows, "
-        "x86_64-darwin, aarch64-darwin here, so the native FMUs carry no binary for them; to "
-        "build them: x86_64-windows: Debian: apt-get install gcc-mingw-w64-x86-64, or the "
-        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
-        "every platform); aarch64-linux, aarch64-windows, x86_64-darwin, aarch64-darwin: the "
-        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
-        "every platform)"]
-    project = Path(__file__).resolve().parent.parent / "pyproject.toml"
-    if project.exists():  # a source checkout: the extra it names installs ziglang
-        assert re.search(r'^native = \["ziglang>=[0-9.]+"\]$', project.read_text(), re.M)
-
-
-
 @pytest.mark.qualification  # a build of every FMU
 def test_without_zig_and_mingw_the_build_ships_what_it_can_and_names_the_rest(monkeypatch,
                                                                             tmp_path):
