@@ -10,7 +10,7 @@ much less with the machine's load than the wall time: what the estimate's consta
 calibrated from).  Run it from the project root after ``driftfmu build --native``; not a pytest
 test:
 
-    python benchmarks/bench_estimates.py [--only NAME ...] [--fmu-dir build/fmus]
+    python benchmarks/bench_estimates.py [--only NAME ...] [--fmu-dir build/fmus] [--no-record]
 """
 import argparse
 import os
@@ -21,6 +21,8 @@ import tempfile
 import time
 
 from driftfmu.simulations import budget
+
+import figures
 
 
 def commands(fmu_dir):
@@ -62,7 +64,11 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--only", nargs="*", default=None, help="only the commands named so")
     ap.add_argument("--fmu-dir", default="build/fmus")
+    ap.add_argument("--no-record", action="store_true",
+                    help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
+    load_before = os.getloadavg()
+    rows = []
     print("%-28s %9s %9s %7s %9s %6s  %s" % ("command", "estimate", "wall", "ratio", "CPU",
                                              "load", "within 1/2..2"))
     worst = 1.0
@@ -85,7 +91,19 @@ def main(argv=None):
             print("%-28s %8.1fs %8.1fs %7.2f %8.1fs %6.2f  %s"
                   % (name, seconds, wall, ratio, cpu, load,
                      "yes" if 0.5 <= ratio <= 2 else "NO"), flush=True)
+            rows.append(figures.row("`driftfmu %s`: the announced time, %.1f s at a load of "
+                                    "%.1f, over the run's"
+                                    % (" ".join(command[:command.index("--fmu-dir")]
+                                                if "--fmu-dir" in command else command),
+                                       seconds, load),
+                                    round(ratio, 3), "×", "the wall time of the run, %.1f s "
+                                    "(CPU %.1f s)" % (wall, cpu), None, "1/2 to 2",
+                                    0.5 <= ratio <= 2))
     print("the worst ratio (estimate / wall, or its inverse): %.2f (goal: at most 2)" % worst)
+    figures.record(__file__, argv, rows, load_before,
+                   "Each estimate computed as its command computes it, just before the run, "
+                   "at the load of that moment; the machine is shared, so the load changes "
+                   "during a run.")
     return 0 if worst <= 2 else 1
 
 
