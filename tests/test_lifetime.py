@@ -100,6 +100,18 @@ def _left_in(tmp):
 
 # -- the helper ---------------------------------------------------------------------------------
 
+def test_a_program_run_has_the_parent_death_signal():
+    code = ("import ctypes; s = ctypes.c_int(-1); "
+            "ctypes.CDLL(None).prctl(2, ctypes.byref(s), 0, 0, 0); print(s.value)")
+    r = lifetime.run([sys.executable, "-c", code], capture_output=True, text=True,
+                     timeout=BOUND)
+    assert r.returncode == 0 and r.stdout.split() == [str(int(signal.SIGKILL))], r
+    # a caller's own preexec_fn is kept
+    r = lifetime.run([sys.executable, "-c", code], capture_output=True, text=True,
+                     timeout=BOUND, preexec_fn=lambda: None)
+    assert r.stdout.split() == ["0"], r
+
+
 def test_a_program_run_ends_with_the_process_that_ran_it(tmp_path):
     script = ("from driftfmu.simulations import lifetime\n"
               "lifetime.run(['sleep', '3600'])\n")
@@ -111,18 +123,6 @@ def test_a_program_run_ends_with_the_process_that_ran_it(tmp_path):
         assert "sleep" in [n for _, n in there], there
     finally:
         _stop_all(p)
-
-
-def test_a_program_run_has_the_parent_death_signal():
-    code = ("import ctypes; s = ctypes.c_int(-1); "
-            "ctypes.CDLL(None).prctl(2, ctypes.byref(s), 0, 0, 0); print(s.value)")
-    r = lifetime.run([sys.executable, "-c", code], capture_output=True, text=True,
-                     timeout=BOUND)
-    assert r.returncode == 0 and r.stdout.split() == [str(int(signal.SIGKILL))], r
-    # a caller's own preexec_fn is kept
-    r = lifetime.run([sys.executable, "-c", code], capture_output=True, text=True,
-                     timeout=BOUND, preexec_fn=lambda: None)
-    assert r.stdout.split() == ["0"], r
 
 
 #: A process that forks a child which calls ``lifetime.end_with_parent(owner)`` for ``owner``
