@@ -561,7 +561,7 @@ def _make_loader(work, log):
                               "-I%s" % _fmi2_headers(), "-I%s" % (SRC_DIR / "native"),
                               '-DDRIFTFMU_BUILD_LIBPYTHON="%s"' % soname,
                               "-o", str(shim), str(LOADER_SOURCE), "-ldl", "-lpthread"]
-        result = lifetime.run(command, capture_output=True, text=True)
+        result = lifetime.run(command, capture_output=True, text=True, work=work)
         if result.returncode == 0:
             return "shim", shim
         problem = "compiling %s failed:\n%s" % (LOADER_SOURCE, result.stderr.strip())

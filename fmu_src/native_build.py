@@ -476,7 +476,9 @@ def compile_library(platform, sources_dir, c_files, target):
         extra = tuple(extra) + ("-Wl,-install_name,@rpath/%s" % target.name,)
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
             + [str(sources_dir / f) for f in c_files] + _libraries(platform, command))
-    result = lifetime.run(args, capture_output=True, text=True, cwd=target.parent)
+    # the compiler's temporary files beside its output, in the build's work folder
+    result = lifetime.run(args, capture_output=True, text=True, cwd=target.parent,
+                          work=target.parent)
     if result.returncode != 0:  # the first line says who failed and why (the command's one line)
         lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
         why = next((line for line in lines if "error" in line.lower()),

@@ -270,7 +270,7 @@ def loop_library():
                     fh.write(LOOP_SOURCE)
                 partial = os.path.join(work, "loop.so")
                 lifetime.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
-                               check=True, capture_output=True)
+                             check=True, capture_output=True, work=work)
                 os.replace(partial, target)  # one rename: the work folder is beside target
             finally:
                 _remove(work)

@@ -153,16 +153,15 @@ def _build():
     with folders.temporary("driftfmu_kernel_") as work:
         (Path(work) / "parameters_table.h").write_text(table)
         partial = Path(work) / "kernel.so"
-        # the compiler's own temporary files (link-time optimisation writes several) go into
-        # the work folder, so an interrupted compile leaves none behind in TMPDIR
-        env = dict(os.environ, TMPDIR=work)
         # a compiler without the machine flags, or without link-time optimisation, gets fewer
         for extra in (SPEED_FLAGS + MACHINE_FLAGS, SPEED_FLAGS, ()):
             command = compiler + list(generate.CFLAGS) + list(extra) + [
                 "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
                 str(s) for s in sources] + ["-o", str(partial), "-lm"]
             try:
-                lifetime.run(command, check=True, capture_output=True, env=env)
+                # the compiler's own temporary files (link-time optimisation writes several)
+                # go into the work folder, so an interrupted compile leaves none in TMPDIR
+                lifetime.run(command, check=True, capture_output=True, work=work)
                 break
             except subprocess.CalledProcessError:
                 if not extra:

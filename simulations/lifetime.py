@@ -175,8 +175,13 @@ def preexec():
     return child
 
 
-def run(args, **kwargs):
+def run(args, work=None, **kwargs):
     """``subprocess.run(args, **kwargs)`` of a program that ends when this process is gone
-    (:func:`preexec`)."""
+    (:func:`preexec`).  ``work``: a work folder for the program's own temporary files
+    (``TMPDIR``; a C compiler's ``cc*.s``, ``cc*.o``): a program ended by the signal cannot
+    remove them, and there they go with the folder (its owner removes it, or the next run's
+    sweep), not into the temporary folder for good."""
     kwargs.setdefault("preexec_fn", preexec())
+    if work is not None:
+        kwargs["env"] = dict(kwargs.get("env") or os.environ, TMPDIR=str(work))
     return subprocess.run(args, **kwargs)
