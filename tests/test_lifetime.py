@@ -112,6 +112,61 @@ def test_a_program_run_has_the_parent_death_signal():
     assert r.stdout.split() == ["0"], r
 
 
+def test_a_program_run_in_a_work_folder_writes_its_temporary_files_there(tmp_path):
+    """A compiler ended by the signal cannot remove its temporary files: run with ``work``,
+    they are in the work folder (removed with it), not in the temporary folder."""
+    work = tmp_path / "work"
+    work.mkdir()
+    r = lifetime.run(["sh", "-c", 'touch "$TMPDIR/cc1.s"; echo "$KEPT"'], work=work,
+                     env=dict(os.environ, KEPT="kept"), capture_output=True, text=True,
+                     timeout=BOUND)
+    assert r.stdout.strip() == "kept" and os.listdir(work) == ["cc1.s"]
+
+
+#: Each place that compiles, with a compiler that says where its temporary files would go
+#: (and then fails: each place has its way on without it).
+_COMPILES = textwrap.dedent("""
+    import sys, tempfile
+    from pathlib import Path
+    from driftfmu.simulations import fastcosim, kernel
+    from driftfmu.fmu_src import builder, native_build
+    fastcosim.loop_library()
+    kernel.library()
+    sources = Path(tempfile.mkdtemp(dir=sys.argv[1]))
+    (sources / "a.c").write_text("int a;")
+    try:
+        native_build.compile_library("x86_64-linux", sources, ["a.c"], sources / "out" / "a.so")
+    except native_build.NativeBuildError:
+        pass
+    work = Path(tempfile.mkdtemp(dir=sys.argv[1]))
+    builder._make_loader(work, lambda line: None)
+    print(sources / "out", work)
+""")
+
+
+def test_every_compile_keeps_the_compilers_temporary_files_in_its_work_folder(tmp_path):
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    record = tmp_path / "tmpdirs"
+    cc = tmp_path / "cc"
+    cc.write_text('#!/bin/sh\n[ "$1" = "--version" ] && { echo cc 1; exit 0; }\n'
+                  'echo "$TMPDIR" >> %s\nexit 1\n' % record)
+    cc.chmod(0o755)
+    r = subprocess.run([sys.executable, "-c", _COMPILES, str(tmp_path)], capture_output=True,
+                       text=True, timeout=BOUND,
+                       env=dict(os.environ, TMPDIR=str(tmp), CC=str(cc), PYTHONPATH=str(ROOT),
+                                DRIFTFMU_KERNEL="c"))
+    assert r.returncode == 0, r.stderr
+    seen = record.read_text().split()
+    # the loop, the kernel (three sets of flags), the native library, the loader shim
+    assert len(seen) == 6, seen
+    private = str(tmp / ("driftfmu-%d" % os.geteuid()))
+    assert [d.startswith(private + "/driftfmu_loop_") for d in seen[:1]] == [True], seen
+    assert all(d.startswith(private + "/driftfmu_kernel_") for d in seen[1:4]), seen
+    assert seen[4:] == r.stdout.split(), (seen, r.stdout)
+    assert str(tmp) not in seen
+
+
 def test_a_program_run_ends_with_the_process_that_ran_it(tmp_path):
     script = ("from driftfmu.simulations import lifetime\n"
               "lifetime.run(['sleep', '3600'])\n")
@@ -337,11 +392,10 @@ def test_a_killed_command_leaves_no_worker_and_the_next_run_no_folder(command, p
     assert not [f for f in (tmp_path / "res").iterdir() if f.name.startswith(".driftfmu")]
 
 
-#: A compiler that says its version and otherwise marks that it started and then compiles for
-#: an hour (``exec``: the program that driftfmu started is the one that waits).
+#: A compiler that says its version and otherwise compiles for an hour (``exec``: the program
+#: that driftfmu started is the one that waits).
 _SLOW_CC = """#!/bin/sh
 if [ "$1" = "--version" ]; then echo "slow-cc 1.0"; exit 0; fi
-touch "$SLOW_CC_STARTED"
 exec sleep 3600
 """
 
@@ -352,11 +406,11 @@ def test_a_killed_native_build_leaves_no_compiler_and_the_next_build_no_folder(t
     cc = tmp_path / "slow-cc"
     cc.write_text(_SLOW_CC)
     cc.chmod(0o755)
-    started = tmp_path / "cc-started"
-    env = {"CC": str(cc), "SLOW_CC_STARTED": str(started)}
+    env = {"CC": str(cc)}
     p = _start(["build", "--native", "--no-cache", "--out", "fmus"], tmp_path, env)
-    try:
-        wait_for(started.exists, "the compiler at work", p)
+    try:  # the event: the compiler's own program at work (not the script before its exec)
+        wait_for(lambda: "sleep" in [n for _, n in session_processes(p.pid)],
+                 "the compiler at work", p)
         there = _kill(p)
     finally:
         _stop_all(p)
