@@ -32,6 +32,8 @@ RUNS = [
     ("bench_adxl203.py", [], []),
     ("bench_adxl203.py", ["--backend", "python", "--no-baseline"],
      ["--backend", "python", "--sets", "6", "--freqs", "150", "--no-baseline"]),
+    ("bench_estimates.py", [], ["--only", "run gaussian", "experiment adxl203 native",
+                                "experiment dual-axis native"]),
 ]
 
 

@@ -334,6 +334,9 @@ def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
         paths = {n: fmu_dir / "native" / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in names}
     missing = [n for n, p in paths.items() if not p.is_file()]
     if missing:
+        from driftfmu.fmu_src.builder import check_fmu_folder
+        check_fmu_folder(fmu_dir, [paths[n].relative_to(fmu_dir).as_posix() for n in missing],
+                         native=backend == "native")
         build_fmus(fmu_dir, backend=backend, fmi_version=fmi_version, names=missing)
     return paths
 
@@ -360,7 +363,9 @@ def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
         return parameters.problem(name, value)
     low = None if variable.min is None else float(variable.min)
     high = None if variable.max is None else float(variable.max)
-    if not math.isfinite(value) or (integer and value != int(value)) or \
+    if integer and math.isfinite(value) and value != int(value):
+        return "%s = %r is not an integer; allowed: %s" % (name, value, kind)
+    if not math.isfinite(value) or \
             (low is not None and value < low) or (high is not None and value > high):
         bounds = " and ".join(b for b in (
             None if variable.min is None else "%s >= %s" % (name, variable.min),
@@ -432,7 +437,8 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         FMI version of the native FMUs (the Python FMUs are FMI 2.0).
     fmu_dir : str or pathlib.Path
         Where the FMUs are (as [`build_fmus`][driftfmu.build_fmus] writes them); missing ones
-        are built.
+        are built there when it is new, empty or holds only driftfmu's FMUs (a folder with
+        other files is refused: nothing is written into it unasked).
     start_time : float
         Start of the simulation [s].
 
@@ -667,7 +673,8 @@ def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str 
     backend : {"python", "native"}
         Which FMUs run (the same results bit for bit).
     fmu_dir : str or pathlib.Path
-        Where the FMUs are; missing ones are built.
+        Where the FMUs are; missing ones are built there when it is new, empty or holds only
+        driftfmu's FMUs (a folder with other files is refused).
     progress : callable, optional
         Called as the run goes with the number of samples done so far (the ``driftfmu``
         command draws its progress bar with it).
@@ -732,7 +739,8 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
     backend : {"python", "native"}
         Which FMUs run.
     fmu_dir : str or pathlib.Path
-        Where the FMUs are; missing ones are built.
+        Where the FMUs are; missing ones are built there when it is new, empty or holds only
+        driftfmu's FMUs (a folder with other files is refused).
     progress : callable, optional
         Called as the run goes with the number of samples done so far.
     **parameters
@@ -870,7 +878,8 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
     _check_folders(out, parameters.get("fmu_dir"))
     budget.check_montecarlo(kind, runs, n, parameters.get("workers"), out,
                             summary_only=parameters.get("summary_only", False), api=True,
-                            announce=False)
+                            announce=False, engine=engine,
+                            backend=parameters.get("backend", "python"))
     return fn(runs=runs, n=n, out=out, engine=engine, plot=out is not None, progress=progress,
               **parameters)
 

@@ -50,7 +50,7 @@ from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
 from driftfmu.fmu_src import builder, schemas
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 NATIVE_DIR = Path(__file__).resolve().parent / "native"
 MODELS_DIR = NATIVE_DIR / "models"
@@ -477,9 +477,10 @@ def compile_library(platform, sources_dir, c_files, target):
         extra = tuple(extra) + ("-Wl,-install_name,@rpath/%s" % target.name,)
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
             + [str(sources_dir / f) for f in c_files] + _libraries(platform, command))
-    # the work folder's lock held by the compiler too (folders.held_fds)
-    result = subprocess.run(args, capture_output=True, text=True, cwd=target.parent,
-                            pass_fds=folders.held_fds(target.parent))
+    # the work folder's lock held by the compiler too (folders.held_fds); the compiler's
+    # temporary files beside its output, in the build's work folder
+    result = lifetime.run(args, capture_output=True, text=True, cwd=target.parent,
+                          work=target.parent, pass_fds=folders.held_fds(target.parent))
     if result.returncode != 0:  # the first line says who failed and why (the command's one line)
         lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
         why = next((line for line in lines if "error" in line.lower()),
@@ -490,12 +491,17 @@ def compile_library(platform, sources_dir, c_files, target):
     return target, label
 
 
+#: How to get zig, the compiler of every platform: the extra that installs ziglang.
+ZIG_EXTRA = ('the extra driftfmu[native] (pip install "driftfmu[native]": ziglang, a C '
+             'compiler for every platform)')
+
+
 def _install_hint(platform):
     if platform == "x86_64-linux":
-        return "Debian: apt-get install gcc, or pip install ziglang"
+        return "Debian: apt-get install gcc, or %s" % ZIG_EXTRA
     if platform == "x86_64-windows":
-        return "Debian: apt-get install gcc-mingw-w64-x86-64, or pip install ziglang"
-    return "pip install ziglang"
+        return "Debian: apt-get install gcc-mingw-w64-x86-64, or %s" % ZIG_EXTRA
+    return ZIG_EXTRA
 
 
 # -- one FMU ----------------------------------------------------------------------------------
@@ -724,8 +730,8 @@ def compiler_version(command):
     library cache kept from run to run must not serve what an older compiler made."""
     try:  # in a folder of its own: zig cc -target ... --version leaves an empty a.o behind
         with folders.temporary("driftfmu_cc_") as work:
-            done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
-                                  timeout=60, cwd=work, pass_fds=folders.held_fds(work))
+            done = lifetime.run(list(command) + ["--version"], capture_output=True, text=True,
+                                timeout=60, cwd=work, pass_fds=folders.held_fds(work))
     except (OSError, subprocess.SubprocessError):
         return ""
     return done.stdout if done.returncode == 0 else ""
@@ -777,10 +783,14 @@ def available_platforms(log=print):
         raise NativeBuildError(compiler_problem("x86_64-linux"))
     missing = [p for p in PLATFORMS if p not in out]
     if missing:
-        log("warning: no compiler for %s (%s); the native FMUs carry no binary for %s"
-            % (", ".join(missing), "; ".join(sorted({"%s: %s" % (p, _install_hint(p))
-                                                     for p in missing})),
-               "them" if len(missing) > 1 else "it"))
+        how = {}
+        for p in missing:
+            how.setdefault(_install_hint(p), []).append(p)
+        log("warning: no compiler for %s here, so the native FMUs carry no binary for %s; to "
+            "build %s: %s" % (", ".join(missing), "them" if len(missing) > 1 else "it",
+                              "them" if len(missing) > 1 else "it",
+                              "; ".join("%s: %s" % (", ".join(ps), hint)
+                                        for hint, ps in how.items())))
     return out
 
 
@@ -848,5 +858,8 @@ def native_fmu_paths(fmu_dir, fmi_version=2):
     folder = Path(fmu_dir) / "native"
     paths = {n: folder / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in NAMES}
     if not all(p.exists() for p in paths.values()):
+        builder.check_fmu_folder(fmu_dir, [p.relative_to(fmu_dir).as_posix()
+                                           for p in paths.values() if not p.exists()],
+                                 native=True)
         build_native_fmus(folder, fmi_versions=(fmi_version,), cache=user_cache())
     return paths

@@ -471,6 +471,8 @@ def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, sta
             inst.fmu.exitInitializationMode()
         every = max(1, n_steps // 100)
         t = start_time
+        from driftfmu.simulations.cli import start_work
+        start_work(progress)  # the FMUs are loaded: the steps' pace counts from here
         for i in range(n_steps):
             check()
             if i:

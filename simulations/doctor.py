@@ -27,6 +27,8 @@ import sysconfig
 import zipfile
 from pathlib import Path
 
+from driftfmu.simulations import lifetime
+
 OK, WARN, FAIL = "ok", "warning", "problem"
 #: The line of an FMU whose binary for this platform cannot load here (named by a problem
 #: above): instantiating it would only repeat that, in the loader's words.
@@ -97,7 +99,7 @@ def _loadable(soname):
     """True when the dynamic loader of this host finds and loads ``soname`` (asked once per
     process: an SSP's FMUs ask alike)."""
     code = "import ctypes,sys; ctypes.CDLL(sys.argv[1])"
-    return subprocess.run([sys.executable, "-c", code, soname], capture_output=True,
+    return lifetime.run([sys.executable, "-c", code, soname], capture_output=True,
                           timeout=30).returncode == 0
 
 
@@ -389,9 +391,9 @@ def _run_instantiate(code, fmu, timeout=120):
     with folders.temporary("driftfmu_doctor_") as folder:
         try:
             # the work folder's lock held by the host too (folders.held_fds)
-            r = subprocess.run([sys.executable, "-c", code, str(fmu), folder],
-                               capture_output=True, text=True, timeout=timeout,
-                               pass_fds=folders.held_fds(folder))
+            r = lifetime.run([sys.executable, "-c", code, str(fmu), folder],
+                             capture_output=True, text=True, timeout=timeout,
+                             pass_fds=folders.held_fds(folder))
         except subprocess.TimeoutExpired:
             return (FAIL, "instantiating the FMU in a Python host did not finish in %g s"
                     % timeout)

@@ -265,8 +265,7 @@ def _build_loop(install):
     it) and hand the library to ``install``, which moves it into the libraries folder in one
     rename: a worker stopped at any point leaves the whole library or nothing."""
     import os
-    import subprocess
-    from driftfmu.simulations import folders, kernel
+    from driftfmu.simulations import folders, kernel, lifetime
     compiler = kernel.compiler_command()
     work = new_extract_folder(prefix="driftfmu_loop_")
     try:
@@ -274,9 +273,10 @@ def _build_loop(install):
         with open(source, "w") as fh:
             fh.write(LOOP_SOURCE)
         partial = os.path.join(work, "loop.so")
-        # the work folder's lock held by the compiler too (folders.held_fds)
-        subprocess.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
-                       check=True, capture_output=True, pass_fds=folders.held_fds(work))
+        # the work folder's lock held by the compiler too (folders.held_fds); its temporary
+        # files in the work folder (lifetime.run's work)
+        lifetime.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source], check=True,
+                     capture_output=True, work=work, pass_fds=folders.held_fds(work))
         install(partial)
     finally:
         _remove(work)
@@ -453,6 +453,8 @@ def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, re
             loop = _compile_loop(plan, [insts[n] for n in order], start_time, step_size, base,
                                  row_bytes)
         every = max(1, n_steps // 100)
+        from driftfmu.simulations.cli import start_work
+        start_work(progress)  # the FMUs are loaded: the steps' pace counts from here
         for k0 in range(0, n_steps, every):
             k1 = min(n_steps, k0 + every)
             loop(k0, k1)

@@ -26,7 +26,7 @@ from pathlib import Path
 
 import numpy as np
 
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
@@ -127,7 +127,7 @@ def compiler_command():
 @functools.lru_cache(maxsize=None)
 def _version(command):
     try:
-        done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
+        done = lifetime.run(list(command) + ["--version"], capture_output=True, text=True,
                               timeout=60)
     except (OSError, subprocess.SubprocessError):
         return ""
@@ -166,18 +166,17 @@ def _build(install):
     with folders.temporary("driftfmu_kernel_") as work:
         (Path(work) / "parameters_table.h").write_text(table)
         partial = Path(work) / "kernel.so"
-        # the compiler's own temporary files (link-time optimisation writes several) go into
-        # the work folder, so an interrupted compile leaves none behind in TMPDIR
-        env = dict(os.environ, TMPDIR=work)
         # a compiler without the machine flags, or without link-time optimisation, gets fewer
         for extra in (SPEED_FLAGS + MACHINE_FLAGS, SPEED_FLAGS, ()):
             command = compiler + list(generate.CFLAGS) + list(extra) + [
                 "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
                 str(s) for s in sources] + ["-o", str(partial), "-lm"]
             try:
-                # the work folder's lock held by the compiler too (folders.held_fds)
-                subprocess.run(command, check=True, capture_output=True, env=env,
-                               pass_fds=folders.held_fds(work))
+                # the work folder's lock held by the compiler too (folders.held_fds); the
+                # compiler's own temporary files (link-time optimisation writes several) go
+                # into the work folder, so an interrupted compile leaves none in TMPDIR
+                lifetime.run(command, check=True, capture_output=True, env=env, work=work,
+                             pass_fds=folders.held_fds(work))
                 break
             except subprocess.CalledProcessError:
                 if not extra:

@@ -957,12 +957,18 @@ def plot_drift(path, cols, title, general=None, labels=None):
     plt.close(fig)
 
 
+#: The label of the note :func:`mark_clipping` writes (a text, or a legend holding it).
+CLIPPING_NOTE = "_clipping note"
+
+
 def mark_clipping(ax):
     """Mark every curve of ``ax`` that leaves the y range: small triangles on the frame where
-    it is off the scale (pointing the way it went), and a note in the corner naming the curve,
-    the samples and how far it went.  Nothing is clipped without a mark (issue 19: drift.png's
-    bottom panel hid k = 1-99 of the empirical drift).  Log axes: values <= 0 are not drawable
-    and not counted.  Returns the notes."""
+    it is off the scale (pointing the way it went), and a note naming the curve, the samples
+    and how far it went.  Nothing is clipped without a mark (issue 19: drift.png's bottom panel
+    hid k = 1-99 of the empirical drift), and the note covers no curve: beside the axes under
+    their legend where the legend sits beside them, in the legend where it sits on the axes,
+    else inside where it covers the fewest points (a legend's ``loc="best"``).  Log axes:
+    values <= 0 are not drawable and not counted.  Returns the notes."""
     import numpy as np
     y0, y1 = sorted(ax.get_ylim())
     x0, x1 = sorted(ax.get_xlim())
@@ -1004,11 +1010,53 @@ def mark_clipping(ax):
         # the marks sit on the top edge: lift the axes' title clear of them
         ax.set_title(title.get_text(), fontsize=title.get_fontsize(), pad=11)
     if notes:
-        ax.text(0.99, 0.02, "\n".join("%s %s" % ("▲" if " above " in t else "▼", t)
-                                      for t in notes),
-                transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.25",
-                bbox=dict(facecolor="white", edgecolor="0.7", alpha=0.85, lw=0.5))
+        _clipping_note(ax, notes)
     return notes
+
+
+def _clipping_note(ax, notes):
+    """The note of :func:`mark_clipping`, where it covers no curve."""
+    legend = ax.get_legend()
+    beside = legend is not None and \
+        legend.get_bbox_to_anchor().transformed(ax.transAxes.inverted()).x0 >= 1.0
+    lines = []
+    for t in notes:  # beside: two lines each, what and where, about a legend's width
+        mark = "▲" if " above " in t else "▼"
+        if beside:
+            cut = t.index(" at ", t.index(" off the scale "))
+            lines += ["%s %s" % (mark, t[:cut]), "   %s" % t[cut + 1:]]
+        else:
+            lines.append("%s %s" % (mark, t))
+    text = "\n".join(lines)
+    if beside:  # in the margin the legend has made, under it
+        ax.text(1.01, 0.0, text, transform=ax.transAxes, ha="left", va="bottom", fontsize=7,
+                color="0.25", label=CLIPPING_NOTE)
+        return
+    if legend is not None:  # a legend on the axes: the note goes with it, where it is placed
+        title = legend.get_title().get_text()
+        legend.set_title(title + "\n" + text if title else text,
+                         prop={"size": 7})
+        legend.set_label(CLIPPING_NOTE)
+        return
+    from matplotlib.legend import Legend  # where it covers the fewest points
+    note = Legend(ax, [], [], title=text, loc="best", title_fontsize=7, framealpha=0.85,
+                  edgecolor="0.7")
+    note.get_title().set_color("0.25")
+    note.set_label(CLIPPING_NOTE)
+    ax.add_artist(note)
+
+
+def clipping_notes(ax):
+    """The notes of :func:`mark_clipping` on ``ax`` (texts, or legends holding them): the
+    artists and their text."""
+    from matplotlib.legend import Legend
+    found = []
+    for artist in list(ax.texts) + list(ax.artists) + [ax.get_legend()]:
+        if artist is not None and artist.get_label() == CLIPPING_NOTE:
+            text = artist.get_title().get_text() if isinstance(artist, Legend) \
+                else artist.get_text()
+            found.append((artist, text))
+    return found
 
 
 def mark_figure(fig):

@@ -2,6 +2,7 @@
 command line and ``fmpy.simulate_fmu``, run on Excitation, Accelerometer and DriftEstimator in
 turn with the input files ``driftfmu inputs`` writes, give ``driftfmu.simulate``'s numbers bit
 for bit, print nothing, and record every sample (simulations/hostinputs.py)."""
+import os
 import subprocess
 import sys
 
@@ -159,7 +160,7 @@ def test_without_the_lead_the_host_records_the_previous_input(fmus_in_build_layo
     assert z[0] == reference["z"][0] and not np.array_equal(z, reference["z"])
 
 
-def test_inputs_are_declared_discrete_so_fmpy_holds_them(fmus_in_build_layout):
+def test_inputs_are_declared_discrete_so_fmpy_holds_them(fmus_in_build_layout, tmp_path):
     """Every input of every FMU is declared discrete (sampled, held): fmpy applies the last
     value of an input file at a time between its rows instead of interpolating."""
     from fmpy import extract, instantiate_fmu
@@ -177,7 +178,7 @@ def test_inputs_are_declared_discrete_so_fmpy_holds_them(fmus_in_build_layout):
     x = next(v for v in md.modelVariables if v.name == "x")
     signals = np.array([(0.0, 1.0, 0.0), (1.0, 2.0, 0.0)],
                        dtype=[("time", float), ("x", float), ("y", float)])
-    fmu = instantiate_fmu(extract(str(path)), md)
+    fmu = instantiate_fmu(extract(str(path), unzipdir=str(tmp_path / "unzipped")), md)
     try:
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
@@ -236,10 +237,12 @@ def test_a_refused_call_tells_its_reason_without_fmi_logging(kind, fmus_in_build
                            "x = inf is not finite; input accepts finite values only"),
                           (["--start-values", "R", "-1"], "R = -1.0 is out of range; allowed: "
                                                           "R > 0")):
+        # fmpy leaves the FMU it extracted when a call fails: in this test's folder
         done = subprocess.run([sys.executable, "-m", "fmpy", "simulate", fmu, "--stop-time",
                                "0.002", "--output-interval", "0.001", "--output-file",
                                str(tmp_path / "out.csv")] + extra,
-                              capture_output=True, text=True, timeout=300)
+                              capture_output=True, text=True, timeout=300,
+                              env=dict(os.environ, TMPDIR=str(tmp_path)))
         assert done.returncode != 0, (kind, extra)
         errors = [line for line in done.stdout.splitlines() if line.startswith("[ERROR]")]
         assert len(errors) == 1 and reason in errors[0], (kind, extra, done.stdout)

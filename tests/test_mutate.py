@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from waiting import BOUND, wait_for
+from waiting import BOUND, sigint_default, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 MUTATE = ROOT / "tools" / "mutate.py"
@@ -73,7 +73,8 @@ def _mutate(tmp_path, *args, hang=False):
     if hang:
         env["HANG"] = "1"
     p = subprocess.Popen([sys.executable, str(MUTATE), "--root", str(_tree(tmp_path)), *args],
-                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=sigint_default)
     return p, pids
 
 
