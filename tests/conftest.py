@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.fmu_src.builder import NAMES, build_fmus
+from leftovers import PRIVATE, left_in
 
 try:
     import fcntl
@@ -174,9 +175,10 @@ def pytest_configure(config):
         _temporary_folder_of_the_run(config)
 
 
-#: Files the code keeps in the temporary folder by design, from run to run: the compiled batch
-#: kernel (simulations/kernel.py) and the fast master's loop (simulations/fastcosim.py).
-KEPT = ("driftfmu-kernel-*.so", "driftfmu-loop-*.so")
+#: What the code keeps in the temporary folder by design, from run to run: driftfmu's private
+#: folder (simulations/folders.py), which holds the compiled batch kernel and the fast master's
+#: loop (simulations/trust.py) and the destination locks.
+KEPT = (PRIVATE,)
 
 #: (the temporary folder of the run, the one it replaced, the session).
 _RUN_TMP = []
@@ -188,15 +190,23 @@ def _temporary_folder_of_the_run(config):
     folder the run was given (other runs, another engineer's, may use that one meanwhile), and
     checked when the run ends (:func:`pytest_unconfigure`): a test that leaves a file or folder
     there fails the run.  pytest's own folders (``tmp_path``) stay where they were; the
-    compiled caches (:data:`KEPT`) are taken from there and handed back."""
+    compiled libraries of the private folder (:data:`KEPT`) are taken from there and the
+    folder handed back.  Others may pass through the run's folder, not list or write it (0711):
+    the tests that act as another user make folders of their own inside."""
     import shutil
     outer = Path(tempfile.gettempdir())
     config._tmp_path_factory.getbasetemp()  # pytest's folders: in the outer folder, as ever
     os.environ.setdefault("DRIFTFMU_TEST_NATIVE_CACHE", str(NATIVE_CACHE))
     run = Path(tempfile.mkdtemp(prefix="driftfmu-test-run-", dir=outer))
-    for pattern in KEPT:
-        for cache in outer.glob(pattern):
-            shutil.copy2(cache, run / cache.name)
+    os.chmod(run, 0o711)
+    for name in KEPT:
+        for private in outer.glob(name):
+            libraries = private / "libraries"
+            if (private.is_dir() and not private.is_symlink() and libraries.is_dir()
+                    and private.stat().st_uid == os.geteuid()):
+                (run / private.name).mkdir(mode=0o700)
+                with contextlib.suppress(OSError, shutil.Error):
+                    shutil.copytree(libraries, run / private.name / "libraries", symlinks=True)
     os.environ["TMPDIR"] = str(run)
     tempfile.tempdir = None  # read TMPDIR again
     _RUN_TMP[:] = [run, outer, None]
@@ -212,13 +222,11 @@ def pytest_unconfigure(config):
     fails it, named; the folder goes, the compiled caches back to the outer folder."""
     if not _RUN_TMP or hasattr(config, "workerinput"):
         return
-    import fnmatch
     import shutil
     run, outer, session = _RUN_TMP
-    left = sorted(f for f in os.listdir(run)
-                  if not any(fnmatch.fnmatch(f, pattern) for pattern in KEPT))
+    left = left_in(run)
     for name in os.listdir(run):
-        if name not in left and not (outer / name).exists():
+        if name in KEPT and not (outer / name).exists():
             with contextlib.suppress(OSError):
                 os.replace(run / name, outer / name)
     shutil.rmtree(run, ignore_errors=True)

@@ -21,8 +21,10 @@ B = budget
 
 @pytest.fixture
 def machine(monkeypatch):
-    """A machine with 4 cores, 20 GB of memory available and 1 TB of free disk."""
+    """An idle machine (load average 0) with 4 cores, 20 GB of memory available and 1 TB of
+    free disk."""
     monkeypatch.setattr(B.os, "cpu_count", lambda: 4)
+    monkeypatch.setattr(B.os, "getloadavg", lambda: (0.0, 0.0, 0.0))
     monkeypatch.setattr(B, "available_memory", lambda: 20e9)
     monkeypatch.setattr(B, "free_disk", lambda folder: 1e12)
 
@@ -35,7 +37,7 @@ def test_montecarlo_keeping_every_trajectory(machine, out, workers):
     cores = min(workers or 4, runs)
     assert got == {"memory": B.BASE_MEMORY + B.MONTECARLO_MEMORY * runs * n,
                    "disk": B.MONTECARLO_DISK * runs * n if out else 0,
-                   "seconds": B.MONTECARLO_SECONDS * runs * n / cores}
+                   "seconds": B.MONTECARLO_SECONDS * runs * n / cores + B.COMMAND_SECONDS}
 
 
 @pytest.mark.parametrize("out", [None, "results/x"])
@@ -50,7 +52,7 @@ def test_montecarlo_keeping_summaries(machine, out, workers, runs):
     assert got == {"memory": B.BASE_MEMORY + B.MONTECARLO_MEMORY * (kept + chunk) * n
                    + B.SUMMARY_BYTES * runs,
                    "disk": B.MONTECARLO_DISK * kept * n + B.SUMMARY_BYTES * runs if out else 0,
-                   "seconds": B.MONTECARLO_SECONDS * runs * n / cores}
+                   "seconds": B.MONTECARLO_SECONDS * runs * n / cores + B.COMMAND_SECONDS}
 
 
 @pytest.mark.parametrize("out", [None, "results/x"])
@@ -58,7 +60,7 @@ def test_sweep_adxl203_and_dual_axis(machine, out):
     got = B.check_sweep(6, 50, 300, 2, out, announce=False)
     assert got == {"memory": B.BASE_MEMORY + B.SWEEP_MEMORY * 300,
                    "disk": B.SWEEP_DISK * 300 if out else 0,
-                   "seconds": B.SWEEP_SECONDS * 300 * 300 / 2}
+                   "seconds": B.SWEEP_SECONDS * 300 * 300 / 2 + B.COMMAND_SECONDS}
     got = B.check_adxl203((100.0, 200.0), 3, 1000, None, out, backend="native", announce=False)
     assert got == {"memory": B.BASE_MEMORY + (B.ADXL203_WORKER_MEMORY + B.ADXL203_MEMORY * 1000)
                    * 4, "disk": B.ADXL203_DISK if out else 0,
@@ -69,7 +71,7 @@ def test_sweep_adxl203_and_dual_axis(machine, out):
                                 ("fmu", B.DUAL_FMU_MEMORY * total * 100, "native")):
         got = B.check_dual_axis(3, 40, 100, engine, 2, out, backend="native", announce=False)
         assert got == {"memory": B.BASE_MEMORY + memory, "disk": B.DUAL_DISK if out else 0,
-                       "seconds": B.DUAL_SECONDS[per] * total * 100 / 2}
+                       "seconds": B.DUAL_SECONDS[per] * total * 100 / 2 + B.COMMAND_SECONDS}
 
 
 def test_a_long_run_is_announced_only_when_asked(machine, capsys):
@@ -144,10 +146,10 @@ def test_each_long_run_is_announced_in_the_callers_words_only_when_asked(machine
         (lambda **kw: B.check_montecarlo("gaussian", 200000, 1000, 1, None, summary_only=True,
                                          api=True, **kw),
          "montecarlo('gaussian', runs=200000, n=1000, summary_only=True): about "),
-        (lambda **kw: B.check_sweep(1000, 1000, 1000, 1, None, **kw),
-         "sweep of 1000 grid points x --runs 1000 --n 1000: about "),
-        (lambda **kw: B.check_sweep(1000, 1000, 1000, 1, None, api=True, **kw),
-         "sweep(runs=1000, n=1000) of 1000 grid points: about "),
+        (lambda **kw: B.check_sweep(1000, 10000, 1000, 1, None, **kw),
+         "sweep of 1000 grid points x --runs 10000 --n 1000: about "),
+        (lambda **kw: B.check_sweep(1000, 10000, 1000, 1, None, api=True, **kw),
+         "sweep(runs=10000, n=1000) of 1000 grid points: about "),
     ]
     for check, what in long_runs:
         check(announce=False)
@@ -194,7 +196,7 @@ def test_the_experiments_notes_and_refusals_in_the_callers_words(machine, capsys
         ("n=%d" if api else "--n %d") % int(n * _room(grows)), *(
             ("n", "workers") if api else ("--n", "--workers")))) in text, text
     # experiment dual-axis: batch and FMU engines
-    for engine, runs in (("batch", 10 ** 5), ("fmu", 10)):  # each over LONG on one core
+    for engine, runs in (("batch", 10 ** 5), ("fmu", 100)):  # each over LONG on one core
         B.check_dual_axis(5, runs, 1000, engine, 1, None, api=api, announce=False)
         assert capsys.readouterr().err == ""
         B.check_dual_axis(5, runs, 1000, engine, 1, None, api=api)

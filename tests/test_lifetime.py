@@ -20,6 +20,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations import lifetime
+from leftovers import left_in
 from waiting import BOUND, session_processes, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -92,10 +93,9 @@ def _stop_all(p):
 
 
 def _left_in(tmp):
-    """What is left in the temporary folder ``tmp`` besides the compiled caches kept there by
-    design (the batch kernel, the fast master's loop)."""
-    return sorted(f for f in os.listdir(tmp) if not (
-        f.startswith(("driftfmu-kernel-", "driftfmu-loop-")) and f.endswith(".so")))
+    """What is left in the temporary folder ``tmp`` besides what driftfmu keeps there by
+    design (its private folder's compiled libraries)."""
+    return left_in(tmp)
 
 
 # -- the helper ---------------------------------------------------------------------------------
@@ -420,8 +420,9 @@ def test_a_killed_native_build_leaves_no_compiler_and_the_next_build_no_folder(t
                        capture_output=True, text=True, timeout=BOUND)
     assert r.returncode == 0, r.stderr
     assert _left_in(tmp_path / "tmp") == []
+    from driftfmu.fmu_src import container
     assert sorted(f.name for f in (tmp_path / "fmus").iterdir()) == sorted(
-        p.name for p in python_fmus.values())
+        [p.name for p in python_fmus.values()] + [container.FILENAME])
 
 
 #: The doctor's trial host (a Python that instantiates the FMU) made to take an hour.
