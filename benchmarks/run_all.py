@@ -23,6 +23,8 @@ RUNS = [
     ("bench_fmu_hosts.py", ["--repeats", "5"], ["--steps", "2000", "--repeats", "3"]),
     ("bench_native.py", ["--repeats", "5"],
      ["--steps", "50000", "--python-steps", "2000", "--repeats", "3"]),
+    ("bench_long_step.py", ["--repeats", "3"], ["--samples", "200000", "--repeats", "3"]),
+
     ("bench_errors.py", ["--repeats", "5"],
      ["--steps", "100000", "--python-steps", "10000", "--repeats", "3"]),
     ("bench_batch.py", ["--repeats", "3"], ["--repeats", "2"]),
@@ -30,6 +32,8 @@ RUNS = [
     ("bench_adxl203.py", [], []),
     ("bench_adxl203.py", ["--backend", "python", "--no-baseline"],
      ["--backend", "python", "--sets", "6", "--freqs", "150", "--no-baseline"]),
+    ("bench_estimates.py", [], ["--only", "run gaussian", "experiment adxl203 native",
+                                "experiment dual-axis native"]),
 ]
 
 

@@ -152,6 +152,7 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                log: Optional[Callable[[str], None]] = None, *,
                cross_check: Optional[PathLike] = None,
                ssp: Optional[PathLike] = None,
+               start_values: Optional[Mapping[str, float]] = None,
                cache: Optional[PathLike] = None) -> Dict[str, Path]:
     """Build and validate the FMUs.
 
@@ -161,6 +162,9 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         Folder of the Python FMUs (``<out_dir>/<Name>.fmu``); the native FMUs go to
         ``<out_dir>/native/fmi<fmi_version>/<Name>.fmu``, where [`simulate`][driftfmu.simulate] looks for them
         (and, with an ARM compiler, the FMI 2.0 FMUs for ARM to ``native/fmi2-aarch64/``).
+        Beside the Excitation, Accelerometer and DriftEstimator FMUs of each folder goes
+        ``DriftChain.json``, the description from which the FMU Manipulation Toolbox's
+        ``fmucontainer`` makes the chain one FMU (docs/hosts.md).
         Created if missing.  All or nothing: every output of the call (FMUs, ``cross_check``,
         ``ssp``) is built in a hidden staging folder and moved into place only once the whole
         build has succeeded; a failed or interrupted build leaves every path as it was.
@@ -186,6 +190,14 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
         Also write the wired chain Excitation -> Accelerometer -> DriftEstimator of the built
         FMUs (FMI 2.0) as an SSP archive at this path (replaced if it exists), as ``driftfmu
         build --ssp``.
+    start_values : dict of str to float, optional
+        With ``ssp``: the parameter values the archive carries, as [`simulate`][driftfmu.simulate]
+        takes them (``"a2"`` in every component that has it, ``"Accelerometer.a2"`` in one);
+        the others keep the FMUs' defaults.  Each component's values are a parameter set of
+        its own (``resources/<Component>.ssv``, referenced from the ``.ssd``), which
+        OMSimulator applies, and fmpy's ``simulate_ssp`` when it is passed (docs/hosts.md).
+        Checked before anything is built: a name that is no parameter or a value that is not
+        allowed is refused in one line naming the component and the parameter.
     cache : str or pathlib.Path, optional
         Native FMUs only: a folder of compiled libraries kept from build to build; a library
         compiled before from the same sources by the same compiler (command, version, flags)
@@ -243,11 +255,17 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
     names = tuple(FMU_NAMES if names is None else names)
     for name in names:
         _check_choice("FMU name", name, FMU_NAMES)
+    ssp_values = None
+    if start_values is not None and ssp is None:
+        raise UsageError("start_values are the SSP archive's parameter values; allowed: "
+                         "start_values with ssp (the path of the archive to write)")
     if ssp is not None:
         from driftfmu.fmu_src.ssp import FMU_NAMES as chain
+        from driftfmu.fmu_src.ssp import parameter_values
         if 2 not in versions or not set(chain) <= set(names):
             raise UsageError("ssp needs the FMI 2.0 FMUs %s; allowed: names with them and "
                              "fmi_version 2" % ", ".join(chain))
+        ssp_values = parameter_values(start_values)  # refused before anything is built
     from driftfmu.simulations.output import Staging, nearest_existing
     for what, path, folder in (("out_dir", out_dir, True), ("cross_check", cross_check, True),
                                ("ssp", ssp, False)):
@@ -275,6 +293,10 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
             built = native_build.build_native_fmus(staged_out / "native", names=names,
                                                    fmi_versions=versions, log=log, cache=cache)
             built = {v: {n: Path(p) for n, p in built[v].items()} for v in built}
+        from driftfmu.fmu_src import container
+        for v in sorted(built):  # the chain as one FMU: fmucontainer's description of it
+            if set(container.NAMES) <= set(built[v]):
+                container.write(built[v][container.NAMES[0]].parent)
         if staged_cross_check is not None:
             from driftfmu.fmu_src.crosscheck import write_cross_check
             for v in sorted(built):
@@ -283,8 +305,11 @@ def build_fmus(out_dir: PathLike = "build/fmus", backend: str = "python",
                     log("%s/ (cross-check: fmu, _in.csv, _ref.csv, _ref.opt, ReadMe.txt)" % d)
         if staged_ssp is not None:
             from driftfmu.fmu_src.ssp import build_ssp
-            log("%s (SSP: the wired chain of the %s FMUs, start values of the letter's "
-                "Gaussian run)" % (build_ssp(built[2], staged_ssp), backend))
+            log("%s (SSP: the wired chain of the %s FMUs, %s)" % (
+                build_ssp(built[2], staged_ssp, start_values=ssp_values,
+                          Ts=ssp_values["Excitation"]["Ts"]), backend,
+                "the parameter values given" if start_values else
+                "the start values of the letter's Gaussian run"))
     out = Path(out_dir)  # the paths the FMUs have now, as given
     built = {v: {n: out / p.relative_to(staged_out) for n, p in built[v].items()}
              for v in built}
@@ -309,15 +334,18 @@ def _fmu_paths(names: Sequence[str], backend: str, fmi_version: int,
         paths = {n: fmu_dir / "native" / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in names}
     missing = [n for n, p in paths.items() if not p.is_file()]
     if missing:
+        from driftfmu.fmu_src.builder import check_fmu_folder
+        check_fmu_folder(fmu_dir, [paths[n].relative_to(fmu_dir).as_posix() for n in missing],
+                         native=backend == "native")
         build_fmus(fmu_dir, backend=backend, fmi_version=fmi_version, names=missing)
     return paths
 
 
 def _variables(path: Path) -> Dict[str, Any]:
-    from driftfmu.fmu_src.schemas import read_model_description
-    from driftfmu.simulations.cosim import check_fmu_file
-    check_fmu_file(path)  # before fmpy, whose message names neither the file nor a remedy
-    return {v.name: v for v in read_model_description(str(path)).modelVariables}
+    from driftfmu.simulations.cosim import checked_fmu
+    # what the masters rely on, before fmpy (whose messages name neither the file nor a
+    # remedy) and before any FMU runs (simulations/fmucheck.py)
+    return {v.name: v for v in checked_fmu(str(path)).modelVariables}
 
 
 def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
@@ -335,7 +363,9 @@ def _start_value_problem(name: str, value: Any, variable: Any) -> Optional[str]:
         return parameters.problem(name, value)
     low = None if variable.min is None else float(variable.min)
     high = None if variable.max is None else float(variable.max)
-    if not math.isfinite(value) or (integer and value != int(value)) or \
+    if integer and math.isfinite(value) and value != int(value):
+        return "%s = %r is not an integer; allowed: %s" % (name, value, kind)
+    if not math.isfinite(value) or \
             (low is not None and value < low) or (high is not None and value > high):
         bounds = " and ".join(b for b in (
             None if variable.min is None else "%s >= %s" % (name, variable.min),
@@ -393,7 +423,9 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         A structured array with a first field ``time`` and one field per input variable it
         drives (``"x"`` or ``"Accelerometer.x"``), like FMPy's ``input``.  At each
         communication point ``t`` the input takes the value of the last row with
-        ``time <= t`` (zero-order hold; the first row before its time).  An input that an
+        ``time <= t`` (zero-order hold; the first row before its time), a time within the
+        FMUs' millionth of a step of ``t``, or within what a running sum of times can have
+        rounded (``0.001 + 0.001 + ...``), counting as ``t`` (docs/hosts.md).  An input that an
         FMU of ``fmus`` already drives through a connection cannot also be given here.
     output : sequence of str, optional
         Variables to record (``"z"`` or ``"Accelerometer.z"``); a plain name is recorded from
@@ -405,7 +437,8 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         FMI version of the native FMUs (the Python FMUs are FMI 2.0).
     fmu_dir : str or pathlib.Path
         Where the FMUs are (as [`build_fmus`][driftfmu.build_fmus] writes them); missing ones
-        are built.
+        are built there when it is new, empty or holds only driftfmu's FMUs (a folder with
+        other files is refused: nothing is written into it unasked).
     start_time : float
         Start of the simulation [s].
 
@@ -424,7 +457,10 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
         An FMU, variable, backend, step, time, input value or start value is not allowed
         (one line naming it and what is allowed; a start value is checked against its
         parameter's rule and declared type and range before any FMU runs), or recording the
-        outputs at every communication point would not fit the memory.
+        outputs at every communication point would not fit the memory.  An FMU file that is
+        not what driftfmu relies on (an edited model description, a cut binary, a zip bomb:
+        docs/hosts.md, "Files someone else made") or that cannot be instantiated here is one
+        line naming the file, the part and what is expected, before any FMU runs.
     TypeError
         A keyword the function does not take (the message names every one it takes).
     RuntimeError
@@ -534,11 +570,14 @@ def simulate(fmus: Sequence[str] = ("Excitation", "Accelerometer", "DriftEstimat
             raise UsageError("input has fields %r; allowed: a structured array whose first "
                              "field is 'time'" % (fields,))
         times = np.asarray(input["time"], dtype=float)
-        if times.ndim != 1 or times.size == 0 or np.any(np.diff(times) < 0):
-            raise UsageError("input['time'] must be a non-empty, non-decreasing 1-D array")
-        grid = start_time + step_size * np.arange(n_steps)
-        rows = np.clip(np.searchsorted(times, grid + 1e-9 * step_size, side="right") - 1,
-                       0, times.size - 1)
+        if times.ndim != 1 or times.size == 0 or not np.all(np.isfinite(times)) or \
+                np.any(np.diff(times) < 0):
+            raise UsageError("input['time'] must be a non-empty, non-decreasing 1-D array of "
+                             "finite times")
+        # a row at or before a communication point within the tolerance of
+        # simulations/times.py (the FMUs' own, and what a running sum of times can round)
+        from driftfmu.simulations import times as timing
+        rows = timing.held_rows(times, start_time, step_size, n_steps)
         for key in fields[1:]:
             fmu, var = _split_name(key, names)
             targets = [fmu] if fmu else [n for n in names if var in variables[n]
@@ -634,7 +673,8 @@ def run_gaussian(out: Optional[PathLike] = None, *, n: int = 2000, backend: str 
     backend : {"python", "native"}
         Which FMUs run (the same results bit for bit).
     fmu_dir : str or pathlib.Path
-        Where the FMUs are; missing ones are built.
+        Where the FMUs are; missing ones are built there when it is new, empty or holds only
+        driftfmu's FMUs (a folder with other files is refused).
     progress : callable, optional
         Called as the run goes with the number of samples done so far (the ``driftfmu``
         command draws its progress bar with it).
@@ -699,7 +739,8 @@ def run_sinusoidal(out: Optional[PathLike] = None, *, n: int = 2000, backend: st
     backend : {"python", "native"}
         Which FMUs run.
     fmu_dir : str or pathlib.Path
-        Where the FMUs are; missing ones are built.
+        Where the FMUs are; missing ones are built there when it is new, empty or holds only
+        driftfmu's FMUs (a folder with other files is refused).
     progress : callable, optional
         Called as the run goes with the number of samples done so far.
     **parameters
@@ -837,7 +878,8 @@ def montecarlo(kind: str = "gaussian", runs: int = 1000, n: int = 1000,
     _check_folders(out, parameters.get("fmu_dir"))
     budget.check_montecarlo(kind, runs, n, parameters.get("workers"), out,
                             summary_only=parameters.get("summary_only", False), api=True,
-                            announce=False)
+                            announce=False, engine=engine,
+                            backend=parameters.get("backend", "python"))
     return fn(runs=runs, n=n, out=out, engine=engine, plot=out is not None, progress=progress,
               **parameters)
 

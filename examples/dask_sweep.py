@@ -15,10 +15,17 @@ def dask_sweep(show_plot=True, runs=200, n=500, a2=(1e-3, 1e-2, 1e-1), R=(1e-6, 
     Returns the result of :func:`driftfmu.sweep` (``grid_dc1`` etc., shape
     ``(len(a2), len(R), runs)``).
     """
+    import tempfile
+
+    import dask
     from dask.distributed import Client, LocalCluster
 
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    # the cluster's scratch folder goes with it (by default Dask keeps dask-scratch-space in
+    # the temporary folder for good)
+    with tempfile.TemporaryDirectory(prefix="dask-") as scratch, \
+            dask.config.set({"temporary-directory": scratch}), \
+            LocalCluster(n_workers=2, threads_per_worker=1, processes=False,
+                         dashboard_address=None) as cluster, Client(cluster) as client:
         result = driftfmu.sweep(a2=list(a2), R=list(R), runs=runs, n=n, client=client)
 
     # EKF1's mean error against the realised drift a2 mean(x^2), per grid point

@@ -135,10 +135,14 @@ class DualDriftEstimator(SlaveBase):
         hidden, outputs = self.sample(hidden, k0, first)
         if n > 1:
             state = hidden["_state"]
-            for k in range(k0, k0 + n - 1):
-                if not dualaxis.valid(state):
+            k, end = k0, k0 + n - 1
+            while k < end:  # the samples k0 + 1 .. k0 + n - 1, each from a valid covariance
+                state, done = dualaxis.predict_run(state, self._model, end - k)
+                k += done
+                if k < end:  # the covariance after sample k is not valid
                     self._refuse_covariance(state, k)
-                state = dualaxis.estimator_predict(state, self._model)
+                    state = dualaxis.estimator_predict(state, self._model)  # (not finite: on)
+                    k += 1
             hidden, outputs = {"_state": state}, self._outputs(state)
         return hidden, outputs  # (the state after the last sample: the base class checks it)
 

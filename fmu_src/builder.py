@@ -33,7 +33,6 @@ import platform
 import re
 import shlex
 import shutil
-import subprocess
 import sys
 import sysconfig
 import tempfile
@@ -43,7 +42,7 @@ from pathlib import Path
 from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 SRC_DIR = Path(__file__).resolve().parent
 NAMES = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
@@ -75,6 +74,31 @@ _UNIT_FACTOR = re.compile(r"^(sqrt\()?([A-Za-z]+|1)(-?\d+)?(?(1)\))$")
 
 class BuildError(RuntimeError):
     """An FMU could not be built, or it was built but does not validate."""
+
+
+def check_fmu_folder(fmu_dir, missing, native=False):
+    """Before the FMUs ``missing`` (file names) are built into ``fmu_dir`` where a run looks for
+    them: a UsageError when ``fmu_dir`` is an existing folder that holds anything but what a
+    build writes there (``*.fmu``, ``native/``, hidden ``.driftfmu*`` staging and locks), so
+    that a run given another folder (a project's, the working folder) does not fill it with
+    FMUs unasked.  A new or empty folder, or one of FMUs, is built into.  ``native``: the
+    missing FMUs are native ones (the command that builds them says so)."""
+    from driftfmu.simulations.errors import UsageError
+    folder = Path(fmu_dir)
+    try:
+        names = sorted(os.listdir(folder)) if folder.is_dir() else []
+    except OSError:
+        names = []
+    other = [n for n in names if not (n.endswith(".fmu") or n == "native"
+                                      or n.startswith(".driftfmu"))]
+    if other:
+        shown = ", ".join(other[:3]) + (", ..." if len(other) > 3 else "")
+        raise UsageError("fmu_dir %s has no %s and holds other files (%s): driftfmu builds "
+                         "missing FMUs only into a folder of its own; allowed: a folder of "
+                         "driftfmu's FMUs, a new or an empty one, or build them there first "
+                         "(driftfmu build%s --out %s)" % (fmu_dir, ", ".join(missing), shown,
+                                                          " --native" if native else "",
+                                                          fmu_dir))
 
 
 def source_files(name, src_dir=SRC_DIR):
@@ -537,7 +561,9 @@ def _make_loader(work, log):
                               "-I%s" % _fmi2_headers(), "-I%s" % (SRC_DIR / "native"),
                               '-DDRIFTFMU_BUILD_LIBPYTHON="%s"' % soname,
                               "-o", str(shim), str(LOADER_SOURCE), "-ldl", "-lpthread"]
-        result = subprocess.run(command, capture_output=True, text=True)
+        # the work folder's lock held by the compiler too (folders.held_fds)
+        result = lifetime.run(command, capture_output=True, text=True, work=work,
+                              pass_fds=folders.held_fds(work))
         if result.returncode == 0:
             return "shim", shim
         problem = "compiling %s failed:\n%s" % (LOADER_SOURCE, result.stderr.strip())
@@ -563,8 +589,8 @@ def _linux_binaries(model_identifier, library, loader, work):
     if kind == "dt_needed":
         path = work / (model_identifier + ".so")
         path.write_bytes(library)
-        subprocess.run(["patchelf", "--add-needed", libpython_soname(), str(path)], check=True,
-                       capture_output=True)
+        lifetime.run(["patchelf", "--add-needed", libpython_soname(), str(path)], check=True,
+                     capture_output=True, pass_fds=folders.held_fds(work))
         return {folder + model_identifier + ".so": path.read_bytes()}
     return {folder + model_identifier + ".so": library}
 
@@ -651,7 +677,8 @@ def _build_one(name, out_dir, src_dir, loader, log, generated=None):
             # has it check a deserialised state
             "shim_vr": getattr(slave, "SHIM_VR", None) == 0x7FFFFFFF,
         }, indent=2, sort_keys=True).encode() + b"\n"
-        from driftfmu.fmu_src import documentation
+        from driftfmu.fmu_src import documentation, icons
+        entries.update(icons.entries(name, 2))
         entries.update(documentation.entries(name, "python", 2, entries, slave))
         target = out_dir / ("%s.fmu" % name)
         _write_atomically(target, entries)

@@ -40,6 +40,7 @@ import os
 import re
 import shlex
 import shutil
+import stat
 import subprocess
 import sys
 import time
@@ -49,7 +50,7 @@ from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
 from driftfmu.fmu_src import builder, schemas
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 NATIVE_DIR = Path(__file__).resolve().parent / "native"
 MODELS_DIR = NATIVE_DIR / "models"
@@ -476,7 +477,10 @@ def compile_library(platform, sources_dir, c_files, target):
         extra = tuple(extra) + ("-Wl,-install_name,@rpath/%s" % target.name,)
     args = (command + list(CFLAGS) + list(extra) + ["-I%s" % sources_dir, "-o", str(target)]
             + [str(sources_dir / f) for f in c_files] + _libraries(platform, command))
-    result = subprocess.run(args, capture_output=True, text=True, cwd=target.parent)
+    # the work folder's lock held by the compiler too (folders.held_fds); the compiler's
+    # temporary files beside its output, in the build's work folder
+    result = lifetime.run(args, capture_output=True, text=True, cwd=target.parent,
+                          work=target.parent, pass_fds=folders.held_fds(target.parent))
     if result.returncode != 0:  # the first line says who failed and why (the command's one line)
         lines = [line.strip() for line in result.stderr.splitlines() if line.strip()]
         why = next((line for line in lines if "error" in line.lower()),
@@ -487,12 +491,17 @@ def compile_library(platform, sources_dir, c_files, target):
     return target, label
 
 
+#: How to get zig, the compiler of every platform: the extra that installs ziglang.
+ZIG_EXTRA = ('the extra driftfmu[native] (pip install "driftfmu[native]": ziglang, a C '
+             'compiler for every platform)')
+
+
 def _install_hint(platform):
     if platform == "x86_64-linux":
-        return "Debian: apt-get install gcc, or pip install ziglang"
+        return "Debian: apt-get install gcc, or %s" % ZIG_EXTRA
     if platform == "x86_64-windows":
-        return "Debian: apt-get install gcc-mingw-w64-x86-64, or pip install ziglang"
-    return "pip install ziglang"
+        return "Debian: apt-get install gcc-mingw-w64-x86-64, or %s" % ZIG_EXTRA
+    return ZIG_EXTRA
 
 
 # -- one FMU ----------------------------------------------------------------------------------
@@ -508,15 +517,16 @@ def _compile_all(name, fmi_version, sources, c_files, work, platforms, cache=Non
         data = _read_cache_entry(hit) if hit is not None else None
         if data is not None:
             with contextlib.suppress(OSError):
-                os.utime(hit)  # recently used (a cache kept across runs prunes by age)
+                os.utime(hit, follow_symlinks=False)  # recently used (pruned by age)
             return platform, (data, compiler(platform)[2])
         path, label = compile_library(platform, sources, c_files, target)
         data = path.read_bytes()
         if hit is not None:  # a cache that cannot be written (read-only, full) is skipped
             part = hit.with_name("%s.%d.part" % (key, os.getpid()))
             try:
-                hit.parent.mkdir(parents=True, exist_ok=True)
-                part.write_bytes(cache_entry(data))
+                fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_EXCL | os.O_NOFOLLOW, 0o600)
+                with os.fdopen(fd, "wb") as fh:
+                    fh.write(cache_entry(data))
                 os.replace(part, hit)  # whole or absent, also for a build running beside
             except OSError:
                 with contextlib.suppress(OSError):
@@ -599,6 +609,35 @@ def user_cache():
     return Path(base) / "driftfmu" / "native-libraries"
 
 
+def open_cache(folder):
+    """The library cache ``folder`` (a path) once checked, or None when it cannot be made (a
+    cache that cannot be written is skipped).  The folders of its path that are missing are
+    made with mode 0700; one that another user could change (owned by another user, writable
+    by others, reached through a folder or a symbolic link they control:
+    :func:`driftfmu.simulations.trust.path_problem`) is refused in one line (UsageError): what
+    it holds goes into FMUs that run on this machine and elsewhere."""
+    from driftfmu.simulations import trust
+    from driftfmu.simulations.errors import UsageError
+    folder = Path(os.path.abspath(folder))
+    missing = []
+    top = folder
+    while not os.path.lexists(top) and top != top.parent:
+        missing.append(top)
+        top = top.parent
+    try:
+        for path in reversed(missing):
+            with contextlib.suppress(FileExistsError):
+                os.mkdir(path, 0o700)
+    except OSError:
+        return None
+    problem = trust.path_problem(folder)
+    if problem:
+        raise UsageError("the library cache %s cannot be trusted: %s; allowed: a folder that "
+                         "no other user can change (DRIFTFMU_CACHE names another; driftfmu "
+                         "build --no-cache uses none)" % (folder, problem))
+    return folder
+
+
 def prune_cache(folder, days=CACHE_DAYS):
     """Remove the entries of the library cache ``folder`` not used (read or written) for
     ``days`` days, and parts of writes that were cut short an hour ago or more.  Only files
@@ -628,13 +667,24 @@ def cache_entry(data):
 
 
 def _read_cache_entry(path):
-    """The library in the cache entry ``path``, or None when there is none or it is not whole
-    (a file damaged on disk, cut short, or of another format): then it is compiled again and
-    the entry replaced, never shipped in an FMU."""
+    """The library in the cache entry ``path``, or None when there is none, when it is not a
+    regular file of this user's (or root's) that no one else can write
+    (:func:`driftfmu.simulations.trust.others_can_write`; not a symbolic link), or when it is
+    not whole (a file damaged on disk, cut short, or of another format): then it is compiled
+    again and the entry replaced, never shipped in an FMU."""
+    from driftfmu.simulations import trust
     try:
-        raw = path.read_bytes()
-    except OSError:  # not there (or removed meanwhile)
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
+    except OSError:  # not there (or removed meanwhile), or a symbolic link
         return None
+    with os.fdopen(fd, "rb") as fh:
+        st = os.fstat(fh.fileno())
+        if not stat.S_ISREG(st.st_mode) or trust.others_can_write(st):
+            return None
+        try:
+            raw = fh.read()
+        except OSError:
+            return None
     if not raw.startswith(CACHE_MAGIC):
         return None
     digest, newline, data = raw[len(CACHE_MAGIC):].partition(b"\n")
@@ -680,8 +730,8 @@ def compiler_version(command):
     library cache kept from run to run must not serve what an older compiler made."""
     try:  # in a folder of its own: zig cc -target ... --version leaves an empty a.o behind
         with folders.temporary("driftfmu_cc_") as work:
-            done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
-                                  timeout=60, cwd=work)
+            done = lifetime.run(list(command) + ["--version"], capture_output=True, text=True,
+                                timeout=60, cwd=work, pass_fds=folders.held_fds(work))
     except (OSError, subprocess.SubprocessError):
         return ""
     return done.stdout if done.returncode == 0 else ""
@@ -710,7 +760,8 @@ def _build_one(name, fmi_version, out_dir, platforms, missing, log, cache=None):
             entries.update({path: data for path, (data, _) in files.items()})
             entries["documentation/binaries.txt"] = binaries_text(
                 name, fmi_version, files, missing).encode()
-            from driftfmu.fmu_src import documentation
+            from driftfmu.fmu_src import documentation, icons
+            entries.update(icons.entries(name, fmi_version))
             entries.update(documentation.entries(name, "native", fmi_version, entries, slave))
             folder = out_dir / (variant or "fmi%d" % fmi_version)
             folder.mkdir(parents=True, exist_ok=True)
@@ -732,10 +783,14 @@ def available_platforms(log=print):
         raise NativeBuildError(compiler_problem("x86_64-linux"))
     missing = [p for p in PLATFORMS if p not in out]
     if missing:
-        log("warning: no compiler for %s (%s); the native FMUs carry no binary for %s"
-            % (", ".join(missing), "; ".join(sorted({"%s: %s" % (p, _install_hint(p))
-                                                     for p in missing})),
-               "them" if len(missing) > 1 else "it"))
+        how = {}
+        for p in missing:
+            how.setdefault(_install_hint(p), []).append(p)
+        log("warning: no compiler for %s here, so the native FMUs carry no binary for %s; to "
+            "build %s: %s" % (", ".join(missing), "them" if len(missing) > 1 else "it",
+                              "them" if len(missing) > 1 else "it",
+                              "; ".join("%s: %s" % (", ".join(ps), hint)
+                                        for hint, ps in how.items())))
     return out
 
 
@@ -762,7 +817,9 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
         the FMUs for its hosts first and then, reusing those, every platform's); its entries
         unused for :data:`CACHE_DAYS` days are removed first (:func:`prune_cache`).  Each
         entry carries its library's SHA-256: one that does not match (damaged on disk, cut
-        short) is compiled again and replaced, never shipped.  Default: none.
+        short) is compiled again and replaced, never shipped; so is one that is not this
+        user's (or root's), or that others can write.  A folder that another user could
+        change is refused (UsageError, :func:`open_cache`).  Default: none.
 
     Returns
     -------
@@ -777,6 +834,8 @@ def build_native_fmus(out_dir=DEFAULT_OUT, names=NAMES, fmi_versions=FMI_VERSION
         raise NativeBuildError("platforms %s are not known; allowed: %s"
                                % (", ".join(unknown), ", ".join(PLATFORMS)))
     missing = [p for p in PLATFORMS if p not in platforms]
+    if cache is not None:
+        cache = open_cache(cache)
     if cache is not None:
         prune_cache(cache)
     from concurrent.futures import ThreadPoolExecutor
@@ -799,5 +858,8 @@ def native_fmu_paths(fmu_dir, fmi_version=2):
     folder = Path(fmu_dir) / "native"
     paths = {n: folder / ("fmi%d" % fmi_version) / ("%s.fmu" % n) for n in NAMES}
     if not all(p.exists() for p in paths.values()):
+        builder.check_fmu_folder(fmu_dir, [p.relative_to(fmu_dir).as_posix()
+                                           for p in paths.values() if not p.exists()],
+                                 native=True)
         build_native_fmus(folder, fmi_versions=(fmi_version,), cache=user_cache())
     return paths

@@ -8,12 +8,15 @@ SSD declares each FMU's outputs, its connected inputs and its bound parameters a
 them, as the Accelerometer's tilt ``theta`` and temperature ``T`` with its slow errors), the two
 connections of the master (``Excitation.x -> Accelerometer.x``, ``Accelerometer.z ->
 DriftEstimator.z``) and, when the DriftEstimator's ``B != 0``, the known input's
-``Excitation.u -> DriftEstimator.u`` (eq. 1, :func:`connections`), the start values of the letter's Gaussian run as an inline parameter set
-on each component (SSV 1.0; every set has the system's name, so ecos, which applies one named
-set per run, applies all of them with ``init(0, "DriftChain")``), and the default experiment
-(``stopTime = (n - 1) Ts``).  SSP has no standard element for the communication step: use ``Ts``
-(the ``description`` of the system says so).  OpenModelica's vendor annotation
-(:func:`_oms_annotation`) gives it to OMSimulator, whose importer needs it to make the system at
+``Excitation.u -> DriftEstimator.u`` (eq. 1, :func:`connections`), each component's parameter
+values as an SSP parameter set of its own, ``resources/<Component>.ssv`` (SSV 1.0), which the
+component's ``ssd:ParameterBindings`` references: the letter's Gaussian run with the user's
+values over it (:func:`parameter_values`; every set has the system's name, so ecos, which
+applies one named set per run, applies all of them with ``init(0, "DriftChain")``), and the
+default experiment (``ssd:DefaultExperiment``: ``startTime = 0``, ``stopTime = (n - 1) Ts``).
+SSP has no standard element for the communication step: use ``Ts`` (the ``description`` of the
+system says so).  OpenModelica's vendor annotation (:func:`_oms_annotation`) gives it to
+OMSimulator (``oms:FixedStepMaster stepSize``), whose importer needs it to make the system at
 all.
 
 OMSimulator's fixed-step master (``oms-ma``) steps every FMU, then copies the outputs along the
@@ -113,7 +116,6 @@ def system_structure(fmus, start_values, n, Ts):
     wired = {(d, i) for _, _, d, i in wiring}
     for name in FMU_NAMES:
         md = read_model_description(str(fmus[name]))
-        types = {v.name: v.type for v in md.modelVariables}
         starts = start_values.get(name, {})
         comp = ET.SubElement(elements, _q("ssd", "Component"), {
             "name": name, "type": "application/x-fmu-sharedlibrary",
@@ -128,18 +130,9 @@ def system_structure(fmus, start_values, n, Ts):
                 c = ET.SubElement(connectors, _q("ssd", "Connector"),
                                   {"name": v.name, "kind": v.causality})
                 ET.SubElement(c, _q("ssc", v.type))
-        if starts:
-            binding = ET.SubElement(ET.SubElement(comp, _q("ssd", "ParameterBindings")),
-                                    _q("ssd", "ParameterBinding"))
-            # every component's set has the system's name: a host that applies one named
-            # parameter set (ecos: the sets of one name over all components) applies them all
-            pset = ET.SubElement(ET.SubElement(binding, _q("ssd", "ParameterValues")),
-                                 _q("ssv", "ParameterSet"), {"version": "1.0", "name": SYSTEM})
-            params = ET.SubElement(pset, _q("ssv", "Parameters"))
-            for var, value in starts.items():
-                p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": var})
-                text = str(int(value)) if types[var] == "Integer" else repr(float(value))
-                ET.SubElement(p, _q("ssv", types[var]), {"value": text})
+        if starts:  # the component's parameter set, in resources/<name>.ssv
+            ET.SubElement(ET.SubElement(comp, _q("ssd", "ParameterBindings")),
+                          _q("ssd", "ParameterBinding"), {"source": ssv_path(name)})
     conns = ET.SubElement(system, _q("ssd", "Connections"))
     for s, o, d, i in wiring:
         ET.SubElement(conns, _q("ssd", "Connection"), {
@@ -152,6 +145,26 @@ def system_structure(fmus, start_values, n, Ts):
     _oms_annotation(experiment, {}, {"resultFile": OMS_RESULT_FILE, "loggingInterval": "0.0",
                                      "bufferSize": str(OMS_BUFFER_SIZE)})
     return ET.ElementTree(root)
+
+
+def ssv_path(name):
+    """The archive path of component ``name``'s parameter set."""
+    return "resources/%s.ssv" % name
+
+
+def parameter_set_document(values, types):
+    """The SSV 1.0 document of one component's parameter set: ``values`` {parameter: value},
+    ``types`` {parameter: "Real" or "Integer"} (an Integer as its digits, a Real as Python's
+    ``repr``, which reads back to the same double).  Every set has the system's name: a host
+    that applies one named parameter set (ecos: the sets of one name over all components)
+    applies them all."""
+    pset = ET.Element(_q("ssv", "ParameterSet"), {"version": "1.0", "name": SYSTEM})
+    params = ET.SubElement(pset, _q("ssv", "Parameters"))
+    for var, value in values.items():
+        p = ET.SubElement(params, _q("ssv", "Parameter"), {"name": var})
+        text = str(int(value)) if types[var] == "Integer" else repr(float(value))
+        ET.SubElement(p, _q("ssv", types[var]), {"value": text})
+    return ET.tostring(pset, encoding="utf-8", xml_declaration=True)
 
 
 def _oms_annotation(parent, children, attributes=None):
@@ -197,6 +210,9 @@ def build_ssp(fmus, out="build/DriftChain.ssp", start_values=None, n=2000, Ts=1e
                     ET.tostring(tree.getroot(), encoding="utf-8", xml_declaration=True))]
         entries += [("resources/%s.fmu" % name, Path(fmus[name]).read_bytes())
                     for name in FMU_NAMES]
+        entries += [(ssv_path(name), parameter_set_document(
+            start_values[name], _types(fmus[name]))) for name in FMU_NAMES
+            if start_values.get(name)]
         with zipfile.ZipFile(part, "w", zipfile.ZIP_DEFLATED) as z:
             for filename, data in entries:  # a fixed date, as in the FMUs: the same bytes
                 info = zipfile.ZipInfo(filename, date_time=(1980, 1, 1, 0, 0, 0))
@@ -210,11 +226,89 @@ def build_ssp(fmus, out="build/DriftChain.ssp", start_values=None, n=2000, Ts=1e
     return out
 
 
-def parameter_set(ssp):
-    """The SSD's inline start values as one fmpy ``ParameterSet`` named ``<Component>.<var>``.
+def _types(fmu):
+    """{variable: "Real" or "Integer"} of the FMU ``fmu`` (its model description)."""
+    from driftfmu.fmu_src.schemas import read_model_description
+    return {v.name: v.type for v in read_model_description(str(fmu)).modelVariables}
 
-    fmpy reads the SSD's ParameterBindings but ``simulate_ssp`` applies only a parameter set
-    passed to it, with names prefixed by the component: this builds that set.
+
+def parameter_values(start_values=None):
+    """The archive's parameter values, {component: {parameter: value}}: the start values of
+    the letter's Gaussian run (:func:`chain_start_values`, which are the FMUs' defaults) with
+    ``start_values`` over them, as ``driftfmu.simulate`` takes them: a plain name (``"a2"``)
+    goes to every component that has the parameter, ``"Accelerometer.a2"`` to one.
+
+    Each value is checked against its parameter's rule, declared type and range before
+    anything is built; the chain's components share one sample period ``Ts``, the archive's
+    communication step.
+
+    Raises
+    ------
+    driftfmu.simulations.errors.UsageError
+        A name that is no parameter of the components, a value that is not allowed (one line
+        naming the component and the parameter, and what is allowed), or components given
+        different ``Ts``.
+    """
+    from types import SimpleNamespace
+
+    from driftfmu._api import _start_value_problem
+    from driftfmu.fmu_src.native_build import slave_class
+    from driftfmu.simulations.errors import UsageError
+    if start_values is not None and not hasattr(start_values, "items"):
+        raise UsageError("start_values = %r is not a mapping; allowed: a dict of parameter "
+                         "names and values, e.g. {\"a2\": 0.02, \"seed\": 7}" % (start_values,))
+    params = {n: {s["name"]: SimpleNamespace(type=s["type"], min=s.get("min"), max=s.get("max"))
+                  for s in slave_class(n).VARIABLES if s["causality"] == "parameter"}
+              for n in FMU_NAMES}
+    values = chain_start_values()
+    for key, value in (start_values or {}).items():
+        if not isinstance(key, str):
+            raise UsageError("start value %r is not a parameter name; allowed: names such as "
+                             "'a2' or 'Accelerometer.a2'" % (key,))
+        fmu, dot, var = key.partition(".")
+        if dot and fmu in FMU_NAMES:
+            targets = [fmu] if var in params[fmu] else []
+        else:
+            var = key
+            targets = [n for n in FMU_NAMES if var in params[n]]
+        if not targets:
+            raise UsageError("start value %r is not a parameter of %s; allowed: %s" % (
+                key, " or ".join(FMU_NAMES), ", ".join(sorted(
+                    {v for n in FMU_NAMES for v in params[n]}))))
+        for t in targets:
+            problem = _start_value_problem(var, value, params[t][var]) or \
+                _declared_range_problem(var, value, params[t][var])
+            if problem:
+                raise UsageError("start value %s.%s" % (t, problem))
+            values[t][var] = int(value) if params[t][var].type == "Integer" else float(value)
+    periods = {n: values[n]["Ts"] for n in FMU_NAMES}
+    if len(set(periods.values())) > 1:
+        raise UsageError("start values give the components different sample periods (%s); "
+                         "allowed: one Ts for the chain, the archive's communication step"
+                         % ", ".join("%s.Ts = %r" % kv for kv in periods.items()))
+    return values
+
+
+def _declared_range_problem(name, value, variable):
+    """Why ``value`` is outside the ``min``/``max`` that ``variable`` declares (beyond its
+    parameter's rule, e.g. the ADXL203 stand-in's ``fc <= 2500``, which the FMU checks when it
+    initialises), or None."""
+    low, high = variable.min, variable.max
+    if (low is None or value >= low) and (high is None or value <= high):
+        return None
+    return "%s = %r is out of range; allowed: %s (the model description's range)" % (
+        name, value, " and ".join(b for b in (None if low is None else "%s >= %r" % (name, low),
+                                              None if high is None else "%s <= %r" % (name, high))
+                                  if b))
+
+
+def parameter_set(ssp):
+    """The archive's parameter values (each component's ``.ssv``, bound from the ``.ssd``) as
+    one fmpy ``ParameterSet`` named ``<Component>.<var>``.
+
+    fmpy reads the SSD's ParameterBindings (and the ``.ssv`` files they reference) but
+    ``simulate_ssp`` applies only a parameter set passed to it, with names prefixed by the
+    component: this builds that set.
     """
     from fmpy.ssp.ssd import Parameter, ParameterSet, find_components, read_ssd
 
@@ -232,12 +326,39 @@ def parameter_set(ssp):
 
 def simulate(ssp, n, Ts=1e-3):
     """Simulate ``n`` rows of the archive with ``fmpy.ssp.simulation.simulate_ssp``, its start
-    values applied; returns fmpy's structured array (columns ``<Component>.<connector>``)."""
+    values applied; returns fmpy's structured array (columns ``<Component>.<connector>``).
+
+    The archive is checked first (:func:`driftfmu.simulations.fmucheck.check_ssp`: its FMUs as
+    the masters check an FMU, each parameter by component and name, each connection): a
+    problem is one FileProblem line naming the archive, the component and the parameter, not
+    fmpy's bare ``KeyError`` or "fmi2ExitInitializationMode failed with status 3"."""
     from fmpy.ssp.simulation import simulate_ssp
 
-    # simulate_ssp makes rows at t = 0, Ts, ... while t < stop_time (t summed step by step)
-    return simulate_ssp(str(ssp), start_time=0.0, stop_time=(n - 0.5) * Ts, step_size=Ts,
-                        parameter_set=parameter_set(ssp))
+    from driftfmu.simulations import fmucheck
+    fmucheck.check_ssp(ssp)
+
+    # simulate_ssp makes rows at t = 0, Ts, ... while t < stop_time (t summed step by step);
+    # its FMUs log through fmpy's printing logger: what they print is kept, and a failure
+    # says the last error they logged (a GUID that is not the binary's), not fmpy's bare
+    # "Failed to instantiate model"
+    import contextlib
+    import io
+    import sys
+    printed = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(printed):
+            result = simulate_ssp(str(ssp), start_time=0.0, stop_time=(n - 0.5) * Ts,
+                                  step_size=Ts, parameter_set=parameter_set(ssp))
+    except Exception as exc:
+        sys.stdout.write(printed.getvalue())
+        errors = [line for line in printed.getvalue().splitlines()
+                  if line.startswith(("[ERROR]", "[FATAL]"))]
+        from driftfmu.simulations.cosim import CoSimulationError
+        raise CoSimulationError("%s: fmpy's simulate_ssp failed: %s%s" % (
+            ssp, (str(exc).strip().splitlines() or [type(exc).__name__])[0],
+            ": " + errors[-1].split("] ", 1)[-1] if errors else "")) from exc
+    sys.stdout.write(printed.getvalue())
+    return result
 
 
 def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,

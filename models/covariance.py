@@ -80,6 +80,13 @@ def valid(lower):
     """Whether the symmetric matrix whose rows ``lower[i] = (P_i0, ..., P_ii)`` are given (its
     lower triangle; floats or arrays) is a valid covariance by the module's rule; a boolean
     array for arrays."""
+    if len(lower) == 4:  # the dual-axis harmonic filter's, checked at every sample of an FMU
+        (p11,), (p21, p22), (p31, p32, p33), (p41, p42, p43, p44) = lower
+        if type(p11) is float and type(p21) is float and type(p22) is float and \
+                type(p31) is float and type(p32) is float and type(p33) is float and \
+                type(p41) is float and type(p42) is float and type(p43) is float and \
+                type(p44) is float:
+            return _valid4_floats(p11, p21, p22, p31, p32, p33, p41, p42, p43, p44)
     if all(_ops.is_scalar(v) for row in lower for v in row):
         return _valid_floats(lower)
     np = _np()
@@ -106,6 +113,64 @@ def _valid_floats(lower):
         if not dj > 0.0:
             return False  # (before the next pivot divides by it)
     return True
+
+
+def _valid4_floats(p11, p21, p22, p31, p32, p33, p41, p42, p43, p44):
+    """:func:`_valid_floats` of a 4x4 matrix of floats, written out: the same operations in the
+    same order (the same answer, bit for bit the same pivots), without the lists, the dict and
+    the generator, which cost the dual-axis FMU's long steps 80 % of their time."""
+    if not (p11 >= 0.0 and p22 >= 0.0 and p33 >= 0.0 and p44 >= 0.0):
+        return False
+    sqrt = math.sqrt
+    s1, s2, s3, s4 = sqrt(p11), sqrt(p22), sqrt(p33), sqrt(p44)
+    if s2 * s1 == 0.0:
+        if p21 != 0.0:
+            return False
+        c21 = 0.0
+    else:
+        c21 = p21 / s1 / s2
+    if s3 * s1 == 0.0:
+        if p31 != 0.0:
+            return False
+        c31 = 0.0
+    else:
+        c31 = p31 / s1 / s3
+    if s3 * s2 == 0.0:
+        if p32 != 0.0:
+            return False
+        c32 = 0.0
+    else:
+        c32 = p32 / s2 / s3
+    if s4 * s1 == 0.0:
+        if p41 != 0.0:
+            return False
+        c41 = 0.0
+    else:
+        c41 = p41 / s1 / s4
+    if s4 * s2 == 0.0:
+        if p42 != 0.0:
+            return False
+        c42 = 0.0
+    else:
+        c42 = p42 / s2 / s4
+    if s4 * s3 == 0.0:
+        if p43 != 0.0:
+            return False
+        c43 = 0.0
+    else:
+        c43 = p43 / s3 / s4
+    d0 = BOUND                     # the pivots of _pivots, in its order
+    d1 = d0 - c21 * (c21 / d0)
+    if not d1 > 0.0:
+        return False
+    u32 = c32 - c31 * (c21 / d0)
+    u42 = c42 - c41 * (c21 / d0)
+    d2 = d0 - c31 * (c31 / d0) - u32 * (u32 / d1)
+    if not d2 > 0.0:
+        return False
+    u43 = c43 - c41 * (c31 / d0) - u42 * (u32 / d1)
+    d3 = d0 - c41 * (c41 / d0) - u42 * (u42 / d1) - u43 * (u43 / d2)
+    return d3 > 0.0
 
 
 def _pivots(c, n):

@@ -222,12 +222,18 @@ def predict4(st, C, S, Qh):
     """Time update of the two oscillators: each block as :func:`driftfmu.models.harmonic.predict`, the
     cross block ``F B F^T`` (no cross process noise).  ``st`` is a :class:`DualHarmonicState`;
     returns the tuple ``(x, dx, y, dy, P11, P12, P22, P33, P34, P44, P13, P14, P23, P24)``."""
-    x, dx, p11, p12, p22 = harmonic.predict(st.x, st.dx, st.P11, st.P12, st.P22, C, S, Qh)
-    y, dy, p33, p34, p44 = harmonic.predict(st.y, st.dy, st.P33, st.P34, st.P44, C, S, Qh)
-    f11 = C * st.P13 + S * st.P23
-    f12 = C * st.P14 + S * st.P24
-    f21 = C * st.P23 - S * st.P13
-    f22 = C * st.P24 - S * st.P14
+    return _predict4(st.x, st.dx, st.y, st.dy, st.P11, st.P12, st.P22, st.P33, st.P34, st.P44,
+                     st.P13, st.P14, st.P23, st.P24, C, S, Qh)
+
+
+def _predict4(x, dx, y, dy, P11, P12, P22, P33, P34, P44, P13, P14, P23, P24, C, S, Qh):
+    """:func:`predict4` of the state's fields (in the order it returns them)."""
+    x, dx, p11, p12, p22 = harmonic.predict(x, dx, P11, P12, P22, C, S, Qh)
+    y, dy, p33, p34, p44 = harmonic.predict(y, dy, P33, P34, P44, C, S, Qh)
+    f11 = C * P13 + S * P23
+    f12 = C * P14 + S * P24
+    f21 = C * P23 - S * P13
+    f22 = C * P24 - S * P14
     return (x, dx, y, dy, p11, p12, p22, p33, p34, p44,
             C * f11 + S * f12, C * f12 - S * f11, C * f21 + S * f22, C * f22 - S * f21)
 
@@ -305,6 +311,32 @@ def estimator_predict(st, m):
         return DualState(*predict2(st.x, st.y, st.Pxx, st.Pxy, st.Pyy, m["A"], m["Q"], m["Qy"],
                                    m["Qxy"]), st.drift)
     return DualHarmonicState(*predict4(st, m["C"], m["S"], m["Qh"]), st.drift)
+
+
+def predict_run(st, m, count):
+    """Up to ``count`` time updates from ``st`` (samples without a measurement), each from a
+    covariance that is valid (:func:`valid`): ``(state, i)`` after ``i`` updates, where ``i ==
+    count`` or the covariance of that state is not valid.  The updates of
+    :func:`estimator_predict` and the checks of :func:`valid`, the same bits, on the fields
+    instead of a state made and checked per sample (a million-sample step of the FMU)."""
+    if m["process"] == GAUSS_MARKOV:
+        A, Q, Qy, Qxy = m["A"], m["Q"], m["Qy"], m["Qxy"]
+        x, y, Pxx, Pxy, Pyy = st.x, st.y, st.Pxx, st.Pxy, st.Pyy
+        valid2 = covariance.valid2
+        i = 0
+        while i < count and valid2(Pxx, Pxy, Pyy):
+            x, y, Pxx, Pxy, Pyy = predict2(x, y, Pxx, Pxy, Pyy, A, Q, Qy, Qxy)
+            i += 1
+        return DualState(x, y, Pxx, Pxy, Pyy, st.drift), i
+    C, S, Qh = m["C"], m["S"], m["Qh"]
+    f = st[:14]  # x dx y dy P11 P12 P22 P33 P34 P44 P13 P14 P23 P24
+    valid_lower = covariance.valid
+    i = 0
+    while i < count and valid_lower(((f[4],), (f[5], f[6]), (f[10], f[12], f[7]),
+                                     (f[11], f[13], f[8], f[9]))):
+        f = _predict4(*f, C, S, Qh)
+        i += 1
+    return DualHarmonicState(*f, st.drift), i
 
 
 def estimator_step(st, zx, zy, ax, ay, m):

@@ -395,9 +395,12 @@ def read_csv(path, columns=CSV_COLUMNS, min_rows=3):
     header = [h.strip() for h in rows[0]]
     missing = [c for c in columns if c not in header]
     if missing:
-        raise ValueError("%s: missing column(s) %s (found %s); allowed: a header with columns "
-                         "%s" % (path, ", ".join(missing), ", ".join(header) or "none",
-                                 ", ".join(columns)))
+        # the first row as read, each cell quoted: a JSON file's "{" or a row that another
+        # separator joins ("time;x;z") shows as what it is
+        raise ValueError("%s: missing column(s) %s: its first row, the header, holds %s; "
+                         "allowed: a header row with columns %s, separated by commas"
+                         % (path, ", ".join(missing), ", ".join(repr(h) for h in header)
+                            if any(header) else "nothing", ", ".join(columns)))
     idx = [header.index(c) for c in columns]
     data = []
     for r, row in enumerate(rows[1:], start=2):

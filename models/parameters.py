@@ -206,6 +206,8 @@ def problem(name, value):
         rule = allowed(name)
         return "%s = %r is not finite; allowed: %s" % (
             name, value, rule if rule == ANY_FINITE else "a finite value with " + rule)
+    if isinstance(p.default, int) and v != int(v):  # a wrong type, whatever its range
+        return "%s = %r is not an integer; allowed: %s" % (name, value, allowed(name))
     bad = False
     if p.low is not None:
         bad = v <= p.low if p.low_open else v < p.low
@@ -213,8 +215,6 @@ def problem(name, value):
         bad = v >= p.high if p.high_open else v > p.high
     if not bad and name in NONZERO:
         bad = v == 0.0
-    if not bad and isinstance(p.default, int) and v != int(v):
-        bad = True
     if bad:
         return "%s = %r is out of range; allowed: %s" % (name, value, allowed(name))
     return None

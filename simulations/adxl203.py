@@ -280,6 +280,8 @@ def run_adxl203(out=None, freqs=FREQS, sets=SETS, held_out=HELD_OUT, n=N, Ts=TS,
         futs = {pool.submit(_run_set, (paths, f, set_seed(seed, i, s), n, Ts, None, False,
                                        backend, order)): (f, s)
                 for i, f in enumerate(freqs) for s in range(train)}
+        from driftfmu.simulations.cli import start_work
+        start_work(progress, min(workers, len(futs)))  # the sets' pace counts from here
         if out is not None and plot:
             _preload_matplotlib()  # while the workers (forked by now) run the sets
         for fut in as_completed(futs):
@@ -457,9 +459,9 @@ def plot_fig5(path, per):
                     fontsize=8)
     ax.set_xlabel("drive frequency [Hz]")
     # the letter writes its margin as 10 log10 of a voltage ratio; kept so that the margins
-    # compare with its numbers (20 log10, the usual one for voltages, doubles every value)
-    ax.set_ylabel("10·log10(v / 1 V) [dB re 1 V]\n10 log10 of a voltage, as the letter;\n"
-                  "20 log10 would double every value", fontsize=9)
+    # compare with its numbers (20 log10, the usual one for voltages, doubles every value):
+    # the label says which, the caption why
+    ax.set_ylabel("10·log10(v / 1 V) [dB re 1 V]")
     ax.set_xticks(f)
     step = float(np.min(np.diff(f))) if len(f) > 1 else max(f[0] * 0.2, 1.0)
     ax.set_xlim(f[0] - 0.4 * step, f[-1] + 0.6 * step)
@@ -467,8 +469,9 @@ def plot_fig5(path, per):
     ax.legend(fontsize=9, loc="upper left", bbox_to_anchor=(0.0, -0.14), ncol=1,
               frameon=False)
     caption(fig, "Fig. 5 of the letter on the ADXL203 stand-in: drift and estimation "
-                 "difference against frequency, in dB re 1 V (10 log10(v / 1 V)); labelled, the "
-                 "margin (the letter claims at least %g dB)" % CLAIM_DB, width=80)
+                 "difference against frequency, in dB re 1 V: 10 log10(v / 1 V) of a voltage, "
+                 "as the letter (20 log10 would double every value); labelled, the margin (the "
+                 "letter claims at least %g dB)" % CLAIM_DB, width=80)
     output.layout(fig)
     output.savefig(fig, path, dpi=120)
     plt.close(fig)

@@ -665,6 +665,7 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
         Called once in this process while local workers run the tasks (after they started),
         e.g. to import what comes after; before the tasks when they run in this process.
     """
+    from driftfmu.simulations.cli import start_work
     results = [None] * len(tasks)
     done = 0
     if any(task["engine"] in ("batch", "dual") for task in tasks):
@@ -684,6 +685,7 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
         try:
             from dask.distributed import as_completed
             futures = client.map(run_task, tasks, pure=False)
+            start_work(progress, _runs_at_once(tasks, _cluster_threads(client)))
             index = {f.key: i for i, f in enumerate(futures)}
             try:
                 for fut in as_completed(futures):
@@ -702,16 +704,31 @@ def run_tasks(tasks, scheduler=None, client=None, workers=None, progress=None, m
     if workers == 1 or len(tasks) == 1:
         if meanwhile is not None:
             meanwhile()
+        start_work(progress, _runs_at_once(tasks, 1))
         for i, task in enumerate(tasks):
             finished(i, run_task(task))
         return results
     workers = min(workers, len(tasks))
     pool = thread_pool if all(map(in_kernel, tasks)) else process_pool
+    start_work(progress, _runs_at_once(tasks, workers))
     with pool(workers) as pool:
         for i, res in bounded_map(pool, run_task, tasks, ahead=2 * workers,
                                   meanwhile=meanwhile):
             finished(i, res)
     return results
+
+
+def _runs_at_once(tasks, workers):
+    """Runs the first ``workers`` tasks hold: what ``workers`` run at once."""
+    return sum(len(task["seeds"]) for task in tasks[:max(1, workers)])
+
+
+def _cluster_threads(client):
+    """Tasks a Dask cluster runs at once (its workers' threads; 1 when it cannot tell)."""
+    try:
+        return max(1, sum(client.nthreads().values()))
+    except Exception:  # an older or another client: one at a time
+        return 1
 
 
 def in_kernel(task):
@@ -759,11 +776,15 @@ def bounded_map(pool, fn, items, ahead, meanwhile=None):
             yield pending.pop(fut), fut.result()
 
 
-def _worker_init():
-    """Start of a worker process: Ctrl-C is the parent's to handle (it stops the workers);
-    SIGTERM from the parent removes the FMUs this worker has extracted, then exits at once."""
+def _worker_init(owner=None):
+    """Start of a worker process of the pool that process ``owner`` made: it ends when that
+    process is gone, however it ended (:func:`driftfmu.simulations.lifetime.end_with_parent`);
+    Ctrl-C is the parent's to handle (it stops the workers); SIGTERM from the parent removes
+    the FMUs this worker has extracted, then exits at once."""
     import signal
     import warnings
+    from driftfmu.simulations import lifetime
+    lifetime.end_with_parent(owner)
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, _worker_stop)
     if hasattr(signal, "pthread_sigmask"):  # forked with both blocked (see process_pool)
@@ -792,8 +813,10 @@ def _worker_stop(signum, frame):
 def process_pool(workers, preload="driftfmu.simulations.batch"):
     """A ``ProcessPoolExecutor`` of ``workers`` processes (:func:`mp_context`) that, when the
     block fails or is interrupted (Ctrl-C), cancels what is queued and stops its workers at once
-    instead of waiting for their tasks to finish."""
-    pool = _Pool(max_workers=workers, mp_context=mp_context(preload), initializer=_worker_init)
+    instead of waiting for their tasks to finish.  Its workers end when this process is gone,
+    however it ended (SIGKILL: :mod:`driftfmu.simulations.lifetime`)."""
+    pool = _Pool(max_workers=workers, mp_context=mp_context(preload), initializer=_worker_init,
+                 initargs=(os.getpid(),))
     try:
         yield pool
     except BaseException:
@@ -884,8 +907,24 @@ def mp_context(preload="driftfmu.simulations.batch"):
     if "forkserver" in methods:
         ctx = multiprocessing.get_context("forkserver")
         ctx.set_forkserver_preload([preload])
+        _multiprocessing_folder()
         return ctx
     return multiprocessing.get_context()
+
+
+def _multiprocessing_folder():
+    """multiprocessing's own temporary folder, where the fork server listens (``pymp-*`` in
+    the temporary folder, which a process killed outright leaves for good), made a work folder
+    of driftfmu's (:func:`driftfmu.simulations.folders.make`): removed when this process ends,
+    and by the next run's sweep when it was killed.  Once per process."""
+    import multiprocessing
+    from driftfmu.simulations import folders
+    config = getattr(multiprocessing.process.current_process(), "_config", None)
+    if not isinstance(config, dict) or config.get("tempdir") or folders.fcntl is None:
+        return
+    folder = folders.make("driftfmu_mp_")
+    multiprocessing.util.Finalize(None, folders.remove, args=(folder,), exitpriority=-100)
+    config["tempdir"] = folder
 
 
 def gather(results):

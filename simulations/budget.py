@@ -5,8 +5,12 @@ Size checks before a run starts: memory, disk and time, estimated from the setti
 A run that cannot fit this machine is refused (a usage error, exit 2: one line with the
 estimate, what the machine has, and how to proceed) before anything runs; a long or large one
 is announced on standard error first.  The estimates are per sample (or per run and sample)
-costs measured on the default settings (``per_*`` below), rounded up; they are meant to tell
-a 56 GB run from a 56 MB one, not to be exact.
+costs measured on the default settings (the constants below); memory and disk are rounded up,
+to tell a 56 GB run from a 56 MB one.  Time is the CPU seconds of the work on one core of an
+idle machine (measured by benchmarks/bench_estimates.py, which prints each estimate against
+the run it estimates) spread over the cores the run's workers get on this machine now
+(:func:`cores_for`: a machine busy with other work gives them less), plus the command's own
+start-up and files; the benchmark holds it within a factor of 2 of the run.
 """
 import os
 import shutil
@@ -24,24 +28,30 @@ MONTECARLO_MEMORY = 2 * 7 * 8 + 8
 MONTECARLO_DISK = 7 * 8
 #: Bytes per run of ``--summary-only``'s per-run summaries (6 settling samples, 2 drifts).
 SUMMARY_BYTES = 8 * 8
-#: Seconds per run and sample of the batch engine on one core (measured ~5e-6 under load).
-MONTECARLO_SECONDS = 5e-6
+#: Seconds per run and sample of the batch engine on one core (the compiled kernel, every
+#: trajectory kept, then its percentiles for the figure and montecarlo.npz: ~1.1e-6 measured).
+MONTECARLO_SECONDS = 1e-6
 #: Bytes of memory per run of ``sweep`` (seeds, per-run parameters, the final estimates of each
 #: run gathered and concatenated, the references; measured ~153 over 6 million runs).
 SWEEP_MEMORY = 200
 #: Bytes written per run by ``sweep`` (sweep.npz: 5 or 6 float64 per run).
 SWEEP_DISK = 6 * 8
-#: Seconds per run and sample of ``sweep``'s batch engine on one core (NumPy ~1e-7, the compiled
-#: kernel ~2e-8).
-SWEEP_SECONDS = 1e-7
+#: Seconds per run and sample of ``sweep``'s batch engine on one core (the compiled kernel
+#: ~3.4e-8 measured; NumPy is about ten times slower).
+SWEEP_SECONDS = 1.5e-8
 #: Bytes of memory per sample of one co-simulation (``run``): the recorded columns, the models/
 #: reference run and the comparison (measured ~1.4 kB).
 RUN_MEMORY = 1500
 #: Bytes written per sample by ``run`` (results.csv, 12 columns at 17 significant digits).
 RUN_DISK = 250
-#: Seconds per sample of one co-simulation of the Python FMUs (measured ~1 ms under load; the
-#: native FMUs are faster).
-RUN_SECONDS = 1e-3
+#: Seconds per sample of one co-simulation on one core, by backend: the three FMUs stepped
+#: and recorded and the run checked against models/ (``run``, and each run of the FMU engine
+#: of ``montecarlo`` and ``sweep``; ~6.5e-5 and ~2.4e-5 measured: the check dominates the
+#: native FMUs' time).
+RUN_SECONDS = {"python": 7e-5, "native": 2.5e-5}
+#: Seconds of every command on one core besides its work: Python's start-up and imports, the
+#: figures and files.
+COMMAND_SECONDS = 2.0
 #: Memory that may be planned for: this share of what the machine has available.
 MEMORY_SHARE = 0.8
 #: Announce a run on standard error when it is expected to take longer than this (seconds) or
@@ -107,6 +117,22 @@ def size(n):
     return "%d B" % n
 
 
+def cores_for(workers, load=None):
+    """The cores that ``workers`` busy processes (or threads) of a run get on this machine
+    now: at most one each and at most the machine's, shared evenly among them and the
+    processes that already want a core (``load``: the load average of the last minute, less
+    this command's own process; :func:`os.getloadavg`)."""
+    cores = os.cpu_count() or 1
+    workers = max(1, workers or 1)
+    if load is None:
+        try:
+            load = os.getloadavg()[0]
+        except (OSError, AttributeError):  # no load average (Windows): an idle machine
+            load = 0.0
+    others = max(0.0, load - 1.0)
+    return min(float(workers), float(cores), cores * workers / (others + workers))
+
+
 def duration(seconds):
     """Seconds for people: ``"3 s"``, ``"12 min"``, ``"28 h"``."""
     if seconds < 90:
@@ -114,6 +140,12 @@ def duration(seconds):
     if seconds < 5400:
         return "%.0f min" % (seconds / 60)
     return "%.0f h" % (seconds / 3600)
+
+
+def _plus_command(seconds, command=None):
+    """``seconds`` of work and the command's own (:data:`COMMAND_SECONDS` of one core, on the
+    core this command gets now)."""
+    return seconds + (COMMAND_SECONDS if command is None else command) / cores_for(1)
 
 
 def check(what, memory, disk, seconds, out, proceed, fit=None, announce=True):
@@ -147,6 +179,12 @@ def check(what, memory, disk, seconds, out, proceed, fit=None, announce=True):
     return {"memory": memory, "disk": disk, "seconds": seconds}
 
 
+def parallel(workers, work):
+    """How many workers run at once: ``workers`` (None: one per core), but never more than the
+    ``work`` there is (units that can run side by side: runs, grid points, sets); at least 1."""
+    return max(1, min(workers or os.cpu_count() or 1, work))
+
+
 def _setting(name, value, api):
     """A setting as its caller writes it: ``runs=1000`` (the Python API) or ``--runs 1000``
     (the command line)."""
@@ -161,18 +199,20 @@ def _name(name, api):
 
 
 def check_montecarlo(command, runs, n, workers, out, summary_only=False, api=False,
-                     announce=True):
+                     announce=True, engine="batch", backend="python"):
     """The size check of ``driftfmu montecarlo`` (``api``: of :func:`driftfmu.montecarlo`,
     its settings named as keywords): every trajectory of every run is kept, or
-    (``summary_only``) per-run summaries and the figure's runs' trajectories."""
-    cores = max(1, workers or os.cpu_count() or 1)
+    (``summary_only``) per-run summaries and the figure's runs' trajectories; ``engine`` and
+    ``backend`` (the FMU engine's) for the time."""
+    cores = parallel(workers, runs)
     if api:
         what = "montecarlo(%r, runs=%d, n=%d%s)" % (command, runs, n, ", summary_only=True"
                                                    if summary_only else "")
     else:
         what = "montecarlo %s --runs %d --n %d%s" % (command, runs, n, " --summary-only"
                                                     if summary_only else "")
-    seconds = MONTECARLO_SECONDS * runs * n / cores
+    seconds = _plus_command(_run_seconds(engine, backend, MONTECARLO_SECONDS) * runs * n
+                            / cores_for(cores))
     runs_, n_ = _name("runs", api), _name("n", api)
     if summary_only:
         from driftfmu.simulations.montecarlo import FIGURE_RUNS
@@ -206,12 +246,21 @@ def check_montecarlo(command, runs, n, workers, out, summary_only=False, api=Fal
                  fit, announce=announce)
 
 
-def check_sweep(points, runs, n, workers, out, announce=True, api=False):
+def _run_seconds(engine, backend, batch_seconds):
+    """Seconds per run and sample on one core: ``batch_seconds`` for the batch engine, a
+    co-simulation's (:data:`RUN_SECONDS`) for the FMU engine."""
+    if engine == "fmu":
+        return RUN_SECONDS.get(backend, RUN_SECONDS["python"])
+    return batch_seconds
+
+
+def check_sweep(points, runs, n, workers, out, announce=True, api=False, engine="batch",
+                backend="python"):
     """The size check of ``driftfmu sweep`` (``api``: of :func:`driftfmu.sweep`): ``points``
     grid points of ``runs`` runs of ``n`` samples; each run keeps its final estimates only, so
     the memory grows with the runs, not with ``n``."""
-    cores = max(1, workers or os.cpu_count() or 1)
     total = points * runs
+    cores = parallel(workers, total)
 
     def fit(share):
         if runs * share < 1:
@@ -222,7 +271,8 @@ def check_sweep(points, runs, n, workers, out, announce=True, api=False):
     what = ("sweep(runs=%d, n=%d) of %d grid points" % (runs, n, points) if api
             else "sweep of %d grid points x --runs %d --n %d" % (points, runs, n))
     return check(what, SWEEP_MEMORY * total, SWEEP_DISK * total if out else 0,
-                 SWEEP_SECONDS * total * n / cores, out, "fewer grid points", fit,
+                 _plus_command(_run_seconds(engine, backend, SWEEP_SECONDS) * total * n
+                               / cores_for(cores)), out, "fewer grid points", fit,
                  announce=announce)
 
 
@@ -234,8 +284,9 @@ def check_run(command, n, out, backend="python", api=False, announce=True):
         return "at most %s" % _setting("n", max(1, int(n * share)), api)
     what = "run_%s(n=%d)" % (command, n) if api else "run %s --n %d" % (command, n)
     return check(what, RUN_MEMORY * n, RUN_DISK * n if out else 0,
-                 RUN_SECONDS * n / (20 if backend == "native" else 1), out,
-                 "a smaller %s" % _name("n", api), fit, announce=announce)
+                 _plus_command(RUN_SECONDS.get(backend, RUN_SECONDS["python"]) * n
+                               / cores_for(1)), out, "a smaller %s" % _name("n", api), fit,
+                 announce=announce)
 
 
 #: Bytes a recorded value of :func:`driftfmu.simulate` takes while the master runs (a Python
@@ -264,11 +315,10 @@ ADXL203_MEMORY = 300
 #: Memory of one worker of ``experiment adxl203`` (its Python, NumPy, the FMUs loaded), bytes.
 ADXL203_WORKER_MEMORY = 150e6
 #: Seconds of one worker per co-simulation step of a set of ``experiment adxl203``,
-#: identification and validation included, by backend (measured about 40 us and 1.5 us on a
-#: shared 2-core machine, rounded up), and the command's own seconds (start-up, figures,
-#: files).
-ADXL203_SECONDS = {"python": 5e-5, "native": 2e-6}
-ADXL203_COMMAND_SECONDS = 5.0
+#: identification and validation included, by backend (~1.6e-5 and ~4e-7 measured), and
+#: the command's own seconds on one core (start-up, the two figures, files).
+ADXL203_SECONDS = {"python": 1.4e-5, "native": 5e-7}
+ADXL203_COMMAND_SECONDS = 3.0
 #: Bytes ``experiment adxl203`` writes (tables, summary, figures).
 ADXL203_DISK = 2e6
 
@@ -277,9 +327,8 @@ def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, ann
     """The size check of ``driftfmu experiment adxl203`` (``api``: of
     :func:`driftfmu.experiment_adxl203`): ``sets`` sets of ``n`` samples at each of
     ``freqs`` frequencies, as many at once as there are workers."""
-    cores = max(1, workers or os.cpu_count() or 1)
     total = len(freqs) * sets
-    at_once = min(cores, total)
+    at_once = parallel(workers, total)
 
     def fit(share):
         return "at most %s" % _setting("n", max(1, int(n * share)), api)
@@ -288,8 +337,8 @@ def check_adxl203(freqs, sets, n, workers, out, backend="python", api=False, ann
             else "experiment adxl203 --sets %d --n %d at %s" % (sets, n, at))
     return check(what, (ADXL203_WORKER_MEMORY + ADXL203_MEMORY * n) * at_once,
                  ADXL203_DISK if out else 0,
-                 ADXL203_SECONDS.get(backend, ADXL203_SECONDS["python"]) * total * n / at_once
-                 + ADXL203_COMMAND_SECONDS,
+                 _plus_command(ADXL203_SECONDS.get(backend, ADXL203_SECONDS["python"]) * total
+                               * n / cores_for(at_once), ADXL203_COMMAND_SECONDS),
                  out, "a smaller %s or fewer %s" % (_name("n", api), _name("workers", api)),
                  fit, announce=announce)
 
@@ -301,9 +350,9 @@ DUAL_BATCH_MEMORY = 500
 #: run's recorded columns are kept for the check against models/; measured ~900).
 DUAL_FMU_MEMORY = 1000
 #: Seconds per run and sample of ``experiment dual-axis`` on one core: the FMU engine by
-#: backend (five FMU instances and the check against models/), the batch engine (the compiled
-#: kernel; NumPy is about ten times slower).
-DUAL_SECONDS = {"python": 1.5e-3, "native": 3e-4, "batch": 5e-7}
+#: backend (five FMU instances and the check against models/; ~2e-4 and ~5e-6 measured), the
+#: batch engine (the compiled kernel, ~3.5e-7; NumPy is about ten times slower).
+DUAL_SECONDS = {"python": 2e-4, "native": 1e-5, "batch": 3.5e-7}
 #: Bytes ``experiment dual-axis`` writes (table, summary, figure).
 DUAL_DISK = 1e6
 
@@ -313,11 +362,12 @@ def check_dual_axis(points, runs, n, engine, workers, out, backend="python", api
     """The size check of ``driftfmu experiment dual-axis`` (``api``: of
     :func:`driftfmu.experiment_dual_axis`): two sweeps of ``points`` points of ``runs`` runs of
     ``n`` samples."""
-    cores = max(1, workers or os.cpu_count() or 1)
     total = 2 * points * runs
+    cores = parallel(workers, total)
     memory = DUAL_BATCH_MEMORY * total if engine == "batch" else DUAL_FMU_MEMORY * total * n
     seconds = DUAL_SECONDS.get("batch" if engine == "batch" else backend,
-                               DUAL_SECONDS["python"]) * total * n / cores
+                               DUAL_SECONDS["python"]) * total * n / cores_for(cores)
+    seconds = _plus_command(seconds)
 
     def fit(share):
         if runs * share >= 1:
@@ -356,8 +406,9 @@ def check_identify(files, out, api=False, announce=True):
             pass
     what = ("identify() of %d recording(s), %s of CSV," if api
             else "identify of %d recording(s), %s of CSV,") % (len(files), size(total))
-    return check(what, IDENTIFY_MEMORY * total, 0, IDENTIFY_SECONDS * total, out,
-                 "fewer or shorter recordings", announce=announce)
+    return check(what, IDENTIFY_MEMORY * total, 0, _plus_command(IDENTIFY_SECONDS * total
+                                                                 / cores_for(1)),
+                 out, "fewer or shorter recordings", announce=announce)
 
 
 def check_allan(path, out, api=False, announce=False):
@@ -369,5 +420,6 @@ def check_allan(path, out, api=False, announce=False):
     except (OSError, ValueError):
         total = 0
     what = ("allan() of %s of CSV," if api else "allan of %s of CSV,") % size(total)
-    return check(what, IDENTIFY_MEMORY * total, 0, IDENTIFY_SECONDS * total, out,
-                 "a shorter recording", announce=announce)
+    return check(what, IDENTIFY_MEMORY * total, 0, _plus_command(IDENTIFY_SECONDS * total
+                                                                 / cores_for(1)),
+                 out, "a shorter recording", announce=announce)

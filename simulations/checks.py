@@ -68,8 +68,11 @@ def choice_problem(name, value, allowed):
         return is_integer(value) and value == a
     if any(same(a) for a in allowed):
         return None
-    return "%s = %r is not allowed; allowed: %s" % (name, value,
-                                                   ", ".join(repr(a) for a in allowed))
+    words = [a for a in allowed if isinstance(a, str)]
+    close = difflib.get_close_matches(value, words, n=1) if isinstance(value, str) else []
+    return "%s = %r is not allowed%s; allowed: %s" % (
+        name, value, " (did you mean %r?)" % close[0] if close else "",
+        ", ".join(repr(a) for a in allowed))
 
 
 #: What a drive frequency may be (the upper bound, the Nyquist rate, depends on the sample

@@ -41,13 +41,21 @@ class _Parser(argparse.ArgumentParser):
         super().__init__(*args, **kwargs)
         self._negative_number_matcher = self.NEGATIVE_NUMBER
 
+    #: The parser (this one or a sub-command's) that parsed last: the one whose options an
+    #: unrecognised option was meant for.
+    _last = None
+
+    def parse_known_args(self, args=None, namespace=None):
+        _Parser._last = self  # a sub-command's parser is entered after its parents
+        return super().parse_known_args(args, namespace)
+
     def error(self, message):
         choices = self.command_choices()
         if choices and message.startswith("the following arguments are required"):
             # a bare ``driftfmu`` or ``driftfmu run``: the usage and the list of commands
             self.print_help(sys.stderr)
             message = "%s needs one of: %s" % (self.prog, ", ".join(choices))
-        self.exit(EXIT_USAGE, "%s: error: %s\n" % (self.prog.split()[0], message))
+        self.exit(EXIT_USAGE, "%s: error: %s\n" % (self.prog.split()[0], _close(message)))
 
     def command_choices(self):
         """The names of this parser's sub-commands (empty when it has none)."""
@@ -55,6 +63,31 @@ class _Parser(argparse.ArgumentParser):
             if isinstance(action, argparse._SubParsersAction):
                 return list(action.choices)
         return []
+
+
+def _close(message):
+    """argparse's ``message`` with the name meant, as the API's keywords have it: ``invalid
+    choice: 'gausian' (choose from ...)`` and ``unrecognized arguments: --a22 1`` get "(did
+    you mean ...?)" where a choice or an option of the command is close."""
+    import difflib
+    m = re.search(r"invalid choice: '([^']*)' \(choose from (.*)\)$", message)
+    if m:
+        offered = [c.strip().strip("'\"") for c in m.group(2).split(",")]
+        close = difflib.get_close_matches(m.group(1), offered, n=1)
+        return message + (" (did you mean %r?)" % close[0] if close else "")
+    m = re.match(r"unrecognized arguments: (.*)$", message)
+    if m and _Parser._last is not None:
+        options = [o for a in _Parser._last._actions for o in a.option_strings]
+        meant = []
+        for word in m.group(1).split():
+            name = word.split("=", 1)[0]
+            close = difflib.get_close_matches(name, options, n=1) if name.startswith("-") \
+                else []
+            if close:
+                meant.append("%s for %s" % (close[0], name))
+        if meant:
+            return message + " (did you mean %s?)" % ", ".join(meant)
+    return message
 
 
 def param_type(name):
@@ -105,17 +138,21 @@ FIRST_LINE = 3.0
 
 class Progress:
     """What a run calls as it goes: ``update(done)`` with the units done so far in the
-    current phase, and ``update.phase(desc, total, unit)`` when a new phase starts (for
-    example the validation after the runs), so that no long phase sits at 100 %.
+    current phase, ``update.phase(desc, total, unit)`` when a new phase starts (for example
+    the validation after the runs), so that no long phase sits at 100 %, and
+    ``update.work(at_once)`` (:func:`start_work`) when the phase's work starts after its
+    set-up (FMUs built, workers started), ``at_once`` units at a time.
 
     On a terminal a tqdm bar; otherwise plain lines on standard error
-    (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left``): the first
-    at the first update from :data:`FIRST_LINE` seconds into a phase that looks long (more than
-    ``every`` seconds to go at its pace), so that a long run shows within seconds that it runs
-    and how long it will take, then one every ``every`` seconds; a short phase stays silent.
-    The time left is the rate since the phase's first update that reported work done, so what
-    came before it (building the FMUs, starting workers) does not count as that work; a line
-    before a second such update has no estimate.
+    (``driftfmu: progress: <phase> 45 % (450/1000 runs), 12 s, about 15 s left at this pace``):
+    the first at the first update from :data:`FIRST_LINE` seconds into a phase that looks long
+    (more than ``every`` seconds to go at its pace), so that a long run shows within seconds
+    that it runs and how long it will take, then one every ``every`` seconds; a short phase
+    stays silent.  The time left (:meth:`left`) is an estimate from the work done so far: the
+    pace since the work started, so what came before it (building the FMUs, starting
+    workers) does not count as that work, and while fewer units are done than run at once,
+    the first ones done count for all that run beside them.  Every line with work done and
+    work left says it.
     """
 
     def __init__(self, total, desc, unit, bar=None, every=PROGRESS_EVERY, stream=None,
@@ -124,7 +161,8 @@ class Progress:
         self.every, self.stream, self.clock = every, stream or sys.stderr, clock
         self.done = 0
         self.started = self.phase_started = self.last = clock()
-        self.first = None  # (time, done) of the phase's first update with done > 0
+        self.work_started = self.phase_started  # the pace counts from here
+        self.at_once = 1
         self.spoke = False  # a line of this phase written
 
     def __call__(self, done):
@@ -133,29 +171,39 @@ class Progress:
             self.bar.update(done - self.bar.n)
             return
         now = self.clock()
-        if self.first is None and done > 0:
-            self.first = (now, done)
-        if now - self.last >= self.every or self._early(now, done):
+        if now - self.last >= self.every or self._early(now):
             self.last = now
             self.spoke = True
             self.write(now)
 
-    def _early(self, now, done):
+    def _early(self, now):
         """The phase's first line, before its first interval: from ``FIRST_LINE`` seconds on,
         when the rest of the phase looks longer than an interval."""
-        elapsed = now - self.phase_started
-        if self.spoke or self.first is None or not 0 < done < (self.total or 0) \
-                or elapsed < min(FIRST_LINE, self.every):
+        if self.spoke or now - self.phase_started < min(FIRST_LINE, self.every):
             return False
-        t0, done0 = self.first if done > self.first[1] else (self.phase_started, 0)
-        return (now - t0) * (self.total - done) / (done - done0) > self.every
+        left = self.left(now)
+        return left is not None and left > self.every
+
+    def left(self, now):
+        """Seconds left at the pace of the work done so far (an estimate); None before any
+        unit is done, and once all are."""
+        if not 0 < self.done < (self.total or 0):
+            return None
+        return (max(0.0, now - self.work_started) * (self.total - self.done)
+                / max(self.done, min(self.at_once, self.total)))
+
+    def work(self, at_once=1):
+        """The current phase's work starts now (its set-up is over), ``at_once`` units at a
+        time (the workers, or the runs of a chunk times the workers)."""
+        self.work_started = self.clock()
+        self.at_once = max(1, int(at_once))
 
     def phase(self, desc, total, unit=None):
         """Start a new phase of ``total`` units (``unit``: the last one's by default)."""
         self.desc, self.total, self.unit = desc, total, unit or self.unit
         self.done = 0
-        self.phase_started = self.clock()
-        self.first = None
+        self.phase_started = self.work_started = self.clock()
+        self.at_once = 1
         self.spoke = False
         if self.bar is not None:
             self.bar.reset(total=total)
@@ -172,10 +220,9 @@ class Progress:
             line += " %.0f %% (%d/%d %ss)" % (100.0 * self.done / self.total, self.done,
                                               self.total, self.unit)
         line += ", %s" % _seconds(elapsed)
-        if self.total and self.first is not None and self.first[1] < self.done < self.total:
-            t0, done0 = self.first
-            line += ", about %s left" % _seconds(
-                (now - t0) * (self.total - self.done) / (self.done - done0))
+        left = self.left(now)
+        if left is not None:
+            line += ", about %s left at this pace" % _seconds(left)
         self.stream.write(line + "\n")
         self.stream.flush()
 
@@ -216,6 +263,15 @@ def start_phase(progress, desc, total, unit=None):
         phase(desc, total, unit)
 
 
+def start_work(progress, at_once=1):
+    """Tell ``progress`` (a :class:`Progress`, any callable, or None) that the current phase's
+    work starts now, ``at_once`` units at a time: its estimate of the time left counts from
+    here (:meth:`Progress.left`)."""
+    work = getattr(progress, "work", None)
+    if work is not None:
+        work(at_once)
+
+
 def cmd_build(args):
     """``driftfmu build``: :func:`driftfmu.build_fmus` for the Python FMUs, then (``--native``)
     for the native FMUs of both FMI versions.  The cross-check folders hold the native FMUs when
@@ -223,9 +279,10 @@ def cmd_build(args):
     import driftfmu
     from driftfmu.fmu_src import native_build
     from driftfmu.simulations.output import Staging
+    start = start_values(args.start_values)
     if not (args.native or args.backend == "native"):  # one call, all or nothing by itself
         driftfmu.build_fmus(args.out, log=build_log,  # logs one line per FMU
-                            cross_check=args.cross_check, ssp=args.ssp)
+                            cross_check=args.cross_check, ssp=args.ssp, start_values=start)
         return
     # two calls, all the outputs of both or none: they write to staged stand-ins, moved into
     # place only once both have succeeded (with --backend python the first call writes the
@@ -235,12 +292,33 @@ def cmd_build(args):
         cross_check = args.cross_check and staging.path(args.cross_check)
         ssp = args.ssp and staging.path(args.ssp, folder=False)
         log = staging.log(build_log)
+        python_ssp = args.backend == "python"
         driftfmu.build_fmus(out, log=log, cross_check=None,
-                            ssp=ssp if args.backend == "python" else None)
+                            ssp=ssp if python_ssp else None,
+                            start_values=start if python_ssp else None)
         driftfmu.build_fmus(out, backend="native", fmi_version=(2, 3), log=log,
                             cross_check=cross_check,
-                            ssp=ssp if args.backend == "native" else None,
+                            ssp=ssp if not python_ssp else None,
+                            start_values=start if not python_ssp else None,
                             cache=None if args.no_cache else native_build.user_cache())
+
+
+def start_values(pairs):
+    """``--start-values NAME VALUE ...`` as a dict (None when not given): a value that reads
+    as an integer is one, else a float; text that is no number stays text, for the check that
+    names it."""
+    if pairs is None:
+        return None
+    out = {}
+    for name, text in zip(pairs[::2], pairs[1::2]):
+        try:
+            out[name] = int(text)
+        except ValueError:
+            try:
+                out[name] = float(text)
+            except ValueError:
+                out[name] = text
+    return out
 
 
 def build_log(line):
@@ -265,6 +343,8 @@ def check_build_args(args):
         problem = native_build.compiler_problem("linux64")
         if problem:
             raise UsageError("build --native needs a C compiler: %s" % problem)
+        if not args.no_cache:  # a cache another user could change is refused before the build
+            native_build.open_cache(native_build.user_cache())
     if args.ssp:
         ssp = Path(args.ssp)
         if ssp.is_dir():
@@ -272,6 +352,16 @@ def check_build_args(args):
                              % ssp)
         if ssp.exists() and not args.force:
             raise UsageError("--ssp %s exists; add --force to replace it" % ssp)
+    if args.start_values is not None:
+        if not args.ssp:
+            raise UsageError("--start-values sets the SSP archive's parameter values; allowed: "
+                             "--start-values with --ssp")
+        if len(args.start_values) % 2:
+            raise UsageError("--start-values %s: a name without a value; allowed: pairs NAME "
+                             "VALUE, e.g. --start-values a2 0.02 seed 7"
+                             % " ".join(args.start_values))
+        from driftfmu.fmu_src.ssp import parameter_values
+        parameter_values(start_values(args.start_values))  # refused before anything is built
 
 
 #: The sensor's slow errors, tilt, temperature, range and ADC (issue 42, docs/method.md
@@ -348,12 +438,19 @@ def make_parser():
     p.add_argument("--ssp", nargs="?", const="build/DriftChain.ssp", default=None,
                    metavar="FILE", help="also write the wired chain as an SSP archive "
                    "(default: build/DriftChain.ssp); an existing FILE is kept unless --force")
+    p.add_argument("--start-values", nargs="+", default=None, metavar="NAME VALUE",
+                   help="with --ssp: the parameter values the archive carries as its parameter "
+                   "sets (resources/<Component>.ssv), pairs of a name and a value, e.g. "
+                   "--start-values a2 0.02 seed 7; a plain name sets the parameter in every "
+                   "component that has it, Accelerometer.a2 in one (default: the FMUs' "
+                   "defaults)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing --ssp FILE")
     p.add_argument("--native", action="store_true",
                    help="also build the native (C) twins of the FMUs, FMI 2.0 and FMI 3.0 source "
                    "FMUs with binaries for Linux, Windows and macOS on x86-64 and aarch64 (those "
-                   "with a compiler here: gcc, mingw-w64, zig), as DIR/native/fmi2/<Name>.fmu, "
+                   "with a compiler here: gcc, mingw-w64, or zig for all of them, which the "
+                   "extra driftfmu[native] installs), as DIR/native/fmi2/<Name>.fmu, "
                    "DIR/native/fmi2-aarch64/<Name>.fmu (FMI 2.0 for ARM Linux and Windows) and "
                    "DIR/native/fmi3/<Name>.fmu (validated with fmpy); see docs/platforms.md")
     add_backend(p, what="the FMUs of the cross-check artifacts and the SSP export: python, or "
@@ -399,7 +496,8 @@ def add_out(parser, default):
 def add_fmu_dir(parser):
     """The common ``--fmu-dir DIR`` option."""
     parser.add_argument("--fmu-dir", default="build/fmus", metavar="DIR",
-                        help="folder of the FMUs, built there if missing (default: build/fmus)")
+                        help="folder of the FMUs, built there if missing when it holds no "
+                             "other files (default: build/fmus)")
 
 
 #: The FMUs a run can use (``--backend``).
@@ -436,7 +534,8 @@ def check_out(args):
 def check_folder(option, value, what="", writable=True):
     """Usage error unless ``value`` names a folder that exists and can be written to, or that
     can be created: its nearest existing parent is a folder this process can write to (tried
-    with a temporary folder, so it holds for root and for read-only file systems alike).  With
+    with a staging folder made and removed there, :func:`driftfmu.simulations.output.probe`,
+    so it holds for root and for read-only file systems alike).  With
     ``writable=False`` only an empty path and a file where the folder or a parent should be."""
     if not value.strip():
         raise UsageError("%s %r is empty; allowed: a folder path, e.g. results/run1"
@@ -452,9 +551,9 @@ def check_folder(option, value, what="", writable=True):
                          % (option, value, parent))
     if not writable:
         return
-    import tempfile
+    from driftfmu.simulations.output import probe
     try:
-        os.rmdir(tempfile.mkdtemp(prefix=".driftfmu-write-test-", dir=parent))
+        probe(parent)  # (killed meanwhile: a staging folder, which the next run removes)
     except OSError as exc:
         raise UsageError("%s %s cannot be written: no folder can be made in %s%s (%s); "
                          "allowed: a folder you can write to" % (
@@ -542,7 +641,54 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
     sys.stderr.write("driftfmu: warning: %s\n" % first_line(message))
 
 
+class ReportLost(Exception):
+    """Writing to standard output failed (the OSError is the cause)."""
+
+
+class _Report:
+    """Standard output while a command runs: an error writing to it is a :class:`ReportLost`,
+    told apart from an error writing the results."""
+
+    def __init__(self, stream):
+        self._stream = stream
+
+    def write(self, text):
+        try:
+            return self._stream.write(text)
+        except OSError as exc:
+            raise ReportLost(exc) from exc
+
+    def flush(self):
+        try:
+            return self._stream.flush()
+        except OSError as exc:
+            raise ReportLost(exc) from exc
+
+    def __getattr__(self, name):
+        return getattr(self._stream, name)
+
+
 def _main(argv, previous):
+    from driftfmu.simulations import output
+    commits = output.COMMITS[0]
+    stdout = sys.stdout
+    sys.stdout = _Report(stdout)
+    try:
+        return _command(argv, previous)
+    except ReportLost as exc:
+        # the report of the run is lost; the exit status says what happened to the results
+        reason = first_line(exc.__cause__)
+        if output.COMMITS[0] > commits:
+            sys.stderr.write("driftfmu: warning: standard output: %s; the results are in place "
+                             "(this report of them is lost)\n" % reason)
+            return 0
+        sys.stderr.write("driftfmu: error: standard output: %s\n" % reason)
+        return EXIT_FAILED
+    finally:
+        sys.stdout = stdout
+
+
+def _command(argv, previous):
     try:
         parser = make_parser()  # imports NumPy, matplotlib's helpers, the plugins
         for signum in previous:
@@ -557,8 +703,11 @@ def _main(argv, previous):
         except UsageError as exc:
             parser.error(first_line(exc))
         args.func(args)
+        sys.stdout.flush()  # the report's last lines: an error writing them is told here
     except KeyboardInterrupt:
         return _main_interrupted()
+    except ReportLost:
+        raise
     except Exception as exc:  # one readable line, not a traceback
         if _interrupted:  # whatever the interrupted code raised on its way out
             return _main_interrupted()

@@ -27,7 +27,6 @@ from fmpy.fmi1 import FMICallException
 from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
     fmi2CallbackAllocateMemoryTYPE, fmi2CallbackFreeMemoryTYPE, calloc, free
 
-from driftfmu.fmu_src import schemas
 from driftfmu.simulations import folders
 from driftfmu.simulations.errors import UsageError
 
@@ -221,14 +220,38 @@ def free_all(insts):
 _STATUS = {0: "ok", 1: "warning", 2: "discard", 3: "error", 4: "fatal", 5: "pending"}
 
 
+def checked_fmu(path, validate=True):
+    """fmpy's model description of the FMU at ``path`` once the file holds what a master relies
+    on (:func:`driftfmu.simulations.fmucheck.check_fmu`; a file that is no zip archive at all
+    named as :func:`check_fmu_file` names it)."""
+    from driftfmu.simulations import fmucheck
+    check_fmu_file(path)
+    return fmucheck.check_fmu(path, expected=fmucheck.expected_model(path), validate=validate)
+
+
+def not_instantiated(path, exc, messages):
+    """The FileProblem of an FMU at ``path`` whose library did not load or whose instantiation
+    failed (``exc``), with the reason the FMU logged (``messages``, the ``Instance`` log's
+    lines) or the loader gave: a GUID that does not match the binary's, a library of another
+    platform, no libpython for a Python FMU."""
+    from driftfmu.simulations.errors import FileProblem
+    errors = [m.partition("] ")[2] for m in messages if " [error] " in m or " [fatal] " in m]
+    reason = errors[-1] if errors else (exc.strerror if isinstance(exc, OSError) and
+                                        exc.strerror else str(exc).strip() or
+                                        type(exc).__name__)
+    return FileProblem("%s: the FMU could not be instantiated on this host: %s; expected: an "
+                       "FMU whose model description and binary come from one build (driftfmu "
+                       "doctor %s says more)" % (path, reason.splitlines()[0], path))
+
+
 class Instance:
     """One FMU instance in the master: the fmpy slave, its value references and its log."""
 
     def __init__(self, name, path, logging_on=False):
+        from driftfmu.simulations import fmucheck
         self.name = name
         self.path = str(path)
-        check_fmu_file(self.path)
-        self.md = schemas.read_model_description(self.path)
+        self.md = checked_fmu(self.path)
         self.unzipdir = _extract(self.path)
         self.vrs = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
@@ -238,13 +261,18 @@ class Instance:
         self._callbacks.allocateMemory = fmi2CallbackAllocateMemoryTYPE(calloc)
         self._callbacks.freeMemory = fmi2CallbackFreeMemoryTYPE(free)
         try:
-            if self.md.fmiVersion.startswith("3"):
-                self.fmu = Fmi3Slave(self, name, logging_on)
-                return
-            self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
-                                 modelIdentifier=self.md.coSimulation.modelIdentifier,
-                                 instanceName=name)
-            self.fmu.instantiate(callbacks=self._callbacks, loggingOn=logging_on)
+            # before the library is loaded: a cut one would stop this process with SIGBUS
+            fmucheck.check_binaries(self.path, self.unzipdir, self.md)
+            try:
+                if self.md.fmiVersion.startswith("3"):
+                    self.fmu = Fmi3Slave(self, name, logging_on)
+                    return
+                self.fmu = FMU2Slave(guid=self.md.guid, unzipDirectory=self.unzipdir,
+                                     modelIdentifier=self.md.coSimulation.modelIdentifier,
+                                     instanceName=name)
+                self.fmu.instantiate(callbacks=self._callbacks, loggingOn=logging_on)
+            except Exception as exc:  # (fmpy's "Failed to instantiate model", an OSError)
+                raise not_instantiated(self.path, exc, self.messages) from exc
         except BaseException:
             _remove(self.unzipdir)
             raise
@@ -443,6 +471,8 @@ def _cosimulate(fmus, connections, n_steps, step_size, start_values, record, sta
             inst.fmu.exitInitializationMode()
         every = max(1, n_steps // 100)
         t = start_time
+        from driftfmu.simulations.cli import start_work
+        start_work(progress)  # the FMUs are loaded: the steps' pace counts from here
         for i in range(n_steps):
             check()
             if i:

@@ -1,15 +1,23 @@
 """Internal (not a stable API; use the command driftfmu doctor instead).
 
-``driftfmu doctor FMU``: will this FMU run on this host, and if not, why.
+``driftfmu doctor FMU``: will this FMU (or SSP archive) run on this host, and if not, why.
 
-It reads the FMU (model description, the build record the driftfmu builder leaves in
-``resources/driftfmu_build.json``, the binary for this platform, the bundled Python code) and
-checks, in plain words: is there a binary for this platform; which libpython it needs and which
-ones this host's loader can find; which Python version the bundled code was built with; which
-modules that code imports, and whether each is in the standard library or bundled.  Finally it
-loads and instantiates the FMU in a separate process, so a crash cannot take this one down.
+It reads the FMU (the archive by its declared sizes, every member streamed and its CRC
+checked; the model description, against driftfmu's table of the model when it is one of
+driftfmu's, and every start value against its declared range; the build record the driftfmu
+builder leaves in ``resources/driftfmu_build.json``; the binaries for this platform, each a
+whole library of this platform's format; the bundled Python code) and checks, in plain words:
+is there a binary for this platform; which libpython it needs and which ones this host's loader
+can find; which Python version the bundled code was built with; which modules that code
+imports, and whether each is in the standard library or bundled.  A line says what was
+checked.  Finally it loads and instantiates the FMU in a separate process, so a crash cannot
+take this one down.  An SSP archive gets the checks of driftfmu's SSP runner (its system
+structure, each parameter by component and name, each connection) and each of its FMUs the
+checks of an FMU.  Nothing is read whole beyond the bounds of
+:mod:`driftfmu.simulations.fmucheck`, so a zip bomb is refused by what it declares.
 """
 import ast
+import functools
 import json
 import platform
 import struct
@@ -17,8 +25,9 @@ import subprocess
 import sys
 import sysconfig
 import zipfile
-import zlib
 from pathlib import Path
+
+from driftfmu.simulations import lifetime
 
 OK, WARN, FAIL = "ok", "warning", "problem"
 #: The line of an FMU whose binary for this platform cannot load here (named by a problem
@@ -37,14 +46,21 @@ def _platform_dir(fmi_version="2.0"):
         platform.system(), "unknown") + bits
 
 
-def _architecture(data, binary, fmi_version):
-    """(status, line) on whether ``binary`` is built for this machine's processor: FMI 2.0's
-    folders name no architecture (linux64 serves x86-64 and aarch64 alike, docs/platforms.md)."""
+def _architecture(zf, binary, fmi_version):
+    """(status, line) on whether ``binary`` (a member of the archive ``zf``) is built for this
+    machine's processor: FMI 2.0's folders name no architecture (linux64 serves x86-64 and
+    aarch64 alike, docs/platforms.md).  Read whole only within the bound of what is read
+    whole (fmucheck.MAX_READ), else by its headers."""
     from driftfmu.fmu_src import binaries
-    machine = {"amd64": "x86_64", "arm64": "aarch64"}.get(platform.machine().lower(),
-                                                          platform.machine().lower())
+    from driftfmu.simulations import fmucheck
+    machine = fmucheck.MACHINE
+    if zf.getinfo(binary).file_size > fmucheck.MAX_READ:
+        why = fmucheck.member_binary_problem(zf, binary)
+        if why is None:
+            return OK, "it has a binary for this platform (%s, %s)" % (binary, machine)
+        return FAIL, "%s is not for this machine: %s" % (binary, why)
     try:
-        archs = [lib.arch for lib in binaries.inspect(data)]
+        archs = [lib.arch for lib in binaries.inspect(zf.read(binary))]
     except (binaries.BinaryFormatError, struct.error, ValueError, IndexError) as exc:
         return WARN, "it has %s, which could not be read (%s)" % (binary, exc)
     if machine in archs:
@@ -78,10 +94,12 @@ def _imports(source):
     return eager, lazy - eager
 
 
+@functools.lru_cache(maxsize=None)
 def _loadable(soname):
-    """True when the dynamic loader of this host finds and loads ``soname``."""
+    """True when the dynamic loader of this host finds and loads ``soname`` (asked once per
+    process: an SSP's FMUs ask alike)."""
     code = "import ctypes,sys; ctypes.CDLL(sys.argv[1])"
-    return subprocess.run([sys.executable, "-c", code, soname], capture_output=True,
+    return lifetime.run([sys.executable, "-c", code, soname], capture_output=True,
                           timeout=30).returncode == 0
 
 
@@ -92,7 +110,10 @@ def _libpython_candidates(record):
 
 
 def diagnose(fmu):
-    """List of ``(level, message)`` about running ``fmu`` on this host."""
+    """List of ``(level, message)`` about running ``fmu`` (an FMU, or an SSP archive) on this
+    host; the last but one line says what was checked."""
+    from driftfmu.simulations import fmucheck
+    from driftfmu.simulations.errors import FileProblem
     fmu = Path(fmu)
     out = []
     if fmu.is_dir():
@@ -102,23 +123,34 @@ def diagnose(fmu):
         return [(FAIL, "%s does not exist or is not a file" % fmu)]
     try:
         zf = zipfile.ZipFile(fmu)
-    except zipfile.BadZipFile:
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, ValueError, OSError):
         return [(FAIL, "%s is not an FMU: not a zip archive" % fmu)]
-    bad = None
-    for info in zf.infolist():  # every entry read, its CRC checked: named here, not a crash
-        try:
-            zf.read(info)
-        except (zipfile.BadZipFile, zlib.error, EOFError, OSError, NotImplementedError) as exc:
-            bad = "%s (%s)" % (info.filename, exc)
-            break
-    if bad is not None:
-        return [(FAIL, "%s is damaged: %s cannot be read from the zip archive; rebuild it "
-                       "(driftfmu build) or copy it again" % (fmu, bad))]
-    names = set(zf.namelist())
-    if "modelDescription.xml" not in names:
-        return [(FAIL, "%s has no modelDescription.xml" % fmu)]
+    with zf:
+        names = set(zf.namelist())
+        # by the central directory first: a zip bomb is refused before a byte is inflated
+        problem = fmucheck.archive_problem(fmu, zf)
+        if problem:
+            return [(FAIL, problem)]
+        if "modelDescription.xml" not in names and "SystemStructure.ssd" in names:
+            return diagnose_ssp(fmu)
+        for info in zf.infolist():  # every entry read (streamed), its CRC checked
+            error = fmucheck.member_error(zf, info.filename)
+            if error:
+                return [(FAIL, "%s is damaged: %s (%s) cannot be read from the zip archive; "
+                               "rebuild it (driftfmu build) or copy it again"
+                         % (fmu, info.filename, error))]
+        if "modelDescription.xml" not in names:
+            return [(FAIL, "%s has no modelDescription.xml" % fmu)]
+        return _diagnose_fmu(fmu, zf, names, out)
+
+
+def _diagnose_fmu(fmu, zf, names, out):
     from driftfmu.fmu_src.schemas import read_model_description
+    from driftfmu.simulations import fmucheck
+    from driftfmu.simulations.errors import FileProblem
     try:
+        desc = fmucheck.parse_description(fmu, fmucheck.read_member(fmu, zf,
+                                                                    "modelDescription.xml"))
         md = read_model_description(str(fmu))
     except Exception as exc:  # an XML parser's or fmpy's validation message
         # (fmpy's ValidationError says only "Failed to validate modelDescription.xml:" and
@@ -126,42 +158,91 @@ def diagnose(fmu):
         problems = [str(p).strip() for p in getattr(exc, "problems", None) or []]
         text = "; ".join(problems) or \
             (str(exc).strip().splitlines() or [type(exc).__name__])[0]
+        if isinstance(exc, FileProblem):
+            text = text.split(": modelDescription.xml: ", 1)[-1]
         return [(FAIL, "its modelDescription.xml cannot be read (%s): the FMU is damaged, was "
                        "edited or does not follow the FMI standard; a host cannot even learn "
                        "its variables. If it is one of driftfmu's FMUs, rebuild it "
                        "(driftfmu build)" % text)]
     if md.coSimulation is None:
         return [(FAIL, "the FMU has no co-simulation interface")]
-    ident = md.coSimulation.modelIdentifier
     out.append((OK, "FMI %s co-simulation FMU '%s' (%s)" % (md.fmiVersion, md.modelName,
                                                           md.generationTool)))
+    checked = ["the archive (%d members, their declared sizes within %s each and %s in all, "
+               "every member read and its CRC checked)" % (
+                   len(names), fmucheck.size_text(fmucheck.MAX_MEMBER),
+                   fmucheck.size_text(fmucheck.MAX_ARCHIVE))]
+    found = fmucheck.table_problems(desc)
+    model = fmucheck.ours(desc)
+    expected = fmucheck.expected_model(fmu)
+    if model is None and expected is not None and desc.model != expected:
+        out.append((FAIL, "it is an FMU of the model %r, not driftfmu's %s that its file's name "
+                          "says; driftfmu's masters refuse it under this name" % (desc.model,
+                                                                                 expected)))
+    if model is not None:
+        checked.append("the model description against driftfmu's %s table (%d variables: "
+                       "names, value references, types, causality, variability, start "
+                       "values, min and max; the modelName and modelIdentifier)"
+                       % (model, len(fmucheck.table(model))))
+        if found:
+            what, want = found[0]
+            out.append((FAIL, "its modelDescription.xml is not driftfmu's %s as its code "
+                              "runs: %s; expected: %s%s. A host would be silently wrong; "
+                              "rebuild the FMU (driftfmu build)" % (
+                                  model, what, want, " (and %d more difference%s)" % (
+                                      len(found) - 1, "s" * (len(found) > 2))
+                                  if len(found) > 1 else "")))
+        else:
+            out.append((OK, "its model description is driftfmu's %s table: every variable's "
+                            "name, value reference, type, causality and start value"
+                        % model))
+    checked.append("every start value against its declared min and max")
+    for what, want in fmucheck.range_problems(desc)[:1]:
+        out.append((FAIL, "its modelDescription.xml gives %s; expected: %s. A host would "
+                          "start the FMU outside what it declares" % (what[4:], want)))
     plat = _platform_dir(md.fmiVersion)
     ext = {"Linux": ".so", "Darwin": ".dylib", "Windows": ".dll"}.get(platform.system(), ".so")
-    binary = "binaries/%s/%s%s" % (plat, ident, ext)
-    present = sorted({n.split("/")[1] for n in names if n.startswith("binaries/") and
-                      n.count("/") >= 2})
+    binary = "binaries/%s/%s%s" % (plat, desc.identifier, ext)
     loadable = False  # a binary for this platform, whole, for this machine's architecture
-    if binary in names:
-        damaged = [(b, why) for b in sorted(n for n in names if n.startswith(
-            "binaries/%s/" % plat) and n.endswith(ext)) for why in [
-                _binary_problem(zf.read(b), zf.getinfo(b).file_size)] if why]
+    missing = fmucheck.binary_presence_problem(fmu, desc, names)
+    if missing is None:
+        libraries = sorted(n for n in names if n.startswith("binaries/%s/" % plat)
+                           and n.endswith(ext))
+        checked.append("%s (each a whole shared library of this platform's format: its "
+                       "headers, segments and sections inside the file)"
+                       % ", ".join(libraries))
+        damaged = [(b, why) for b in libraries for why in [
+            fmucheck.member_binary_problem(zf, b, machine="any")] if why]
         if damaged:
             for b, why in damaged:
                 out.append((FAIL, "its binary %s is damaged: %s; no host can load it. "
                                   "Rebuild the FMU (driftfmu build)" % (b, why)))
         else:
-            out.append(_architecture(zf.read(binary), binary, md.fmiVersion))
+            out.append(_architecture(zf, binary, md.fmiVersion))
             loadable = out[-1][0] != FAIL
     else:
-        out.append((FAIL, "it has no binary for this platform (%s); it has: %s"
-                    % (plat, ", ".join(present) or "none")))
+        out.append((FAIL, "%s; expected: %s" % missing))
+    out.extend(_python_findings(fmu, zf, names, md, checked))
+    out.append((OK, "checked: " + "; ".join(checked)))
+    out.append(_try_instantiate(fmu, md.fmiVersion) if loadable else NOT_TRIED)
+    return out
+
+
+def _python_findings(fmu, zf, names, md, checked):
+    """The lines on what a Python FMU needs on a host (build record, libpython, its code's
+    imports); a native FMU's one line."""
+    from driftfmu.simulations import fmucheck
+    out = []
     record = {}
     python_fmu = "pythonfmu" in (md.generationTool or "").lower() or any(
         n.endswith(("_pythonfmu.so", "_pythonfmu.dll", "_pythonfmu.dylib")) for n in names)
     if "resources/driftfmu_build.json" in names:
         try:
-            record = json.loads(zf.read("resources/driftfmu_build.json"))
+            record = json.loads(fmucheck.read_member(fmu, zf, "resources/driftfmu_build.json"))
+            if not isinstance(record, dict):
+                raise ValueError("not a JSON object")
         except ValueError as exc:
+            record = {}
             out.append((FAIL, "resources/driftfmu_build.json is not valid JSON (%s): the "
                               "loader cannot learn which libpython to load. Rebuild the FMU "
                               "(driftfmu build)" % exc))
@@ -194,7 +275,6 @@ def diagnose(fmu):
         if "sources/" in {n[:8] for n in names}:
             out.append((OK, "a native FMU (no Python inside): a host needs no libpython; it is "
                             "also a source FMU (sources/) for platforms without a binary"))
-        out.append(_try_instantiate(fmu, md.fmiVersion) if loadable else NOT_TRIED)
         return out
     # libpython for hosts that are not Python
     found = [s for s in _libpython_candidates(record) if _loadable(s)]
@@ -213,12 +293,16 @@ def diagnose(fmu):
     eager, lazy = set(), set()
     for n in pyfiles:
         try:
-            e, l = _imports(zf.read(n).decode("utf-8"))
-        except SyntaxError as exc:
+            e, l = _imports(fmucheck.read_member(fmu, zf, n).decode("utf-8"))
+        except (SyntaxError, ValueError) as exc:
             out.append((FAIL, "%s does not parse on Python %s: %s" % (n, host_py, exc)))
+            continue
+        except fmucheck.FileProblem as exc:
+            out.append((FAIL, str(exc)))
             continue
         eager |= e
         lazy |= l
+    checked.append("the bundled code's imports (%d modules)" % len(pyfiles))
     stdlib = _stdlib_names() | {"__future__"}
     foreign = sorted(m for m in eager if m not in bundled and m not in stdlib)
     optional = sorted(m for m in lazy - eager if m not in bundled and m not in stdlib)
@@ -235,37 +319,41 @@ def diagnose(fmu):
     if optional:
         out.append((OK, "imported only inside functions that the FMU does not call: %s "
                         "(not needed)" % ", ".join(optional)))
-    out.append(_try_instantiate(fmu) if loadable else NOT_TRIED)
+    return out
+
+
+def diagnose_ssp(ssp):
+    """List of ``(level, message)`` about running the SSP archive ``ssp`` on this host: the
+    system structure, each parameter by component and name, each connection, and each
+    component's FMU diagnosed as an FMU (its lines prefixed with its member's name)."""
+    from driftfmu.simulations import fmucheck, folders
+    from driftfmu.simulations.errors import FileProblem
+    out = []
+    with folders.temporary("driftfmu_doctor_") as folder:
+        try:
+            problems, checked, fmus = fmucheck.inspect_ssp(ssp, folder)
+        except FileProblem as exc:
+            return [(FAIL, str(exc))]
+        out.append((OK, "an SSP archive with %d components: %s" % (
+            len(fmus), ", ".join("%s (%s)" % (c, m) for c, (m, _) in fmus.items()))))
+        for problem in problems:
+            if ": resources/" not in problem.split(";")[0] or "SystemStructure.ssd" in \
+                    problem.split(";")[0]:
+                out.append((FAIL, problem))
+        for component, (member, path) in fmus.items():
+            for level, message in diagnose(path):
+                out.append((level, "%s: %s" % (member, message.replace(str(path), member))))
+        out.append((OK, "checked: " + "; ".join(checked)))
     return out
 
 
 def _binary_problem(data, size):
-    """Why a shared library cannot be loaded, in words, from its bytes alone (ELF, the
-    format of Linux binaries; other formats are left to the loader); None when it looks
-    whole."""
-    import struct
-    if platform.system() != "Linux":
-        return None
-    if size < 64 or data[:4] != b"\x7fELF":
-        return ("not an ELF shared library (%d bytes, starting %r)" % (size, data[:4])
-                if size else "an empty file")
-    if data[4] != 2 or data[5] != 1:
-        return ("a %s-bit %s-endian ELF file; this host runs 64-bit little-endian code"
-                % ({1: "32", 2: "64"}.get(data[4], "?"), {1: "little", 2: "big"}.get(data[5],
-                                                                                     "?")))
-    phoff, shoff = struct.unpack_from("<QQ", data, 0x20)
-    phentsize, phnum, shentsize, shnum = struct.unpack_from("<HHHH", data, 0x36)
-    need = max(phoff + phentsize * phnum, shoff + shentsize * shnum)
-    if phoff + phentsize * phnum <= size:
-        for i in range(phnum):
-            p_type, _, p_offset = struct.unpack_from("<IIQ", data, phoff + i * phentsize)
-            p_filesz = struct.unpack_from("<Q", data, phoff + i * phentsize + 0x20)[0]
-            if p_type == 1:  # PT_LOAD: the loader maps these bytes of the file
-                need = max(need, p_offset + p_filesz)
-    if need > size:
-        return ("truncated: the file has %d bytes, its ELF headers describe %d (a loader "
-                "that maps it stops the host with SIGBUS)" % (size, need))
-    return None
+    """Why a shared library cannot be loaded, in words, from its bytes alone
+    (:func:`driftfmu.simulations.fmucheck.binary_problem` on this platform, any processor);
+    None when it looks whole."""
+    from driftfmu.simulations import fmucheck
+    return fmucheck.binary_problem(lambda offset, count: data[offset:offset + count], size,
+                                   machine="any")
 
 
 def _importable(module):
@@ -302,8 +390,10 @@ def _run_instantiate(code, fmu, timeout=120):
     from driftfmu.simulations import folders
     with folders.temporary("driftfmu_doctor_") as folder:
         try:
-            r = subprocess.run([sys.executable, "-c", code, str(fmu), folder],
-                               capture_output=True, text=True, timeout=timeout)
+            # the work folder's lock held by the host too (folders.held_fds)
+            r = lifetime.run([sys.executable, "-c", code, str(fmu), folder],
+                             capture_output=True, text=True, timeout=timeout,
+                             pass_fds=folders.held_fds(folder))
         except subprocess.TimeoutExpired:
             return (FAIL, "instantiating the FMU in a Python host did not finish in %g s"
                     % timeout)
@@ -325,14 +415,26 @@ def report(fmu):
     """Print the diagnosis; return 0 when nothing is a problem, 1 otherwise."""
     findings = diagnose(fmu)
     mark = {OK: "  ok  ", WARN: " warn ", FAIL: "PROBLEM"}
+    kind = "SSP" if _is_ssp(fmu) else "FMU"
     print("driftfmu doctor: %s" % fmu)
     for level, msg in findings:
         print("[%s] %s" % (mark[level], msg))
     bad = [m for lvl, m in findings if lvl == FAIL]
-    print("verdict: %s" % ("this FMU will run on this host" if not bad else
-                           "this FMU will NOT run on this host as it is: %s"
-                           % "; ".join(_reason(m, str(fmu)) for m in bad)))
+    print("verdict: %s" % ("this %s will run on this host" % kind if not bad else
+                           "this %s will NOT run on this host as it is: %s"
+                           % (kind, "; ".join(_reason(m, str(fmu)) for m in bad))))
     return 1 if bad else 0
+
+
+def _is_ssp(path):
+    """Whether ``path`` is a zip archive with a SystemStructure.ssd and no model description
+    (an SSP)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = set(zf.namelist())
+    except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, ValueError):
+        return False
+    return "SystemStructure.ssd" in names and "modelDescription.xml" not in names
 
 
 def _reason(message, path=""):
@@ -346,9 +448,11 @@ def _reason(message, path=""):
 
 
 def add_cli(groups):
-    p = groups["top"].add_parser("doctor", help="tell whether and why an FMU will run on this "
-                                 "host (libpython, Python version, imports)")
-    p.add_argument("fmu", metavar="FMU", help="path of the .fmu file")
+    p = groups["top"].add_parser("doctor", help="tell whether and why an FMU or SSP will run on "
+                                 "this host (the archive, the model description against "
+                                 "driftfmu's tables, the binaries, libpython, imports) and what "
+                                 "was checked")
+    p.add_argument("fmu", metavar="FMU", help="path of the .fmu (or .ssp) file")
     p.set_defaults(func=_cli)
 
 

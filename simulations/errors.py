@@ -6,6 +6,9 @@ The exceptions the ``driftfmu`` command maps to its exit statuses.
   frequency at or above the Nyquist rate, more held-out sets than sets); exit status 2, like an
   option argparse refuses.  Raised before any work starts.
   :class:`UnknownKeywordError`, a keyword a function does not take, is one too.
+  :class:`FileProblem`, a file someone else could have made (an FMU, an SSP, a result CSV)
+  that is not what driftfmu relies on, is one too: the message names the file, the part and
+  what is expected.
 - :class:`DataError`: input data that cannot support the result asked for (a recording too short
   for the fit, a drive frequency the recording contradicts); exit status 1, a failed run.
 - Any other exception is a failed run (exit status 1); Ctrl-C is exit status 130.
@@ -23,6 +26,11 @@ class UnknownKeywordError(UsageError, TypeError):
     as it was called and every keyword it takes.  A ``TypeError`` as Python's own for an
     unexpected keyword, and a ``ValueError`` (a :class:`UsageError`) as driftfmu's other
     refused settings."""
+
+
+class FileProblem(UsageError):
+    """A file that is not what driftfmu relies on (exit status 2), found before driftfmu relies
+    on it: the message names the file, the part of it and what is expected."""
 
 
 class DataError(ValueError):

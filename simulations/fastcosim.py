@@ -24,8 +24,9 @@ import numpy as np
 from fmpy.fmi1 import FMICallException
 
 from driftfmu.fmu_src import schemas
-from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, check_fmu_file, \
-    check_variables, failed, free_all, new_extract_folder
+from driftfmu.simulations import fmucheck
+from driftfmu.simulations.cosim import _STATUS, CoSimulationError, _remove, check_variables, \
+    checked_fmu, failed, free_all, new_extract_folder, not_instantiated
 from driftfmu.simulations.errors import UsageError
 
 
@@ -47,13 +48,20 @@ class FastInstance:
         self.name = name
         self.path = str(path)
         self.unzipdir, self.md = unpacked(path)
+        self.messages = []
         self.fmi = int(self.md.fmiVersion[0])
         self._key = (self.unzipdir, self.md.coSimulation.modelIdentifier, name) if reuse \
             else None
         idle = _IDLE.pop(self._key, None) if reuse else None
         self.vrs = {v.name: v.valueReference for v in self.md.modelVariables}
         self.types = {v.name: v.type for v in self.md.modelVariables}
-        self.messages = []
+        try:
+            self._load(name, idle, logging_on)
+        except Exception as exc:  # (fmpy's "Failed to instantiate model", an OSError)
+            raise not_instantiated(self.path, exc, self.messages) from exc
+        self.component = self.fmu.component
+
+    def _load(self, name, idle, logging_on):
         identifier = self.md.coSimulation.modelIdentifier
         if self.fmi == 2:
             from fmpy.fmi2 import FMU2Slave, fmi2CallbackFunctions, fmi2CallbackLoggerTYPE, \
@@ -81,7 +89,6 @@ class FastInstance:
                                                       c_size_t])
             self.set_real = _raw(lib.fmi3SetFloat64, [c_void_p, c_void_p, c_size_t, c_void_p,
                                                       c_size_t])
-        self.component = self.fmu.component
 
     def _log2(self, env, instance, status, category, message):
         self.messages.append("%s [%s] %s" % (
@@ -149,17 +156,24 @@ def unpacked(path):
     if key not in _UNPACKED:
         # registered where a worker told to stop finds it (batch._worker_stop), removed when
         # the process ends (cosim.new_extract_folder)
-        check_fmu_file(path)
+        checked_fmu(path, validate=False)  # what the masters rely on (simulations/fmucheck.py)
         folder = new_extract_folder(prefix="driftfmu_fast_")
         here = {"Linux": ("linux64", "x86_64-linux"), "Windows": ("win64", "x86_64-windows"),
                 "Darwin": ("darwin64", "x86_64-darwin", "aarch64-darwin")}.get(
                     platform.system(), ())
-        with zipfile.ZipFile(path) as archive:
-            names = [n for n in archive.namelist() if n == "modelDescription.xml"
-                     or n.startswith("resources/")
-                     or any(n.startswith("binaries/%s/" % p) for p in here)]
-            archive.extractall(folder, names)
-        _UNPACKED[key] = (folder, schemas.read_model_description(folder, validate=False))
+        try:
+            with zipfile.ZipFile(path) as archive:
+                names = [n for n in archive.namelist() if n == "modelDescription.xml"
+                         or n.startswith("resources/")
+                         or any(n.startswith("binaries/%s/" % p) for p in here)]
+                archive.extractall(folder, names)
+            md = schemas.read_model_description(folder, validate=False)
+            # before a library is loaded: a cut one would stop this process with SIGBUS
+            fmucheck.check_binaries(path, folder, md)
+        except BaseException:
+            _remove(folder)
+            raise
+        _UNPACKED[key] = (folder, md)
     return _UNPACKED[key]
 
 
@@ -233,52 +247,57 @@ LOOP_FLAGS = ("-O2", "-shared", "-fPIC")
 
 
 def loop_target():
-    """Path of the compiled C loop in the temporary folder, named by the hash of what its
-    bytes depend on: :data:`LOOP_SOURCE`, :data:`LOOP_FLAGS` and the compiler
+    """The name of the compiled C loop in the libraries folder, ``loop-<hash>`` (its file:
+    ``loop-<hash>-<SHA-256 of its bytes>.so``), the hash of what its bytes depend on:
+    :data:`LOOP_SOURCE`, :data:`LOOP_FLAGS` and the compiler
     (:func:`driftfmu.simulations.kernel.compiler_identity`)."""
     import hashlib
-    import os
-    import tempfile
     from driftfmu.simulations import kernel
     digest = hashlib.sha256("\0".join(
         (LOOP_SOURCE, " ".join(LOOP_FLAGS),
-         kernel.compiler_identity(kernel.compiler_command()))).encode()).hexdigest()[:12]
-    return os.path.join(tempfile.gettempdir(), "driftfmu-loop-%s-%d.so" % (digest, os.getuid()))
+         kernel.compiler_identity(kernel.compiler_command()))).encode()).hexdigest()[:16]
+    return "loop-%s" % digest
+
+
+def _build_loop(install):
+    """Compile :data:`LOOP_SOURCE` in a work folder registered for removal
+    (:func:`~driftfmu.simulations.cosim.new_extract_folder`: a worker stopped by SIGTERM removes
+    it) and hand the library to ``install``, which moves it into the libraries folder in one
+    rename: a worker stopped at any point leaves the whole library or nothing."""
+    import os
+    from driftfmu.simulations import folders, kernel, lifetime
+    compiler = kernel.compiler_command()
+    work = new_extract_folder(prefix="driftfmu_loop_")
+    try:
+        source = os.path.join(work, "loop.c")
+        with open(source, "w") as fh:
+            fh.write(LOOP_SOURCE)
+        partial = os.path.join(work, "loop.so")
+        # the work folder's lock held by the compiler too (folders.held_fds); its temporary
+        # files in the work folder (lifetime.run's work)
+        lifetime.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source], check=True,
+                     capture_output=True, work=work, pass_fds=folders.held_fds(work))
+        install(partial)
+    finally:
+        _remove(work)
 
 
 def loop_library():
     """The compiled C loop (ctypes function), or None when no C compiler works.  Compiled once
-    into the temporary directory, named by the source's hash, written atomically: compiled in
-    a work folder registered for removal (:func:`~driftfmu.simulations.cosim.new_extract_folder`,
-    in the same temporary directory) and renamed from there in one step, so a worker stopped at
-    any point leaves either the whole library or nothing, never a partial file."""
+    into the private folder's libraries and checked before it is loaded
+    (:func:`driftfmu.simulations.trust.load_library`)."""
     if _LOOP_LIBRARY:
         return _LOOP_LIBRARY[0]
-    import os
     import subprocess
-    from driftfmu.simulations import kernel
-    target = loop_target()
+    from driftfmu.simulations import trust
     function = None
     try:
-        if not os.path.exists(target):
-            compiler = kernel.compiler_command()
-            # registered where a worker told to stop (SIGTERM) removes it, as the FMUs' folders
-            work = new_extract_folder(prefix="driftfmu_loop_")
-            try:
-                source = os.path.join(work, "loop.c")
-                with open(source, "w") as fh:
-                    fh.write(LOOP_SOURCE)
-                partial = os.path.join(work, "loop.so")
-                subprocess.run(compiler + list(LOOP_FLAGS) + ["-o", partial, source],
-                               check=True, capture_output=True)
-                os.replace(partial, target)  # one rename: the work folder is beside target
-            finally:
-                _remove(work)
-        function = ctypes.CDLL(target).driftfmu_loop
+        function = trust.load_library(loop_target(), _build_loop,
+                                      "the fast master's loop").driftfmu_loop
         function.restype = c_int
         function.argtypes = [ctypes.c_long, ctypes.c_long, c_double, c_double, c_void_p,
                              ctypes.c_ssize_t, c_int, c_void_p, c_int, c_void_p, c_void_p]
-    except (OSError, subprocess.SubprocessError):
+    except (OSError, subprocess.SubprocessError, AttributeError):
         function = None
     _LOOP_LIBRARY.append(function)
     return function
@@ -434,6 +453,8 @@ def cosimulate_fast(fmus, connections, n_steps, step_size, start_values=None, re
             loop = _compile_loop(plan, [insts[n] for n in order], start_time, step_size, base,
                                  row_bytes)
         every = max(1, n_steps // 100)
+        from driftfmu.simulations.cli import start_work
+        start_work(progress)  # the FMUs are loaded: the steps' pace counts from here
         for k0 in range(0, n_steps, every):
             k1 = min(n_steps, k0 + every)
             loop(k0, k1)

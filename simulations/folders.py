@@ -12,7 +12,10 @@ and only that:
 - **Where.**  The work folders (``driftfmu_*``) live in one private folder per user,
   ``driftfmu-<uid>`` in the temporary folder, which driftfmu makes with mode
   0700 and uses only while it is a real folder (not a symbolic link) owned by the user with no
-  permission for anyone else; otherwise it refuses, in one line.  Staging folders
+  permission for anyone else, in a temporary folder that no other user can change on the way
+  to it (:func:`driftfmu.simulations.trust.path_problem`: ``/tmp``, sticky, is fine);
+  otherwise it refuses, in one line.  Its other folders (:func:`private_subfolder`: the
+  compiled libraries, the locks of destinations) are checked the same way and never swept.  Staging folders
   (``.driftfmu-stage-*``, simulations/output.py) live beside their destinations.  Nothing else
   of the temporary folder, and no folder of another user, is looked at.
 - **Which.**  :func:`make` writes into each folder a lock file (:data:`LOCK`) holding the
@@ -21,9 +24,14 @@ and only that:
   through another mount (an overlay's upper layer: another path and device) or from another
   host does not match its record and is never touched.
 - **When.**  The lock file is locked (``flock``) for as long as the process that made it, a
-  child it forked, or a program such a process started with ``exec`` (the descriptor is
-  inherited) lives; the kernel releases the lock when they end, however they end.  A folder is
-  removed only once its lock is free.
+  child it forked, or a program it started that was handed the lock's descriptor lives; the
+  kernel releases the lock when they end, however they end.  ``subprocess`` closes every
+  descriptor it is not told to pass, so driftfmu starts each program that works in a folder
+  (a compiler, the doctor's trial host) with ``pass_fds=held_fds(folder)``
+  (:func:`held_fds`): a program still running after its parent was killed keeps the folder.
+  (``os.exec*``, ``os.fork`` and ``close_fds=False`` keep the descriptor as they are; a worker
+  or program that ends with its parent, by a parent-death signal, lets the folder go as it
+  ends.)  A folder is removed only once its lock is free.
 - **Half made.**  A process killed inside :func:`make` leaves a folder that is empty or holds
   only the half-made lock file :data:`PART` (no longer locked): nothing that anyone wrote, so it
   is removed too.  A process that finds its half-made folder removed under it makes another.
@@ -35,6 +43,7 @@ them.  Where the platform has no ``flock`` (Windows) or the file system refuses 
 folders are made without it (directly in the temporary folder on Windows) and never swept.
 """
 import contextlib
+import errno
 import json
 import os
 import secrets
@@ -42,6 +51,9 @@ import shutil
 import socket
 import stat
 import tempfile
+
+from driftfmu.simulations import trust
+from driftfmu.simulations.errors import UsageError
 
 try:
     import fcntl
@@ -85,10 +97,15 @@ def _parent_path():
 
 def _open_parent(path, create=True):
     """A descriptor of the private folder ``path`` once checked (made first if missing and
-    ``create``; None if missing and not)."""
-    from driftfmu.simulations.errors import UsageError
+    ``create``; None if missing and not): no one but this user (and root) can change the
+    folders on the way to it (:func:`driftfmu.simulations.trust.path_problem`), and it is a
+    folder of this user's, not a symbolic link, with no permission for anyone else."""
     allowed = ("allowed: a folder of this user's (uid %d) with mode 0700, which driftfmu makes "
-               "where none is; remove it or set TMPDIR to another folder" % os.geteuid())
+               "where none is, in a temporary folder that no other user can change; remove it "
+               "or set TMPDIR to another folder" % os.geteuid())
+    above = trust.path_problem(os.path.dirname(path), final=trust.entries_kept)
+    if above:
+        raise UsageError("the work folder %s cannot be trusted: %s; %s" % (path, above, allowed))
     for _ in range(100):
         try:
             fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW)
@@ -99,15 +116,13 @@ def _open_parent(path, create=True):
                 os.mkdir(path, 0o700)
             continue
         except OSError as exc:
+            if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
+                raise  # (an I/O error: not a usage error)
             what = "is a symbolic link" if os.path.islink(path) else "is not a folder"
             raise UsageError("the work folder %s %s (%s); %s"
                              % (path, what, exc.strerror, allowed)) from None
         st = os.fstat(fd)
-        problem = None
-        if st.st_uid != os.geteuid():
-            problem = "is owned by uid %d, not by this user" % st.st_uid
-        elif st.st_mode & 0o077:
-            problem = "has mode %04o: others may use it" % stat.S_IMODE(st.st_mode)
+        problem = trust.private_problem(st)
         if problem:
             os.close(fd)
             raise UsageError("the work folder %s %s; %s" % (path, problem, allowed))
@@ -115,6 +130,47 @@ def _open_parent(path, create=True):
             os.fchmod(fd, 0o700)
         return fd
     raise OSError("cannot make the work folder %s: it keeps going" % path)
+
+
+def private_path(name):
+    """The path of ``name`` in the private folder (:func:`private_subfolder`)."""
+    return os.path.join(_parent_path(), name)
+
+
+def private_subfolder(name, create=True):
+    """A descriptor of the folder ``name`` of the private folder (the compiled libraries, the
+    locks of destinations), checked as the private folder is (this user's, mode 0700, not a
+    link): made where missing with ``create``, else None where missing.  The name does not
+    start with a prefix of :data:`TEMPORARY`: no sweep removes it.  The caller closes it."""
+    pfd = _open_parent(_parent_path(), create=create)
+    if pfd is None:
+        return None
+    try:
+        for _ in range(100):
+            try:
+                fd = os.open(name, os.O_RDONLY | os.O_DIRECTORY | os.O_NOFOLLOW, dir_fd=pfd)
+            except FileNotFoundError:
+                if not create:
+                    return None
+                with contextlib.suppress(FileExistsError):
+                    os.mkdir(name, 0o700, dir_fd=pfd)
+                continue
+            except OSError as exc:
+                if exc.errno not in (errno.ELOOP, errno.ENOTDIR):
+                    raise  # (an I/O error: not a usage error)
+                raise UsageError("the work folder %s is not a folder (%s); allowed: a folder "
+                                 "of this user's with mode 0700, which driftfmu makes; remove "
+                                 "it" % (private_path(name), exc.strerror)) from None
+            problem = trust.private_problem(os.fstat(fd))
+            if problem:
+                os.close(fd)
+                raise UsageError("the work folder %s %s; allowed: a folder of this user's "
+                                 "with mode 0700, which driftfmu makes; remove it"
+                                 % (private_path(name), problem))
+            return fd
+        raise OSError("cannot make the work folder %s: it keeps going" % private_path(name))
+    finally:
+        os.close(pfd)
 
 
 def _same(path, fd):
@@ -129,8 +185,8 @@ def _same(path, fd):
 def make(prefix, dir=None):
     """A new folder ``prefix*`` in ``dir`` (by default the private folder ``driftfmu-<uid>``
     of the temporary folder, made where missing, refused in one line where unsafe),
-    locked for as long as this process (or a child forked or exec'd from it) lives, or until
-    :func:`remove`."""
+    locked for as long as this process (or a child forked from it, or a program handed its
+    lock's descriptor: :func:`held_fds`) lives, or until :func:`remove`."""
     if fcntl is None:
         return tempfile.mkdtemp(prefix=prefix, dir=dir)
     for _ in range(100):
@@ -168,7 +224,7 @@ _GONE = object()
 
 def _lock(folder):
     """Lock the new ``folder`` and record its identity in its lock file; the lock's descriptor
-    (inheritable: a program started with ``exec`` keeps the folder in use), None where the
+    (inheritable: a program started with it keeps the folder in use), None where the
     file system has no lock, :data:`_GONE` when a sweep removed the folder meanwhile."""
     part = os.path.join(folder, PART)
     try:
@@ -233,49 +289,91 @@ def temporary(prefix):
 
 def remove(folder, last=()):
     """Remove ``folder`` (made by :func:`make`) and release its lock: its files first, then
-    those named in ``last`` in that order, the lock file and the folder."""
-    discard(folder, last)
+    those named in ``last`` in that order, the lock file and the folder (:func:`discard`).
+    None when it is gone; else the error that left it (with its lock file: the next
+    :func:`sweep` removes it once this process is gone)."""
+    error = discard(folder, last)
     release(folder)
     if folder in _PRIVATE:
         _PRIVATE.discard(folder)
         with contextlib.suppress(OSError):  # the last one out; a folder with others stays
             os.rmdir(os.path.dirname(folder))
+    return error
+
+
+def held_fds(*paths):
+    """The descriptors of the locks this process holds on the folders (made by :func:`make`)
+    that are, or hold, ``paths``: for ``subprocess``'s ``pass_fds``, so that a program started
+    there keeps the folder in use for as long as it runs, also after this process is gone
+    (``subprocess`` closes every descriptor not passed)."""
+    fds = []
+    for path in paths:
+        path = os.path.abspath(path)
+        fds += [fd for folder, fd in list(_HELD.items())
+                if (path == folder or path.startswith(folder + os.sep)) and fd not in fds]
+    return tuple(fds)
 
 
 def release(folder):
     """Let go of the lock of ``folder`` (made by this process) without removing it."""
     fd = _HELD.pop(folder, None)
     if fd is not None:
-        os.close(fd)
+        with contextlib.suppress(OSError):  # (the descriptor is closed whatever it answers)
+            os.close(fd)
 
 
 def discard(folder, last=()):
     """Remove ``folder``'s files, those named in ``last`` after the others in that order, its
     lock file and then the folder: at any point a folder that is left is still provably dead
-    (its lock file and record are there) or empty."""
+    (its lock file and record are there) or empty.  None when the folder is gone; else the
+    first error (OSError): after one, the files of ``last`` and the lock file stay (so that the
+    next :func:`sweep` finds the folder provably dead and finishes the job), the others are
+    still tried."""
     keep = set(last) | {LOCK}
     try:
         names = sorted(os.listdir(folder))
-    except OSError:
-        return
+    except FileNotFoundError:
+        return None
+    except OSError as exc:
+        return exc
+    failed = []
+
+    def note(function, path, info):
+        failed.append(info[1] if isinstance(info, tuple) else info)
+
     for name in names:
         if name in keep:
             continue
         checkpoint("remove " + name)
         path = os.path.join(folder, name)
-        if os.path.isdir(path) and not os.path.islink(path):
-            shutil.rmtree(path, ignore_errors=True)
-        else:
-            with contextlib.suppress(OSError):
+        try:
+            if os.path.isdir(path) and not os.path.islink(path):
+                shutil.rmtree(path, onerror=note)
+            else:
                 os.unlink(path)
+        except FileNotFoundError:
+            pass
+        except OSError as exc:
+            failed.append(exc)
+    if failed:
+        return failed[0]
     for name in list(last) + [LOCK]:
         if name in names:
             checkpoint("remove " + name)
-            with contextlib.suppress(OSError):
+            try:
                 os.unlink(os.path.join(folder, name))
+            except FileNotFoundError:
+                pass
+            except OSError as exc:
+                return exc
     checkpoint("remove folder")
-    with contextlib.suppress(OSError):
+    try:
         os.rmdir(folder)
+    except FileNotFoundError:
+        pass
+    except OSError as exc:
+        return exc
+    return None
 
 
 def _record(folder):
@@ -419,8 +517,7 @@ def sweep(prefixes, dir=None, dead=None, other=None, again=False):
                 if dead is not None:
                     gone = dead(entry.path)
                 else:
-                    discard(entry.path)
-                    gone = True
+                    gone = discard(entry.path) is None
             finally:
                 os.close(fd)
         else:

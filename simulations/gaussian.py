@@ -79,7 +79,8 @@ def fmu_paths(fmu_dir, backend="python"):
     fmu_dir = Path(fmu_dir)
     paths = {n: fmu_dir / ("%s.fmu" % n) for n in FMU_NAMES}
     if not all(p.is_file() for p in paths.values()):
-        from driftfmu.fmu_src.builder import build_fmus
+        from driftfmu.fmu_src.builder import build_fmus, check_fmu_folder
+        check_fmu_folder(fmu_dir, [p.name for p in paths.values() if not p.is_file()])
         build_fmus(fmu_dir)
     return paths
 

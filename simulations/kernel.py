@@ -7,8 +7,10 @@ The compiled batch kernel: the third engine beside the NumPy batch engine and th
 :func:`driftfmu.models.dualaxis.simulate` out over the C port of models/
 (``fmu_src/native/models``, proven bit-equal to models/ by ``tests/test_native_models.py``),
 one run after another.  It is compiled once per machine (the native FMUs' flags, ``-O2
--ffp-contract=off -fno-fast-math``) into a shared library in the temporary directory, named by
-the hash of its sources, written atomically, and called through ctypes on NumPy arrays.  Without
+-ffp-contract=off -fno-fast-math``) into a shared library in the private folder of the work
+folders (``driftfmu-<uid>/libraries`` in the temporary folder), named by the hash of its
+sources and of its own bytes, moved there in one rename, checked before it is loaded
+(:func:`driftfmu.simulations.trust.load_library`), and called through ctypes on NumPy arrays.  Without
 a C compiler :func:`library` returns None and the callers use the NumPy engine (same results).
 
 ``DRIFTFMU_KERNEL=numpy`` in the environment switches the kernel off (for comparisons and for
@@ -19,14 +21,12 @@ import functools
 import hashlib
 import os
 import shlex
-import shutil
 import subprocess
-import tempfile
 from pathlib import Path
 
 import numpy as np
 
-from driftfmu.simulations import folders
+from driftfmu.simulations import folders, lifetime
 
 HERE = Path(__file__).resolve().parent
 SOURCE = HERE / "batch_kernel.c"
@@ -102,14 +102,17 @@ def _sources():
 
 def library():
     """The loaded kernel (ctypes library), or None without a working C compiler or when
-    :func:`enabled` is False.  Compiled at most once per machine and source version."""
+    :func:`enabled` is False.  Compiled at most once per machine and source version, into the
+    private folder's libraries (:func:`driftfmu.simulations.trust.load_library`: loaded only
+    when this user's, writable by no one else and the bytes that were built)."""
     if not enabled():
         return None
     if _LIBRARY:
         return _LIBRARY[0]
+    from driftfmu.simulations import trust
     lib = None
     try:
-        lib = _load(_build())
+        lib = _load(trust.load_library(target(), _build, "the batch kernel"))
     except (OSError, subprocess.SubprocessError):
         lib = None
     _LIBRARY.append(lib)
@@ -124,7 +127,7 @@ def compiler_command():
 @functools.lru_cache(maxsize=None)
 def _version(command):
     try:
-        done = subprocess.run(list(command) + ["--version"], capture_output=True, text=True,
+        done = lifetime.run(list(command) + ["--version"], capture_output=True, text=True,
                               timeout=60)
     except (OSError, subprocess.SubprocessError):
         return ""
@@ -139,9 +142,10 @@ def compiler_identity(command):
 
 
 def target():
-    """Path of the compiled kernel in the temporary folder, named by the hash of everything
-    its bytes depend on: the sources and headers, the parameter table, the flags, the
-    compiler (:func:`compiler_identity`) and the processor the machine flags are for."""
+    """The name of the compiled kernel in the libraries folder, ``kernel-<hash>`` (its file:
+    ``kernel-<hash>-<SHA-256 of its bytes>.so``), the hash of everything its bytes depend on:
+    the sources and headers, the parameter table, the flags, the compiler
+    (:func:`compiler_identity`) and the processor the machine flags are for."""
     generate, sources = _sources()
     digest = hashlib.sha256()
     for path in sorted(sources + sorted(generate.HERE.glob("*.h"))):
@@ -150,39 +154,34 @@ def target():
     digest.update(" ".join(generate.CFLAGS + SPEED_FLAGS + MACHINE_FLAGS).encode())
     digest.update(compiler_identity(compiler_command()).encode())
     digest.update(_processor().encode())
-    return Path(tempfile.gettempdir()) / ("driftfmu-kernel-%s-%d.so"
-                                          % (digest.hexdigest()[:12], os.getuid()))
+    return "kernel-%s" % digest.hexdigest()[:16]
 
 
-def _build():
-    """Path of the compiled kernel (:func:`target`); compile it first when it is not there."""
+def _build(install):
+    """Compile the kernel in a work folder and hand the library to ``install`` (which moves
+    it into the libraries folder)."""
     generate, sources = _sources()
     table = generate.parameters_table()
-    target_path = target()
-    if target_path.exists():
-        return target_path
     compiler = compiler_command()
     with folders.temporary("driftfmu_kernel_") as work:
         (Path(work) / "parameters_table.h").write_text(table)
         partial = Path(work) / "kernel.so"
-        # the compiler's own temporary files (link-time optimisation writes several) go into
-        # the work folder, so an interrupted compile leaves none behind in TMPDIR
-        env = dict(os.environ, TMPDIR=work)
         # a compiler without the machine flags, or without link-time optimisation, gets fewer
         for extra in (SPEED_FLAGS + MACHINE_FLAGS, SPEED_FLAGS, ()):
             command = compiler + list(generate.CFLAGS) + list(extra) + [
                 "-shared", "-fPIC", "-I", work, "-I", str(generate.HERE)] + [
                 str(s) for s in sources] + ["-o", str(partial), "-lm"]
             try:
-                subprocess.run(command, check=True, capture_output=True, env=env)
+                # the work folder's lock held by the compiler too (folders.held_fds); the
+                # compiler's own temporary files (link-time optimisation writes several) go
+                # into the work folder, so an interrupted compile leaves none in TMPDIR
+                lifetime.run(command, check=True, capture_output=True, env=env, work=work,
+                             pass_fds=folders.held_fds(work))
                 break
             except subprocess.CalledProcessError:
                 if not extra:
                     raise
-        staged = target_path.with_name(target_path.name + ".part%d" % os.getpid())
-        shutil.move(str(partial), str(staged))
-        os.replace(staged, target_path)
-    return target_path
+        install(str(partial))
 
 
 def _processor():
@@ -202,8 +201,8 @@ def _processor():
     return text
 
 
-def _load(path):
-    lib = ctypes.CDLL(str(path))
+def _load(lib):
+    """``lib`` (the loaded kernel) with its functions' prototypes."""
     i64, d = ctypes.c_int64, ctypes.c_double
     lib.driftfmu_batch_init.restype = None
     lib.driftfmu_batch_init.argtypes = [i64, _P, _P, _P]

@@ -12,31 +12,51 @@ The commit, step by step (each step one rename, write or removal; :func:`folders
 before each):
 
 1. every staged file is written to disk (``fsync``), and so is each staging folder's record;
-2. each staging folder but the first gets :data:`MEMBER`, naming the commit and its first
+2. the commit takes the lock of each of its destinations (one writer at a time: a second
+   driftfmu process committing into the same place waits for the first, saying so in one
+   line, at most :data:`WAIT` seconds; :func:`destinations_locked`), and plans its moves;
+3. each staging folder but the first gets :data:`MEMBER`, naming the commit and its first
    folder;
-3. the first staging folder gets :data:`JOURNAL`: every folder to make, every file in the way
+4. the first staging folder gets :data:`JOURNAL`: every folder to make, every file in the way
    to move aside into its staging folder (``.replaced-N``) and every staged file to move in,
-   each with the device and inode it has.  From here on the commit is decided;
-4. the moves, in the journal's order;
-5. the journal becomes :data:`DONE`: every file is in place;
-6. the staging folders go, the first one last, each with its bookkeeping files last.
+   each with the device and inode it has.  From here on the commit is recorded;
+5. the moves, in the journal's order.  Once the last is done the results are in place: the
+   commit is decided, and what follows cannot make the run fail;
+6. the folders the moves changed are written to disk, and the journal becomes :data:`DONE`;
+7. the staging folders go, the first one last, each with its bookkeeping files last.
 
-A process killed before step 3 leaves staging folders without a journal: the next run removes
+A process killed before step 4 leaves staging folders without a journal: the next run removes
 them (they hold only the staged files of a run that never committed), and the destination has
-its old files.  Killed in steps 3 to 4: the next run completes the moves from the journal,
+its old files.  Killed in steps 4 to 6: the next run completes the moves from the journal,
 each one only where the file is still the one the journal names (a rename keeps the inode;
-anything else stops the recovery, keeps every folder and says so); then steps 5 and 6.  Killed
-in 5 or 6: the next run removes what is left.  An error or Ctrl-C in step 4 rolls the moves
-back at once (the journal first says so, so that a kill during the roll-back is rolled back
-by the next run too).  Each recovery says what it did in one line (a :class:`CommitRecovered`
-warning: ``driftfmu: warning: ...`` from the command line).  A staging folder is removed only
-when :func:`folders.claim` proves it a dead process's, and never while it holds a file that a
-commit still needs.
+anything else stops the recovery, keeps every folder and says so); then steps 6 and 7.  Killed
+in 7: the next run removes what is left.  An error or Ctrl-C in step 5 rolls the moves back at
+once (the journal first says so, so that a kill during the roll-back is rolled back by the next
+run too; a second Ctrl-C or SIGTERM waits until the roll-back is done).  Each recovery says
+what it did in one line (a :class:`CommitRecovered` warning: ``driftfmu: warning: ...`` from
+the command line).  A staging folder is removed only when :func:`folders.claim` proves it a
+dead process's, and never while it holds a file that a commit still needs.
+
+What the caller is told is what happened.  Before step 5 every error, an ``fsync`` that fails
+included, fails the commit (:class:`CommitFailed` or the error) and changes nothing of the
+destination.  An error in step 5 fails it too, after the roll-back; when the roll-back fails as
+well, the message says where the files of before are kept and that the next run puts them
+back (the journal and the staging folders stay for it).  After step 5 the commit succeeds: an
+error in steps 6 and 7 is a :class:`CommitLeftovers` warning naming what is left and how it
+goes (the next run there removes it, or ``rm -r``), and what holds a file of before always
+keeps the bookkeeping (its lock file and the journal or its done mark) that lets the next run
+finish the job.
 """
 import contextlib
+import errno
+import hashlib
 import json
 import os
 import secrets
+import signal
+import stat
+import threading
+import time
 import warnings
 from pathlib import Path
 
@@ -59,10 +79,34 @@ MEMBER = ".driftfmu-commit"
 #: The bookkeeping files, removed after the rest of a staging folder.
 BOOKKEEPING = (MEMBER, JOURNAL, DONE)
 
+#: The folder of the destinations' locks, in the private folder of the work folders.
+LOCKS = "locks"
+
+#: Seconds a commit waits for another process's commit into one of its destinations.
+WAIT = 600.0
+
+#: The commits this process has put in place (one number in a list): the command line tells
+#: an error after them from one before.
+COMMITS = [0]
+
 
 class CommitRecovered(UserWarning):
     """A results commit that a killed process left unfinished was completed or rolled back,
     or could not be and its staging folders are kept (the message says which)."""
+
+
+class CommitLeftovers(UserWarning):
+    """The results are in place, but something of the commit's bookkeeping could not be
+    removed or written to disk: the message names it and how it goes."""
+
+
+class DestinationBusy(UserWarning):
+    """Another process is moving its results into a destination of this commit: this one
+    waits for it (at most :data:`WAIT` seconds)."""
+
+
+class CommitFailed(OSError):
+    """The results could not be moved into place (the message says why and what is left)."""
 
 
 class _Conflict(OSError):
@@ -78,6 +122,13 @@ def nearest_existing(path):
     return path
 
 
+def probe(folder):
+    """Make a staging folder in ``folder`` and remove it: OSError when none can be made there
+    (a folder that cannot be written, a read-only file system, for root too).  A process
+    killed in between leaves a staging folder that the next staging there removes."""
+    folders.remove(folders.make(STAGE, dir=folder))
+
+
 class Staging:
     """All the outputs of one job, or none of them (``driftfmu build``: FMUs, native FMUs,
     cross-check folders, the SSP archive; a master's result folder, through :func:`staged`).
@@ -89,7 +140,7 @@ class Staging:
     removes the staged files, and one during the moves rolls them back: the files moved in go
     back, those they replaced return, the folders made for them go when empty.  A process
     killed outright leaves its staging folders to the next :meth:`path` in or above the same
-    place (:func:`recover`).
+    place (:func:`recover`).  ``committed`` is True once every output is in place.
     """
 
     def __init__(self):
@@ -97,6 +148,7 @@ class Staging:
         self._shown = []  # (staged path, destination as given): for the log's lines
         self._held = []   # (log, line) of the lines about written files, until the commit
         self._open = False  # a journal is written and the commit neither done nor rolled back
+        self.committed = False
 
     def path(self, target, folder=True):
         """The staged stand-in for ``target`` (a folder, or with ``folder=False`` a file).
@@ -153,8 +205,13 @@ class Staging:
                 for stage in stages:
                     folders.release(stage)
             else:  # the first one last: while it is there, so is the commit's record
+                left = []
                 for stage in stages[1:] + stages[:1]:
-                    folders.remove(stage, last=BOOKKEEPING)
+                    error = folders.remove(stage, last=BOOKKEEPING)
+                    if error is not None:
+                        left.append((stage, error))
+                for stage, error in left:
+                    _leftover(stage, error, self.committed)
         if kind is None:  # (and the commit did not raise): every output is in place
             for log, line in self._held:
                 log(line)
@@ -168,19 +225,19 @@ class Staging:
             if staged.is_dir() and not staged.is_symlink():
                 files = sorted(p for p in staged.rglob("*") if p.is_symlink() or not p.is_dir())
             else:
-                files = [staged] if os.path.lexists(staged) else []
+                files = [staged] if _exists(staged) else []
             for f in files:
                 dest = target / f.relative_to(staged) if f != staged else target
                 missing = []
                 top = dest.parent
-                while not os.path.lexists(top) and top != top.parent:
+                while not _exists(top) and top != top.parent:
                     missing.append(top)
                     top = top.parent
                 for d in reversed(missing):
                     if d not in made:
                         made.add(d)
                         steps.append(["mkdir", str(d)])
-                if os.path.lexists(dest):
+                if _exists(dest):
                     n = asides.get(stage, 0)
                     asides[stage] = n + 1
                     steps.append(["aside", str(dest), str(stage / (".replaced-%d" % n)),
@@ -189,37 +246,237 @@ class Staging:
         return steps
 
     def _commit(self):
-        steps = self._plan()
-        if not steps:
-            return
         stages = [str(stage) for stage, _, _ in self._pairs]
         for stage in stages:  # the staged files and the records that prove the folders ours
             _sync_tree(stage)
             fd = folders._HELD.get(stage)  # noqa: SLF001 (the lock this process holds)
             if fd is not None:
                 _sync(fd)
-        commit = {"commit of": [str(t) for _, _, t in self._pairs], "id": secrets.token_hex(8),
-                  "stages": [os.path.realpath(s) for s in stages], "state": "forward",
-                  "steps": steps}
-        for stage in stages[1:]:
-            _write_json(os.path.join(stage, MEMBER),
-                        {"id": commit["id"], "first": commit["stages"][0]})
-        journal = os.path.join(stages[0], JOURNAL)
-        _write_json(journal, commit)
-        self._open = True
-        try:
-            _forward(steps)
-        except BaseException:
-            commit["state"] = "back"
+        targets = [str(t) for _, _, t in self._pairs]
+        with destinations_locked(targets):
+            steps = self._plan()
+            if not steps:
+                self.committed = True
+                COMMITS[0] += 1
+                return
+            commit = {"commit of": targets, "id": secrets.token_hex(8),
+                      "stages": [os.path.realpath(s) for s in stages], "state": "forward",
+                      "steps": steps}
+            for stage in stages[1:]:
+                _write_json(os.path.join(stage, MEMBER),
+                            {"id": commit["id"], "first": commit["stages"][0]})
+            journal = os.path.join(stages[0], JOURNAL)
             _write_json(journal, commit)
-            _back(steps)
+            self._open = True
+            try:
+                _forward(steps)
+            except BaseException as exc:
+                self._roll_back(commit, journal, steps, exc)
+                raise
+            # every new file is in place: decided; nothing from here on fails the commit
+            self.committed = True
+            COMMITS[0] += 1
+            what = ", ".join(targets)
+            try:
+                _sync_moved(steps)
+            except OSError as exc:
+                _warn("the results are in place in %s, but the folders the commit changed could "
+                      "not be written to disk (%s); its journal is kept in %s, so the next "
+                      "driftfmu run there completes it even after a power loss"
+                      % (what, _reason(exc), stages[0]), CommitLeftovers)
+                return  # (self._open: the staging folders stay for that run)
+            try:
+                folders.checkpoint("journal done")
+                os.rename(journal, os.path.join(stages[0], DONE))
+            except OSError as exc:
+                _warn("the results are in place in %s; the commit's journal could not be marked "
+                      "done (%s), so its staging folders %s stay until the next driftfmu run "
+                      "there removes them (or rm -r %s)" % (
+                          what, _reason(exc), ", ".join(stages), " ".join(stages)),
+                      CommitLeftovers)
+                return
             self._open = False
-            raise
-        _sync_moved(steps)
-        folders.checkpoint("journal done")
-        os.rename(journal, os.path.join(stages[0], DONE))
-        _sync_dir(stages[0])
-        self._open = False
+            with contextlib.suppress(OSError):  # a done mark lost to a power loss: the next
+                _sync_dir(stages[0])            # run finds the journal, every move done
+
+    def _roll_back(self, commit, journal, steps, first):
+        """Move the files of ``steps`` back after ``first`` (the error or interrupt that
+        stopped the moves); raise :class:`CommitFailed` when that fails too (the journal and
+        the staging folders stay: the next run finishes the roll-back)."""
+        what = ", ".join(commit["commit of"])
+        with _interrupts_held():
+            commit["state"] = "back"
+            try:
+                _write_json(journal, commit)
+                recorded = True
+            except OSError:  # the roll-back goes on: killed now, the next run completes instead
+                recorded = False
+            try:
+                _back(steps)
+            except (OSError, KeyboardInterrupt) as exc:
+                raise CommitFailed(
+                    "the results could not be moved into %s (%s), and moving the files of "
+                    "before back failed too (%s): they are kept in %s until the next driftfmu "
+                    "run there %s" % (what, _reason(first), _reason(exc),
+                                      ", ".join(commit["stages"]),
+                                      "puts them back" if recorded else
+                                      "completes this commit (its journal could not be "
+                                      "changed)")) from first
+            # every file as it was: nothing left to finish
+            try:
+                os.rename(journal, os.path.join(os.path.dirname(journal), DONE))
+            except OSError:
+                try:
+                    os.unlink(journal)
+                except OSError as exc:
+                    raise CommitFailed(
+                        "the results could not be moved into %s (%s) and were moved back, but "
+                        "the commit's journal %s could not be removed (%s): remove its staging "
+                        "folders (rm -r %s) before the next driftfmu run there" % (
+                            what, _reason(first), journal, _reason(exc),
+                            " ".join(commit["stages"]))) from first
+            self._open = False
+        if isinstance(first, OSError):
+            raise CommitFailed("the results could not be moved into %s (%s); it is as it was "
+                               "before this run" % (what, _reason(first))) from first
+
+
+def _reason(exc):
+    """An error in a few words: an OSError's file and reason, else its text."""
+    if isinstance(exc, KeyboardInterrupt):
+        return "interrupted"
+    if isinstance(exc, OSError) and exc.strerror:
+        return "%s: %s" % (exc.filename, exc.strerror) if exc.filename else exc.strerror
+    return str(exc) or type(exc).__name__
+
+
+def _warn(text, category):
+    warnings.warn(text, category, stacklevel=3)
+
+
+def _leftover(stage, error, committed):
+    """Say that the staging folder ``stage`` could not be removed (``error``) and how it goes."""
+    _warn("%s%s could not be removed (%s): the next driftfmu run there removes it, or rm -r %s"
+          % ("the results are in place; their staging folder " if committed
+             else "the staging folder ", stage, _reason(error), stage), CommitLeftovers)
+
+
+@contextlib.contextmanager
+def _interrupts_held(signals=(signal.SIGINT, signal.SIGTERM)):
+    """Hold SIGINT and SIGTERM (those handled in Python) back for the block: a second Ctrl-C
+    during a roll-back lands once the files of before are back (its handler is called then)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    pending, held = [], {}
+    for s in signals:
+        h = signal.getsignal(s)
+        if callable(h):
+            try:
+                signal.signal(s, lambda signum, frame: pending.append(signum))
+                held[s] = h
+            except (OSError, ValueError):  # not held: the block runs all the same
+                pass
+    try:
+        yield
+    finally:
+        for s, h in held.items():
+            with contextlib.suppress(OSError, ValueError):
+                signal.signal(s, h)
+    if pending:  # (an error in the block wins: it says what is left)
+        held[pending[0]](pending[0], None)
+
+
+# -- one writer at a time ------------------------------------------------------------------
+
+def destination_key(target):
+    """What names the destination ``target`` for its lock: the real path of its nearest
+    existing folder (links resolved) joined with the rest of the path."""
+    target = os.path.abspath(target)
+    existing = str(nearest_existing(target))
+    rest = os.path.relpath(target, existing)
+    return os.path.normpath(os.path.join(os.path.realpath(existing), rest))
+
+
+def _holder(fd):
+    try:
+        record = json.loads(os.pread(fd, 4096, 0) or b"null")
+        return " (process %d)" % record["pid"]
+    except (OSError, ValueError, TypeError, KeyError):
+        return ""
+
+
+def _lock_destination(dir_fd, key, wait):
+    """The descriptor holding the lock of the destination ``key`` (a file of the locks
+    folder ``dir_fd``, named by the key's hash), once no other process holds it; a
+    :class:`DestinationBusy` line while it waits, :class:`CommitFailed` after ``wait``
+    seconds."""
+    name = hashlib.sha256(key.encode()).hexdigest()[:32]
+    deadline = None
+    while True:
+        fd = os.open(name, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600,
+                     dir_fd=dir_fd)
+        try:
+            folders.fcntl.flock(fd, folders.fcntl.LOCK_EX | folders.fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = _holder(fd)
+            os.close(fd)
+            if deadline is None:
+                deadline = time.monotonic() + wait
+                if wait > 0:
+                    _warn("%s: another driftfmu run%s is moving its results into it; this one "
+                          "waits for it (at most %s)" % (key, holder, _seconds(wait)),
+                          DestinationBusy)
+            if time.monotonic() >= deadline:
+                raise CommitFailed("%s: another driftfmu run%s is moving its results into it%s; "
+                                   "this run's results are not written (allowed: one run at a "
+                                   "time into one place)" % (
+                                       key, holder, " for %s" % _seconds(wait) if wait else ""))
+            time.sleep(0.02)
+            continue
+        try:  # still the file of that name (a holder removes it as it lets go)
+            same = os.stat(name, dir_fd=dir_fd, follow_symlinks=False).st_ino == \
+                os.fstat(fd).st_ino
+        except FileNotFoundError:
+            same = False
+        if not same:
+            os.close(fd)
+            continue
+        record = json.dumps({"pid": os.getpid(), "destination": key}).encode()
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, record, 0)
+        return fd, name
+
+
+def _seconds(s):
+    return "%g s" % s if s < 120 else "%g min" % (s / 60.0)
+
+
+@contextlib.contextmanager
+def destinations_locked(targets, wait=None):
+    """Hold the lock of each destination of ``targets`` (:func:`destination_key`; in the
+    ``locks`` folder of the private folder, in the order of their keys) for the block:
+    another process committing into one of them meanwhile waits (see
+    :func:`_lock_destination`; ``wait``: default :data:`WAIT`)."""
+    if folders.fcntl is None:
+        yield
+        return
+    wait = WAIT if wait is None else wait
+    keys = sorted({destination_key(t) for t in targets})
+    dir_fd = folders.private_subfolder(LOCKS)
+    held = []
+    try:
+        for key in keys:
+            held.append(_lock_destination(dir_fd, key, wait))
+        yield
+    finally:  # (an error here cannot undo what the block did: the kernel lets go anyway)
+        for fd, name in reversed(held):
+            with contextlib.suppress(OSError):
+                os.unlink(name, dir_fd=dir_fd)
+            with contextlib.suppress(OSError):
+                os.close(fd)
+        with contextlib.suppress(OSError):
+            os.close(dir_fd)
 
 
 def _inode(path):
@@ -227,12 +484,33 @@ def _inode(path):
     return [st.st_dev, st.st_ino]
 
 
-def _is(path, inode):
-    """True when ``path`` (not followed) is the file with ``inode`` ([device, inode])."""
+def _lstat(path):
+    """``os.lstat(path)``, or None where nothing is there; any other error (an I/O error) is
+    raised: a commit never takes a file it cannot see for one that is not there."""
     try:
-        return _inode(path) == list(inode)
-    except OSError:
-        return False
+        return os.lstat(path)
+    except (FileNotFoundError, NotADirectoryError):
+        return None
+
+
+def _exists(path):
+    """True when something is at ``path`` (not followed); an error other than its absence is
+    raised (:func:`_lstat`)."""
+    return _lstat(path) is not None
+
+
+def _is_dir(path):
+    """True when ``path`` (not followed) is a folder; an error other than its absence is
+    raised (:func:`_lstat`)."""
+    st = _lstat(path)
+    return st is not None and stat.S_ISDIR(st.st_mode)
+
+
+def _is(path, inode):
+    """True when ``path`` (not followed) is the file with ``inode`` ([device, inode]); an
+    error other than its absence is raised (:func:`_lstat`)."""
+    st = _lstat(path)
+    return st is not None and [st.st_dev, st.st_ino] == list(inode)
 
 
 def _forward(steps):
@@ -241,13 +519,13 @@ def _forward(steps):
     done = 0
     for step in steps:
         if step[0] == "mkdir":
-            if not os.path.isdir(step[1]):
+            if not _is_dir(step[1]):
                 folders.checkpoint("mkdir")
                 os.mkdir(step[1])
                 done += 1
         elif step[0] == "aside":
             _, dest, aside, inode = step
-            if _is(aside, inode) or not os.path.lexists(dest):
+            if _is(aside, inode) or not _exists(dest):
                 continue  # moved aside before (or gone: nothing to keep)
             if not _is(dest, inode):
                 if any(s[0] == "in" and s[2] == dest and _is(dest, s[3]) for s in steps):
@@ -262,7 +540,7 @@ def _forward(steps):
                 continue
             if not _is(staged, inode):
                 raise _Conflict("the staged file %s is gone" % staged)
-            if os.path.lexists(dest):
+            if _exists(dest):
                 raise _Conflict("%s is in the way" % dest)
             folders.checkpoint("in")
             os.replace(staged, dest)
@@ -272,17 +550,22 @@ def _forward(steps):
 
 def _back(steps):
     """Undo the steps done (each only where its file is the one named), last first.  A move
-    back goes to a free name (checked), so it is a rename."""
+    back goes to a free name (checked), so it is a rename.  A folder made that is not empty
+    stays (it holds someone else's file); one that cannot be removed for another reason is an
+    error."""
     for step in reversed(steps):
         if step[0] == "mkdir":
-            if os.path.isdir(step[1]):
+            if _is_dir(step[1]):
                 folders.checkpoint("rmdir")
-                with contextlib.suppress(OSError):  # only while empty: anything else stays
+                try:
                     os.rmdir(step[1])
+                except OSError as exc:
+                    if exc.errno not in (errno.ENOTEMPTY, errno.EEXIST):
+                        raise
         else:  # a file moved aside returns, one moved in goes back to its staging folder
             _, was, now, inode = step
             if _is(now, inode):
-                if os.path.lexists(was):
+                if _exists(was):
                     raise _Conflict("%s is in the way of the file that was there" % was)
                 folders.checkpoint("back")
                 os.rename(now, was)
@@ -294,26 +577,40 @@ def _sync(fd):
     os.fsync(fd)
 
 
+#: What ``fsync`` of a folder answers on a file system that cannot write folders to disk
+#: that way (the call is not supported there, nothing failed).
+_NO_FOLDER_SYNC = (errno.EINVAL, errno.ENOTSUP, errno.EOPNOTSUPP)
+
+
 def _sync_dir(path):
     """Write the folder ``path``'s entries to disk (where folders can be opened: not
-    Windows)."""
-    with contextlib.suppress(OSError):
-        fd = os.open(path, os.O_RDONLY)
-        try:
-            _sync(fd)
-        finally:
-            os.close(fd)
+    Windows).  An error is raised, but the answer of a file system that does not sync
+    folders (:data:`_NO_FOLDER_SYNC`)."""
+    if os.name == "nt":
+        return
+    fd = os.open(path, os.O_RDONLY | os.O_DIRECTORY)
+    try:
+        _sync(fd)
+    except OSError as exc:
+        if exc.errno not in _NO_FOLDER_SYNC:
+            raise
+    finally:
+        os.close(fd)
 
 
 def _sync_tree(path):
     """Write every file and folder under ``path`` to disk."""
-    for top, dirs, files in os.walk(path):
+    for top, dirs, files in os.walk(path, onerror=_raise):
         for name in files:
             f = os.path.join(top, name)
             if not os.path.islink(f):
                 with open(f, "rb" if os.name == "posix" else "r+b") as fh:
                     _sync(fh.fileno())
         _sync_dir(top)
+
+
+def _raise(exc):
+    raise exc
 
 
 def _sync_moved(steps):
@@ -335,7 +632,9 @@ def _write_json(path, obj):
     fd = os.open(part, os.O_WRONLY | os.O_CREAT | os.O_TRUNC | getattr(os, "O_NOFOLLOW", 0),
                  0o600)
     try:
-        os.write(fd, json.dumps(obj, indent=1).encode())
+        data = json.dumps(obj, indent=1).encode()
+        if os.write(fd, data) != len(data):
+            raise OSError(errno.ENOSPC, "written in part", part)
         _sync(fd)
     finally:
         os.close(fd)
@@ -409,16 +708,16 @@ def _recover_stage(stage):
     if MEMBER in names:
         member = _read_json(os.path.join(stage, MEMBER))
         first = member.get("first") if isinstance(member, dict) else None
-        if isinstance(first, str) and os.path.lexists(first):
+        if isinstance(first, str) and _exists(first):
             fd = folders.claim(first)
             if fd is not None:
                 try:
                     _resolve(first, {os.path.realpath(stage), first}, member.get("id"))
                 finally:
                     os.close(fd)
-                if not os.path.lexists(stage):
+                if not _exists(stage):
                     return True
-                if os.path.lexists(first):
+                if _exists(first):
                     return False  # kept, and said why
                 # the commit was undecided: its first folder is gone, so goes this one
             elif not folders.stale(first):  # in use, or not provably a dead process's
@@ -430,8 +729,18 @@ def _recover_stage(stage):
              "gone; they may be the only copies" % stage)
         return False
     # no commit decided: the staged files of a run that never committed
-    folders.discard(stage, last=BOOKKEEPING)
-    return True
+    return _discarded(stage)
+
+
+def _discarded(stage):
+    """Remove the staging folder ``stage`` of a dead process (:func:`folders.discard`); True
+    when it is gone, else it is said (:class:`CommitLeftovers`) and kept with its
+    bookkeeping for a later run."""
+    error = folders.discard(stage, last=BOOKKEEPING)
+    if error is None:
+        return True
+    _leftover(stage, error, False)
+    return False
 
 
 def _listdir(path):
@@ -448,8 +757,7 @@ def _resolve(first, held, member_id=None):
     names = set(_listdir(first))
     record = os.path.join(first, DONE if DONE in names else JOURNAL)
     if not names & {JOURNAL, DONE}:  # undecided (killed before the journal): nothing moved
-        folders.discard(first, last=BOOKKEEPING)
-        return True
+        return _discarded(first)
     commit = _read_json(record)
     if (not _valid(commit) or commit["stages"][0] != os.path.realpath(first)
             or (member_id is not None and commit["id"] != member_id)):
@@ -458,7 +766,7 @@ def _resolve(first, held, member_id=None):
     claimed = []
     try:
         for stage in commit["stages"][1:]:
-            if stage in held or not os.path.lexists(stage):
+            if stage in held or not _exists(stage):
                 continue
             fd = folders.claim(stage)
             if fd is None:
@@ -468,19 +776,22 @@ def _resolve(first, held, member_id=None):
             claimed.append(fd)
         what = ", ".join(commit["commit of"])
         if DONE not in names:
-            try:
-                if commit["state"] == "forward":
-                    left = _forward(commit["steps"])
-                    _sync_moved(commit["steps"])
-                else:
-                    _back(commit["steps"])
-            except _Conflict as exc:
-                _say("kept the staging folders of an unfinished results commit of %s (%s): %s"
-                     % (what, ", ".join(commit["stages"]), exc))
-                return False
-            folders.checkpoint("journal done")
-            os.rename(record, os.path.join(first, DONE))
-            _sync_dir(first)
+            # one writer at a time: no live commit moves files there meanwhile
+            with destinations_locked(commit["commit of"]):
+                try:
+                    if commit["state"] == "forward":
+                        left = _forward(commit["steps"])
+                        _sync_moved(commit["steps"])
+                    else:
+                        _back(commit["steps"])
+                except _Conflict as exc:
+                    _say("kept the staging folders of an unfinished results commit of %s (%s): "
+                         "%s" % (what, ", ".join(commit["stages"]), exc))
+                    return False
+                folders.checkpoint("journal done")
+                os.rename(record, os.path.join(first, DONE))
+            with contextlib.suppress(OSError):
+                _sync_dir(first)
             if commit["state"] == "forward":
                 moves = sum(s[0] != "mkdir" for s in commit["steps"])
                 _say("completed the results commit of %s that a killed process left "
@@ -492,11 +803,11 @@ def _resolve(first, held, member_id=None):
                 _say("rolled back the results commit of %s that a killed process left "
                      "unfinished: the files of before are back in place" % what)
         for stage in commit["stages"][1:]:
-            folders.discard(stage, last=BOOKKEEPING)
-        if any(os.path.lexists(s) for s in commit["stages"][1:]):
+            if _exists(stage) and not _discarded(stage):
+                return False
+        if any(_exists(s) for s in commit["stages"][1:]):
             return False  # the first folder goes last
-        folders.discard(first, last=BOOKKEEPING)
-        return True
+        return _discarded(first)
     finally:
         for fd in claimed:
             os.close(fd)
@@ -646,12 +957,18 @@ def plot_drift(path, cols, title, general=None, labels=None):
     plt.close(fig)
 
 
+#: The label of the note :func:`mark_clipping` writes (a text, or a legend holding it).
+CLIPPING_NOTE = "_clipping note"
+
+
 def mark_clipping(ax):
     """Mark every curve of ``ax`` that leaves the y range: small triangles on the frame where
-    it is off the scale (pointing the way it went), and a note in the corner naming the curve,
-    the samples and how far it went.  Nothing is clipped without a mark (issue 19: drift.png's
-    bottom panel hid k = 1-99 of the empirical drift).  Log axes: values <= 0 are not drawable
-    and not counted.  Returns the notes."""
+    it is off the scale (pointing the way it went), and a note naming the curve, the samples
+    and how far it went.  Nothing is clipped without a mark (issue 19: drift.png's bottom panel
+    hid k = 1-99 of the empirical drift), and the note covers no curve: beside the axes under
+    their legend where the legend sits beside them, in the legend where it sits on the axes,
+    else inside where it covers the fewest points (a legend's ``loc="best"``).  Log axes:
+    values <= 0 are not drawable and not counted.  Returns the notes."""
     import numpy as np
     y0, y1 = sorted(ax.get_ylim())
     x0, x1 = sorted(ax.get_xlim())
@@ -693,11 +1010,53 @@ def mark_clipping(ax):
         # the marks sit on the top edge: lift the axes' title clear of them
         ax.set_title(title.get_text(), fontsize=title.get_fontsize(), pad=11)
     if notes:
-        ax.text(0.99, 0.02, "\n".join("%s %s" % ("▲" if " above " in t else "▼", t)
-                                      for t in notes),
-                transform=ax.transAxes, ha="right", va="bottom", fontsize=7, color="0.25",
-                bbox=dict(facecolor="white", edgecolor="0.7", alpha=0.85, lw=0.5))
+        _clipping_note(ax, notes)
     return notes
+
+
+def _clipping_note(ax, notes):
+    """The note of :func:`mark_clipping`, where it covers no curve."""
+    legend = ax.get_legend()
+    beside = legend is not None and \
+        legend.get_bbox_to_anchor().transformed(ax.transAxes.inverted()).x0 >= 1.0
+    lines = []
+    for t in notes:  # beside: two lines each, what and where, about a legend's width
+        mark = "▲" if " above " in t else "▼"
+        if beside:
+            cut = t.index(" at ", t.index(" off the scale "))
+            lines += ["%s %s" % (mark, t[:cut]), "   %s" % t[cut + 1:]]
+        else:
+            lines.append("%s %s" % (mark, t))
+    text = "\n".join(lines)
+    if beside:  # in the margin the legend has made, under it
+        ax.text(1.01, 0.0, text, transform=ax.transAxes, ha="left", va="bottom", fontsize=7,
+                color="0.25", label=CLIPPING_NOTE)
+        return
+    if legend is not None:  # a legend on the axes: the note goes with it, where it is placed
+        title = legend.get_title().get_text()
+        legend.set_title(title + "\n" + text if title else text,
+                         prop={"size": 7})
+        legend.set_label(CLIPPING_NOTE)
+        return
+    from matplotlib.legend import Legend  # where it covers the fewest points
+    note = Legend(ax, [], [], title=text, loc="best", title_fontsize=7, framealpha=0.85,
+                  edgecolor="0.7")
+    note.get_title().set_color("0.25")
+    note.set_label(CLIPPING_NOTE)
+    ax.add_artist(note)
+
+
+def clipping_notes(ax):
+    """The notes of :func:`mark_clipping` on ``ax`` (texts, or legends holding them): the
+    artists and their text."""
+    from matplotlib.legend import Legend
+    found = []
+    for artist in list(ax.texts) + list(ax.artists) + [ax.get_legend()]:
+        if artist is not None and artist.get_label() == CLIPPING_NOTE:
+            text = artist.get_title().get_text() if isinstance(artist, Legend) \
+                else artist.get_text()
+            found.append((artist, text))
+    return found
 
 
 def mark_figure(fig):

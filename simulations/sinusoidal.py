@@ -295,8 +295,9 @@ def _cmd(args):
     emp = ("empirical over %d whole periods %.5g" % (wp["periods"],
                                                      f["dc_empirical_whole_periods"])
            if wp["samples"] else "empirical: none (not one whole period)")
-    print("final drift [V]: EKF1 %.5g, EKF2 %.5g, EKF3 %.5g | expected %.5g, %s, realised %.5g"
-          % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"], f["dc_expected"], emp, f["dc_realised"]))
+    # the references in the order of run gaussian's line: realised, empirical, expected
+    print("final drift [V]: EKF1 %.5g, EKF2 %.5g, EKF3 %.5g | realised %.5g, %s, expected %.5g"
+          % (f["dc_ekf1"], f["dc_ekf2"], f["dc_ekf3"], f["dc_realised"], emp, f["dc_expected"]))
     e = s["ekf1_rel_error"]
 
     def pct(v):

@@ -129,7 +129,7 @@ def sweep(a2=None, R=DEFAULT_R, a0=0.0, a1=1.0, Q=0.01, A=0.0, runs=1000, n=1000
     xs = a4s if axis == "a4" else a2
     points = len(xs) * len(R)
     # before anything is allocated: a sweep too large for the machine is refused, not killed
-    budget.check_sweep(points, runs, n, workers, out, announce=False, api=True)
+    budget.check_sweep(points, runs, n, workers, out, announce=False, api=True, engine=engine)
     seeds1 = batch.run_seeds(seed, runs)
     seeds = np.tile(seeds1, points)
     per_run = {axis: np.repeat(xs, len(R) * runs), "R": np.tile(np.repeat(R, runs), len(xs))}
@@ -385,7 +385,7 @@ def cmd_sweep(args):
         a2 = list(DEFAULT_A2) if len(args.a4) == 1 else [parameters.PARAMETERS["a2"].default]
     points = max(len(a2), len(args.a4)) * len(args.R)
     total = points * args.runs
-    budget.check_sweep(points, args.runs, args.n, args.workers, args.out)
+    budget.check_sweep(points, args.runs, args.n, args.workers, args.out, engine=args.engine)
     t0 = time.perf_counter()
     from driftfmu.simulations import cli
     desc = "sweep (%s engine)" % args.engine

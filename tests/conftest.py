@@ -1,6 +1,8 @@
 """Fixtures shared by the test modules."""
+import contextlib
 import json
 import os
+import sys
 import tempfile
 from pathlib import Path
 
@@ -163,10 +165,70 @@ def report(request):
     return write
 
 
+@pytest.hookimpl(trylast=True)  # after pytest's own (its tmp_path factory)
 def pytest_configure(config):
     # libxml2's schema set-up done before any test's threads parse a schema (fmu_src/schemas.py)
     from driftfmu.fmu_src import schemas
     schemas.prime()
+    if not hasattr(config, "workerinput"):  # the run itself (pytest-xdist's controller)
+        _temporary_folder_of_the_run(config)
+
+
+#: Files the code keeps in the temporary folder by design, from run to run: the compiled batch
+#: kernel (simulations/kernel.py) and the fast master's loop (simulations/fastcosim.py).
+KEPT = ("driftfmu-kernel-*.so", "driftfmu-loop-*.so")
+
+#: (the temporary folder of the run, the one it replaced, the session).
+_RUN_TMP = []
+
+
+def _temporary_folder_of_the_run(config):
+    """The test run's own temporary folder: ``TMPDIR`` of this process and of every process
+    it starts (pytest-xdist's workers, the commands the tests run), made in the temporary
+    folder the run was given (other runs, another engineer's, may use that one meanwhile), and
+    checked when the run ends (:func:`pytest_unconfigure`): a test that leaves a file or folder
+    there fails the run.  pytest's own folders (``tmp_path``) stay where they were; the
+    compiled caches (:data:`KEPT`) are taken from there and handed back."""
+    import shutil
+    outer = Path(tempfile.gettempdir())
+    config._tmp_path_factory.getbasetemp()  # pytest's folders: in the outer folder, as ever
+    os.environ.setdefault("DRIFTFMU_TEST_NATIVE_CACHE", str(NATIVE_CACHE))
+    run = Path(tempfile.mkdtemp(prefix="driftfmu-test-run-", dir=outer))
+    for pattern in KEPT:
+        for cache in outer.glob(pattern):
+            shutil.copy2(cache, run / cache.name)
+    os.environ["TMPDIR"] = str(run)
+    tempfile.tempdir = None  # read TMPDIR again
+    _RUN_TMP[:] = [run, outer, None]
+
+
+def pytest_sessionstart(session):
+    if _RUN_TMP:
+        _RUN_TMP[2] = session
+
+
+def pytest_unconfigure(config):
+    """After the run (its workers ended): what the tests left in the run's temporary folder
+    fails it, named; the folder goes, the compiled caches back to the outer folder."""
+    if not _RUN_TMP or hasattr(config, "workerinput"):
+        return
+    import fnmatch
+    import shutil
+    run, outer, session = _RUN_TMP
+    left = sorted(f for f in os.listdir(run)
+                  if not any(fnmatch.fnmatch(f, pattern) for pattern in KEPT))
+    for name in os.listdir(run):
+        if name not in left and not (outer / name).exists():
+            with contextlib.suppress(OSError):
+                os.replace(run / name, outer / name)
+    shutil.rmtree(run, ignore_errors=True)
+    os.environ["TMPDIR"] = str(outer)
+    tempfile.tempdir = None
+    if left:
+        sys.stderr.write("\nERROR: the tests left %d file(s) or folder(s) in the temporary "
+                         "folder (TMPDIR): %s\n" % (len(left), ", ".join(left)))
+        if session is not None and session.exitstatus == 0:
+            session.exitstatus = pytest.ExitCode.TESTS_FAILED
 
 
 def pytest_addoption(parser):

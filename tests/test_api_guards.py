@@ -516,3 +516,59 @@ def test_the_command_line_and_the_api_refuse_a_size_with_the_same_estimate(
     cli_tail = line.split(" needs about ", 1)[1]
     api_tail = str(error).split(" needs about ", 1)[1]
     assert _as_keywords(cli_tail) == api_tail and "--" not in api_tail
+
+
+# -- fmu_dir: FMUs built only into a folder of their own -------------------------------------
+
+@pytest.mark.parametrize("call", [
+    lambda d: driftfmu.simulate(stop_time=0.002, fmu_dir=d),
+    lambda d: driftfmu.simulate(stop_time=0.002, fmu_dir=d, backend="native"),
+    lambda d: driftfmu.run_gaussian(n=5, fmu_dir=d),
+    lambda d: driftfmu.run_sinusoidal(n=5, fmu_dir=d, backend="native"),
+    lambda d: driftfmu.montecarlo(runs=2, n=5, engine="fmu", fmu_dir=d),
+    lambda d: driftfmu.experiment_dual_axis(points=2, runs=1, n=5, fmu_dir=d),
+    lambda d: driftfmu.experiment_adxl203(freqs=[100.0], sets=3, n=3000, fmu_dir=d),
+], ids=["simulate", "simulate native", "run_gaussian", "run_sinusoidal native",
+        "montecarlo fmu", "dual-axis", "adxl203"])
+def test_fmus_are_not_built_into_a_folder_that_holds_other_files(call, tmp_path):
+    """``fmu_dir`` naming a folder of the user's (their project, the working folder) without
+    the FMUs: refused with what is missing and how to build it there, and the folder left as
+    it was, instead of filled with FMUs unasked."""
+    folder = tmp_path / "project"
+    folder.mkdir()
+    (folder / "notes.txt").write_text("mine")
+    with pytest.raises(UsageError, match=r"^fmu_dir %s has no (native/fmi2/)?\w+\.fmu.* and "
+                       r"holds other files \(notes\.txt\): driftfmu builds missing FMUs only "
+                       r"into a folder of its own; allowed: .*\(driftfmu build( --native)? "
+                       r"--out %s\)$" % (re.escape(str(folder)), re.escape(str(folder)))):
+        call(str(folder))
+    assert os.listdir(folder) == ["notes.txt"]
+
+
+def test_a_folder_of_fmus_a_new_or_an_empty_one_is_built_into(tmp_path):
+    from driftfmu.fmu_src.builder import check_fmu_folder
+    ours = tmp_path / "ours"
+    (ours / "native" / "fmi2").mkdir(parents=True)
+    (ours / "Excitation.fmu").write_bytes(b"")
+    (ours / ".driftfmu-stage-x").mkdir()
+    (tmp_path / "empty").mkdir()
+    for folder in (ours, tmp_path / "empty", tmp_path / "new"):
+        check_fmu_folder(folder, ["Accelerometer.fmu"])  # nothing to say: built there
+    (ours / "Excitation.fmu.bak").write_bytes(b"")
+    with pytest.raises(UsageError, match=r"holds other files \(Excitation\.fmu\.bak\)"):
+        check_fmu_folder(ours, ["Accelerometer.fmu"])
+    for name in "abcd":
+        (ours / name).write_bytes(b"")
+    with pytest.raises(UsageError, match=r"holds other files \(Excitation\.fmu\.bak, a, b, "
+                                         r"\.\.\.\): "):
+        check_fmu_folder(ours, ["Accelerometer.fmu"])
+
+
+def test_the_command_refuses_such_a_folder_as_a_usage_error(tmp_path, capsys):
+    from driftfmu.simulations.cli import main
+    (tmp_path / "notes.txt").write_text("mine")
+    assert main(["run", "gaussian", "--n", "5", "--fmu-dir", str(tmp_path),
+                 "--out", str(tmp_path / "res")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert err.startswith("driftfmu: error: fmu_dir %s has no " % tmp_path) and "\n" not in err
+    assert sorted(os.listdir(tmp_path)) == ["notes.txt"]

@@ -16,7 +16,7 @@ import pytest
 from driftfmu.simulations import cli
 from driftfmu.simulations.adxl203 import default_held_out
 from driftfmu.simulations.cli import main
-from waiting import BOUND, wait_for
+from waiting import BOUND, sigint_default, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -261,7 +261,7 @@ def test_montecarlo_says_never_for_runs_that_never_settle(capsys):
          "median_settled_from": {"realised": {e: 11.0 for e in ("ekf1", "ekf2", "ekf3")}},
          "ekf1_ekf2_gap_db": {"mean": 0.0, "std": 0.0, "max_abs": 0.0, "of_means": 0.0}}
     from driftfmu.simulations.montecarlo import print_summary
-    print_summary(s, ("realised",))
+    print_summary(s)
     out = capsys.readouterr().out
     assert "never" in out and "median k     11" not in out
 
@@ -357,7 +357,7 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
                else ["-m", "driftfmu"])
     p = subprocess.Popen([sys.executable, *command, *argv], cwd=tmp_path, env=env,
                          start_new_session=True, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True)
+                         stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
     try:
         if wait_for_main:
             wait_for(lambda: _main_started(p.pid), "start of main()", p, poll=0.002)
@@ -382,10 +382,15 @@ def _interrupt(argv, tmp_path, after, wait_for_workers=0, send=None, wait_for_ma
         pass
     left = _group(p.pid)
     # the compiled batch kernel (simulations/kernel.py) and the fast master's compiled loop
-    # (simulations/fastcosim.py) are caches kept in TMPDIR by design; anything else left there
-    # is a temporary file the interrupt should have removed
-    files = sorted(f for f in os.listdir(tmp) if not f.startswith("driftfmu-kernel-")
-                   and not (f.startswith("driftfmu-loop-") and f.endswith(".so")))
+    # (simulations/fastcosim.py) are kept in the private folder's libraries by design, and
+    # the folder of the destinations' locks stays (empty); anything else left in TMPDIR is a
+    # temporary file the interrupt should have removed
+    private = "driftfmu-%d" % os.geteuid()
+    kept = {private, os.path.join(private, "libraries"), os.path.join(private, "locks")}
+    files = sorted(os.path.relpath(os.path.join(top, f), tmp)
+                   for top, dirs, names in os.walk(tmp) for f in dirs + names
+                   if os.path.relpath(os.path.join(top, f), tmp) not in kept
+                   and os.path.relpath(top, tmp) != os.path.join(private, "libraries"))
     return p.returncode, err, left, files, workers
 
 
@@ -464,8 +469,10 @@ def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
     dd = pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] is not "
                              "installed")
     Client, LocalCluster = dd.Client, dd.LocalCluster
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster, Client(cluster) as client:
+    import dask  # its scratch folder in this test's, not dask-scratch-space in TMPDIR
+    with dask.config.set({"temporary-directory": str(tmp_path)}), \
+            LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                         dashboard_address=None) as cluster, Client(cluster) as client:
         def busy():
             return sum(len(v) for v in client.processing().values())
         argv = HOURS_OF_SWEEP + ["--scheduler", cluster.scheduler_address]
@@ -474,7 +481,7 @@ def test_ctrl_c_cancels_the_runs_on_a_dask_cluster(tmp_path):
         env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
         p = subprocess.Popen([sys.executable, "-m", "driftfmu", *argv], cwd=tmp_path, env=env,
                              start_new_session=True, stdout=subprocess.PIPE,
-                             stderr=subprocess.PIPE, text=True)
+                             stderr=subprocess.PIPE, text=True, preexec_fn=sigint_default)
         try:
             wait_for(busy, "runs of the sweep on the cluster", p, poll=0.05)
             os.killpg(p.pid, signal.SIGINT)

@@ -2,6 +2,7 @@
 
 Every usage error exits 2 with one line naming the value and what is allowed, before anything
 is built, run or written."""
+import json
 import os
 import re
 import signal
@@ -12,7 +13,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations.cli import main
-from waiting import BOUND, wait_for
+from waiting import BOUND, sigint_default, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -351,6 +352,9 @@ def test_a_build_that_succeeds_moves_every_output_into_place(existing, tmp_path,
     expected.update({"fmus/native/fmi%d/%s.fmu" % (v, n): b"fmu" for v in (2, 3)
                      for n in ("Excitation", "Accelerometer", "DriftEstimator",
                                "DualDriftEstimator")})
+    from driftfmu.fmu_src import container  # the chain as one FMU: its description beside
+    for folder in ("fmus", "fmus/native/fmi2", "fmus/native/fmi3"):
+        assert tree.pop("%s/%s" % (folder, container.FILENAME)).startswith(b"{")
     assert tree == expected  # and no staging folder
     # the lines name where the files are now, not the staging folder they were built in
     assert "stage" not in captured.out and "built %s" % (out / "Excitation.fmu") in captured.out
@@ -501,7 +505,7 @@ def test_a_signal_during_the_native_build_leaves_every_path_as_it_was(signum, tm
     p = subprocess.Popen([sys.executable, str(script), str(started), "build", "--native",
                           "--out", str(work / "fmus"), "--ssp", str(work / "chain.ssp"),
                           "--force"], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                         text=True)
+                         text=True, preexec_fn=sigint_default)
     try:
         wait_for(started.exists, "start of the native build", p)
         p.send_signal(signum)
@@ -623,3 +627,105 @@ def test_summary_only_too_large_names_the_largest_runs_that_fit(monkeypatch):
     budget.check_montecarlo("gaussian", runs, 1, 2, None, summary_only=True)
     with pytest.raises(ValueError):
         budget.check_montecarlo("gaussian", 2 * runs, 1, 2, None, summary_only=True)
+
+
+# -- the report on standard output ------------------------------------------------------------
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (a full disk)")
+def test_a_report_that_cannot_be_written_before_any_result_is_a_failure(tmp_path):
+    """Standard output on a full disk (/dev/full): a command whose product is its report
+    fails, in one line on standard error."""
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "driftfmu", "--help"], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=BOUND,
+                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 1
+    assert _one_line(r.stderr) == "driftfmu: error: standard output: No space left on device"
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/full"), reason="no /dev/full (a full disk)")
+def test_a_report_lost_after_the_results_are_in_place_is_a_warning(tmp_path):
+    """Issue 39: the results in place (``identify``'s identify.json) and then standard output
+    fails: the run succeeded, so exit 0, and one warning line says the report is lost and the
+    results are in place (before: exit 1, as if nothing were written)."""
+    import numpy as np
+    t = np.arange(2000) * 1e-3
+    x = np.sin(2 * np.pi * 10 * t)
+    z = 0.1 + x + 0.01 * x * x + 1e-3 * np.random.default_rng(1).normal(size=t.size)
+    recording = tmp_path / "rec.csv"
+    np.savetxt(recording, np.column_stack([t, x, z]), delimiter=",", header="time,x,z",
+               comments="")
+    with open("/dev/full", "w") as full:
+        r = subprocess.run([sys.executable, "-m", "driftfmu", "identify", str(recording),
+                            "--f", "10", "--out", str(tmp_path / "out")], stdout=full,
+                           stderr=subprocess.PIPE, text=True, timeout=BOUND,
+                           env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    assert _last_line(r.stderr) == ("driftfmu: warning: standard output: No space left on "
+                                    "device; the results are in place (this report of them "
+                                    "is lost)")
+    assert json.loads((tmp_path / "out" / "identify.json").read_text())
+    assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["identify.json"]
+
+# -- a name nearly right: what was meant, as the API's keywords have it -------------------------
+
+@pytest.mark.parametrize("argv, line", [
+    (["run", "gausian"], "driftfmu: error: argument EXPERIMENT: invalid choice: 'gausian' "
+                         "(choose from 'gaussian', 'sinusoidal') (did you mean 'gaussian'?)"),
+    (["sweeep"], "(did you mean 'sweep'?)"),
+    (["run", "gaussian", "--a22", "1", "--nn", "3"],
+     "driftfmu: error: unrecognized arguments: --a22 1 --nn 3 (did you mean --a2 for --a22, "
+     "--n for --nn?)"),
+    (["experiment", "dual-axis", "--Xyy=1"], "(did you mean --Xy for --Xyy?)"),
+    (["montecarlo", "gaussian", "--engine", "fmx"],
+     "driftfmu: error: argument --engine: engine = 'fmx' is not allowed (did you mean "
+     "'fmu'?); allowed: 'batch', 'fmu'"),
+    (["run", "gaussian", "--backend", "natve"], "(did you mean 'native'?); allowed: "),
+])
+def test_a_name_nearly_right_is_refused_with_the_name_meant(argv, line, capsys):
+    assert _status(argv) == 2
+    got = _one_line(capsys.readouterr().err)
+    assert got == line if line.startswith("driftfmu:") else line in got, got
+
+
+@pytest.mark.parametrize("argv, line", [
+    (["run", "xyz"], "driftfmu: error: argument EXPERIMENT: invalid choice: 'xyz' (choose from "
+                     "'gaussian', 'sinusoidal')"),
+    (["run", "gaussian", "--zzz", "1"], "driftfmu: error: unrecognized arguments: --zzz 1"),
+    (["run", "gaussian", "--engine", "batch"], "driftfmu: error: unrecognized arguments: "
+                                               "--engine batch"),
+])
+def test_a_name_far_from_any_gets_no_guess(argv, line, capsys):
+    assert _status(argv) == 2
+    assert _one_line(capsys.readouterr().err) == line
+
+
+def test_the_api_names_the_choice_meant_as_the_command_line_does():
+    import driftfmu
+    with pytest.raises(ValueError) as info:
+        driftfmu.montecarlo(runs=2, n=3, engine="fmx")
+    assert str(info.value) == ("engine = 'fmx' is not allowed (did you mean 'fmu'?); allowed: "
+                               "'batch', 'fmu'")
+
+
+# -- the native build without zig: the extra that gives the missing platforms ----------------
+
+def test_without_zig_the_warning_names_the_extra_that_gives_the_missing_platforms(monkeypatch):
+    """``pip install -e .`` has no zig: the one warning names each missing platform and what
+    gives it (the extra driftfmu[native], which installs ziglang; mingw-w64 for Windows)."""
+    from driftfmu.fmu_src import native_build
+    monkeypatch.setattr(native_build, "zig_command", lambda: None)
+    monkeypatch.setenv("MINGW_CC", "no-such-mingw-gcc")
+    lines = []
+    assert native_build.available_platforms(lines.append) == ["x86_64-linux"]
+    assert lines == [
+        "warning: no compiler for x86_64-windows, aarch64-linux, aarch64-windows, "
+        "x86_64-darwin, aarch64-darwin here, so the native FMUs carry no binary for them; to "
+        "build them: x86_64-windows: Debian: apt-get install gcc-mingw-w64-x86-64, or the "
+        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
+        "every platform); aarch64-linux, aarch64-windows, x86_64-darwin, aarch64-darwin: the "
+        "extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, a C compiler for "
+        "every platform)"]
+    project = ROOT / "pyproject.toml"
+    if project.exists():  # a source checkout: the extra it names installs ziglang
+        assert re.search(r'^native = \["ziglang>=[0-9.]+"\]$', project.read_text(), re.M)

@@ -367,3 +367,61 @@ def test_a_destination_of_the_other_kind_is_refused_before_anything_is_staged(ki
     assert sorted(str(p.relative_to(tmp_path)) for p in tmp_path.rglob("*")) == before
     assert (tmp_path / "mine" / "notes.txt").read_text() == "my notes\n"
     assert (tmp_path / "file.csv").read_text() == "my data\n"
+
+
+def test_an_unfinished_commit_recorded_on_another_machine_is_left_as_it_is(server, tmp_path):
+    """A shared file system: the staging folder of an unfinished commit whose record names
+    another host, at this very path (its process may be alive there, its lock unseen here):
+    a run here says so and touches nothing; with this host's record it is completed."""
+    first_in = counted(server, tmp_path, "existing").index("in")
+    base, out, ssp, old, new = setup(tmp_path, "existing")
+    assert server("commit", out, ssp, kill_at=first_in + 1)[0] == -signal.SIGKILL
+    stage, = out.glob(output.STAGE + "*")
+    lock = stage / folders.LOCK
+    record = json.loads(lock.read_text())
+    lock.write_text(json.dumps(dict(record, host="another-machine")))
+    before = texts(base)
+    status, _, said = server("next run", out, None)
+    assert status == 0 and len(said) == 1, said
+    assert said[0].startswith("left %s as it is" % stage) and "on another-machine" in said[0]
+    assert texts(base) == before and (stage / output.JOURNAL).exists()
+    lock.write_text(json.dumps(record))  # the other side: this host's
+    status, _, said = server("next run", out, None)
+    assert said and said[0].startswith("completed") and tree(out) == new
+
+
+#: A process that tries whether a folder can be written (the command line's check of --out,
+#: output.probe) and is killed at the N-th step of it.
+PROBE_KILLED = """
+import os, signal, sys
+from driftfmu.simulations import cli, folders
+count = [int(sys.argv[2])]
+def checkpoint(what):
+    count[0] -= 1
+    if count[0] < 0:
+        os.kill(os.getpid(), signal.SIGKILL)
+folders.checkpoint = checkpoint
+cli.check_folder("--out", sys.argv[1])
+print("done", flush=True)
+"""
+
+
+def test_a_process_killed_while_it_tries_an_output_folder_leaves_nothing_for_good(tmp_path):
+    """The check of --out makes a staging folder and removes it; killed at any step of that,
+    it leaves at most a staging folder, which the next run there removes (before: an empty
+    ``.driftfmu-write-test-*`` folder stayed for good)."""
+    for step in range(20):
+        place = tmp_path / ("place%d" % step)
+        place.mkdir()
+        r = subprocess.run([sys.executable, "-c", PROBE_KILLED, str(place / "out"), str(step)],
+                           capture_output=True, text=True, timeout=120)
+        if r.returncode == 0:
+            assert r.stdout.strip() == "done" and os.listdir(place) == []
+            break
+        assert r.returncode == -signal.SIGKILL, r.stderr
+        left = os.listdir(place)
+        assert all(name.startswith(output.STAGE) for name in left), left
+        with output.staged(place / "out") as stage:
+            (stage / "a.csv").write_text("1\n")
+        assert os.listdir(place) == ["out"], (step, os.listdir(place))
+    assert 5 <= step < 20  # the folder, its lock file (made, written, named); the removal

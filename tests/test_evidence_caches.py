@@ -217,7 +217,8 @@ def test_an_fmu_rewritten_in_place_with_the_same_size_and_time_is_unpacked_anew(
     times, or a copy that keeps the time) must not get the folder of the one before."""
     from driftfmu.simulations import fastcosim
     monkeypatch.setattr(fastcosim, "_UNPACKED", {})
-    monkeypatch.setattr(fastcosim, "check_fmu_file", lambda path: None)
+    monkeypatch.setattr(fastcosim, "checked_fmu", lambda path, validate: None)
+    monkeypatch.setattr(fastcosim.fmucheck, "check_binaries", lambda path, folder, md: None)
     monkeypatch.setattr(fastcosim.schemas, "read_model_description",
                         lambda folder, validate: open(os.path.join(folder,
                                                                    "modelDescription.xml")).read())

@@ -15,16 +15,21 @@ ROOT = Path(__file__).resolve().parent.parent
 
 # A process-pool worker (batch._worker_init: SIGTERM removes its registered folders, then
 # os._exit) compiles the loop; SIGTERM arrives just before the library is put in its place
-# (os.replace), after every move before it (the loop once moved it beside its place first).
+# (the rename into the libraries folder), after every move before it (the loop once moved it
+# beside its place first).
 _STOPPED_WORKER = textwrap.dedent("""
     import os, signal, sys, time
     from driftfmu.simulations import batch, fastcosim
     batch._worker_init()
 
-    def stopped(*args, **kwargs):
+    real = os.rename
+
+    def stopped(src, dst, **kwargs):  # the rename into the libraries folder (dst_dir_fd)
+        if "dst_dir_fd" not in kwargs:
+            return real(src, dst, **kwargs)
         os.kill(os.getpid(), signal.SIGTERM)
         time.sleep(60)
-    os.replace = stopped
+    os.rename = stopped
     fastcosim.loop_library()
     sys.exit("not stopped")
 """)
@@ -39,19 +44,31 @@ def test_a_worker_stopped_while_writing_the_loop_library_leaves_no_file(tmp_path
     p = subprocess.run([sys.executable, "-c", _STOPPED_WORKER], env=env, capture_output=True,
                        text=True, timeout=BOUND)
     assert p.returncode == 128 + signal.SIGTERM, p.stderr
-    assert os.listdir(tmp) == []  # no .part file, no work folder, no half library
+    # no .part file, no work folder, no half library: the (empty) libraries folder at most
+    private = "driftfmu-%d" % os.geteuid()
+    assert os.listdir(tmp) == [private]
+    assert os.listdir(tmp / private) == ["libraries"]
+    assert os.listdir(tmp / private / "libraries") == []
 
 
-def test_the_loop_library_is_compiled_once_into_the_temporary_directory(tmp_path,
-                                                                        monkeypatch):
-    from driftfmu.simulations import fastcosim
+def test_the_loop_library_is_compiled_once_into_the_private_libraries_folder(tmp_path,
+                                                                           monkeypatch):
+    import hashlib
+    from driftfmu.simulations import fastcosim, folders
     monkeypatch.setattr(fastcosim, "_LOOP_LIBRARY", [])
     monkeypatch.setattr("tempfile.tempdir", str(tmp_path))
     if fastcosim.loop_library() is None:
         pytest.skip("no C compiler")
-    # named by the hash of its source, flags and compiler (tests/test_evidence_caches.py)
-    assert [f.name for f in tmp_path.iterdir()] == [os.path.basename(fastcosim.loop_target())]
-    assert fastcosim.loop_target().startswith(str(tmp_path / "driftfmu-loop-"))
+    # named by the hash of its source, flags and compiler (tests/test_evidence_caches.py) and
+    # by the SHA-256 of its bytes
+    libraries = tmp_path / ("driftfmu-%d" % os.geteuid()) / "libraries"
+    library, = libraries.iterdir()
+    digest = hashlib.sha256(library.read_bytes()).hexdigest()
+    assert library.name == "%s-%s.so" % (fastcosim.loop_target(), digest)
+    assert fastcosim.loop_target().startswith("loop-")
+    assert [p.name for p in tmp_path.iterdir()] == [libraries.parent.name]
+    assert (libraries.stat().st_mode & 0o777, library.stat().st_mode & 0o777) == (0o700, 0o700)
+    assert folders.sweep(folders.TEMPORARY, again=True) == [] and library.exists()
 
 
 def _unpack_in_worker(path):

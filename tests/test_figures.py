@@ -74,13 +74,15 @@ def _check(fig, series):
             if (ok & ((y < y0) | (y > y1))).any():
                 assert line.get_label().lstrip("_") in marks, "clipped without a mark: %s in %r" % (
                     line.get_label(), ax.get_title())
-                assert any("off the scale" in t.get_text() for t in ax.texts)
+                assert any("off the scale" in text for _, text in output.clipping_notes(ax))
+    for ax in axes:
+        _check_notes(ax, renderer, page)
     # labels written on the data (margins, "k = 250") stay inside their axes, not over the
     # tick labels or cut at the frame
     for ax in axes:
         frame = ax.get_window_extent(renderer)
         for t in ax.texts:
-            if t.get_text().strip():
+            if t.get_text().strip() and t.get_label() != output.CLIPPING_NOTE:
                 b = t.get_window_extent(renderer)
                 assert b.x0 >= frame.x0 - 1 and b.x1 <= frame.x1 + 1 and b.y0 >= frame.y0 - 1 \
                     and b.y1 <= frame.y1 + 1, "label off its axes: %r" % t.get_text()
@@ -90,6 +92,26 @@ def _check(fig, series):
             [fig._suptitle.get_window_extent(renderer)]:
         assert box.x0 >= page.x0 - 1 and box.x1 <= page.x1 + 1 and box.y0 >= page.y0 - 1 \
             and box.y1 <= page.y1 + 1, "clipped: %s outside %s" % (box, page)
+
+
+def _check_notes(ax, renderer, page):
+    """A note of what is off the scale (output.mark_clipping) covers no point of any curve,
+    nor the legend; beside the axes it stays in the image."""
+    for note, _ in output.clipping_notes(ax):
+        box = note.get_window_extent(renderer)
+        for line in ax.get_lines():
+            if line.get_label().startswith(("_child", "_nolegend_", "_clipped")):
+                continue
+            xy = ax.transData.transform(np.column_stack(line.get_data()).astype(float))
+            xy = xy[np.all(np.isfinite(xy), axis=1)]
+            covered = (xy[:, 0] > box.x0) & (xy[:, 0] < box.x1) & (xy[:, 1] > box.y0) & \
+                (xy[:, 1] < box.y1)
+            assert not covered.any(), "the note covers %s" % line.get_label()
+        legend = ax.get_legend()
+        if legend is not None and legend is not note:
+            assert not box.overlaps(legend.get_window_extent(renderer))
+        assert box.x0 >= page.x0 and box.x1 <= page.x1 and box.y0 >= page.y0 and \
+            box.y1 <= page.y1
 
 
 def _one_run(n=400, **kw):
@@ -124,7 +146,7 @@ def test_drift_png_marks_what_its_range_clips(figures, tmp_path):
     bottom = fig.axes[1]
     marks = [line for line in bottom.get_lines() if line.get_label().startswith("_clipped empirical")]
     assert marks and all(np.all(np.asarray(m.get_xdata()) < 200) for m in marks)
-    note = [t.get_text() for t in bottom.texts if "off the scale" in t.get_text()]
+    note = [text for _, text in output.clipping_notes(bottom) if "off the scale" in text]
     assert note and "empirical" in note[0]
 
 
@@ -238,9 +260,12 @@ def test_fig5_png(figures, tmp_path):
     _check(fig, {0: ["drift", "rms(EKF1"]})
     ax = fig.axes[0]
     assert "dB re 1 V" in ax.get_ylabel() and "|value|" not in ax.get_ylabel()
-    # the convention and its reason, on the axis: 10 log10 of a voltage, as the letter
-    label = " ".join(ax.get_ylabel().split())
-    assert "10·log10(v / 1 V)" in label and "20 log10" in label and "letter" in label
+    # the convention on the axis, in one line; its reason in the caption: 10 log10 of a
+    # voltage, as the letter
+    assert ax.get_ylabel() == "10·log10(v / 1 V) [dB re 1 V]"
+    caption = " ".join(fig._suptitle.get_text().split())
+    assert "10 log10(v / 1 V) of a voltage, as the letter (20 log10 would double every " \
+        "value)" in caption
     assert len([t for t in ax.texts if t.get_text().endswith(" dB")]) == 3
 
 
@@ -288,3 +313,33 @@ def test_figures_drawn_beside_each_run_once_and_a_failure_is_raised_here(tmp_pat
         with pytest.raises(ZeroDivisionError):
             output.draw_beside(functools.partial(int, "1"),
                                functools.partial(operator.truediv, 1, 0))
+
+
+@pytest.mark.parametrize("legend", ["beside", "inside", "none"])
+def test_the_note_of_what_is_off_the_scale_covers_no_curve(figures, tmp_path, legend):
+    """Curves that fill the lower right corner and leave the scale: the note goes beside the
+    axes under a legend that sits there, into a legend placed on the axes, else where it
+    covers no point (not in the corner on the data, where it was)."""
+    k = np.arange(1, 1001)
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ax.plot(k, 1.0 / k, label="falls into the corner")
+    ax.plot(k, np.where(k < 20, 50.0, 0.05 + 0.0 * k), label="starts off the scale")
+    ax.set_xscale("log")
+    ax.set_ylim(0.0, 1.0)
+    ax.set_xlabel("sample k (log scale)")
+    ax.set_ylabel("drift [mV]")
+    if legend == "beside":
+        ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0))
+    elif legend == "inside":
+        ax.legend(loc="upper right")
+    output.caption(fig, "A figure whose curves fill the corner where the note once went")
+    output.layout(fig)
+    output.savefig(fig, tmp_path / "f.png")
+    plt.close(fig)
+    (note, text), = output.clipping_notes(ax)
+    assert "starts off the scale off the scale above" in text and "at k = 1 to 19" in text
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    assert (note.get_window_extent(renderer).x0
+            > ax.get_window_extent(renderer).x1) == (legend == "beside")
+    _check_notes(ax, renderer, fig.bbox)

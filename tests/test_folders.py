@@ -8,6 +8,7 @@ import json
 import os
 import shutil
 import signal
+import socket
 import subprocess
 import sys
 import textwrap
@@ -16,7 +17,7 @@ import time
 import pytest
 
 from driftfmu.simulations import folders, output
-from waiting import BOUND
+from waiting import BOUND, wait_for
 
 pytestmark = pytest.mark.skipif(folders.fcntl is None, reason="no flock on this platform")
 
@@ -176,6 +177,105 @@ def test_an_unsafe_private_folder_is_refused_in_one_line(case, tmp_path, private
         text = str(err.value)
         assert "\n" not in text and want in text and "allowed: a folder of this user's" in text
     assert list(elsewhere.iterdir()) == []
+
+
+#: Each permission bit of the private folder on its own: any permission for its group or for
+#: others is refused; setgid (inherited from a setgid temporary folder) and sticky give no one
+#: access to a folder of mode 0700 and are taken.
+PRIVATE_MODES = {0o700: None, 0o2700: None, 0o1700: None, 0o3700: None}
+PRIVATE_MODES.update({0o700 | bit: "has mode %04o: others may use it" % (0o700 | bit)
+                      for bit in (0o040, 0o020, 0o010, 0o004, 0o002, 0o001)})
+PRIVATE_MODES.update({0o770: "has mode 0770", 0o750: "has mode 0750",
+                      0o707: "has mode 0707", 0o2770: "has mode 2770"})
+
+
+@pytest.mark.parametrize("mode", sorted(PRIVATE_MODES), ids=lambda m: "%04o" % m)
+def test_each_permission_bit_of_the_private_folder_is_told_apart(mode, tmp_path, private):
+    from driftfmu.simulations.errors import UsageError
+    private.mkdir(mode=0o700)
+    private.chmod(mode)
+    want = PRIVATE_MODES[mode]
+    if want is None:
+        folder = folders.make("driftfmu_fmu_")
+        assert os.path.dirname(folder) == str(private)
+        folders.remove(folder)
+        return
+    with pytest.raises(UsageError, match=want):
+        folders.make("driftfmu_fmu_")
+    assert os.listdir(private) == []
+
+
+@pytest.mark.parametrize("case", ["sticky, every user may write it (/tmp)",
+                                  "every user may write it", "another user's"])
+def test_the_temporary_folder_around_the_private_folder_is_checked(case, tmp_path,
+                                                                   monkeypatch):
+    """Another user who can rename the private folder out of the temporary folder (not
+    sticky), or who owns the temporary folder, could put a folder of theirs in its place
+    between driftfmu's check and its use: refused in one line.  A sticky folder (/tmp) keeps
+    this user's entries."""
+    from driftfmu.simulations.errors import UsageError
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    tmp.chmod(0o1777 if case.startswith("sticky") else 0o777)
+    if case == "another user's":
+        if os.geteuid() != 0:
+            pytest.skip("only root can give a folder to another user")
+        tmp.chmod(0o755)
+        os.chown(tmp, 4242, 4242)
+    monkeypatch.setattr(folders.tempfile, "tempdir", str(tmp))
+    monkeypatch.setattr(folders, "_SWEPT", set())
+    if case.startswith("sticky"):
+        folder = folders.make("driftfmu_fmu_")
+        assert os.path.dirname(folder) == str(tmp / ("driftfmu-%d" % os.geteuid()))
+        folders.remove(folder)
+        return
+    want = ("%s can be written by every user (mode 0777)" % tmp if case != "another user's"
+            else "%s is owned by uid 4242" % tmp)
+    for call in (lambda: folders.make("driftfmu_fmu_"),
+                 lambda: folders.sweep(folders.TEMPORARY)):
+        with pytest.raises(UsageError) as err:
+            call()
+        assert "\n" not in str(err.value) and want in str(err.value), str(err.value)
+    assert os.listdir(tmp) == []
+
+
+def other_host(folder):
+    """Rewrite the record in ``folder``'s lock file as made on another machine (the same path,
+    device and inode: a shared file system mounted at the same place)."""
+    lock = os.path.join(folder, folders.LOCK)
+    with open(lock) as fh:
+        record = json.load(fh)
+    assert record["host"] != "another-machine"
+    record["host"] = "another-machine"
+    with open(lock, "w") as fh:
+        json.dump(record, fh)
+
+
+def test_a_folder_recorded_on_another_machine_is_never_swept(tmp_path, private):
+    """A dead work folder whose record names another host (a shared file system: that host's
+    process may be alive, and its lock is not seen here), and a half-made one whose complete
+    record does: never removed, never claimed; the same folder with this host's record is."""
+    theirs, mine = (killed("driftfmu_fmu_", tmp_path=tmp_path) for _ in range(2))
+    other_host(theirs)
+    half = private / "driftfmu_fmu_half"
+    half.mkdir()
+    shutil.copy(os.path.join(theirs, folders.LOCK), half / folders.PART)
+    record = json.loads((half / folders.PART).read_text())
+    st = os.lstat(half)
+    record.update(path=str(half), dev=st.st_dev, ino=st.st_ino)
+    (half / folders.PART).write_text(json.dumps(record))
+    assert folders.made_here(theirs)[0] is False and folders.made_here(mine)[0] is True
+    assert folders.claim(theirs) is None and not folders.stale(theirs)
+    assert not folders.stale(str(half))
+
+    assert folders.sweep(folders.TEMPORARY) == [mine]
+
+    assert os.path.isfile(os.path.join(theirs, folders.LOCK))
+    assert (half / folders.PART).is_file()
+    record["host"] = socket.gethostname()  # the other side: this host's half-made folder goes
+    (half / folders.PART).write_text(json.dumps(record))
+    folders._SWEPT.clear()
+    assert folders.sweep(folders.TEMPORARY) == [str(half)]
 
 
 def test_a_copy_or_a_rename_of_a_work_folder_is_never_removed(tmp_path, private):
@@ -470,3 +570,96 @@ def test_the_folders_of_workers_killed_by_stop_pool_are_removed(tmp_path):
     assert folder.startswith(str(tmp)) and "driftfmu_stuck_" in folder
     assert not os.path.exists(folder)
     assert os.listdir(tmp) == []  # the private folder too, left empty
+
+
+#: A process that starts, at ``site``, a program working in one of its work folders (the
+#: program is FAKE: it notes that it started, then waits for its standard input to close).
+STARTER = textwrap.dedent("""
+    import os, sys
+    from pathlib import Path
+    site, fake = sys.argv[1], sys.argv[2]
+    os.environ["CC"] = fake
+    os.environ["PATH"] = os.path.dirname(fake) + os.pathsep + os.environ["PATH"]
+    from driftfmu.simulations import folders
+    if site == "batch kernel":
+        from driftfmu.simulations import kernel
+        kernel.library()
+    elif site == "fast loop":
+        from driftfmu.simulations import fastcosim
+        fastcosim.loop_library()
+    elif site == "compiler version":  # (in a work folder of its own)
+        from driftfmu.fmu_src import native_build
+        native_build.compiler_version((fake,))
+    elif site == "native compile":
+        from driftfmu.fmu_src import native_build
+        with folders.temporary("driftfmu_native_Excitation_") as work:
+            sources = Path(work) / "sources"
+            c_files = native_build.stage_sources("Excitation", 3, sources)
+            native_build.compile_library("x86_64-linux", sources, c_files,
+                                         Path(work) / "x86_64-linux" / "Excitation.so")
+    elif site in ("loader shim", "patchelf"):
+        from driftfmu.fmu_src import builder
+        with folders.temporary("driftfmu_loader_") as work:
+            if site == "loader shim":
+                builder._make_loader(Path(work), print)
+            else:
+                builder._linux_binaries("X", b"a library", ("dt_needed", None), Path(work))
+    elif site == "doctor's trial host":
+        from driftfmu.simulations import doctor
+        sys.executable = fake
+        doctor._run_instantiate("", "X.fmu")
+    sys.exit("the program ended")
+""")
+
+#: The program: answers --version (a compiler asked what it is) at once; otherwise notes its
+#: start in STARTED and waits until its standard input (the test's pipe) closes.
+FAKE_PROGRAM = """#!/bin/sh
+for a; do [ "$a" = --version ] && [ "$STOP_AT_VERSION" != 1 ] && { echo "fake 1"; exit 0; }; done
+echo $$ >> "$STARTED"
+cat > /dev/null
+"""
+
+PROGRAM_SITES = ["batch kernel", "fast loop", "native compile", "compiler version",
+                 "loader shim", "patchelf", "doctor's trial host"]
+
+
+@pytest.mark.parametrize("site", PROGRAM_SITES)
+def test_a_program_started_in_a_work_folder_keeps_it_after_its_parent_is_killed(site,
+                                                                                 tmp_path,
+                                                                                 private):
+    """Each place where driftfmu starts a program that works in a work folder (a compiler, the
+    doctor's trial host): the parent killed outright while the program runs, the next sweep
+    leaves the folder (the program holds its lock: ``subprocess``'s pass_fds), and removes it
+    once the program has ended.  (Before: subprocess closed the lock's descriptor and the
+    folder went under the running program.)"""
+    fake = tmp_path / "bin" / ("patchelf" if site == "patchelf" else "fakecc")
+    fake.parent.mkdir()
+    fake.write_text(FAKE_PROGRAM)
+    fake.chmod(0o755)
+    started = tmp_path / "started"
+    env = dict(os.environ, TMPDIR=str(tmp_path), STARTED=str(started),
+               STOP_AT_VERSION="1" if site == "compiler version" else "0")
+    env.pop("DRIFTFMU_KERNEL", None)  # (the kernel switched off compiles nothing)
+    if site == "patchelf":
+        env["CC"] = "no-such-compiler"
+    parent = subprocess.Popen([sys.executable, "-c", STARTER, site, str(fake)], env=env,
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE,
+                              stderr=subprocess.PIPE)
+    try:
+        wait_for(lambda: started.exists() and started.read_text().strip(),
+                 "the program started at %s" % site, process=parent)
+        program = int(started.read_text().split()[0])
+        work, = [p for p in private.iterdir() if p.name.startswith(folders.TEMPORARY)]
+        parent.kill()
+        parent.wait(timeout=BOUND)
+        assert os.path.exists("/proc/%d" % program)  # still running: its parent is gone
+        assert not folders.stale(str(work))
+        assert folders.sweep(folders.TEMPORARY) == [] and work.is_dir()
+    finally:
+        parent.stdin.close()  # the program's standard input: it ends
+        parent.kill()
+        parent.wait(timeout=BOUND)
+    wait_for(lambda: not os.path.exists("/proc/%d" % program), "the program's end")
+    wait_for(lambda: folders.stale(str(work)), "the folder's lock released")
+    folders._SWEPT.clear()
+    assert folders.sweep(folders.TEMPORARY) == [str(work)]

@@ -2,6 +2,7 @@
 command line and ``fmpy.simulate_fmu``, run on Excitation, Accelerometer and DriftEstimator in
 turn with the input files ``driftfmu inputs`` writes, give ``driftfmu.simulate``'s numbers bit
 for bit, print nothing, and record every sample (simulations/hostinputs.py)."""
+import os
 import subprocess
 import sys
 
@@ -34,10 +35,11 @@ def _samples(result):
     return result[at]
 
 
-def _chain(run_one, fmus, tmp_path, start=None):
+def _chain(run_one, fmus, tmp_path, start=None, hold=None):
     """Run the chain the recipe's way: each FMU by ``run_one(fmu, input file or None, output
     file, start values)``, its input file written by ``driftfmu inputs`` from the results
-    upstream.  Returns the three results (fmpy's structured arrays)."""
+    upstream (``hold``: FMU -> the inputs no result gives, held at their start values by
+    ``--hold``).  Returns the three results (fmpy's structured arrays)."""
     from fmpy.util import read_csv
     start = start or {}
     out = {}
@@ -47,8 +49,9 @@ def _chain(run_one, fmus, tmp_path, start=None):
         if name != "Excitation":
             inp = tmp_path / ("%s_in.csv" % name)
             upstream = [tmp_path / ("%s.csv" % n) for n in CHAIN[:CHAIN.index(name)]][::-1]
+            held = [x for h in (hold or {}).get(name, ()) for x in ("--hold", h)]
             assert main(["inputs", str(fmus[name])] + [str(p) for p in upstream]
-                        + ["--output-file", str(inp)]) == 0
+                        + ["--output-file", str(inp)] + held) == 0
         result = tmp_path / ("%s.csv" % name)
         run_one(fmus[name], inp, result, given)
         out[name] = read_csv(result)
@@ -82,7 +85,7 @@ def _cli_run(fmu, inp, out, start):
     cmd = [sys.executable, "-m", "fmpy", "simulate", str(fmu), "--stop-time", repr(STOP),
            "--output-interval", repr(TS), "--output-file", str(out)]
     if fmu.stem == "Excitation":  # as issue 33 ran it: x alone, so that the files of the
-        cmd += ["--output-variables", "x"]  # others hold y and u at their start values
+        cmd += ["--output-variables", "x"]  # others hold y and u (--hold) at their starts
     if inp is not None:
         cmd += ["--input-file", str(inp)]
     if start:
@@ -101,7 +104,8 @@ def test_fmpy_command_line_recipe_gives_the_chain_bit_for_bit(fmus_in_build_layo
     ``Warning: missing input for variable "y"``: the files hold every input)."""
     fmus = {n: fmus_in_build_layout / ("%s.fmu" % n) for n in CHAIN}
     reference = driftfmu.simulate(stop_time=STOP, fmu_dir=fmus_in_build_layout)
-    compared = _assert_chain_equal(_chain(_cli_run, fmus, tmp_path), reference, "fmpy CLI")
+    compared = _assert_chain_equal(_chain(_cli_run, fmus, tmp_path, hold={
+        "Accelerometer": ["y"], "DriftEstimator": ["u"]}), reference, "fmpy CLI")
     report("host recipe: fmpy's command line, one FMU at a time with driftfmu inputs' files: "
            "%d samples, %d output columns equal to driftfmu.simulate bit for bit, no output "
            "printed" % (N, compared))
@@ -156,7 +160,7 @@ def test_without_the_lead_the_host_records_the_previous_input(fmus_in_build_layo
     assert z[0] == reference["z"][0] and not np.array_equal(z, reference["z"])
 
 
-def test_inputs_are_declared_discrete_so_fmpy_holds_them(fmus_in_build_layout):
+def test_inputs_are_declared_discrete_so_fmpy_holds_them(fmus_in_build_layout, tmp_path):
     """Every input of every FMU is declared discrete (sampled, held): fmpy applies the last
     value of an input file at a time between its rows instead of interpolating."""
     from fmpy import extract, instantiate_fmu
@@ -174,7 +178,7 @@ def test_inputs_are_declared_discrete_so_fmpy_holds_them(fmus_in_build_layout):
     x = next(v for v in md.modelVariables if v.name == "x")
     signals = np.array([(0.0, 1.0, 0.0), (1.0, 2.0, 0.0)],
                        dtype=[("time", float), ("x", float), ("y", float)])
-    fmu = instantiate_fmu(extract(str(path)), md)
+    fmu = instantiate_fmu(extract(str(path), unzipdir=str(tmp_path / "unzipped")), md)
     try:
         fmu.setupExperiment(startTime=0.0)
         fmu.enterInitializationMode()
@@ -193,23 +197,30 @@ def test_inputs_command_refuses_a_result_that_skips_samples(fmus_in_build_layout
     exc.write_text("time,x\n0.0,0.5\n0.002,0.25\n0.004,0.125\n")
     out = tmp_path / "acc_in.csv"
     fmu = str(fmus_in_build_layout / "Accelerometer.fmu")
-    assert main(["inputs", fmu, str(exc), "--output-file", str(out)]) == 2
+    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--hold", "y"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no row for sample 2" in err[0] and \
         "--output-interval 0.001" in err[0], err
     assert not out.exists()
     exc.write_text("time,x\n0.0,0.5\n0.001,0.25\n0.002,0.125\n")
     out.write_text("mine\n")
-    assert main(["inputs", fmu, str(exc), "--output-file", str(out)]) == 2
+    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--hold", "y"]) == 2
     assert out.read_text() == "mine\n" and "--force" in capsys.readouterr().err
-    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--force"]) == 0
+    # an input no result gives is refused in one line (issue 41: z = 0 without a word) ...
+    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--force"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert err == ["driftfmu: error: Accelerometer's input y is in none of the results (%s: "
+                   "x); allowed: a result with a column y, or --hold y to write its start "
+                   "value 0.0 for every sample" % exc], err
+    assert out.read_text() == "mine\n"
+    # ... and held at its start value when asked
+    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--force",
+                 "--hold", "y"]) == 0
     lines = out.read_text().splitlines()
-    # every input, those no file has at their start (y; the tilt and temperature, issue 42)
-    assert lines[0] == "time,x,y,theta,T"
-    assert lines[1:] == [row + ",0.0,0.0,298.15" for row in (
-        "0.0,0.5", "0.00025,0.5", "0.00025,0.25", "0.00125,0.25", "0.00125,0.125")]
-    printed = capsys.readouterr().out
-    assert "y held at its start value" in printed and "T held at its start value" in printed
+    assert lines[0] == "time,x,y"          # every input, the held one at its start
+    assert lines[1:] == ["0.0,0.5,0.0", "0.00025,0.5,0.0", "0.00025,0.25,0.0",
+                         "0.00125,0.25,0.0", "0.00125,0.125,0.0"]
+    assert "y held at its start value (--hold y)" in capsys.readouterr().out
 
 
 @pytest.mark.parametrize("kind", ["python", "native/fmi2", "native/fmi3"])
@@ -226,10 +237,12 @@ def test_a_refused_call_tells_its_reason_without_fmi_logging(kind, fmus_in_build
                            "x = inf is not finite; input accepts finite values only"),
                           (["--start-values", "R", "-1"], "R = -1.0 is out of range; allowed: "
                                                           "R > 0")):
+        # fmpy leaves the FMU it extracted when a call fails: in this test's folder
         done = subprocess.run([sys.executable, "-m", "fmpy", "simulate", fmu, "--stop-time",
                                "0.002", "--output-interval", "0.001", "--output-file",
                                str(tmp_path / "out.csv")] + extra,
-                              capture_output=True, text=True, timeout=300)
+                              capture_output=True, text=True, timeout=300,
+                              env=dict(os.environ, TMPDIR=str(tmp_path)))
         assert done.returncode != 0, (kind, extra)
         errors = [line for line in done.stdout.splitlines() if line.startswith("[ERROR]")]
         assert len(errors) == 1 and reason in errors[0], (kind, extra, done.stdout)

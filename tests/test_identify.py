@@ -93,7 +93,14 @@ def test_csv_pipeline_equals_the_in_memory_fit(recordings, tmp_path):
 
 @pytest.mark.parametrize("content,match", [
     ("time,x\n0,1\n0.001,2\n0.002,3\n", r"missing column\(s\) z"),
-    ("t,acc,out\n0,1,2\n", r"missing column\(s\) time, x, z"),
+    ("t,acc,out\n0,1,2\n", r"missing column\(s\) time, x, z: its first row, the header, holds "
+                          r"'t', 'acc', 'out'; allowed: a header row"),
+    # what the first row holds is quoted: a JSON file's "{", another separator's one cell
+    ('{\n  "time": [0, 1]\n}\n', r"missing column\(s\) time, x, z: its first row, the "
+                                r"header, holds '\{'; allowed: a header row with columns "
+                                r"time, x, z, separated by commas$"),
+    ("time;x;z\n0;1;2\n", r"holds 'time;x;z'; allowed"),
+    ("\n0,1,2\n", r"holds nothing; allowed"),
     ("time,x,z\n0,1,2\n0.001,oops,3\n0.002,1,1\n", r"line 3, column x: 'oops'"),
     ("time,x,z\n0,1,2\n0.001,nan,3\n0.002,1,1\n", r"line 3, column x: 'nan'"),
     ("time,x,z\n0,1,2\n0.001,1\n0.002,1,1\n", r"line 3, column z"),

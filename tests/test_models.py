@@ -173,9 +173,14 @@ def test_ekf1_is_unbiased_over_seeds():
     ("A", 1.0, "allowed: A > -1 and A < 1"),
     ("a1", 0.0, "allowed: a1 != 0"),
     ("a2", float("nan"), "a2 = nan is not finite; allowed: any finite value"),
-    ("n", 2.5, "n = 2.5 is out of range; allowed: an integer n >= 1"),
+    ("n", 2.5, "n = 2.5 is not an integer; allowed: an integer n >= 1"),
     # (issue 31: "allowed: drive >= 0 and drive <= 2" was said of 1.5, which is within it)
-    ("drive", 1.5, "drive = 1.5 is out of range; allowed: an integer drive >= 0 and drive <= 2"),
+    ("drive", 1.5, "drive = 1.5 is not an integer; allowed: an integer drive >= 0 and drive <= 2"),
+    # a wrong type is called one, in range or not (not "out of range")
+    ("seed", 1.5, "seed = 1.5 is not an integer; allowed: an integer seed >= 0 and seed <= "
+                  "2147483647"),
+    ("seed", -1.5, "seed = -1.5 is not an integer; allowed: an integer seed >= 0 and seed <= "
+                   "2147483647"),
     ("seed", "x", "seed = 'x' is not a number"),
 ])
 def test_parameter_problems_name_value_and_range(name, value, text):

@@ -13,13 +13,12 @@ from pathlib import Path
 
 import pytest
 
-from waiting import BOUND, wait_for
+from waiting import BOUND, sigint_default, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
 MUTATE = ROOT / "tools" / "mutate.py"
 
 pytest.importorskip("xdist")
-pytestmark = pytest.mark.qualification  # runs of the mutation check itself
 if sys.version_info < (3, 11):
     pytest.skip("tools/mutate.py needs Python 3.11 (tomllib)", allow_module_level=True)
 
@@ -74,7 +73,8 @@ def _mutate(tmp_path, *args, hang=False):
     if hang:
         env["HANG"] = "1"
     p = subprocess.Popen([sys.executable, str(MUTATE), "--root", str(_tree(tmp_path)), *args],
-                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                         env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                         preexec_fn=sigint_default)
     return p, pids
 
 
@@ -98,6 +98,7 @@ def _none_left(pids):
 
 
 @pytest.mark.parametrize("signum", [signal.SIGTERM, signal.SIGINT])
+@pytest.mark.qualification  # runs of the mutation check itself
 def test_a_signal_stops_the_running_tests_and_their_workers(signum, tmp_path):
     p, pids = _mutate(tmp_path, hang=True)
     try:
@@ -116,6 +117,7 @@ def test_a_signal_stops_the_running_tests_and_their_workers(signum, tmp_path):
     assert not list(tmp_path.glob("driftfmu-mutate-*"))  # the copy is removed
 
 
+@pytest.mark.qualification  # runs of the mutation check itself
 def test_a_baseline_over_its_bound_is_killed_with_its_workers(tmp_path):
     p, pids = _mutate(tmp_path, "--baseline-timeout", "10", hang=True)
     out, err = p.communicate(timeout=BOUND)
@@ -125,6 +127,7 @@ def test_a_baseline_over_its_bound_is_killed_with_its_workers(tmp_path):
     assert 1 <= len(_recorded(pids)) <= 4 and _none_left(pids) == []
 
 
+@pytest.mark.qualification  # runs of the mutation check itself
 def test_a_fault_that_hangs_times_out_and_is_killed_with_its_workers(tmp_path):
     p, pids = _mutate(tmp_path, "--timeout", "10")
     out, err = p.communicate(timeout=BOUND)
@@ -195,25 +198,208 @@ def test_the_copy_leaves_out_the_virtual_environment_and_caches(tmp_path):
         shutil.rmtree(tmp)
 
 
+
+
+# ---------------------------------------------------------------- tools/mutation_survey.py
+
 def test_the_survey_generates_each_kind_of_mutant(tmp_path):
-    """tools/mutation_survey.py: a changed constant, a sign, a dropped term, a comparison, two
-    arguments swapped, a keyword or a last argument left out; each mutant parses and differs."""
+    """Every operator, each mutant parses and differs; docstrings, signatures, f-strings and
+    nested functions are not the function's own."""
     survey = _tool("mutation_survey")
     (tmp_path / "m.py").write_text(
+        "import os\n\n"
         "def f(a, b, c=1.0):\n"
         '    """Docstring 2.0 is not mutated."""\n'
-        "    if a != 0.0:\n"
+        "    if a != 0.0 and not b:\n"
         "        return g(a, b, c=c) + 2.0 * a - b\n"
-        "    return h(a, b)\n")
-    found = survey.mutants(str(tmp_path), (("m.py", "f"),))
-    kinds = {m["operator"] for m in found}
-    assert kinds == {"constant", "sign", "drop", "compare", "swap", "default", "last"}, kinds
-    texts = [m["source"] for m in found]
-    assert len(set(texts)) == len(texts)
+        "    if a is None or a in (3, -b):\n"
+        "        raise ValueError(f'{a + 7}')\n"
+        "    os.unlink(b)\n"
+        "    return h(a, b)\n\n"
+        "def outer():\n"
+        "    def inner():\n"
+        "        return 5\n"
+        "    return inner\n")
+    found = survey.file_mutants(str(tmp_path), "m.py")
+    assert {m["operator"] for m in found} == set(survey.OPERATORS)
+    mutated = {(m["function"], m["operator"], m["mutated"]) for m in found}
+    for expected in [("f", "compare", "a > 0.0"), ("f", "swap", "g(b, a, c=c)"),
+                     ("f", "default", "g(a, b)"), ("f", "constant", "4.0"),
+                     ("f", "drop", "g(a, b, c=c) + 2.0 * a"), ("f", "last", "h(a)"),
+                     ("f", "boolean", "a != 0.0 or not b"), ("f", "not", "b"),
+                     ("f", "return", "None"), ("f", "if", "True"), ("f", "if", "False"),
+                     ("f", "delete", "pass"), ("f", "compare", "a is not None"),
+                     ("f", "compare", "a not in (3, -b)"), ("f", "sign", "b"),
+                     ("f", "offbyone", "4"), ("f", "offbyone", "2"),
+                     ("outer.inner", "offbyone", "6"), ("outer", "return", "None")]:
+        assert expected in mutated, expected
+    assert not [m for m in found if m["function"] == "outer" and m["mutated"] in "456"]
+    assert not [m for m in found if "7" in m["original"] and m["operator"] != "delete"]
+    texts = set()
     for m in found:
-        compile(m["source"], "m.py", "exec")
-        assert "Docstring 2.0" in m["source"]
-    mutated = {(m["operator"], m["mutated"]) for m in found}
-    assert ("compare", "a > 0.0") in mutated and ("swap", "g(b, a, c=c)") in mutated
-    assert ("default", "g(a, b)") in mutated and ("constant", "4.0") in mutated
-    assert ("drop", "g(a, b, c=c) + 2.0 * a") in mutated and ("last", "h(a)") in mutated
+        source = survey.mutant_source(str(tmp_path), m)
+        compile(source, "m.py", "exec")
+        assert "Docstring 2.0" in source and "c=1.0" in source
+        texts.add(source)
+    assert len(texts) == len(found)
+    # the same text twice in one function: told apart by nth
+    assert [m["nth"] for m in found if m["operator"] == "sign" and m["original"] == "-b"] == [1]
+
+
+def _git(root, *args):
+    subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", *args], cwd=root,
+                   check=True, capture_output=True)
+
+
+def test_changed_picks_exactly_the_functions_whose_lines_differ(tmp_path):
+    survey = _tool("mutation_survey")
+    (tmp_path / "models").mkdir()
+    before = ("def f(x):\n    return x + 1\n\n"
+              "def g(x):\n    y = x * 2\n    return y\n\n"
+              "class C:\n    def method(self):\n        a = 1\n        b = 2\n"
+              "        return a + b\n\n"
+              "def outer():\n    def inner():\n        return 3\n    return inner\n\n"
+              "def last(x):\n    return x\n")
+    (tmp_path / "models" / "m.py").write_text(before)
+    (tmp_path / "models" / "same.py").write_text("def s():\n    return 1\n")
+    _git(tmp_path, "init", "-q", "-b", "main")
+    _git(tmp_path, "add", "-A")
+    _git(tmp_path, "commit", "-q", "-m", "base")
+    _git(tmp_path, "checkout", "-q", "-b", "change")
+    after = (before.replace("y = x * 2", "y = x * 3")           # g: a changed line
+             .replace("        a = 1\n", "")                     # C.method: a deleted line
+             .replace("return 3", "return 4")                   # outer.inner, not outer
+             + "\ndef new(x):\n    return -x\n")                # a new function
+    (tmp_path / "models" / "m.py").write_text(after)
+    _git(tmp_path, "commit", "-q", "-am", "change")
+    (tmp_path / "models" / "untracked.py").write_text("def u():\n    return 2\n")
+    changed = survey.changed_functions(str(tmp_path), "main")
+    assert changed == {"models/m.py": {"g", "C.method", "outer.inner", "new"},
+                       "models/untracked.py": {"u"}}
+    # and only their mutants are surveyed
+    found = survey.mutants(str(tmp_path), changed)
+    assert {m["function"] for m in found} == {"g", "C.method", "outer.inner", "new", "u"}
+
+
+def test_the_selection_is_the_tests_that_run_the_mutated_line():
+    survey = _tool("mutation_survey")
+    rec = {"tests": {"tests/test_a.py::t1": [True, False, 2.0],
+                     "tests/test_a.py::t0": [True, False, 1.0],
+                     "tests/test_b.py::slow": [True, True, 9.0],
+                     "tests/test_a.py::broken": [False, False, 1.0],
+                     "tests/test_native_models.py::bits": [True, False, 1.0]},
+           "lines": {"models/m.py": {"3": ["tests/test_a.py::t1", "tests/test_a.py::t0",
+                                           "tests/test_b.py::slow", "tests/test_a.py::broken",
+                                           "tests/test_native_models.py::bits"],
+                                     "5": ["tests/test_b.py::slow"]}}}
+    m = dict(file="models/m.py", lines=[3, 3])
+    # fastest first, integration apart, a failing test and the twins' bits never
+    assert survey.selection(rec, m) == (["tests/test_a.py::t0", "tests/test_a.py::t1"],
+                                        ["tests/test_b.py::slow"])
+    assert survey.selection(rec, dict(m, lines=[5, 6])) == ([], ["tests/test_b.py::slow"])
+    assert survey.selection(rec, dict(m, lines=[4, 4])) == ([], [])
+
+
+def test_an_fmus_bundled_copy_is_mapped_to_the_trees_file():
+    survey = _tool("mutation_survey")
+    name = survey._tree_name
+    assert name("/tmp/x/tree/models/ekf.py", "/tmp/x/tree") == "models/ekf.py"
+    assert name("/tmp/x/tree/tests/test_a.py", "/tmp/x/tree") is None
+    assert name("/tmp/fmu1/resources/drift_0123456789/models/ekf.py", "/t") == "models/ekf.py"
+    assert name("/tmp/fmu1/resources/drift_0123456789/Accelerometer.py", "/t") == \
+        "fmu_src/Accelerometer.py"
+    assert name("/tmp/fmu1/resources/drift_0123456789/slave_base.py", "/t") == \
+        "fmu_src/slave_base.py"
+    assert name("/tmp/fmu1/resources/drift_0123456789/__init__.py", "/t") is None
+
+
+SURVEY_TREE = {
+    "driftfmu/__init__.py": TREE["driftfmu/__init__.py"],
+    "models/__init__.py": "",
+    "models/calc.py": ("def add(a, b):\n    return a + b\n\n\n"
+                       "def half(x):\n    if x > 10:\n        return x / 2\n    return x\n"),
+    "pyproject.toml": "[tool.pytest.ini_options]\ntestpaths = ['tests']\n",
+    "tests/test_calc.py": ("from driftfmu.models.calc import add, half\n\n"
+                           "def test_add():\n    assert add(2, 3) == 5\n\n"
+                           "def test_half():\n    assert half(4) == 4\n"),
+}
+
+
+def _survey_tree(tmp_path):
+    root = tmp_path / "tree"
+    for name, text in SURVEY_TREE.items():
+        (root / name).parent.mkdir(parents=True, exist_ok=True)
+        (root / name).write_text(text)
+    (root / "tools").mkdir()
+    (root / "tools" / "survey_coverage.py").write_text(
+        (ROOT / "tools" / "survey_coverage.py").read_text())
+    return root
+
+
+def _run_survey(tmp_path, root, *args):
+    env = dict(os.environ, DRIFTFMU_SURVEY_CACHE=str(tmp_path / "cache"))
+    env.pop("PYTEST_XDIST_WORKER", None)
+    return subprocess.run([sys.executable, str(ROOT / "tools" / "mutation_survey.py"), "--root",
+                           str(root), "--record-workers", "0", *args], env=env,
+                          capture_output=True, text=True, timeout=BOUND * 4)
+
+
+@pytest.mark.qualification  # runs of the survey itself
+def test_a_survivor_is_untriaged_until_the_triage_file_names_it(tmp_path):
+    """A planted survivor (``half``'s ``x > 10``: the test only tries 4) is reported untriaged
+    and the survey exits 1; triaged as equivalent it exits 0; triaged as caught by a test
+    (which does not catch it) it is untriaged again; an entry of no mutant is stale."""
+    root = _survey_tree(tmp_path)
+    p = _run_survey(tmp_path, root, "--toml", str(tmp_path / "new.toml"))
+    assert p.returncode == 1, p.stdout + p.stderr
+    assert "UNTRIAGED models/calc.py:half:6 compare: x > 10 -> x >= 10" in p.stdout
+    assert "UNTRIAGED models/calc.py:half:7 return: x / 2 -> None (no test runs this line)" \
+        in p.stdout
+    assert "UNTRIAGED models/calc.py:add" not in p.stdout  # test_add catches every one
+    # the record: add's statement is run by test_add alone, half's test by test_half alone,
+    # half's return x / 2 by no test
+    import json
+    survey = _tool("mutation_survey")
+    (record,) = (tmp_path / "cache").glob("*.json")
+    rec = json.loads(record.read_text())
+    found = {(m["function"], m["line"]): m for m in survey.mutants(str(root))}
+    assert survey.selection(rec, found["add", 2]) == (["tests/test_calc.py::test_add"], [])
+    assert survey.selection(rec, found["half", 6]) == (["tests/test_calc.py::test_half"], [])
+    assert survey.selection(rec, found["half", 7]) == ([], [])
+    # the entries to fill in: all of them equivalent, one stale entry besides
+    entries = (tmp_path / "new.toml").read_text().replace(
+        'verdict = "?"\nreason = ""', 'verdict = "equivalent"\nreason = "planted"')
+    stale = ('[[survivor]]\nfile = "models/calc.py"\nfunction = "add"\noperator = "sign"\n'
+             'original = "a * b"\nmutated = "a / b"\nverdict = "equivalent"\nreason = "x"\n')
+    (root / "tools" / "survivors.toml").write_text(entries + "\n" + stale)
+    p = _run_survey(tmp_path, root)
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "UNTRIAGED" not in p.stdout
+    assert "STALE triage entry: models/calc.py:add sign: a * b -> a / b" in p.stdout
+    assert "(cached)" in p.stdout  # the record is made once per tree
+    # an entry that says a test catches it, when none does: untriaged (a regression)
+    (root / "tools" / "survivors.toml").write_text(entries.replace(
+        'verdict = "equivalent"\nreason = "planted"\n', 'verdict = "test"\n'
+        'test = "tests/test_calc.py::test_half"\n', 1))
+    p = _run_survey(tmp_path, root, "--function", "models/calc.py:half")
+    assert p.returncode == 1, p.stdout + p.stderr
+    assert "which no longer catches it" in p.stdout
+
+
+def test_a_malformed_triage_entry_is_refused(tmp_path):
+    survey = _tool("mutation_survey")
+    path = tmp_path / "s.toml"
+    path.write_text('[[survivor]]\nfile = "models/calc.py"\nfunction = "f"\n'
+                    'operator = "sign"\noriginal = "a + b"\nmutated = "a - b"\n'
+                    'verdict = "equivalent"\n')
+    with pytest.raises(SystemExit, match="equivalent without a reason"):
+        survey.load_triage(str(path))
+    path.write_text(path.read_text().replace('"equivalent"', '"maybe"'))
+    with pytest.raises(SystemExit, match="allowed: equivalent, test"):
+        survey.load_triage(str(path))
+
+
+def test_the_triage_file_of_the_tree_is_well_formed_and_has_no_stale_entry():
+    p = subprocess.run([sys.executable, str(ROOT / "tools" / "mutation_survey.py"),
+                        "--check-triage"], capture_output=True, text=True, timeout=BOUND)
+    assert p.returncode == 0, p.stdout + p.stderr

@@ -1055,6 +1055,11 @@ def test_allowed_and_problem_messages_equal_models(c):
             if not integer:
                 assert c.parameters_problem(name.encode(), v, 0, buf, parameters_max) == 1
                 assert buf.value.decode() == parameters.problem(name, v)
+        if integer:  # a fraction is a wrong type, in range or not: "not an integer"
+            for v in (0.5, -1.5, 2.25, 1e10 + 0.5):
+                assert c.parameters_problem(name.encode(), v, 0, buf, parameters_max) == 1
+                assert buf.value.decode() == parameters.problem(name, v)
+                assert " is not an integer; allowed: " in buf.value.decode()
     assert c.parameters_allowed(b"nonsense", buf, 512) == -1
 
 

@@ -77,13 +77,14 @@ def expected_binaries(kind, name):
 
 def test_every_platform_has_a_compiler_here():
     need(len(built_platforms()) == len(PLATFORMS),
-         "no compiler for %s (pip install ziglang)"
+         "no compiler for %s (pip install \"driftfmu[native]\")"
          % ", ".join(sorted(set(PLATFORMS) - set(built_platforms()))))
 
 
 @pytest.mark.qualification
 def test_the_fmi2_fmus_for_arm_are_built_when_zig_is_there(fmu_sets):
-    need("aarch64-linux" in built_platforms(), "zig is not installed (pip install ziglang)")
+    need("aarch64-linux" in built_platforms(),
+         "zig is not installed (pip install \"driftfmu[native]\")")
     assert set(fmu_sets[native_build.FMI2_ARM]) == set(NAMES)
     assert all(p.is_file() for p in fmu_sets[native_build.FMI2_ARM].values())
 
@@ -302,7 +303,7 @@ def test_without_zig_and_mingw_the_build_ships_what_it_can_and_names_the_rest(mo
     warning, = [line for line in lines if line.startswith("warning")]
     for p in PLATFORMS:
         assert (p in warning) == (p != "x86_64-linux"), (p, warning)
-    assert "pip install ziglang" in warning and "gcc-mingw-w64-x86-64" in warning
+    assert 'pip install "driftfmu[native]"' in warning and "gcc-mingw-w64-x86-64" in warning
     assert not (tmp_path / native_build.FMI2_ARM).exists()
     for version, folder in ((2, "linux64"), (3, "x86_64-linux")):
         with zipfile.ZipFile(built[version]["Excitation"]) as archive:
@@ -395,6 +396,28 @@ def test_a_damaged_cache_entry_is_compiled_again_and_replaced_never_shipped(
     assert native_build._read_cache_entry(entry) is None
     assert _build_excitation(tmp_path / "second", cache=cache).read_bytes() == plain
     assert entry.read_bytes() == whole
+
+
+@pytest.mark.skipif(not hasattr(os, "geteuid") or os.geteuid() != 0,
+                    reason="only root can give a file to another user")
+@pytest.mark.parametrize("damage", ["another user's", "writable by others"])
+def test_a_cache_entry_another_user_could_have_written_is_compiled_again_never_shipped(
+        damage, cached_excitation, tmp_path):
+    """A whole entry with a planted library (its checksum right) that another user owns, or
+    that others may write: the build compiles the library again, ships the bytes of a build
+    without a cache and replaces the entry with one of this user's (simulations/trust.py)."""
+    plain, written = cached_excitation
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    entry = cache / written.name
+    entry.write_bytes(native_build.cache_entry(b"planted"))
+    if damage == "another user's":
+        os.chown(entry, 4242, 4242)
+    else:
+        entry.chmod(0o666)
+    assert _build_excitation(tmp_path / "second", cache=cache).read_bytes() == plain
+    assert entry.read_bytes() == written.read_bytes()
+    assert (entry.stat().st_uid, entry.stat().st_mode & 0o777) == (os.geteuid(), 0o600)
 
 
 def test_the_cache_key_does_not_name_where_ziglang_is_installed(tmp_path, monkeypatch):
@@ -499,7 +522,9 @@ def test_without_any_compiler_for_x86_64_linux_the_build_says_what_to_install(mo
     with pytest.raises(native_build.NativeBuildError,
                        match="no x86_64-linux compiler: CC='no-such-cc' is not an installed "
                        "program, zig is not installed; allowed: CC naming an installed C "
-                       "compiler, or Debian: apt-get install gcc, or pip install ziglang"):
+                       "compiler, or Debian: apt-get install gcc, or the extra "
+                       "driftfmu\\[native\\] \\(pip install \"driftfmu\\[native\\]\": ziglang, "
+                       "a C compiler for every platform\\)"):
         native_build.build_native_fmus(tmp_path, names=("Excitation",), log=lambda line: None)
     with pytest.raises(native_build.NativeBuildError, match="platforms mac are not known"):
         native_build.build_native_fmus(tmp_path, platforms=("x86_64-linux", "mac"))

@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations import cli
-from waiting import BOUND
+from waiting import BOUND, sigint_default
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -30,15 +30,16 @@ def test_plain_lines_come_at_intervals_with_percent_and_time_left():
     p(100)
     # the first work done, and 900 runs more at this pace are 45 s: a long phase says so at
     # once, not after its first interval
-    assert out.getvalue() == "driftfmu: progress: runs 10 % (100/1000 runs), 5 s\n"
+    assert out.getvalue() == ("driftfmu: progress: runs 10 % (100/1000 runs), 5 s, about 45 s "
+                              "left at this pace\n")
     clock.t = 10.0
     p(250)
     assert out.getvalue().count("\n") == 1  # one line per interval
     clock.t = 15.0
-    p(400)
-    # 300 runs in the 10 s since the first update: 600 more take 20 s
+    p(300)
+    # 300 runs in 15 s: 700 more take 35 s
     assert out.getvalue().splitlines()[-1] == (
-        "driftfmu: progress: runs 40 % (400/1000 runs), 15 s, about 20 s left")
+        "driftfmu: progress: runs 30 % (300/1000 runs), 15 s, about 35 s left at this pace")
     clock.t = 20.0
     p(500)
     assert out.getvalue().count("\n") == 2
@@ -60,8 +61,9 @@ def test_a_short_phase_stays_silent_and_a_long_one_speaks_at_its_first_work_done
     p(1)  # in the first seconds: not yet
     assert out.getvalue() == ""
     clock.t = 5.0
-    p(2)  # 3.1 s into the phase, and 998 more sets at a set a 2 s: a long phase speaks
-    assert out.getvalue() == "driftfmu: progress: sets 0 % (2/1000 sets), 3 s, about 33.3 min left\n"
+    p(2)  # 3.1 s into the phase, and 998 more sets at this pace: a long phase speaks
+    assert out.getvalue() == ("driftfmu: progress: sets 0 % (2/1000 sets), 3 s, about 25.8 min "
+                              "left at this pace\n")
     clock.t = 7.0
     p(3)
     assert out.getvalue().count("\n") == 1  # then one line an interval
@@ -72,6 +74,18 @@ def test_a_short_phase_stays_silent_and_a_long_one_speaks_at_its_first_work_done
     assert out.getvalue().count("\n") == 1
 
 
+def test_the_first_line_of_a_long_phase_says_the_time_left_however_slow_the_first_unit():
+    """A machine so busy that the first set is done only after 40 s (a load of 12 on two
+    cores): the phase's first line comes with it, and says how long the rest takes at that
+    pace."""
+    clock, out = Clock(), io.StringIO()
+    p = cli.Progress(150, "sets", "set", every=30.0, stream=out, clock=clock)
+    clock.t = 40.0
+    p(1)
+    assert out.getvalue() == ("driftfmu: progress: sets 1 % (1/150 sets), 40 s, about 99.3 min "
+                              "left at this pace\n")
+
+
 def test_a_new_phase_restarts_the_count_and_is_announced_in_a_long_run():
     clock, out = Clock(), io.StringIO()
     p = cli.Progress(10, "runs", "run", every=10.0, stream=out, clock=clock)
@@ -79,30 +93,50 @@ def test_a_new_phase_restarts_the_count_and_is_announced_in_a_long_run():
     p(10)
     cli.start_phase(p, "validation", 4, "point")
     lines = out.getvalue().splitlines()
-    assert lines[-1] == "driftfmu: progress: validation 0 % (0/4 points), 0 s"
+    assert lines[-2:] == ["driftfmu: progress: runs 100 % (10/10 runs), 30 s",
+                          "driftfmu: progress: validation 0 % (0/4 points), 0 s"]
     clock.t = 35.0
-    p(1)
+    p(1)  # 15 s more at this pace: longer than an interval, said at once
+    assert out.getvalue().splitlines()[-1] == ("driftfmu: progress: validation 25 % (1/4 "
+                                               "points), 5 s, about 15 s left at this pace")
     clock.t = 45.0
     p(2)
     assert out.getvalue().splitlines()[-1] == ("driftfmu: progress: validation 50 % (2/4 points), "
-                                               "15 s, about 20 s left")
+                                               "15 s, about 15 s left at this pace")
     cli.start_phase(lambda done: None, "x", 1)  # a plain callable has no phases: ignored
     cli.start_phase(None, "x", 1)
 
 
-def test_the_time_left_does_not_count_what_came_before_the_first_work_done():
-    """A run that first builds its FMUs for 60 s, then co-simulates 100 samples in 10 s: 890
-    samples are 89 s more, not the 566 s that counting the build would say; the line before
-    a rate is known has no estimate."""
+def test_the_time_left_counts_from_the_start_of_the_work_not_its_set_up():
+    """A run that first builds its FMUs for 60 s, then co-simulates 100 samples in 10 s: 900
+    samples are 90 s more, not the 630 s that counting the build would say."""
     clock, out = Clock(), io.StringIO()
     p = cli.Progress(1000, "co-simulation", "sample", every=1.0, stream=out, clock=clock)
     clock.t = 60.0
-    p(10)
+    cli.start_work(p)
     clock.t = 70.0
-    p(110)
+    p(100)
     assert out.getvalue().splitlines() == [
-        "driftfmu: progress: co-simulation 1 % (10/1000 samples), 60 s",
-        "driftfmu: progress: co-simulation 11 % (110/1000 samples), 70 s, about 89 s left"]
+        "driftfmu: progress: co-simulation 10 % (100/1000 samples), 70 s, about 90 s left at "
+        "this pace"]
+    cli.start_work(lambda done: None)  # a plain callable has no work phases: ignored
+    cli.start_work(None)
+
+
+def test_the_first_units_done_count_for_all_that_run_beside_them():
+    """Two workers start two sets at once: when the first is done after 10 s, so is (about)
+    the second, and the 8 left of 10 take 40 s, not 90 s; later the sets done count alone."""
+    clock, out = Clock(), io.StringIO()
+    p = cli.Progress(10, "sets", "set", every=0.0, stream=out, clock=clock)
+    cli.start_work(p, at_once=2)
+    clock.t = 10.0
+    p(1)
+    clock.t = 20.0
+    p(4)
+    assert [line.split(", ")[-1] for line in out.getvalue().splitlines()] == [
+        "about 45 s left at this pace", "about 30 s left at this pace"]
+    p.phase("validation", 3, "point")  # a new phase runs one unit at a time again
+    assert p.at_once == 1 and p.work_started == 20.0
 
 
 class Bar:
@@ -187,7 +221,8 @@ def test_a_long_experiment_says_how_long_it_will_take_and_shows_its_first_set(py
         [sys.executable, "-m", "driftfmu", "experiment", "adxl203", "--freqs", "100",
          "--sets", "1000", "--n", "20000", "--workers", "1",
          "--fmu-dir", str(python_fmus["Excitation"].parent), "--out", str(tmp_path / "res")],
-        cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        cwd=tmp_path, env=env, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True,
+        preexec_fn=sigint_default)
     lines = queue.Queue()
     threading.Thread(target=_stderr_lines, args=(proc, lines), daemon=True).start()
     seen = []
@@ -209,5 +244,40 @@ def test_a_long_experiment_says_how_long_it_will_take_and_shows_its_first_set(py
     assert note.endswith(" (estimates)") and (" min " in note or " s " in note), note
     import re
     assert re.fullmatch(r"driftfmu: progress: sets \d+ % \(\d+/1000 sets\), \d+ s, about "
-                        r"[0-9.]+ (s|min) left", progress), progress
+                        r"[0-9.]+ (s|min) left at this pace", progress), progress
     assert len(seen) == 2, seen
+
+
+class Recorder:
+    """A progress callback that records its calls: the units done, and ("work", at_once)."""
+
+    def __init__(self):
+        self.seen = []
+
+    def __call__(self, done):
+        self.seen.append(done)
+
+    def work(self, at_once=1):
+        self.seen.append(("work", at_once))
+
+
+@pytest.mark.parametrize("workers, at_once", [(1, 2), (2, 4)])
+def test_the_pool_says_when_its_work_starts_and_how_many_runs_it_runs_at_once(workers, at_once):
+    from driftfmu.simulations import batch
+    tasks = batch.make_tasks(10, batch.run_seeds(1, 6), {}, dict(kernel="numpy"), chunk=2)
+    progress = Recorder()
+    batch.run_tasks(tasks, workers=workers, progress=progress)
+    assert progress.seen[0] == ("work", at_once)
+    assert sorted(progress.seen[1:]) == [2, 4, 6]
+
+
+@pytest.mark.integration
+@pytest.mark.parametrize("fast", [False, True])
+def test_a_co_simulation_says_when_its_steps_start(python_fmus, fast):
+    from driftfmu.simulations import cosim, fastcosim, sinusoidal
+    progress = Recorder()
+    master = fastcosim.cosimulate_fast if fast else cosim.cosimulate
+    master({k: str(v) for k, v in python_fmus.items() if k != "DualDriftEstimator"},
+           sinusoidal.CONNECTIONS, 200, 1e-3, progress=progress)
+    assert progress.seen[0] == ("work", 1) and progress.seen[-1] == 200
+    assert progress.seen.count(("work", 1)) == 1

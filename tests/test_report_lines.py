@@ -1,6 +1,7 @@
 """The ``report`` fixture's lines (~60 "BAD INPUT ... failed" lines printed past the capture read
 as failures): they are listed after the session under their own heading, with their test's
 name, and not in the middle of the progress dots; a quiet run (-q) leaves them out."""
+import os
 import subprocess
 import sys
 import textwrap
@@ -19,9 +20,10 @@ def _run(tmp_path, *options):
         def test_b():
             pass
     """))
+    # its temporary folder (and its pytest's folders) in this test's
     r = subprocess.run([sys.executable, "-m", "pytest", *options, "-p", "no:cacheprovider",
                         "-p", "no:xdist", str(tmp_path)], capture_output=True, text=True,
-                       cwd=tmp_path, timeout=BOUND)
+                       cwd=tmp_path, timeout=BOUND, env=dict(os.environ, TMPDIR=str(tmp_path)))
     assert r.returncode == 0, r.stdout + r.stderr
     return r.stdout.splitlines()
 

@@ -15,11 +15,22 @@ CHILD = r"""
 import json, sys, threading, time
 from lxml import etree
 calls, lock = [], threading.Lock()
+other_started, priming = threading.Event(), threading.Event()
+STAGED = sys.argv[1] == "staged"
+WIDEN = 3.0 if STAGED else 0.0
 original = etree.XMLSchema
 class Recorded(original):
     def __init__(self, *args, **kwargs):
         caller = sys._getframe(1).f_code
         start = time.perf_counter()
+        if caller.co_name == "prime":
+            # the window a wrong priming leaves open, held open: the priming parse waits (a
+            # bounded while) for another thread's parse to start, which a priming that holds
+            # its lock until the parse is done never lets happen
+            priming.set()
+            other_started.wait(WIDEN)
+        else:
+            other_started.set()
         try:
             super().__init__(*args, **kwargs)
         finally:
@@ -28,16 +39,19 @@ class Recorded(original):
                               caller.co_filename.replace("\\", "/").rsplit("/", 1)[-1]))
 etree.XMLSchema = Recorded
 from driftfmu.fmu_src import schemas
-paths = sys.argv[1:]
+paths = sys.argv[2:]
 barrier = threading.Barrier(len(paths))
 problems = []
-def validate(path):
-    barrier.wait()
+def validate(path, first):
+    if STAGED and not first:
+        priming.wait(WIDEN)  # released while the first thread is inside the priming parse
+    elif not STAGED:
+        barrier.wait()
     try:
         problems.extend(schemas.validate_fmu(path))
     except Exception as e:
         problems.append(repr(e))
-threads = [threading.Thread(target=validate, args=(p,)) for p in paths]
+threads = [threading.Thread(target=validate, args=(p, i == 0)) for i, p in enumerate(paths)]
 for t in threads:
     t.start()
 for t in threads:
@@ -46,10 +60,10 @@ print(json.dumps({"calls": sorted(calls), "problems": problems}))
 """
 
 
-def _validate_in_threads(paths):
+def _validate_in_threads(paths, mode="together"):
     import json
-    out = subprocess.run([sys.executable, "-c", CHILD, *map(str, paths)], capture_output=True,
-                         text=True, check=True).stdout
+    out = subprocess.run([sys.executable, "-c", CHILD, mode, *map(str, paths)],
+                         capture_output=True, text=True, check=True).stdout
     return json.loads(out)
 
 
@@ -61,6 +75,23 @@ def test_the_first_schema_parse_ends_before_any_thread_parses(python_fmus, nativ
     paths = [python_fmus["Excitation"], native_fmus[2]["DriftEstimator"],
              native_fmus[3]["Accelerometer"], native_fmus[3]["Excitation"]]
     seen = _validate_in_threads(paths)
+    assert seen["problems"] == []
+    (first_start, first_end, function, filename), *others = seen["calls"]
+    assert (function, filename) == ("prime", "schemas.py"), seen["calls"]
+    assert len(others) >= len(paths)
+    assert all(start >= first_end for start, *_ in others), seen["calls"]
+
+
+@pytest.mark.integration
+def test_no_thread_parses_before_the_priming_parse_is_over(python_fmus, native_fmus):
+    # the window that a priming which is skipped, or which lets the others go before its own
+    # parse is done (its flag set first), leaves open, held open: one thread starts, and the
+    # other three are released once it is inside the priming parse, which waits up to 3 s for
+    # any other parse to start.  A priming that keeps its lock until its parse is done lets
+    # none start (the wait runs out); a wrong one lets them, and the order shows it every time
+    paths = [python_fmus["Excitation"], native_fmus[2]["DriftEstimator"],
+             native_fmus[3]["Accelerometer"], native_fmus[3]["Excitation"]]
+    seen = _validate_in_threads(paths, "staged")
     assert seen["problems"] == []
     (first_start, first_end, function, filename), *others = seen["calls"]
     assert (function, filename) == ("prime", "schemas.py"), seen["calls"]

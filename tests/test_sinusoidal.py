@@ -78,6 +78,10 @@ def test_cli_run_sinusoidal(fmu_dir, tmp_path, capsys):
                "--out", str(tmp_path), "--fmu-dir", str(fmu_dir)])
     text = capsys.readouterr().out
     assert rc == 0 and "harmonic filter" in text and "validation: FMU outputs equal" in text
+    # the references in the order of run gaussian's line (cli.cmd_run_gaussian)
+    import re
+    assert re.search(r"^final drift \[V\]: EKF1 \S+, EKF2 \S+, EKF3 \S+ \| realised \S+, "
+                     r"empirical over \d+ whole periods \S+, expected \S+$", text, re.M), text
     rc = main(["run", "sinusoidal", "--f", "700", "--out", str(tmp_path / "x"),
                "--fmu-dir", str(fmu_dir)])
     assert rc == 2 and "Nyquist" in capsys.readouterr().err

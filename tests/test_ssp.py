@@ -270,7 +270,11 @@ def test_archive_carries_openmodelicas_annotation_and_one_parameter_set_name(gen
                         "oms:SimulationInformation/oms:FixedStepMaster")
     assert master.attrib == {"description": "oms-ma", "stepSize": "0.001",
                              "relativeTolerance": "0.0001"}
-    sets = root.iter("{%s}ParameterSet" % ssp.NS["ssv"])
+    bindings = root.iter("{%s}ParameterBinding" % ssp.NS["ssd"])
+    assert [b.get("source") for b in bindings] == ["resources/%s.ssv" % n for n in ssp.FMU_NAMES]
+    with zipfile.ZipFile(general_archive) as z:
+        sets = [ET.fromstring(z.read("resources/%s.ssv" % n)) for n in ssp.FMU_NAMES]
+    assert [s.tag for s in sets] == ["{%s}ParameterSet" % ssp.NS["ssv"]] * 3
     assert [s.get("name") for s in sets] == [ssp.SYSTEM] * 3
 
 
@@ -313,7 +317,8 @@ def test_omsimulator_command_line_runs_the_archive_with_our_masters_numbers(
                "equal to our master bit for bit" % (version, kind, N, len(columns)))
 
 
-def test_ecos_applies_every_components_start_values(built_fmus, native_fmus, tmp_path, report):
+def test_ecos_applies_every_components_start_values(built_fmus, native_fmus, tmp_path, report,
+                                                    monkeypatch):
     """ecos applies one named parameter set per run; the archive gives every component's set
     the system's name, so one ``init(0, "DriftChain")`` applies them all: the excitation is the
     run's (A, Q, seed), the sensor's z is the run's (a2, R, a3, a4, seed) and the estimator
@@ -331,6 +336,8 @@ def test_ecos_applies_every_components_start_values(built_fmus, native_fmus, tmp
                                            start_values=ssp.chain_start_values(**params))
                           for k, f in (("python", built_fmus),
                                        ("native", native_fmus[2]))}.items():
+        # ecos unpacks the archive into a folder of the temporary folder it leaves there
+        monkeypatch.setenv("TMPDIR", str(tmp_path))
         cols, ok = drivers.run_ecos_ssp(archive, N, 1e-3, ssp.SYSTEM, record)
         assert ok, "ecos refused the parameter set %r of the %s archive" % (ssp.SYSTEM, kind)
         # ecos reads an output after the connections set the inputs: x and z are our master's

@@ -86,11 +86,13 @@ def test_in_process_equals_worker_processes(local):
 
 
 @pytest.mark.qualification  # a Dask cluster of worker processes
-def test_local_dask_cluster_equals_local_workers(local):
+def test_local_dask_cluster_equals_local_workers(local, tmp_path):
     LocalCluster = pytest.importorskip("dask.distributed", reason="the extra driftfmu[dask] "
                                        "is not installed").LocalCluster
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
-                      dashboard_address=None) as cluster:
+    import dask  # its scratch folder in this test's, not dask-scratch-space in TMPDIR
+    with dask.config.set({"temporary-directory": str(tmp_path)}), \
+            LocalCluster(n_workers=2, threads_per_worker=1, processes=True,
+                         dashboard_address=None) as cluster:
         done = []
         remote = sweep.sweep(scheduler=cluster.scheduler_address, chunk=64,
                              progress=done.append, **KW)

@@ -25,3 +25,34 @@ def wait_for(predicate, what, process=None, bound=BOUND, poll=0.02):
         if time.monotonic() > deadline:
             raise AssertionError("no %s within %g s" % (what, bound))
         time.sleep(poll)
+
+
+def session_processes(session):
+    """Live (not zombie) processes of the session ``session`` (the process id of a process
+    started with ``start_new_session=True``): it and everything it started, by any path
+    (forked, exec'd, started by a fork server), that did not start a session of its own.
+    ``(pid, name)`` pairs, from /proc."""
+    import os
+    found = []
+    for entry in os.listdir("/proc"):
+        if not entry.isdigit():
+            continue
+        try:
+            with open("/proc/%s/stat" % entry, "rb") as fh:
+                stat = fh.read()
+        except OSError:
+            continue
+        name = stat[stat.index(b"(") + 1:stat.rindex(b")")].decode(errors="replace")
+        fields = stat[stat.rindex(b")") + 2:].split()
+        # state ppid pgrp session ...
+        if int(fields[3]) == session and fields[0] != b"Z":
+            found.append((int(entry), name))
+    return found
+
+
+def sigint_default():
+    """``preexec_fn`` of a process a test will stop with Ctrl-C (SIGINT): the signal's default
+    disposition, which Python turns into KeyboardInterrupt, whatever this process inherited (a
+    test run under ``nohup ... &`` starts with SIGINT ignored, and its children would too)."""
+    import signal
+    signal.signal(signal.SIGINT, signal.SIG_DFL)

@@ -14,7 +14,9 @@ A fault counts as caught only by independent evidence: every run leaves out the 
 compare the native C twins with models/ bit for bit (:data:`TWIN_TESTS`), which see any fault
 applied to one twin alone whether or not the science is guarded.  A fault whose change no
 independent test can see (a sub-ulp change of a kernel, visible only in the bits) says so with
-``twin_evidence = true`` and keeps those tests; the report marks it.
+``twin_evidence = true`` and keeps those tests; the report marks it.  A fault that only a
+master's run of real FMUs can show names those tests and sets ``integration = true``: its run
+keeps the tests marked ``integration`` of its selection, which every other run leaves out.
 
 The report is a table: fault, file, the first test that failed.  Exit status 0 when every
 fault was caught, 1 when one survived (or timed out), 2 for a bad list or a failing
@@ -115,6 +117,9 @@ def load(path=LIST):
         f.setdefault("tests", list(DEFAULT_TESTS))
         f.setdefault("also", [])
         f.setdefault("twin_evidence", False)
+        f.setdefault("integration", False)
+        if f["integration"] and f["tests"] == list(DEFAULT_TESTS):
+            sys.exit("%s: fault %r runs integration tests: name them (tests)" % (path, f["id"]))
     return faults
 
 
@@ -169,23 +174,25 @@ def kill_group(p, grace=GRACE):
 _FAILED = re.compile(r"^(FAILED|ERROR) (.+?)(?: - .*)?$")  # ids may hold spaces
 
 
-def pytest_args(tests, ignore=(), twins=False):
+def pytest_args(tests, ignore=(), twins=False, integration=False):
     """pytest's arguments for a run of ``tests`` on the copy: stop at the first failure, the
-    everyday loop's markers, without this tool's own tests, ``ignore`` and, unless ``twins``,
-    :data:`TWIN_TESTS`."""
+    everyday loop's markers (with ``integration``: its integration tests too), without this
+    tool's own tests, ``ignore`` and, unless ``twins``, :data:`TWIN_TESTS`."""
     ignore = tuple(ignore) + SELF_TESTS + (() if twins else TWIN_TESTS)
-    return ["-x", "-q", "-rfE", "-p", "no:cacheprovider", "-m", DEFAULT_MARKERS] + \
+    markers = [] if integration else ["-m", DEFAULT_MARKERS]
+    return ["-x", "-q", "-rfE", "-p", "no:cacheprovider"] + markers + \
         ["--deselect=" + d for d in DESELECT] + ["--ignore-glob=" + g for g in ignore] + \
         list(tests)
 
 
-def run_tests(copy, tests, timeout, ignore=(), twins=False):
-    """Run pytest on the copy, without :data:`TWIN_TESTS` unless ``twins``; return (status,
-    first failing test or None, seconds)."""
+def run_tests(copy, tests, timeout, ignore=(), twins=False, integration=False):
+    """Run pytest on the copy, without :data:`TWIN_TESTS` unless ``twins``, without the
+    integration tests unless ``integration``; return (status, first failing test or None,
+    seconds)."""
     # DRIFTFMU_KERNEL=numpy: the batch engine runs models/ (the faults' target) instead of the
     # compiled kernel, the C port that a fault in models/ leaves as it is
     env = dict(os.environ, PYTHONPATH=copy, PYTHONDONTWRITEBYTECODE="1", DRIFTFMU_KERNEL="numpy")
-    cmd = [sys.executable, "-m", "pytest"] + pytest_args(tests, ignore, twins)
+    cmd = [sys.executable, "-m", "pytest"] + pytest_args(tests, ignore, twins, integration)
     t0 = time.perf_counter()
     # its own session: the timeout, SIGINT and SIGTERM end pytest and its xdist workers alike
     p = subprocess.Popen(cmd, cwd=copy, env=env, stdout=subprocess.PIPE,
@@ -266,7 +273,7 @@ def main(argv=None):
     elif args.short:
         faults = [f for f in faults if f["short"]]
     if args.ignore_glob:
-        faults = [dict(f, tests=list(DEFAULT_TESTS)) for f in faults]
+        faults = [dict(f, tests=list(DEFAULT_TESTS), integration=False) for f in faults]
     if args.check:
         print("mutate: all %d patterns match exactly once" % len(load(args.list)))
         return 0
@@ -305,20 +312,21 @@ def _run(args, faults, root):
             print("mutate: the copy does not import its own code (%s)"
                   % (where.stdout + where.stderr).strip(), file=sys.stderr)
             return 2
-        selections = sorted({(tuple(f["tests"]), f["twin_evidence"]) for f in faults})
+        selections = sorted({(tuple(f["tests"]), f["twin_evidence"], f["integration"])
+                             for f in faults})
         timeouts = {}
-        for tests, twins in selections:
+        for tests, twins, integration in selections:
             status, first, seconds = run_tests(copy, tests, args.baseline_timeout,
-                                               args.ignore_glob, twins)
+                                               args.ignore_glob, twins, integration)
             if status != "passed":
                 print("mutate: the unmutated copy does not pass %s (%s: %s)"
                       % (" ".join(tests), status,
                          first or "over --baseline-timeout %g s" % args.baseline_timeout),
                       file=sys.stderr)
                 return 2
-            timeouts[tests, twins] = fault_timeout(seconds, args.timeout)
+            timeouts[tests, twins, integration] = fault_timeout(seconds, args.timeout)
             print("baseline %s: passed in %.0f s; a fault may take %.0f s" % (
-                " ".join(tests), seconds, timeouts[tests, twins]), flush=True)
+                " ".join(tests), seconds, timeouts[tests, twins, integration]), flush=True)
         rows = []
         for f in faults:
             originals = {}
@@ -330,8 +338,9 @@ def _run(args, faults, root):
                     with open(path, "w", encoding="utf-8") as fh:
                         fh.write(originals[path].replace(find, replace, 1))
                 status, first, seconds = run_tests(
-                    copy, f["tests"], timeouts[tuple(f["tests"]), f["twin_evidence"]],
-                    args.ignore_glob, f["twin_evidence"])
+                    copy, f["tests"],
+                    timeouts[tuple(f["tests"]), f["twin_evidence"], f["integration"]],
+                    args.ignore_glob, f["twin_evidence"], f["integration"])
             finally:
                 for path, original in originals.items():
                     with open(path, "w", encoding="utf-8") as fh:

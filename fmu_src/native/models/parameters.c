@@ -14,7 +14,7 @@ typedef struct {
     int has_high;
     double high;
     int low_open, high_open;
-    int integer; /* the default is an int: fractional values are out of range */
+    int integer; /* the default is an int: a fractional value is not an integer */
     int nonzero; /* parameters.NONZERO: 0 is refused beyond the range */
     const char *allowed;
 } ParameterRow;
@@ -108,11 +108,15 @@ int parameters_problem(const char *name, double value, int is_integer, char *out
                             p->allowed);
         return 1;
     }
+    if (p->integer && value != floor(value)) { /* a wrong type, whatever its range */
+        parameters_repr_float(value, r, sizeof r);
+        if (n > 0) snprintf(out, n, "%s = %s is not an integer; allowed: %s", name, r, p->allowed);
+        return 1;
+    }
     bad = 0;
     if (p->has_low) bad = p->low_open ? value <= p->low : value < p->low;
     if (!bad && p->has_high) bad = p->high_open ? value >= p->high : value > p->high;
     if (!bad && p->nonzero) bad = value == 0.0;
-    if (!bad && p->integer && value != floor(value)) bad = 1;
     if (!bad) return 0;
     if (is_integer)
         snprintf(r, sizeof r, "%.0f", value);
