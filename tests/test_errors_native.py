@@ -116,6 +116,36 @@ def test_a_tilt_that_moves_and_returns_gives_its_own_sine_at_every_sample(dirs, 
 
 
 @pytest.mark.parametrize("backend", diff.BACKENDS)
+def test_the_two_axes_draw_independent_measurement_noise_of_variance_R(dirs, backend):
+    """Each axis's measurement noise comes from its own stream (the native FMUs draw it from
+    the streams' keys, derived once): over n = 4000 samples at rest the outputs' correlation is
+    within 4.5/sqrt(n) of 0 and each variance within 6 standard errors (sqrt(2/n)) of R (axes =
+    2: both axes the same sensor)."""
+    n, R = 4000, 1e-4
+    drv = driver(dirs, backend)
+    try:
+        values = dict(a0=0.5, a1=1.0, a2=0.0, R=R, Ts=1e-3)
+        for op in (("setup", 0.0), ("enter",), ("setr", list(values), list(values.values())),
+                   ("seti", ["seed", "axes"], [5, 2]), ("exit",)):
+            assert call(drv, *op) == OK, (op, text(drv))
+        zs = []
+        for i in range(n):
+            assert call(drv, "step", i * 1e-3, 1e-3) == OK, text(drv)
+            status, z = drv.getr(["z", "z_y"])
+            assert status == OK, text(drv)
+            zs.append((float.fromhex(z[0]), float.fromhex(z[1])))
+    finally:
+        drv.free()
+    mx, my = sum(a for a, _ in zs) / n, sum(b for _, b in zs) / n
+    zs = [(a - mx, b - my) for a, b in zs]
+    vx, vy = sum(a * a for a, _ in zs) / n, sum(b * b for _, b in zs) / n
+    r = sum(a * b for a, b in zs) / n / math.sqrt(vx * vy)
+    assert abs(r) < 4.5 / math.sqrt(n), r
+    assert abs(vx / R - 1) < 6 * math.sqrt(2 / n), vx
+    assert abs(vy / R - 1) < 6 * math.sqrt(2 / n), vy
+
+
+@pytest.mark.parametrize("backend", diff.BACKENDS)
 @pytest.mark.parametrize("name", ["theta", "T"])
 def test_a_non_finite_tilt_or_temperature_is_refused_with_one_line(dirs, backend, name):
     drv = driver(dirs, backend)
