@@ -165,6 +165,16 @@ def quantise(V, cfg):
     full scale."""
     if not cfg.levels:
         return V
+    if type(V) is float:  # one FMU instance: the same steps, written out for a float
+        if V - V != 0.0:
+            return V
+        lo = cfg.lo
+        code = (V / cfg.lsb if lo == 0.0 else (V - lo) / cfg.lsb) + 0.5
+        code = code if code - code != 0.0 else float(math.floor(code))  # (_ops.floor)
+        code = 0.0 if code < 0.0 else code
+        top = cfg.levels - 1.0
+        code = top if code > top else code
+        return code * cfg.lsb if lo == 0.0 else lo + code * cfg.lsb
     if cfg.lo == 0.0:
         code = _ops.floor(V / cfg.lsb + 0.5)
     else:

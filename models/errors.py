@@ -202,7 +202,8 @@ def tilt(x, theta):
 
 
 #: ``(theta, sin(theta))`` of the last tilt (:func:`tilt`; shared by the instances of a process:
-#: a tuple replaced whole, never changed).
+#: a tuple replaced whole, never changed).  The native twins hold one per instance (C's
+#: ``ErrorTilt`` of ``errors_tilt``, in the FMU state, checked when a state is restored).
 _TILT = [(0.0, 0.0)]
 
 

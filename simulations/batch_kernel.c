@@ -210,6 +210,7 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
         uint64_t key_process[LANES], key_measurement[LANES];
         ErrorConfig ecfg[LANES];
         Config cfg[LANES];
+        ErrorTilt tilt[LANES];      /* the sine of each run's tilt, held over the run */
         for (int i = 0; i < lanes; i++) {
             s[i] = state[r0 + i];
             for (int j = 0; j < N_PARAMS; j++) q[j][i] = p[j][r0 + i];
@@ -217,6 +218,7 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
             key_measurement[i] = noise_key(seeds[r0 + i], NOISE_STREAM_MEASUREMENT);
             Fb[i] = bias_factor(q[P_TAU_B][i], q[P_TS][i]);
             if (slow) slow_config(p, r0 + i, seeds[r0 + i], &ecfg[i], &cfg[i]);
+            tilt[i].theta = tilt[i].sine = 0.0;
         }
         for (int64_t k = k0; k < k1; k++) {
             for (int i = 0; i < lanes; i++) {
@@ -243,7 +245,7 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                     adxl203_measure_errors(0, 0.0, &s[i].err, s[i].x, 0.0,
                                            keyed_normal(key_measurement[i], k), n_rw, n_gm,
                                            n_fl, q[P_THETA][i], q[P_T][i], &cfg[i], &ecfg[i],
-                                           &e_set, &e, &z);
+                                           &tilt[i], &e_set, &e, &z);
                 } else {
                     z = sensor_measure_general(s[i].x, a0, a1, a2, R,
                                                keyed_normal(key_measurement[i], k), a3, a4);

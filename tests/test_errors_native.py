@@ -87,6 +87,65 @@ def test_the_three_fmus_give_the_same_bits_with_every_term_on(dirs):
 
 
 @pytest.mark.parametrize("backend", diff.BACKENDS)
+def test_a_tilt_that_moves_and_returns_gives_its_own_sine_at_every_sample(dirs, backend):
+    """Each FMU keeps the sine of the held tilt (the native ones per instance, in their state):
+    with the tilt moving, returning to earlier values, passing 0.0 and -0.0, and held over
+    steps of several samples, every z is a0 + a1 (x + sin theta) by hand (math.sin; no noise,
+    a linear sensor, no other term), to a few ulp."""
+    thetas = [0.3, 0.3, -1.1, 0.3, 0.0, -0.0, 2.0, 2.0, -1.1, 0.7, 0.3, 1e-300, 0.3]
+    drv = driver(dirs, backend)
+    try:
+        for op in (("setup", 0.0), ("enter",)):
+            assert call(drv, *op) == OK, text(drv)
+        values = dict(a0=0.5, a1=1.3, a2=0.0, R=1e-12, kT_bias=1e-3, T0=300.0)
+        assert call(drv, "setr", list(values), list(values.values())) == OK, text(drv)
+        assert call(drv, "seti", ["noise"], [0]) == OK, text(drv)
+        assert call(drv, "exit") == OK, text(drv)
+        t = 0.0
+        for i, theta in enumerate(thetas):
+            x = 0.1 * i - 0.4
+            assert call(drv, "setr", ["x", "theta", "T"], [x, theta, 300.0]) == OK, text(drv)
+            z = float.fromhex(drv.getr(["z"])[1][0])
+            want = 0.5 + 1.3 * (x + math.sin(theta))
+            assert abs(z - want) <= 4 * 2.3e-16 * (abs(want) + 1.3), (i, theta, z, want)
+            h = 1e-3 * (3 if i % 4 == 1 else 1)  # (held over three samples now and then)
+            assert call(drv, "step", t, h) == OK, text(drv)
+            t += h
+    finally:
+        drv.free()
+
+
+@pytest.mark.parametrize("backend", diff.BACKENDS)
+def test_the_two_axes_draw_independent_measurement_noise_of_variance_R(dirs, backend):
+    """Each axis's measurement noise comes from its own stream (the native FMUs draw it from
+    the streams' keys, derived once): over n = 4000 samples at rest the outputs' correlation is
+    within 4.5/sqrt(n) of 0 and each variance within 6 standard errors (sqrt(2/n)) of R (axes =
+    2: both axes the same sensor)."""
+    n, R = 4000, 1e-4
+    drv = driver(dirs, backend)
+    try:
+        values = dict(a0=0.5, a1=1.0, a2=0.0, R=R, Ts=1e-3)
+        for op in (("setup", 0.0), ("enter",), ("setr", list(values), list(values.values())),
+                   ("seti", ["seed", "axes"], [5, 2]), ("exit",)):
+            assert call(drv, *op) == OK, (op, text(drv))
+        zs = []
+        for i in range(n):
+            assert call(drv, "step", i * 1e-3, 1e-3) == OK, text(drv)
+            status, z = drv.getr(["z", "z_y"])
+            assert status == OK, text(drv)
+            zs.append((float.fromhex(z[0]), float.fromhex(z[1])))
+    finally:
+        drv.free()
+    mx, my = sum(a for a, _ in zs) / n, sum(b for _, b in zs) / n
+    zs = [(a - mx, b - my) for a, b in zs]
+    vx, vy = sum(a * a for a, _ in zs) / n, sum(b * b for _, b in zs) / n
+    r = sum(a * b for a, b in zs) / n / math.sqrt(vx * vy)
+    assert abs(r) < 4.5 / math.sqrt(n), r
+    assert abs(vx / R - 1) < 6 * math.sqrt(2 / n), vx
+    assert abs(vy / R - 1) < 6 * math.sqrt(2 / n), vy
+
+
+@pytest.mark.parametrize("backend", diff.BACKENDS)
 @pytest.mark.parametrize("name", ["theta", "T"])
 def test_a_non_finite_tilt_or_temperature_is_refused_with_one_line(dirs, backend, name):
     drv = driver(dirs, backend)
@@ -116,20 +175,25 @@ def test_a_native_state_whose_error_part_cannot_be_this_sensors_is_refused(dirs,
     drv = driver(dirs, backend)
     try:
         started(drv, dict(ALL_ON, random_walk=0.0))  # (the walk off: its state must stay 0)
-        call(drv, "setr", ["x"], [0.4])
+        call(drv, "setr", ["x", "theta"], [0.4, 0.3])
         for k in range(5):
             call(drv, "step", k * 1e-3, 1e-3)
         call(drv, "gst", 0)
         data = drv.ser(0)[1]
         s = ns.read(S, data)
         assert s.h.ecfg.fl_n == 4 and s.h.err.E > 0.0 and s.h.err.fl[3] != 0.0
+        assert (s.h.tilt.theta, s.h.tilt.sine) == (0.3, pytest.approx(math.sin(0.3), rel=1e-15))
         z = drv.getr(["z"])
         call(drv, "gst", 1)
         before = (z, drv.ser(1)[1])
         cases = [("h.err.E", -1e-9, "negative exposure"), ("h.err.rw", 0.5, "err.rw = 0.5"),
                  ("h.err_pending.rw", 0.5, "err_pending.rw"),
                  ("h.err.gm", math.nan, "err.gm"), ("h.err_pending.E", math.inf, "err_pending.E"),
-                 ("h.ecfg.fl_n", 5, "ecfg"), ("h.ecfg.gm_a", 0.5, "ecfg")]
+                 ("h.ecfg.fl_n", 5, "ecfg"), ("h.ecfg.gm_a", 0.5, "ecfg"),
+                 # the held tilt's sine (a cache of ops_sin): another number, or another tilt
+                 ("h.tilt.sine", 0.5, "tilt.sine = 0.5 is not the sine of tilt.theta = 0.3"),
+                 ("h.tilt.theta", 0.31, "is not the sine of tilt.theta = 0.31"),
+                 ("h.tilt.theta", math.inf, "tilt.theta")]
         for path, value, words in cases:
             blob = ns.crafted(S, data, path, value)
             assert call(drv, "des", blob, 2) == ERROR, path

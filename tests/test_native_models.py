@@ -65,6 +65,13 @@ class ErrorState(ctypes.Structure):
     _fields_ = [("rw", D), ("gm", D), ("E", D), ("fl", D * FLMAX)]
 
 
+class ErrorTilt(ctypes.Structure):
+    _fields_ = [("theta", D), ("sine", D)]
+
+
+PTILT = ctypes.POINTER(ErrorTilt)
+
+
 class Axis(ctypes.Structure):
     _fields_ = [(n, D) for n in dualaxis.Axis._fields]
 
@@ -153,7 +160,7 @@ SIGNATURES = {
     "errors_flicker_sigma": (D, D, PD, I64),
     "errors_flicker": (D, PD, PD, PD, PD, I64, PD),
     "errors_exposure": (D, D, D, D, D, D, PD),
-    "errors_tilt": (D, D, D),
+    "errors_tilt": (D, D, D, PTILT),
     "errors_temperature": (None, D, D, D, D, PD, PD),
     "errors_saturate": (D, D, D),
     "errors_config": (ErrorConfig, I64) + (D,) * 14,
@@ -163,12 +170,12 @@ SIGNATURES = {
     "errors_advance": (None, ctypes.POINTER(ErrorState), D, D, D, PD, ctypes.POINTER(ErrorConfig),
                        ctypes.POINTER(ErrorState), PD),
     "errors_thermal_bias": (D, D, ctypes.POINTER(ErrorConfig)),
-    "errors_sensed": (D, D, D, D, ctypes.POINTER(ErrorConfig)),
+    "errors_sensed": (D, D, D, D, ctypes.POINTER(ErrorConfig), PTILT),
     "errors_hold": (ErrorState, ErrorState, D, I64, I64, I64, ctypes.POINTER(ErrorConfig)),
     "adxl203_config_ranged": (Config, D, D, D, D, D, D, D, D, I64, D, D, D, D),
     "adxl203_measure_errors": (None, I64, D, ctypes.POINTER(ErrorState), D, D, D, D, D, PD, D,
-                               D, ctypes.POINTER(Config), ctypes.POINTER(ErrorConfig), PI64,
-                               PD, PD),
+                               D, ctypes.POINTER(Config), ctypes.POINTER(ErrorConfig), PTILT,
+                               PI64, PD, PD),
     "covariance_valid2": (ctypes.c_int, D, D, D),
     "covariance_valid": (ctypes.c_int, ctypes.c_int, PD),
     "covariance_refusal": (None, ctypes.c_int, PD, ctypes.POINTER(ctypes.c_char_p),
@@ -178,7 +185,7 @@ SIGNATURES = {
                                  ctypes.POINTER(ctypes.c_char_p), ctypes.c_char_p,
                                  ctypes.c_char_p, ctypes.c_size_t),
     "parameters_allowed": (ctypes.c_int, ctypes.c_char_p, ctypes.c_char_p, ctypes.c_size_t),
-    "errors_class2": (None, D, D, D, D, D, D, PD, PD), "errors_class2_offset": (D,) + (D,) * 9,
+    "errors_class2": (None, D, D, D, D, D, D, PTILT, PD, PD), "errors_class2_offset": (D,) + (D,) * 9,
     "bias_factor": (D, D, D), "bias_init": (Bias, D, D),
     "bias_expected": (D,) + (D,) * 7, "bias_spread": (D, D, D, D),
     "bias_predict": (None, D, D, Bias, D, D, D, D, D, D, PD, PD, ctypes.POINTER(Bias)),
@@ -568,7 +575,7 @@ def test_class2_and_its_offset_equal_models(c):
         a3, a4 = rng.choice(((0.0, 0.0), (rng.uniform(-1, 1), rng.uniform(-1, 1))))
         kb, ks = rng.choice((0.0, rng.uniform(-1e-2, 1e-2))), rng.choice((0.0, rng.uniform(-1e-3,
                                                                                            1e-3)))
-        c.errors_class2(x, theta, T, T0, kb, ks, ctypes.byref(u), ctypes.byref(g))
+        c.errors_class2(x, theta, T, T0, kb, ks, None, ctypes.byref(u), ctypes.byref(g))
         py_u, py_c = errors.class2(x, theta, T, T0, kb, ks)
         assert same(py_u, u.value) and same(py_c, g.value)
         assert same(errors.class2_offset(theta, T, a1, a2, T0, kb, ks, a3, a4),
@@ -852,7 +859,7 @@ def test_error_processes_equal_models_function_for_function(c):
         d = c.errors_exposure(E, x, Ts, d_inf, E_tau, ctypes.byref(E_out))
         assert_same(errors.exposure(E, x, Ts, d_inf, E_tau), (E_out.value, d), "exposure")
         theta, T, T0 = rng.uniform(-7, 7), rng.uniform(200, 400), rng.uniform(250, 320)
-        assert same(errors.tilt(x, theta), c.errors_tilt(x, theta))
+        assert same(errors.tilt(x, theta), c.errors_tilt(x, theta, None))
         kb, ks = rng.uniform(-0.01, 0.01), rng.uniform(-0.01, 0.01)
         c.errors_temperature(T, T0, kb, ks, *refs(o2))
         assert_same(errors.temperature(T, T0, kb, ks), vals(o2), "temperature")
@@ -894,6 +901,7 @@ def test_error_config_state_draws_and_composition_equal_models(c):
         assert same(cfg.lo, ccfg.lo)
         lp, lp_set, lp_c = None, 0, 0.0
         cs_state = ErrorState(cstate.rw, cstate.gm, cstate.E, cstate.fl)
+        held = ErrorTilt(0.0, 0.0)  # the sine of the held tilt, carried from sample to sample
         for k in range(1, 30):
             x, y, v = rng.uniform(-2, 2), rng.uniform(-2, 2), rng.gauss(0, 1)
             theta, T = rng.choice((0.0, rng.uniform(-2, 2))), rng.uniform(230, 350)
@@ -902,7 +910,8 @@ def test_error_config_state_draws_and_composition_equal_models(c):
             draws = errors.draws(p["seed"], k, ecfg)
             assert_same((draws[0], draws[1]) + draws[2],
                         (n_rw.value, n_gm.value) + tuple(n_fl[:ecfg.fl_n]), "draws")
-            assert same(errors.sensed(x, theta, T, ecfg), c.errors_sensed(x, theta, T, pe))
+            assert same(errors.sensed(x, theta, T, ecfg),
+                        c.errors_sensed(x, theta, T, pe, ctypes.byref(ErrorTilt())))
             assert same(errors.thermal_bias(T, ecfg), c.errors_thermal_bias(T, pe))
             b = D()
             st2, b_py = errors.advance(state, x, *draws, ecfg)
@@ -913,7 +922,7 @@ def test_error_config_state_draws_and_composition_equal_models(c):
             assert same(b_py, b.value)
             e_set, e, z = I64(), D(), D()
             c.adxl203_measure_errors(lp_set, lp_c, ctypes.byref(cs_state), x, y, v, n_rw, n_gm,
-                                     n_fl, theta, T, ctypes.byref(ccfg), pe,
+                                     n_fl, theta, T, ctypes.byref(ccfg), pe, ctypes.byref(held),
                                      ctypes.byref(e_set), ctypes.byref(e), ctypes.byref(z))
             lp, state, zp = adxl203.measure_errors(lp, state, x, y, v, draws, theta, T, cfg,
                                                    ecfg)
@@ -924,8 +933,26 @@ def test_error_config_state_draws_and_composition_equal_models(c):
             lp_set, lp_c = e_set.value, e.value
             error_state(state, cs_state, ecfg.fl_n)
         m = rng.randint(1, 9)
-        held = errors.hold(state, 0.7, p["seed"], 29, m, ecfg)
-        error_state(held, c.errors_hold(cs_state, 0.7, p["seed"], 29, m, pe), ecfg.fl_n)
+        after = errors.hold(state, 0.7, p["seed"], 29, m, ecfg)
+        error_state(after, c.errors_hold(cs_state, 0.7, p["seed"], 29, m, pe), ecfg.fl_n)
+
+
+def test_the_held_tilts_sine_is_the_sine_of_the_tilt_held(c):
+    """errors_tilt with the sine of the held tilt (the native Accelerometer's cache, the C form
+    of models.errors._TILT): every value of a sequence that holds, changes, returns to a tilt,
+    passes 0.0 and -0.0, the bits of the sine computed afresh and of models/; the cache holds
+    the last tilt and its sine."""
+    rng = random.Random(RNG_SEED + 43)
+    held = ErrorTilt(0.0, 0.0)
+    thetas = [0.3, 0.3, 0.3, -1.2, -1.2, 0.3, 0.0, -0.0, -0.0, 0.0, 5e-324, -5e-324, 2.5]
+    thetas += [rng.choice((rng.uniform(-7, 7), thetas[-1])) for _ in range(400)]
+    for theta in thetas:
+        x = rng.uniform(-2, 2)
+        got = c.errors_tilt(x, theta, ctypes.byref(held))
+        assert same(got, c.errors_tilt(x, theta, None)) and same(got, errors.tilt(x, theta))
+        assert same(held.theta, theta) and same(held.sine, c.ops_sin(theta))
+    stale = ErrorTilt(0.3, 0.5)  # a sine that is not the held theta's would be used as it is:
+    assert c.errors_tilt(0.0, 0.3, ctypes.byref(stale)) == 0.5  # hence the state check
 
 
 @pytest.mark.parametrize("flicker, tau_min, tau_max", [

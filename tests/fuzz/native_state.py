@@ -46,7 +46,9 @@ ErrorConfig = _struct("ErrorConfig", [("on", I64)] + [(n, D) for n in (
 ErrorState = _struct("ErrorState", [("rw", D), ("gm", D), ("E", D),
                                     ("fl", D * FLICKER_MAX)])
 ErrorKeys = _struct("ErrorKeys", [("rw", c_uint64), ("gm", c_uint64),
-                                  ("fl", c_uint64 * FLICKER_MAX)])
+                                  ("fl", c_uint64 * FLICKER_MAX), ("v", c_uint64),
+                                  ("v_y", c_uint64)])
+ErrorTilt = _struct("ErrorTilt", [("theta", D), ("sine", D)])
 
 #: ModelHidden of each model (fmu_src/native/models/<Model>_step.h).
 HIDDEN = {
@@ -56,7 +58,7 @@ HIDDEN = {
                       ("keys", ErrorKeys), ("lp_set", I64), ("lpy_set", I64), ("lp", D),
                       ("lpy", D), ("lp_pending_set", I64), ("lpy_pending_set", I64),
                       ("lp_pending", D), ("lpy_pending", D), ("err", ErrorState),
-                      ("err_pending", ErrorState)],
+                      ("err_pending", ErrorState), ("tilt", ErrorTilt)],
     "DriftEstimator": [("C", D), ("S", D), ("state", HarmonicState),
                        ("pending", HarmonicState), ("Fb", D), ("bias", Bias),
                        ("bias_pending", Bias)],

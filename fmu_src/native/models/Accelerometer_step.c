@@ -8,6 +8,7 @@
 #include "dualaxis.h"
 #include "model.h"
 #include "noise.h"
+#include "ops.h"
 #include "slave.h"
 
 static const SlaveRange EXTRA[] = {{"noise", 0, 1}};
@@ -163,18 +164,27 @@ void model_start(ModelInstance *comp)
             comp->h.keys.fl[i] = noise_key((uint64_t)comp->v.seed,
                                            (uint64_t)(NOISE_STREAM_FLICKER + i));
     }
+    comp->h.keys.v = noise_key((uint64_t)comp->v.seed, NOISE_STREAM_MEASUREMENT);
+    comp->h.keys.v_y = noise_key((uint64_t)comp->v.seed, NOISE_STREAM_MEASUREMENT_Y);
+    comp->h.tilt.theta = comp->h.tilt.sine = 0.0;
     memset(&comp->h.err, 0, sizeof comp->h.err);
     if (comp->h.ecfg.on) comp->h.err = errors_initial_state(comp->v.seed, &comp->h.ecfg);
     comp->h.err_pending = comp->h.err;
 }
 
+/* adxl203.noise(seed, k, axis), from the stream's key. */
+static double measurement_noise(const ModelInstance *comp, int64_t k, int64_t axis)
+{
+    return noise_normal_keyed(axis == 1 ? comp->h.keys.v : comp->h.keys.v_y, (uint64_t)k);
+}
+
 /* Accelerometer._axis_errors: the first axis with the slow errors. */
-static void axis_errors_sample(const ModelInstance *comp, int64_t *set, double *lp,
-                               ErrorState *err, int64_t k, double *z)
+static void axis_errors_sample(ModelInstance *comp, int64_t *set, double *lp, ErrorState *err,
+                               int64_t k, double *z)
 {
     const ErrorConfig *ecfg = &comp->h.ecfg;
     const ErrorKeys *keys = &comp->h.keys;
-    double v = comp->v.noise ? adxl203_noise(comp->v.seed, k, 1) : 0.0, n_rw, n_gm,
+    double v = comp->v.noise ? measurement_noise(comp, k, 1) : 0.0, n_rw, n_gm,
            n_fl[ERRORS_FLICKER_MAX];
     int64_t i;
     /* errors_draws(seed, k, ...), from the streams' keys */
@@ -184,26 +194,23 @@ static void axis_errors_sample(const ModelInstance *comp, int64_t *set, double *
         n_fl[i] = noise_normal_keyed(keys->fl[i], (uint64_t)k);
     /* (every process off: the state stays 0.0, Python's None) */
     adxl203_measure_errors(*set, *lp, err, comp->v.x, comp->v.y, v, n_rw, n_gm, n_fl,
-                           comp->v.theta, comp->v.T, &comp->h.cfg, ecfg, set, lp, z);
+                           comp->v.theta, comp->v.T, &comp->h.cfg, ecfg, &comp->h.tilt, set, lp,
+                           z);
 }
 
-/* A number of the error state that is not finite (Accelerometer._errors_valid): its name. */
-static const char *errors_not_finite(const ErrorState *err, int64_t fl_n)
+/* Accelerometer._errors_valid: the exposure, the one number of the error state that can
+ * overflow while z stays finite (the walk, the Gauss-Markov and flicker biases reach z as they
+ * are, and z is checked first); its name when it is not finite. */
+static const char *errors_not_finite(const ErrorState *err)
 {
-    int64_t i;
-    if (!isfinite(err->rw)) return "hidden state _err.rw";
-    if (!isfinite(err->gm)) return "hidden state _err.gm";
-    if (!isfinite(err->E)) return "hidden state _err.E";
-    for (i = 0; i < fl_n; i++)
-        if (!isfinite(err->fl[i])) return "hidden state _err.fl";
-    return NULL;
+    return isfinite(err->E) ? NULL : "hidden state _err.E";
 }
 
 /* Accelerometer._axis: one sample of an axis. */
 static void axis_sample(const ModelInstance *comp, int64_t *set, double *lp, double own,
                         double other, int64_t k, int64_t axis, double *z)
 {
-    double v = comp->v.noise ? adxl203_noise(comp->v.seed, k, axis) : 0.0;
+    double v = comp->v.noise ? measurement_noise(comp, k, axis) : 0.0;
     adxl203_measure(*set, *lp, own, other, v, &comp->h.cfg, set, lp, z);
 }
 
@@ -224,8 +231,8 @@ static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_
         double vx = 0.0, vy = 0.0;
         int64_t k = k0 + n - 1;
         if (comp->v.noise) {
-            vx = adxl203_noise(comp->v.seed, k, 1);
-            vy = adxl203_noise(comp->v.seed, k, 2);
+            vx = measurement_noise(comp, k, 1);
+            vy = measurement_noise(comp, k, 2);
         }
         dualaxis_measure(comp->v.x, comp->v.y, comp->h.ax, comp->h.ay, vx, vy, &z, &z_y);
         *lp_set = *lpy_set = 0;
@@ -254,7 +261,7 @@ static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_
     if (comp->v.axes == 2 && !isfinite(z_y)) return "z_y";
     if (*lp_set && !isfinite(*lp)) return "hidden state _lp";
     if (*lpy_set && !isfinite(*lpy)) return "hidden state _lpy";
-    if (comp->h.ecfg.on) return errors_not_finite(err, comp->h.ecfg.fl_n);
+    if (comp->h.ecfg.on) return errors_not_finite(err);
     return NULL;
 }
 
@@ -365,6 +372,22 @@ static int error_state_problems(ModelInstance *comp, const char *which, const Er
     return n;
 }
 
+/* The held tilt's sine of a restored hidden state: theta finite and the sine its ops_sin, bit
+ * for bit (a cache: any held theta will do, but not a sine of another). */
+static int tilt_problems(ModelInstance *comp, const ErrorTilt *t)
+{
+    char b1[32], b2[32];
+    double sine;
+    if (!isfinite(t->theta)) return slave_hidden_real(comp, "tilt.theta", t->theta, 0);
+    sine = ops_sin(t->theta);
+    if (memcmp(&sine, &t->sine, sizeof sine) == 0) return 0;
+    model_log_error(comp, "hidden tilt.sine = %s is not the sine of tilt.theta = %s; allowed: "
+                    "sin(tilt.theta) (the held tilt's sine)",
+                    (parameters_repr_float(t->sine, b1, sizeof b1), b1),
+                    (parameters_repr_float(t->theta, b2, sizeof b2), b2));
+    return 1;
+}
+
 int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
 {
     const ModelHidden *h = &comp->h;
@@ -381,5 +404,6 @@ int model_hidden_problems(ModelInstance *comp, const ModelHidden *fresh)
            slave_hidden_derived(comp, "ecfg", &h->ecfg, &fresh->ecfg, sizeof h->ecfg) +
            slave_hidden_derived(comp, "keys", &h->keys, &fresh->keys, sizeof h->keys) +
            error_state_problems(comp, "err", &h->err, &fresh->ecfg) +
-           error_state_problems(comp, "err_pending", &h->err_pending, &fresh->ecfg);
+           error_state_problems(comp, "err_pending", &h->err_pending, &fresh->ecfg) +
+           tilt_problems(comp, &h->tilt);
 }

@@ -12,11 +12,12 @@
 #include "dualaxis.h"
 #include "errors.h"
 
-/* The keys of the slow errors' noise streams under the seed (noise_key: the random walk's, the
- * Gauss-Markov bias's, the flicker components'), derived once in model_start: the draws of a
- * sample are noise_normal_keyed (the Python slave keeps its draws in blocks instead). */
+/* The keys of the noise streams under the seed (noise_key: the slow errors' random walk's,
+ * Gauss-Markov bias's and flicker components', the measurement noise's of each axis), derived
+ * once in model_start: the draws of a sample are noise_normal_keyed, the bits of noise_normal
+ * (the Python slave keeps its draws in blocks instead). */
 typedef struct {
-    uint64_t rw, gm, fl[ERRORS_FLICKER_MAX];
+    uint64_t rw, gm, fl[ERRORS_FLICKER_MAX], v, v_y;
 } ErrorKeys;
 
 /* Accelerometer.HIDDEN (_lp, _lpy: the output filters after the last sample processed; _err:
@@ -35,6 +36,7 @@ typedef struct {
     int64_t lp_pending_set, lpy_pending_set;
     double lp_pending, lpy_pending;
     ErrorState err, err_pending;      /* _err */
+    ErrorTilt tilt;                   /* the held tilt's sine (models.errors._TILT) */
 } ModelHidden;
 /* model.h: the part of ModelHidden a step changes begins here. */
 #define MODEL_HIDDEN_CHANGEABLE offsetof(ModelHidden, lp_set)

@@ -117,11 +117,12 @@ void adxl203_measure(int64_t prev_set, double prev, double own, double other, do
 void adxl203_measure_errors(int64_t prev_set, double prev, ErrorState *state, double own,
                             double other, double v, double n_rw, double n_gm,
                             const double *n_fl, double theta, double T, const Config *cfg,
-                            const ErrorConfig *ecfg, int64_t *e_set, double *e, double *z)
+                            const ErrorConfig *ecfg, ErrorTilt *held, int64_t *e_set, double *e,
+                            double *z)
 {
     double b, u, V;
     errors_advance(state, own, n_rw, n_gm, n_fl, ecfg, state, &b);
-    u = errors_sensed(own, theta, T, ecfg);
+    u = errors_sensed(own, theta, T, ecfg, held);
     if (cfg->plain) {
         *e_set = 0;
         *e = 0.0;

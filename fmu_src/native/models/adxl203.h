@@ -53,11 +53,13 @@ void adxl203_measure(int64_t prev_set, double prev, double own, double other, do
                      const Config *cfg, int64_t *e_set, double *e, double *z);
 /* One sample of the first axis with the slow errors (models.adxl203.measure_errors): the
  * filter state (*e_set, *e), the error state *state (advanced in place), the output *z;
- * draws: n_rw, n_gm and n_fl[ERRORS_FLICKER_MAX]. */
+ * draws: n_rw, n_gm and n_fl[ERRORS_FLICKER_MAX]; held: the sine of the held tilt
+ * (errors_tilt; NULL: none). */
 void adxl203_measure_errors(int64_t prev_set, double prev, ErrorState *state, double own,
                             double other, double v, double n_rw, double n_gm,
                             const double *n_fl, double theta, double T, const Config *cfg,
-                            const ErrorConfig *ecfg, int64_t *e_set, double *e, double *z);
+                            const ErrorConfig *ecfg, ErrorTilt *held, int64_t *e_set, double *e,
+                            double *z);
 /* Filter state after samples k0+1 .. k0+m-1 with the input held; a no-op without filter. */
 void adxl203_hold(int64_t prev_set, double prev, double own, double other, int64_t seed,
                   int64_t k0, int64_t m, const Config *cfg, int64_t axis, int64_t noise_on,

@@ -1,4 +1,5 @@
 /* errors: C port of models/errors.py; see errors.h.  Same operations in the same order. */
+#include <stddef.h>
 #include <stdio.h>
 
 #include "errors.h"
@@ -91,7 +92,16 @@ double errors_exposure(double E, double x, double Ts, double d_inf, double E_tau
     return d_inf * (1.0 - ops_exp(-E / E_tau));
 }
 
-double errors_tilt(double x, double theta) { return x + ops_sin(theta); }
+double errors_tilt(double x, double theta, ErrorTilt *held)
+{
+    ErrorTilt none = {0.0, 0.0};
+    if (held == NULL) held = &none;
+    if (held->theta != theta || theta == 0.0) { /* (-0.0 equals 0.0 but has its own sine) */
+        held->theta = theta;
+        held->sine = ops_sin(theta);
+    }
+    return x + held->sine;
+}
 
 void errors_temperature(double T, double T0, double kT_bias, double kT_scale, double *scale,
                         double *bias)
@@ -102,12 +112,12 @@ void errors_temperature(double T, double T0, double kT_bias, double kT_scale, do
 }
 
 void errors_class2(double x, double theta, double T, double T0, double kT_bias, double kT_scale,
-                   double *u, double *c)
+                   ErrorTilt *held, double *u, double *c)
 {
     double scale;
     errors_temperature(T, T0, kT_bias, kT_scale, &scale, c);
     *u = x;
-    if (theta != 0.0) *u = errors_tilt(*u, theta);
+    if (theta != 0.0) *u = errors_tilt(*u, theta, held);
     if (kT_scale != 0.0) *u = scale * *u;
 }
 
@@ -115,7 +125,7 @@ double errors_class2_offset(double theta, double T, double a1, double a2, double
                             double kT_bias, double kT_scale, double a3, double a4)
 {
     double g, c;
-    errors_class2(0.0, theta, T, T0, kT_bias, kT_scale, &g, &c);
+    errors_class2(0.0, theta, T, T0, kT_bias, kT_scale, NULL, &g, &c);
     return c + sensor_h_general(g, 0.0, a1, a2, a3, a4);
 }
 
@@ -246,10 +256,11 @@ double errors_thermal_bias(double T, const ErrorConfig *ecfg)
     return bias;
 }
 
-double errors_sensed(double x, double theta, double T, const ErrorConfig *ecfg)
+double errors_sensed(double x, double theta, double T, const ErrorConfig *ecfg,
+                     ErrorTilt *held)
 {
     double u, c;
-    errors_class2(x, theta, T, ecfg->T0, ecfg->kT_bias, ecfg->kT_scale, &u, &c);
+    errors_class2(x, theta, T, ecfg->T0, ecfg->kT_bias, ecfg->kT_scale, held, &u, &c);
     if (ecfg->range != 0.0) u = errors_saturate(u, ecfg->range);
     return u;
 }

@@ -47,14 +47,21 @@ double errors_flicker(const double *components, const double *a, const double *c
                       const double *n, int64_t m, double *out);
 /* One step of the exposure drift: the new E into *E_out; the drift d. */
 double errors_exposure(double E, double x, double Ts, double d_inf, double E_tau, double *E_out);
-double errors_tilt(double x, double theta);
+/* The sine of the tilt held from sample to sample: models.errors' _TILT (there one per
+ * process, here one per instance, in the FMU state): the last theta and ops_sin(theta). */
+typedef struct {
+    double theta, sine;
+} ErrorTilt;
+/* x + sin(theta), the sine from `held` while theta is the one held there (else computed and
+ * kept there; held NULL: computed). */
+double errors_tilt(double x, double theta, ErrorTilt *held);
 void errors_temperature(double T, double T0, double kT_bias, double kT_scale, double *scale,
                         double *bias);
 /* The letter's class 2 at x: the sensed acceleration (1 + kT_scale dT)(x + sin theta) into *u
  * (the tilt only when theta != 0, the scale only when kT_scale != 0), the thermal offset
  * kT_bias dT into *c. */
 void errors_class2(double x, double theta, double T, double T0, double kT_bias, double kT_scale,
-                   double *u, double *c);
+                   ErrorTilt *held, double *u, double *c);
 /* The class-2 offset at x = 0: c + h(u; 0, a1, a2, a3, a4) of errors_class2(0, ...). */
 double errors_class2_offset(double theta, double T, double a1, double a2, double T0,
                             double kT_bias, double kT_scale, double a3, double a4);
@@ -80,7 +87,8 @@ void errors_draws(int64_t seed, int64_t k, const ErrorConfig *ecfg, double *n_rw
 void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
                     const double *n_fl, const ErrorConfig *ecfg, ErrorState *out, double *b);
 double errors_thermal_bias(double T, const ErrorConfig *ecfg);
-double errors_sensed(double x, double theta, double T, const ErrorConfig *ecfg);
+double errors_sensed(double x, double theta, double T, const ErrorConfig *ecfg,
+                     ErrorTilt *held);
 /* The state after samples k0 + 1 .. k0 + m - 1 with x held. */
 ErrorState errors_hold(ErrorState state, double x, int64_t seed, int64_t k0, int64_t m,
                        const ErrorConfig *ecfg);

@@ -2,15 +2,10 @@
 #include "noise.h"
 #include "ops.h"
 
-#define M1 UINT64_C(0xBF58476D1CE4E5B9)
-#define M2 UINT64_C(0x94D049BB133111EB)
-
-uint64_t noise_mix(uint64_t z)
-{
-    z = (z ^ (z >> 30)) * M1;
-    z = (z ^ (z >> 27)) * M2;
-    return z ^ (z >> 31);
-}
+/* The external definitions of the inline functions of noise.h. */
+extern inline uint64_t noise_mix(uint64_t z);
+extern inline double noise_central(double p);
+extern inline double noise_normal_keyed(uint64_t key, uint64_t k);
 
 uint64_t noise_key(uint64_t seed, uint64_t stream)
 {
@@ -28,26 +23,12 @@ double noise_uniform(uint64_t seed, uint64_t stream, uint64_t k)
     return ((double)(noise_bits(seed, stream, k) >> 12) + 0.5) * 2.220446049250313e-16;
 }
 
-static const double A_[6] = {-3.969683028665376e+01, 2.209460984245205e+02,
-                             -2.759285104469687e+02, 1.383577518672690e+02,
-                             -3.066479806614716e+01, 2.506628277459239e+00};
-static const double B_[5] = {-5.447609879822406e+01, 1.615858368580409e+02,
-                             -1.556989798598866e+02, 6.680131188771972e+01,
-                             -1.328068155288572e+01};
 static const double C_[6] = {-7.784894002430293e-03, -3.223964580411365e-01,
                              -2.400758277161838e+00, -2.549732539343734e+00,
                              4.374664141464968e+00, 2.938163982698783e+00};
 static const double D_[4] = {7.784695709041462e-03, 3.224671290700398e-01,
                              2.445134137142996e+00, 3.754408661907416e+00};
 
-double noise_central(double p)
-{
-    double q = p - 0.5;
-    double r = q * q;
-    double num = (((((A_[0] * r + A_[1]) * r + A_[2]) * r + A_[3]) * r + A_[4]) * r + A_[5]) * q;
-    double den = ((((B_[0] * r + B_[1]) * r + B_[2]) * r + B_[3]) * r + B_[4]) * r + 1.0;
-    return num / den;
-}
 
 static double lower_tail(double p)
 {
@@ -69,8 +50,4 @@ double noise_normal(uint64_t seed, uint64_t stream, uint64_t k)
     return noise_inverse_normal_cdf(noise_uniform(seed, stream, k));
 }
 
-double noise_normal_keyed(uint64_t key, uint64_t k)
-{
-    const uint64_t bits = noise_mix(key + k * NOISE_GOLDEN);
-    return noise_inverse_normal_cdf(((double)(bits >> 12) + 0.5) * 2.220446049250313e-16);
-}
+

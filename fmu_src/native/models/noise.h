@@ -24,8 +24,15 @@
 
 #define NOISE_P_LOW 0.02425
 
-/* SplitMix64 finaliser (models.noise._mix). */
-uint64_t noise_mix(uint64_t z);
+/* SplitMix64 finaliser (models.noise._mix).  It, noise_central and noise_normal_keyed are C99
+ * inline definitions here (a native sensor draws several streams a sample: no call each), with
+ * their external definitions in noise.c. */
+inline uint64_t noise_mix(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * UINT64_C(0xBF58476D1CE4E5B9);
+    z = (z ^ (z >> 27)) * UINT64_C(0x94D049BB133111EB);
+    return z ^ (z >> 31);
+}
 /* 64-bit key of a (seed, stream) pair. */
 uint64_t noise_key(uint64_t seed, uint64_t stream);
 /* 64 random bits for sample k of stream under seed. */
@@ -34,13 +41,34 @@ uint64_t noise_bits(uint64_t seed, uint64_t stream, uint64_t k);
 double noise_uniform(uint64_t seed, uint64_t stream, uint64_t k);
 /* The central branch of noise_inverse_normal_cdf (noise._central), for p_low <= p <= 1 - p_low:
  * the batch kernel evaluates it for several runs at once and the tails one by one. */
-double noise_central(double p);
+inline double noise_central(double p)
+{
+    /* Acklam's coefficients (models.noise._A, _B) */
+    static const double A[6] = {-3.969683028665376e+01, 2.209460984245205e+02,
+                                -2.759285104469687e+02, 1.383577518672690e+02,
+                                -3.066479806614716e+01, 2.506628277459239e+00};
+    static const double B[5] = {-5.447609879822406e+01, 1.615858368580409e+02,
+                                -1.556989798598866e+02, 6.680131188771972e+01,
+                                -1.328068155288572e+01};
+    double q = p - 0.5;
+    double r = q * q;
+    double num = (((((A[0] * r + A[1]) * r + A[2]) * r + A[3]) * r + A[4]) * r + A[5]) * q;
+    double den = ((((B[0] * r + B[1]) * r + B[2]) * r + B[3]) * r + B[4]) * r + 1.0;
+    return num / den;
+}
 /* Acklam's inverse normal CDF of p in (0, 1). */
 double noise_inverse_normal_cdf(double p);
 /* Standard normal draw for sample k of stream under seed. */
 double noise_normal(uint64_t seed, uint64_t stream, uint64_t k);
 /* The same draw from the stream's key (noise_key(seed, stream)), for a caller that keeps the
  * key instead of deriving it at every sample (C only: Python's key is cached, _key_int). */
-double noise_normal_keyed(uint64_t key, uint64_t k);
+inline double noise_normal_keyed(uint64_t key, uint64_t k)
+{
+    const uint64_t bits = noise_mix(key + k * NOISE_GOLDEN);
+    const double p = ((double)(bits >> 12) + 0.5) * 2.220446049250313e-16;
+    /* noise_inverse_normal_cdf, its central branch here and its tails out of line */
+    return p < NOISE_P_LOW || p > 1.0 - NOISE_P_LOW ? noise_inverse_normal_cdf(p)
+                                                    : noise_central(p);
+}
 
 #endif

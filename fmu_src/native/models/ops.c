@@ -1,5 +1,6 @@
 /* ops: C port of models/_ops.py; see ops.h.  Same operations in the same order as the Python. */
 #include <math.h>
+#include <stdint.h>
 
 #include "ops.h"
 
@@ -52,19 +53,44 @@ static const double INV_FACTORIAL[15] = {
     2.755731922398589e-07, 2.505210838544172e-08, 2.08767569878681e-09, 1.6059043836821613e-10,
     1.1470745597729725e-11};
 
+/* poly 2^n of ops_exp: for -1022 <= n <= 1023 the product with 2^n built from its bits, which
+ * is ldexp's result (both are the exact m 2^n correctly rounded, a subnormal one too), without
+ * the library call; ops_ldexp otherwise (2^n is not a normal double there). */
+static double exp_scale(double m, int64_t n)
+{
+    if (n >= -1022 && n <= 1023) {
+        union { uint64_t u; double d; } p;
+        p.u = (uint64_t)(n + 1023) << 52;
+        return m * p.d;
+    }
+    return ops_ldexp(m, n);
+}
+
 double ops_exp(double x)
 {
     double n, r, poly;
-    int k;
+    const double *c = INV_FACTORIAL;
     if (x != x) return x;
     if (x > OPS_EXP_HIGH) return HUGE_VAL;
     if (x < OPS_EXP_LOW) return 0.0;
     n = ops_floor(x * OPS_INV_LN2 + 0.5);
     r = (x - n * OPS_LN2_HI) - n * OPS_LN2_LO;
-    poly = INV_FACTORIAL[14];
-    for (k = 13; k >= 0; k--)
-        poly = poly * r + INV_FACTORIAL[k];
-    return ops_ldexp(poly, (int64_t)n);
+    /* Horner from 1/14! down to 1/0!, written out (the loop's operations in its order) */
+    poly = c[14] * r + c[13];
+    poly = poly * r + c[12];
+    poly = poly * r + c[11];
+    poly = poly * r + c[10];
+    poly = poly * r + c[9];
+    poly = poly * r + c[8];
+    poly = poly * r + c[7];
+    poly = poly * r + c[6];
+    poly = poly * r + c[5];
+    poly = poly * r + c[4];
+    poly = poly * r + c[3];
+    poly = poly * r + c[2];
+    poly = poly * r + c[1];
+    poly = poly * r + c[0];
+    return exp_scale(poly, (int64_t)n);
 }
 
 /* (+-1) / n! for n = 1, 3, ..., 23 (Python: sign / math.factorial(n), printed with repr). */
