@@ -33,7 +33,7 @@ KINDS = ("python", "native-fmi2", "native-fmi3")
 MODELS = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
 CHAIN = ("Excitation", "Accelerometer", "DriftEstimator")
 #: Every column an input of the FMUs may take (its own name or the output wired to it).
-RESULT_COLUMNS = ("x", "y", "z", "z_y", "u", "u_in", "z_x")
+RESULT_COLUMNS = ("x", "y", "z", "z_y", "u", "u_in", "z_x", "theta", "T")
 
 
 @pytest.fixture(scope="module")
