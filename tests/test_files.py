@@ -380,9 +380,9 @@ def test_a_removed_variable_is_named_not_a_bare_key_error(good, tmp_path):
     for kind in ("python", "native-fmi3"):
         path = T.EDITS["a variable removed"][0](good[kind]["DriftEstimator"],
                                                 tmp_path / ("%s.fmu" % kind))
-        with pytest.raises(FileProblem, match="it has no variable z_comp; expected: every "
-                           "variable of driftfmu's DriftEstimator \\(z_comp: Real output, "
-                           "value reference 20\\)"):
+        with pytest.raises(FileProblem, match="it has no variable dc_class2; expected: every "
+                           "variable of driftfmu's DriftEstimator \\(dc_class2: Real output, "
+                           "value reference 38\\)"):
             fmucheck.check_fmu(path)
 
 

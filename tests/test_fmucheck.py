@@ -97,11 +97,11 @@ def test_what_each_edit_is_called(paper, tmp_path, fmi):
         md + "x_hat has the value reference 15, which is P's; expected: 14, as in driftfmu's "
         "DriftEstimator: a host reads and writes by value reference")
     assert said["a variable removed"].startswith(
-        md + "it has no variable z_comp; expected: every variable of driftfmu's DriftEstimator "
-        "(z_comp: Real output, value reference 20)")
+        md + "it has no variable dc_class2; expected: every variable of driftfmu's "
+        "DriftEstimator (dc_class2: Real output, value reference 38)")
     assert said["a variable added"].startswith(
         md + "it declares a variable extra (value reference 999) that driftfmu's "
-        "DriftEstimator does not have; expected: only the 25 variables")
+        "DriftEstimator does not have; expected: only the 39 variables")
     assert said["A = 1.5"] == (
         md + "the start value of A is 1.5, outside its declared range; expected: A >= "
         "-0.9999999999999999 and A <= 0.9999999999999999 (driftfmu's rule for A: A > -1 and "
