@@ -428,9 +428,21 @@ def ssp(paper, tmp_path):
         "DriftEstimator": {"estimator": 2, "A": 0.5}})
 
 
-def _ssd(ssp, edit, name="edited.ssp"):
-    return T.rewrite(ssp, ssp.with_name(name), members={
-        "SystemStructure.ssd": lambda data: edit(data.decode()).encode()})
+SSD = "SystemStructure.ssd"
+#: the parameter sets build_ssp writes, one per component, bound from the system structure
+EXC, ACC, DE = ("resources/%s.ssv" % m for m in ("Excitation", "Accelerometer",
+                                                 "DriftEstimator"))
+
+
+def _ssd(ssp, edit, name="edited.ssp", member=SSD):
+    """``ssp`` with ``edit`` applied to its ``member`` (the system structure, or a parameter
+    set); the edit must change it."""
+    def change(data):
+        text = data.decode()
+        edited = edit(text)
+        assert edited != text, "the edit found nothing to change in %s" % member
+        return edited.encode()
+    return T.rewrite(ssp, ssp.with_name(name), members={member: change})
 
 
 def test_our_ssp_passes(ssp, tmp_path):
@@ -443,46 +455,71 @@ def test_our_ssp_passes(ssp, tmp_path):
 R = '<ssv:Parameter name="R"><ssv:Real value="0.0001" /></ssv:Parameter>'
 
 
-@pytest.mark.parametrize("edit, words", [
-    (lambda t: t.replace(R, R.replace("0.0001", "-1"), 1),
+@pytest.mark.parametrize("member, edit, words", [
+    (ACC, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1),
      "component Accelerometer: R = -1 is out of range; expected: R > 0"),
-    (lambda t: t.replace(R, R.replace("0.0001", "0"), 1),
+    (ACC, lambda t: t.replace(R, R.replace("0.0001", "0"), 1),
      "component Accelerometer: R = 0 is out of range; expected: R > 0"),
-    (lambda t: t.replace(R, R.replace("0.0001", "5e-324"), 1), None),
-    (lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
+    (ACC, lambda t: t.replace(R, R.replace("0.0001", "5e-324"), 1), None),
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
                          '<ssv:Parameter name="estimator"><ssv:Integer value="4" />', 1),
      "component DriftEstimator: estimator = 4 is outside its declared range; expected: "
      "estimator >= 1 and estimator <= 3"),
-    (lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
                          '<ssv:Parameter name="estimator"><ssv:Integer value="3" />', 1), None),
-    (lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
                          '<ssv:Parameter name="estimator"><ssv:Real value="2.0" />', 1),
      "component DriftEstimator: estimator is given as Real; the FMU declares it Integer"),
-    (lambda t: t.replace('<ssv:Parameter name="a2">', '<ssv:Parameter name="a22">', 1),
+    (ACC, lambda t: t.replace('<ssv:Parameter name="a2">', '<ssv:Parameter name="a22">', 1),
      "component Accelerometer has no variable 'a22' to set; expected: one of its parameters: "),
-    (lambda t: t.replace('<ssv:Parameter name="estimator">', '<ssv:Parameter name="x_hat">', 1),
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator">', '<ssv:Parameter name="x_hat">', 1),
      "component DriftEstimator: x_hat is an output variable"),
-    (lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
+    (EXC, lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
                          '<ssv:Parameter name="A"><ssv:Real value="nan" />', 1),
      "component Excitation: A = nan is out of range"),
-    (lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
+    (EXC, lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
                          '<ssv:Parameter name="A"><ssv:Real value="abc" />', 1),
      "component Excitation: A = 'abc' is not a number"),
-    (lambda t: t.replace('endConnector="z"', 'endConnector="zz"', 1),
+    (SSD, lambda t: t.replace('endConnector="z"', 'endConnector="zz"', 1),
      "a connection's end is DriftEstimator.zz, which that FMU does not have"),
-    (lambda t: t.replace('startConnector="z"', 'startConnector="x_hat"', 1),
+    (SSD, lambda t: t.replace('startConnector="z"', 'startConnector="x_hat"', 1),
      "a connection's start is Accelerometer.x_hat, which that FMU does not have"),
-    (lambda t: t.replace('endConnector="x"', 'endConnector="a2"', 1),
+    (SSD, lambda t: t.replace('endConnector="x"', 'endConnector="a2"', 1),
      "a connection's end is Accelerometer.a2, a parameter variable"),
-    (lambda t: t.replace('startElement="Excitation"', 'startElement="Nobody"', 1),
+    (SSD, lambda t: t.replace('startElement="Excitation"', 'startElement="Nobody"', 1),
      "a connection's start is component 'Nobody', which the system does not have"),
-    (lambda t: t.replace('source="resources/Excitation.fmu"', 'source="resources/E.fmu"', 1),
+    (SSD, lambda t: t.replace('source="resources/Excitation.fmu"', 'source="resources/E.fmu"', 1),
      "component Excitation has the source 'resources/E.fmu', which the archive does not have"),
-    (lambda t: t[:len(t) // 2], "SystemStructure.ssd: is not well-formed XML"),
+    (SSD, lambda t: t[:len(t) // 2], "SystemStructure.ssd: is not well-formed XML"),
 ])
-def test_ssp_parameters_and_connections_by_component_and_name(edit, words, ssp):
-    edited = _ssd(ssp, edit)
+def test_ssp_parameters_and_connections_by_component_and_name(member, edit, words, ssp):
+    """Each edit where the SSP holds what it edits: a parameter in the parameter set its
+    component binds (resources/<Component>.ssv), a connection or a component in the system
+    structure."""
+    edited = _ssd(ssp, edit, member=member)
     if words is None:  # both sides of a bound: the edge value is allowed
+        fmucheck.check_ssp(edited)
+        return
+    with pytest.raises(FileProblem) as info:
+        fmucheck.check_ssp(edited)
+    assert words in _one_line(str(info.value), edited), str(info.value)
+
+
+@pytest.mark.parametrize("value, words", [
+    ("0.001", None), ("-1", "component Accelerometer: R = -1 is out of range; expected: R > 0")])
+def test_a_parameter_set_inline_in_the_system_structure_is_checked(value, words, ssp):
+    """The Accelerometer's parameter set moved from its SSV file into the system structure
+    (a ParameterBinding with ParameterValues, as other tools write it): checked the same."""
+    import zipfile
+    with zipfile.ZipFile(ssp) as z:
+        pset = z.read(ACC).decode()
+    pset = pset[pset.index("<ssv:ParameterSet"):].replace(R, R.replace("0.0001", value), 1)
+    binding = '<ssd:ParameterBinding source="%s" />' % ACC
+    inline = '<ssd:ParameterBinding><ssd:ParameterValues>%s</ssd:ParameterValues>' \
+        '</ssd:ParameterBinding>' % pset
+    edited = T.rewrite(_ssd(ssp, lambda t: t.replace(binding, inline, 1)),
+                       ssp.with_name("inline.ssp"), members={ACC: lambda _: None})
+    if words is None:
         fmucheck.check_ssp(edited)
         return
     with pytest.raises(FileProblem) as info:
@@ -613,7 +650,7 @@ def test_inputs_refuses_an_edited_fmu(paper, tmp_path, capsys):
 
 def test_the_ssp_runner_checks_before_fmpy_runs(ssp):
     from driftfmu.fmu_src import ssp as ssp_module
-    edited = _ssd(ssp, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1))
+    edited = _ssd(ssp, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1), member=ACC)
     with pytest.raises(FileProblem, match="component Accelerometer: R = -1 is out of range"):
         ssp_module.simulate(edited, 5)
 
