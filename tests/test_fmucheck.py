@@ -502,7 +502,8 @@ def test_ssp_parameters_and_connections_by_component_and_name(member, edit, word
         return
     with pytest.raises(FileProblem) as info:
         fmucheck.check_ssp(edited)
-    assert words in _one_line(str(info.value), edited), str(info.value)
+    named = words if words.startswith(member) else "%s: %s" % (member, words)  # (the member
+    assert named in _one_line(str(info.value), edited), str(info.value)  # that holds it)
 
 
 @pytest.mark.parametrize("value, words", [
@@ -524,7 +525,8 @@ def test_a_parameter_set_inline_in_the_system_structure_is_checked(value, words,
         return
     with pytest.raises(FileProblem) as info:
         fmucheck.check_ssp(edited)
-    assert words in _one_line(str(info.value), edited), str(info.value)
+    assert "SystemStructure.ssd: " + words in _one_line(str(info.value), edited), \
+        str(info.value)
 
 
 def test_a_parameter_file_the_ssp_binds_is_checked(ssp):
@@ -545,8 +547,8 @@ def test_a_parameter_file_the_ssp_binds_is_checked(ssp):
         if ok:
             fmucheck.check_ssp(edited)
         else:
-            with pytest.raises(FileProblem, match="component Accelerometer: R = -2 is out of "
-                               "range"):
+            with pytest.raises(FileProblem, match="resources/acc.ssv: component Accelerometer: "
+                               "R = -2 is out of range"):
                 fmucheck.check_ssp(edited)
     with pytest.raises(FileProblem, match="component Accelerometer binds the parameter file "
                        "resources/acc.ssv, which the archive does not have"):
