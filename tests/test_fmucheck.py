@@ -7,6 +7,7 @@ headers, segments and sections, the model description against the tables, SSP pa
 connections by component and name, and a zip bomb under 200 MB.  tests/test_files.py runs the
 same edits through every entry point with real FMUs."""
 import math
+import os
 import struct
 import zipfile
 from pathlib import Path
@@ -655,6 +656,23 @@ def test_the_ssp_runner_checks_before_fmpy_runs(ssp):
     edited = _ssd(ssp, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1), member=ACC)
     with pytest.raises(FileProblem, match="component Accelerometer: R = -1 is out of range"):
         ssp_module.simulate(edited, 5)
+
+
+def test_the_ssp_runner_leaves_nothing_in_the_temporary_folder_when_fmpy_fails(
+        ssp, tmp_path, monkeypatch):
+    """fmpy's simulate_ssp fails on the FMUs on paper (no functions in their binaries) after
+    it extracted the archive and its FMUs: those folders went into TMPDIR for good; now into
+    a work folder of driftfmu's that goes with the call."""
+    import tempfile
+    from driftfmu.fmu_src import ssp as ssp_module
+    from driftfmu.simulations.cosim import CoSimulationError
+    tmp = tmp_path / "tmp"
+    tmp.mkdir(mode=0o700)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    with pytest.raises(CoSimulationError, match="fmpy's simulate_ssp failed"):
+        ssp_module.simulate(ssp, 5)
+    assert [str(p.relative_to(tmp)) for p in tmp.rglob("*")] == []  # (the private folder
+    # goes with its last work folder)
 
 
 def test_the_doctor_takes_an_ssp_for_an_ssp(ssp, capsys):
