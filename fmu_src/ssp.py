@@ -50,9 +50,11 @@ outputs read after initialisation along the connections before the first step
 (``jacobi_reference(..., initial="outputs")``).  To get our master's results from the same FMUs, run ``driftfmu run gaussian`` (or any
 master that propagates outputs along the connections in order before reading them).
 """
+import contextlib
 import os
 import shutil
 import tempfile
+import threading
 import xml.etree.ElementTree as ET
 import zipfile
 from pathlib import Path
@@ -346,7 +348,7 @@ def simulate(ssp, n, Ts=1e-3):
     import sys
     printed = io.StringIO()
     try:
-        with contextlib.redirect_stdout(printed):
+        with contextlib.redirect_stdout(printed), _extracted_in_a_work_folder():
             result = simulate_ssp(str(ssp), start_time=0.0, stop_time=(n - 0.5) * Ts,
                                   step_size=Ts, parameter_set=parameter_set(ssp))
     except Exception as exc:
@@ -359,6 +361,32 @@ def simulate(ssp, n, Ts=1e-3):
             ": " + errors[-1].split("] ", 1)[-1] if errors else "")) from exc
     sys.stdout.write(printed.getvalue())
     return result
+
+
+#: One simulate_ssp at a time swaps fmpy's extract (:func:`_extracted_in_a_work_folder`).
+_EXTRACT_LOCK = threading.Lock()
+
+
+@contextlib.contextmanager
+def _extracted_in_a_work_folder():
+    """fmpy's ``simulate_ssp`` extracts the archive and each FMU into ``tempfile.mkdtemp()``
+    folders and removes them only when the run succeeds (a refused instantiation left four in
+    TMPDIR): for the call, they go into a work folder of driftfmu's (simulations/folders.py),
+    removed whatever happens, and by the next run's sweep after a kill."""
+    import fmpy.ssp.simulation as fmpy_ssp
+
+    from driftfmu.simulations import folders
+    with _EXTRACT_LOCK, folders.temporary("driftfmu_ssp_run_") as folder:
+        extract = fmpy_ssp.extract
+
+        def into_folder(filename, unzipdir=None, **kwargs):
+            return extract(filename, unzipdir=unzipdir or tempfile.mkdtemp(dir=folder),
+                           **kwargs)
+        fmpy_ssp.extract = into_folder
+        try:
+            yield
+        finally:
+            fmpy_ssp.extract = extract
 
 
 def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3,

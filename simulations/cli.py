@@ -78,13 +78,16 @@ def _close(message):
     m = re.match(r"unrecognized arguments: (.*)$", message)
     if m and _Parser._last is not None:
         options = [o for a in _Parser._last._actions for o in a.option_strings]
+        # compared without their dashes, which every option shares: with them '--engine' came
+        # close to '--range' (0.67 for the names' 0.55)
+        bare = {o.lstrip("-"): o for o in options}
         meant = []
         for word in m.group(1).split():
             name = word.split("=", 1)[0]
-            close = difflib.get_close_matches(name, options, n=1) if name.startswith("-") \
-                else []
+            close = difflib.get_close_matches(name.lstrip("-"), list(bare), n=1) \
+                if name.startswith("-") and name.lstrip("-") else []
             if close:
-                meant.append("%s for %s" % (close[0], name))
+                meant.append("%s for %s" % (bare[close[0]], name))
         if meant:
             return message + " (did you mean %s?)" % ", ".join(meant)
     return message

@@ -336,9 +336,11 @@ def diagnose_ssp(ssp):
             return [(FAIL, str(exc))]
         out.append((OK, "an SSP archive with %d components: %s" % (
             len(fmus), ", ".join("%s (%s)" % (c, m) for c, (m, _) in fmus.items()))))
+        # a component FMU's own problems are its diagnosis's below; every other one (the
+        # system structure's, a parameter set's, a member that cannot be read) is listed here
+        members = tuple("%s: %s: " % (ssp, m) for m, _ in fmus.values())
         for problem in problems:
-            if ": resources/" not in problem.split(";")[0] or "SystemStructure.ssd" in \
-                    problem.split(";")[0]:
+            if not problem.startswith(members):
                 out.append((FAIL, problem))
         for component, (member, path) in fmus.items():
             for level, message in diagnose(path):

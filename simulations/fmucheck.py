@@ -813,8 +813,9 @@ SSV_TYPES = {"Real": _REALS, "Integer": ("Integer", "Int8", "UInt8", "Int16", "U
 
 
 def _parameters(path, zf, component, binding):
-    """``[(name, SSV type, value text)]`` of a ParameterBinding: inline or from the archive's
-    SSV file its ``source`` names."""
+    """``(part, [(name, SSV type, value text)])`` of a ParameterBinding: inline (``part`` the
+    system structure) or from the archive's SSV file its ``source`` names (``part`` that
+    file), so that a problem names the member that holds the value."""
     source = binding.get("source")
     if source:
         if source not in zf.namelist():
@@ -826,17 +827,18 @@ def _parameters(path, zf, component, binding):
         except ElementTree.ParseError as exc:
             raise FileProblem(say(path, source, "is not well-formed XML (%s)" % exc,
                                   "an SSV parameter set")) from None
-        sets = [pset]
+        sets, part = [pset], source
     else:
         sets = [s for values in _children(binding, "ParameterValues")
                 for s in _children(values, "ParameterSet")]
+        part = "SystemStructure.ssd"
     found = []
     for pset in sets:
         for p in [p for ps in _children(pset, "Parameters") for p in _children(ps, "Parameter")]:
             typed = next((c for c in p if _local(c.tag) in SSV_TYPES), None)
             found.append((p.get("name") or "", _local(typed.tag) if typed is not None else None,
                           typed.get("value") if typed is not None else None))
-    return found
+    return part, found
 
 
 def parameter_problem(model, variable, kind, value):
@@ -928,7 +930,7 @@ def inspect_ssp(path, folder, machine="any", label=None):
             models[name] = ours(found.desc)
             for binding in _children(_child(comp, "ParameterBindings"), "ParameterBinding"):
                 try:
-                    given = _parameters(path, zf, name, binding)
+                    where, given = _parameters(path, zf, name, binding)
                 except FileProblem as exc:
                     problems.append(str(exc))
                     continue
@@ -938,13 +940,13 @@ def inspect_ssp(path, folder, machine="any", label=None):
                     if variable is None:
                         settable = sorted(v for v, var in variables[name].items()
                                           if var.causality == "parameter")
-                        problems.append(say(path, part, "component %s has no variable %r to "
+                        problems.append(say(path, where, "component %s has no variable %r to "
                                             "set" % (name, pname), "one of its parameters: %s"
                                             % ", ".join(settable)))
                         continue
                     why = parameter_problem(ours(found.desc), variable, kind, value)
                     if why:
-                        problems.append(say(path, part, "component %s: %s" % (name, why[0]),
+                        problems.append(say(path, where, "component %s: %s" % (name, why[0]),
                                             why[1]))
         checked.append("%s: system %r, %d components (%s), each FMU checked as driftfmu "
                        "checks an FMU; %d parameters, each a variable of its component of its "

@@ -295,6 +295,7 @@ def plan(fmu, results, Ts=None, start_time=None, hold=()):
         with Result(p) as r:
             headers.append((Path(p), r.names))
     sources = {}
+    missing = []
     for name, _ in inputs:
         found = next(((path, want) for want in _columns(model, name)
                       for path, names_ in headers if want in names_), None)
@@ -305,15 +306,31 @@ def plan(fmu, results, Ts=None, start_time=None, hold=()):
                                                                      name))
             sources[name] = None
         elif found is None:
-            raise UsageError(
-                "%s's input %s is in none of the results (%s); allowed: a result with a "
-                "column %s, or --hold %s to write its start value %r for every sample" % (
-                    model, name, "; ".join("%s: %s" % (path, ", ".join(n) or "no columns")
-                                           for path, n in headers),
-                    " or ".join(_columns(model, name)), name, dict(inputs)[name]))
+            missing.append(name)
         else:
             sources[name] = found
+    if missing:
+        raise UsageError(_missing(model, missing, dict(inputs), headers))
     return model, inputs, Ts, start, sources
+
+
+def _missing(model, missing, start_values, headers):
+    """The one line that refuses the inputs ``missing`` no result gives: every one named,
+    with the columns that would give it and the ``--hold`` that would write its start
+    value."""
+    files = "; ".join("%s: %s" % (path, ", ".join(n) or "no columns") for path, n in headers)
+    if len(missing) == 1:
+        name = missing[0]
+        return ("%s's input %s is in none of the results (%s); allowed: a result with a "
+                "column %s, or --hold %s to write its start value %r for every sample" % (
+                    model, name, files, " or ".join(_columns(model, name)), name,
+                    start_values[name]))
+    return ("%s's inputs %s are in none of the results (%s); allowed: results with the "
+            "columns %s, or %s to write their start values %s for every sample" % (
+                model, ", ".join(missing), files,
+                "; ".join(" or ".join(_columns(model, n)) for n in missing),
+                " ".join("--hold %s" % n for n in missing),
+                ", ".join("%s = %r" % (n, start_values[n]) for n in missing)))
 
 
 def write_input_file(fmu, results, out, Ts=None, start_time=None, force=False, hold=()):

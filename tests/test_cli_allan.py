@@ -113,7 +113,8 @@ def test_progress_counts_the_taus(tmp_path):
 def test_a_csv_without_the_column(tmp_path, capsys):
     rec = _csv(tmp_path / "rec.csv", n=50)
     _refused(["allan", rec, "--column", "w"], lambda out: driftfmu.allan(rec, "w", out=out),
-             "missing column(s) w (found time, x, z); allowed: a header with columns time, w",
+             "missing column(s) w: its first row, the header, holds 'time', 'x', 'z'; allowed: "
+             "a header row with columns time, w, separated by commas",
              tmp_path, capsys)
     _refused(["allan", rec, "--time", "t"], lambda out: driftfmu.allan(rec, time="t", out=out),
              "missing column(s) t", tmp_path, capsys)

@@ -33,7 +33,7 @@ KINDS = ("python", "native-fmi2", "native-fmi3")
 MODELS = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
 CHAIN = ("Excitation", "Accelerometer", "DriftEstimator")
 #: Every column an input of the FMUs may take (its own name or the output wired to it).
-RESULT_COLUMNS = ("x", "y", "z", "z_y", "u", "u_in", "z_x")
+RESULT_COLUMNS = ("x", "y", "z", "z_y", "u", "u_in", "z_x", "theta", "T")
 
 
 @pytest.fixture(scope="module")
@@ -380,9 +380,9 @@ def test_a_removed_variable_is_named_not_a_bare_key_error(good, tmp_path):
     for kind in ("python", "native-fmi3"):
         path = T.EDITS["a variable removed"][0](good[kind]["DriftEstimator"],
                                                 tmp_path / ("%s.fmu" % kind))
-        with pytest.raises(FileProblem, match="it has no variable z_comp; expected: every "
-                           "variable of driftfmu's DriftEstimator \\(z_comp: Real output, "
-                           "value reference 20\\)"):
+        with pytest.raises(FileProblem, match="it has no variable dc_class2; expected: every "
+                           "variable of driftfmu's DriftEstimator \\(dc_class2: Real output, "
+                           "value reference 38\\)"):
             fmucheck.check_fmu(path)
 
 
@@ -415,39 +415,49 @@ def test_doctor_tells_the_truth_about_our_own_ssp(good, tmp_path, capsys):
     assert "no modelDescription.xml" not in out
 
 
-def _ssd(ssp, edit):
+SSD = "SystemStructure.ssd"
+ACC, DE = "resources/Accelerometer.ssv", "resources/DriftEstimator.ssv"
+
+
+def _ssd(ssp, edit, member=SSD):
+    """``ssp`` with ``edit`` applied to its ``member``: the system structure, or the parameter
+    set (resources/<Component>.ssv) that holds a component's values."""
     return T.rewrite(ssp, ssp.with_name("edited.ssp"), members={
-        "SystemStructure.ssd": lambda data: edit(data.decode()).encode()})
+        member: lambda data: edit(data.decode()).encode()})
 
 
-@pytest.mark.parametrize("edit, words", [
-    (lambda t: t.replace('<ssv:Parameter name="R">\n', '<ssv:Parameter name="R">', 1)
+@pytest.mark.parametrize("member, edit, words", [
+    (ACC, lambda t: t.replace('<ssv:Parameter name="R">\n', '<ssv:Parameter name="R">', 1)
      .replace('name="R"><ssv:Real value="0.0001"', 'name="R"><ssv:Real value="-1"', 1),
      "component Accelerometer: R = -1 is out of range; expected: R > 0"),
-    (lambda t: t.replace('<ssv:Parameter name="a2">', '<ssv:Parameter name="a22">', 1),
+    (ACC, lambda t: t.replace('<ssv:Parameter name="a2">', '<ssv:Parameter name="a22">', 1),
      "component Accelerometer has no variable 'a22' to set; expected: one of its parameters"),
-    (lambda t: t.replace('<ssv:Parameter name="estimator">',
-                         '<ssv:Parameter name="z_comp">', 1),
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator">',
+                             '<ssv:Parameter name="z_comp">', 1),
      "component DriftEstimator: z_comp is an output variable, which a parameter set cannot "
      "set"),
-    (lambda t: t.replace('endConnector="z"', 'endConnector="zz"', 1),
+    (SSD, lambda t: t.replace('endConnector="z"', 'endConnector="zz"', 1),
      "a connection's end is DriftEstimator.zz, which that FMU does not have"),
-    (lambda t: t.replace('source="resources/Excitation.fmu"', 'source="resources/E.fmu"', 1),
+    (SSD, lambda t: t.replace('source="resources/Excitation.fmu"', 'source="resources/E.fmu"',
+                              1),
      "component Excitation has the source 'resources/E.fmu', which the archive does not "
      "have"),
 ])
-def test_ssp_parameters_and_connections_are_checked_by_component_and_name(edit, words, good,
-                                                                          tmp_path, capsys):
+def test_ssp_parameters_and_connections_are_checked_by_component_and_name(member, edit, words,
+                                                                          good, tmp_path,
+                                                                          capsys):
     """An SSP parameter out of range said "fmi2ExitInitializationMode failed with status 3",
     an unknown one a bare KeyError: now the SSP runner and the doctor name the component and
-    the parameter."""
+    the parameter, and the member that holds it (the parameters are in the parameter sets the
+    components bind)."""
     from driftfmu.fmu_src import ssp as ssp_module
     ssp = ssp_module.build_ssp({n: good["python"][n] for n in CHAIN}, tmp_path / "c.ssp", n=5,
                                start_values={"Accelerometer": {"a2": 0.02, "R": 1e-4},
                                              "DriftEstimator": {"estimator": 2}})
-    text = zipfile.ZipFile(ssp).read("SystemStructure.ssd").decode()
-    edited = _ssd(ssp, lambda t: edit(re.sub(r">\s+<", "><", t)))
-    assert zipfile.ZipFile(edited).read("SystemStructure.ssd").decode() != text
+    text = zipfile.ZipFile(ssp).read(member).decode()
+    edited = _ssd(ssp, lambda t: edit(re.sub(r">\s+<", "><", t)), member)
+    assert zipfile.ZipFile(edited).read(member).decode() != text
+    words = "%s: %s" % (member, words)
     with pytest.raises(FileProblem) as info:
         ssp_module.simulate(edited, 5)
     line = one_line(str(info.value), edited)
@@ -460,12 +470,12 @@ def test_the_doctor_names_an_ssp_parameter_out_of_range(good, tmp_path, capsys):
     from driftfmu.fmu_src import ssp as ssp_module
     ssp = ssp_module.build_ssp({n: good["python"][n] for n in CHAIN}, tmp_path / "c.ssp", n=5)
     edited = _ssd(ssp, lambda t: t.replace('<ssv:Real value="0.0001" />', '<ssv:Real '
-                                           'value="-1" />', 1))
+                                           'value="-1" />', 1), ACC)
     assert doctor.report(edited) == 1
     verdict = capsys.readouterr().out.splitlines()[-1]
     assert verdict.startswith("verdict: this SSP will NOT run on this host as it is: %s: "
-                              "SystemStructure.ssd: component Accelerometer: R = -1 is out of "
-                              "range; expected: R > 0" % edited), verdict
+                              "resources/Accelerometer.ssv: component Accelerometer: R = -1 is "
+                              "out of range; expected: R > 0" % edited), verdict
 
 
 def test_the_ssp_runner_runs_our_ssp_after_its_checks(good, tmp_path):

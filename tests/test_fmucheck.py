@@ -7,6 +7,7 @@ headers, segments and sections, the model description against the tables, SSP pa
 connections by component and name, and a zip bomb under 200 MB.  tests/test_files.py runs the
 same edits through every entry point with real FMUs."""
 import math
+import os
 import struct
 import zipfile
 from pathlib import Path
@@ -97,11 +98,11 @@ def test_what_each_edit_is_called(paper, tmp_path, fmi):
         md + "x_hat has the value reference 15, which is P's; expected: 14, as in driftfmu's "
         "DriftEstimator: a host reads and writes by value reference")
     assert said["a variable removed"].startswith(
-        md + "it has no variable z_comp; expected: every variable of driftfmu's DriftEstimator "
-        "(z_comp: Real output, value reference 20)")
+        md + "it has no variable dc_class2; expected: every variable of driftfmu's "
+        "DriftEstimator (dc_class2: Real output, value reference 38)")
     assert said["a variable added"].startswith(
         md + "it declares a variable extra (value reference 999) that driftfmu's "
-        "DriftEstimator does not have; expected: only the 25 variables")
+        "DriftEstimator does not have; expected: only the 39 variables")
     assert said["A = 1.5"] == (
         md + "the start value of A is 1.5, outside its declared range; expected: A >= "
         "-0.9999999999999999 and A <= 0.9999999999999999 (driftfmu's rule for A: A > -1 and "
@@ -428,9 +429,21 @@ def ssp(paper, tmp_path):
         "DriftEstimator": {"estimator": 2, "A": 0.5}})
 
 
-def _ssd(ssp, edit, name="edited.ssp"):
-    return T.rewrite(ssp, ssp.with_name(name), members={
-        "SystemStructure.ssd": lambda data: edit(data.decode()).encode()})
+SSD = "SystemStructure.ssd"
+#: the parameter sets build_ssp writes, one per component, bound from the system structure
+EXC, ACC, DE = ("resources/%s.ssv" % m for m in ("Excitation", "Accelerometer",
+                                                 "DriftEstimator"))
+
+
+def _ssd(ssp, edit, name="edited.ssp", member=SSD):
+    """``ssp`` with ``edit`` applied to its ``member`` (the system structure, or a parameter
+    set); the edit must change it."""
+    def change(data):
+        text = data.decode()
+        edited = edit(text)
+        assert edited != text, "the edit found nothing to change in %s" % member
+        return edited.encode()
+    return T.rewrite(ssp, ssp.with_name(name), members={member: change})
 
 
 def test_our_ssp_passes(ssp, tmp_path):
@@ -443,51 +456,78 @@ def test_our_ssp_passes(ssp, tmp_path):
 R = '<ssv:Parameter name="R"><ssv:Real value="0.0001" /></ssv:Parameter>'
 
 
-@pytest.mark.parametrize("edit, words", [
-    (lambda t: t.replace(R, R.replace("0.0001", "-1"), 1),
+@pytest.mark.parametrize("member, edit, words", [
+    (ACC, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1),
      "component Accelerometer: R = -1 is out of range; expected: R > 0"),
-    (lambda t: t.replace(R, R.replace("0.0001", "0"), 1),
+    (ACC, lambda t: t.replace(R, R.replace("0.0001", "0"), 1),
      "component Accelerometer: R = 0 is out of range; expected: R > 0"),
-    (lambda t: t.replace(R, R.replace("0.0001", "5e-324"), 1), None),
-    (lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
+    (ACC, lambda t: t.replace(R, R.replace("0.0001", "5e-324"), 1), None),
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
                          '<ssv:Parameter name="estimator"><ssv:Integer value="4" />', 1),
      "component DriftEstimator: estimator = 4 is outside its declared range; expected: "
      "estimator >= 1 and estimator <= 3"),
-    (lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
                          '<ssv:Parameter name="estimator"><ssv:Integer value="3" />', 1), None),
-    (lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator"><ssv:Integer value="2" />',
                          '<ssv:Parameter name="estimator"><ssv:Real value="2.0" />', 1),
      "component DriftEstimator: estimator is given as Real; the FMU declares it Integer"),
-    (lambda t: t.replace('<ssv:Parameter name="a2">', '<ssv:Parameter name="a22">', 1),
+    (ACC, lambda t: t.replace('<ssv:Parameter name="a2">', '<ssv:Parameter name="a22">', 1),
      "component Accelerometer has no variable 'a22' to set; expected: one of its parameters: "),
-    (lambda t: t.replace('<ssv:Parameter name="estimator">', '<ssv:Parameter name="x_hat">', 1),
+    (DE, lambda t: t.replace('<ssv:Parameter name="estimator">', '<ssv:Parameter name="x_hat">', 1),
      "component DriftEstimator: x_hat is an output variable"),
-    (lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
+    (EXC, lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
                          '<ssv:Parameter name="A"><ssv:Real value="nan" />', 1),
      "component Excitation: A = nan is out of range"),
-    (lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
+    (EXC, lambda t: t.replace('<ssv:Parameter name="A"><ssv:Real value="0.5" />',
                          '<ssv:Parameter name="A"><ssv:Real value="abc" />', 1),
      "component Excitation: A = 'abc' is not a number"),
-    (lambda t: t.replace('endConnector="z"', 'endConnector="zz"', 1),
+    (SSD, lambda t: t.replace('endConnector="z"', 'endConnector="zz"', 1),
      "a connection's end is DriftEstimator.zz, which that FMU does not have"),
-    (lambda t: t.replace('startConnector="z"', 'startConnector="x_hat"', 1),
+    (SSD, lambda t: t.replace('startConnector="z"', 'startConnector="x_hat"', 1),
      "a connection's start is Accelerometer.x_hat, which that FMU does not have"),
-    (lambda t: t.replace('endConnector="x"', 'endConnector="a2"', 1),
+    (SSD, lambda t: t.replace('endConnector="x"', 'endConnector="a2"', 1),
      "a connection's end is Accelerometer.a2, a parameter variable"),
-    (lambda t: t.replace('startElement="Excitation"', 'startElement="Nobody"', 1),
+    (SSD, lambda t: t.replace('startElement="Excitation"', 'startElement="Nobody"', 1),
      "a connection's start is component 'Nobody', which the system does not have"),
-    (lambda t: t.replace('source="resources/Excitation.fmu"', 'source="resources/E.fmu"', 1),
+    (SSD, lambda t: t.replace('source="resources/Excitation.fmu"', 'source="resources/E.fmu"', 1),
      "component Excitation has the source 'resources/E.fmu', which the archive does not have"),
-    (lambda t: t[:len(t) // 2], "SystemStructure.ssd: is not well-formed XML"),
+    (SSD, lambda t: t[:len(t) // 2], "SystemStructure.ssd: is not well-formed XML"),
 ])
-def test_ssp_parameters_and_connections_by_component_and_name(edit, words, ssp):
-    edited = _ssd(ssp, edit)
+def test_ssp_parameters_and_connections_by_component_and_name(member, edit, words, ssp):
+    """Each edit where the SSP holds what it edits: a parameter in the parameter set its
+    component binds (resources/<Component>.ssv), a connection or a component in the system
+    structure."""
+    edited = _ssd(ssp, edit, member=member)
     if words is None:  # both sides of a bound: the edge value is allowed
         fmucheck.check_ssp(edited)
         return
     with pytest.raises(FileProblem) as info:
         fmucheck.check_ssp(edited)
-    assert words in _one_line(str(info.value), edited), str(info.value)
+    named = words if words.startswith(member) else "%s: %s" % (member, words)  # (the member
+    assert named in _one_line(str(info.value), edited), str(info.value)  # that holds it)
+
+
+@pytest.mark.parametrize("value, words", [
+    ("0.001", None), ("-1", "component Accelerometer: R = -1 is out of range; expected: R > 0")])
+def test_a_parameter_set_inline_in_the_system_structure_is_checked(value, words, ssp):
+    """The Accelerometer's parameter set moved from its SSV file into the system structure
+    (a ParameterBinding with ParameterValues, as other tools write it): checked the same."""
+    import zipfile
+    with zipfile.ZipFile(ssp) as z:
+        pset = z.read(ACC).decode()
+    pset = pset[pset.index("<ssv:ParameterSet"):].replace(R, R.replace("0.0001", value), 1)
+    binding = '<ssd:ParameterBinding source="%s" />' % ACC
+    inline = '<ssd:ParameterBinding><ssd:ParameterValues>%s</ssd:ParameterValues>' \
+        '</ssd:ParameterBinding>' % pset
+    edited = T.rewrite(_ssd(ssp, lambda t: t.replace(binding, inline, 1)),
+                       ssp.with_name("inline.ssp"), members={ACC: lambda _: None})
+    if words is None:
+        fmucheck.check_ssp(edited)
+        return
+    with pytest.raises(FileProblem) as info:
+        fmucheck.check_ssp(edited)
+    assert "SystemStructure.ssd: " + words in _one_line(str(info.value), edited), \
+        str(info.value)
 
 
 def test_a_parameter_file_the_ssp_binds_is_checked(ssp):
@@ -508,8 +548,8 @@ def test_a_parameter_file_the_ssp_binds_is_checked(ssp):
         if ok:
             fmucheck.check_ssp(edited)
         else:
-            with pytest.raises(FileProblem, match="component Accelerometer: R = -2 is out of "
-                               "range"):
+            with pytest.raises(FileProblem, match="resources/acc.ssv: component Accelerometer: "
+                               "R = -2 is out of range"):
                 fmucheck.check_ssp(edited)
     with pytest.raises(FileProblem, match="component Accelerometer binds the parameter file "
                        "resources/acc.ssv, which the archive does not have"):
@@ -613,9 +653,26 @@ def test_inputs_refuses_an_edited_fmu(paper, tmp_path, capsys):
 
 def test_the_ssp_runner_checks_before_fmpy_runs(ssp):
     from driftfmu.fmu_src import ssp as ssp_module
-    edited = _ssd(ssp, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1))
+    edited = _ssd(ssp, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1), member=ACC)
     with pytest.raises(FileProblem, match="component Accelerometer: R = -1 is out of range"):
         ssp_module.simulate(edited, 5)
+
+
+def test_the_ssp_runner_leaves_nothing_in_the_temporary_folder_when_fmpy_fails(
+        ssp, tmp_path, monkeypatch):
+    """fmpy's simulate_ssp fails on the FMUs on paper (no functions in their binaries) after
+    it extracted the archive and its FMUs: those folders went into TMPDIR for good; now into
+    a work folder of driftfmu's that goes with the call."""
+    import tempfile
+    from driftfmu.fmu_src import ssp as ssp_module
+    from driftfmu.simulations.cosim import CoSimulationError
+    tmp = tmp_path / "tmp"
+    tmp.mkdir(mode=0o700)
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp))
+    with pytest.raises(CoSimulationError, match="fmpy's simulate_ssp failed"):
+        ssp_module.simulate(ssp, 5)
+    assert [str(p.relative_to(tmp)) for p in tmp.rglob("*")] == []  # (the private folder
+    # goes with its last work folder)
 
 
 def test_the_doctor_takes_an_ssp_for_an_ssp(ssp, capsys):

@@ -12,6 +12,7 @@ import pytest
 import driftfmu
 from driftfmu.simulations import hostinputs
 from driftfmu.simulations.cli import main
+from recipes import commands
 
 pytestmark = pytest.mark.integration
 
@@ -27,6 +28,28 @@ START = {"Excitation": ("A", "Q", "seed", "B", "drive", "Qu"),
          "DriftEstimator": ("a2", "A", "Q", "R", "a3", "a4", "B", "P0")}
 
 
+def _recipe_holds():
+    """FMU -> the inputs the page's fmpy recipe holds (``--hold NAME`` on its ``driftfmu
+    inputs`` lines): the chain below runs what the page says."""
+    import shlex
+    holds = {}
+    for line in commands("fmpy"):
+        argv = shlex.split(line)
+        if argv[:2] == ["driftfmu", "inputs"]:
+            name = argv[2][:-len(".fmu")]
+            holds[name] = [argv[i + 1] for i, a in enumerate(argv) if a == "--hold"]
+    assert sorted(holds) == ["Accelerometer", "DriftEstimator"], holds
+    return holds
+
+
+#: the page's holds: the sensor's tilt and temperature, which no result of the chain gives
+RECIPE_HOLDS = _recipe_holds()
+
+
+def test_the_recipe_holds_the_tilt_and_temperature_no_result_gives():
+    assert RECIPE_HOLDS == {"Accelerometer": ["theta", "T"], "DriftEstimator": ["theta", "T"]}
+
+
 def _samples(result):
     """The rows of a host's result at the sample instants t_k (the others, at t_k + Ts/4 where
     an input file changes, hold the sample before)."""
@@ -39,7 +62,8 @@ def _chain(run_one, fmus, tmp_path, start=None, hold=None):
     """Run the chain the recipe's way: each FMU by ``run_one(fmu, input file or None, output
     file, start values)``, its input file written by ``driftfmu inputs`` from the results
     upstream (``hold``: FMU -> the inputs no result gives, held at their start values by
-    ``--hold``).  Returns the three results (fmpy's structured arrays)."""
+    ``--hold``, besides the page's own holds).  Returns the three results (fmpy's structured
+    arrays)."""
     from fmpy.util import read_csv
     start = start or {}
     out = {}
@@ -49,7 +73,8 @@ def _chain(run_one, fmus, tmp_path, start=None, hold=None):
         if name != "Excitation":
             inp = tmp_path / ("%s_in.csv" % name)
             upstream = [tmp_path / ("%s.csv" % n) for n in CHAIN[:CHAIN.index(name)]][::-1]
-            held = [x for h in (hold or {}).get(name, ()) for x in ("--hold", h)]
+            held = [x for h in RECIPE_HOLDS[name] + (hold or {}).get(name, [])
+                    for x in ("--hold", h)]
             assert main(["inputs", str(fmus[name])] + [str(p) for p in upstream]
                         + ["--output-file", str(inp)] + held) == 0
         result = tmp_path / ("%s.csv" % name)
@@ -197,17 +222,18 @@ def test_inputs_command_refuses_a_result_that_skips_samples(fmus_in_build_layout
     exc.write_text("time,x\n0.0,0.5\n0.002,0.25\n0.004,0.125\n")
     out = tmp_path / "acc_in.csv"
     fmu = str(fmus_in_build_layout / "Accelerometer.fmu")
-    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--hold", "y"]) == 2
+    tilt = ["--hold", "theta", "--hold", "T"]  # (no result here gives them)
+    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--hold", "y"] + tilt) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == 1 and "no row for sample 2" in err[0] and \
         "--output-interval 0.001" in err[0], err
     assert not out.exists()
     exc.write_text("time,x\n0.0,0.5\n0.001,0.25\n0.002,0.125\n")
     out.write_text("mine\n")
-    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--hold", "y"]) == 2
+    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--hold", "y"] + tilt) == 2
     assert out.read_text() == "mine\n" and "--force" in capsys.readouterr().err
     # an input no result gives is refused in one line (issue 41: z = 0 without a word) ...
-    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--force"]) == 2
+    assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--force"] + tilt) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert err == ["driftfmu: error: Accelerometer's input y is in none of the results (%s: "
                    "x); allowed: a result with a column y, or --hold y to write its start "
@@ -215,11 +241,12 @@ def test_inputs_command_refuses_a_result_that_skips_samples(fmus_in_build_layout
     assert out.read_text() == "mine\n"
     # ... and held at its start value when asked
     assert main(["inputs", fmu, str(exc), "--output-file", str(out), "--force",
-                 "--hold", "y"]) == 0
+                 "--hold", "y"] + tilt) == 0
     lines = out.read_text().splitlines()
-    assert lines[0] == "time,x,y"          # every input, the held one at its start
-    assert lines[1:] == ["0.0,0.5,0.0", "0.00025,0.5,0.0", "0.00025,0.25,0.0",
-                         "0.00125,0.25,0.0", "0.00125,0.125,0.0"]
+    assert lines[0] == "time,x,y,theta,T"  # every input, the held ones at their starts
+    assert lines[1:] == [r + ",0.0,298.15" for r in (
+        "0.0,0.5,0.0", "0.00025,0.5,0.0", "0.00025,0.25,0.0", "0.00125,0.25,0.0",
+        "0.00125,0.125,0.0")]
     assert "y held at its start value (--hold y)" in capsys.readouterr().out
 
 

@@ -158,7 +158,7 @@ def test_fmusim_from_exact_files_gives_simulates_numbers_to_its_printed_digits(
         if name != "Excitation":
             inp = tmp_path / ("%s_in.csv" % name)
             assert main(["inputs", str(fmus[name]), str(ref_csv), "--output-file",
-                         str(inp)]) == 0
+                         str(inp), "--hold", "theta", "--hold", "T"]) == 0
             argv += ["--input-file", str(inp)]
         done = subprocess.run(argv + [str(fmus[name])], capture_output=True, text=True,
                               timeout=600)

@@ -66,6 +66,18 @@ def expected_file(values, start, Ts):
 
 # -- the hostile files of the campaign ------------------------------------------------------------
 
+#: the Accelerometer's tilt and temperature, which no result here gives: held at their start
+#: values, so that each case reaches the check it is about
+HOLD = ["--hold", "theta", "--hold", "T"]
+HELD = (0.0, 298.15)
+HEADER = "time,x,y,theta,T\n"
+
+
+def held(values):
+    """``values`` (x, y) with the held tilt and temperature after them, as written."""
+    return [v + HELD for v in values]
+
+
 GOOD = "time,x,y\n0.0,0.5,0.0\n0.001,0.25,0.0\n0.002,0.125,0.0\n"
 
 #: (name, file bytes, extra arguments, the line named (None: none), words of the line)
@@ -118,7 +130,7 @@ HOSTILE = [
     ("--start-time inf", GOOD.encode(), ["--start-time", "inf"], None,
      "start time inf; allowed: a finite time"),
     ("--hold of no input", GOOD.encode(), ["--hold", "z"], None,
-     "--hold z: Accelerometer has no input z; allowed: its inputs x, y"),
+     "--hold z: Accelerometer has no input z; allowed: its inputs x, y, theta, T"),
     ("--hold of a given input", GOOD.encode(), ["--hold", "x"], None,
      "which --hold x holds; allowed: one of the two"),
     ("no column for an input", b"time,x\n0,1\n0.001,2\n", [], None,
@@ -134,7 +146,8 @@ def test_a_hostile_result_is_one_line_naming_the_file_and_the_line(name, data, e
     result = tmp_path / "upstream.csv"
     result.write_bytes(data)
     out = tmp_path / "acc_in.csv"
-    rc, _, err = _run(["inputs", acc, str(result), "--output-file", str(out)] + extra, capsys)
+    rc, _, err = _run(["inputs", acc, str(result), "--output-file", str(out)] + HOLD + extra,
+                      capsys)
     said = _refused(rc, err, out, result if not name.startswith("--") or
                     "one sample" in words else None, line)
     assert words in said, said
@@ -155,10 +168,11 @@ def test_what_spreadsheets_write_is_read(name, text, acc, tmp_path, capsys):
     result = tmp_path / "upstream.csv"
     result.write_bytes(text.encode("utf-8"))
     out = tmp_path / "acc_in.csv"
-    rc, said, err = _run(["inputs", acc, str(result), "--output-file", str(out)], capsys)
+    rc, said, err = _run(["inputs", acc, str(result), "--output-file", str(out)] + HOLD,
+                         capsys)
     assert rc == 0, err
-    assert out.read_text() == "time,x,y\n" + expected_file(
-        [(0.5, 0.0), (0.25, 0.0), (0.125, 0.0)], 0.0, 1e-3)
+    assert out.read_text() == HEADER + expected_file(
+        held([(0.5, 0.0), (0.25, 0.0), (0.125, 0.0)]), 0.0, 1e-3)
 
 
 # -- issue 41: no column of start values for an input nobody gave ---------------------------------
@@ -175,29 +189,44 @@ def test_the_estimator_without_the_accelerometers_result_is_refused(paper, tmp_p
     fmu = str(paper["DriftEstimator"])
     rc, _, err = _run(["inputs", fmu, str(exc), "--output-file", str(out)], capsys)
     said = _refused(rc, err, out, None)
-    assert said == ("driftfmu: error: DriftEstimator's input z is in none of the results (%s: "
-                    "x, y); allowed: a result with a column z, or --hold z to write its start "
-                    "value 0.0 for every sample" % exc), said
+    assert said == ("driftfmu: error: DriftEstimator's inputs z, u, theta, T are in none of "
+                    "the results (%s: x, y); allowed: results with the columns z; u; theta; T, "
+                    "or --hold z --hold u --hold theta --hold T to write their start values "
+                    "z = 0.0, u = 0.0, theta = 0.0, T = 298.15 for every sample" % exc), said
     rc, _, err = _run(["inputs", fmu, str(acc), str(exc), "--output-file", str(out)], capsys)
-    assert "input u is in none of the results" in _refused(rc, err, out, None)
+    assert "inputs u, theta, T are in none of the results" in _refused(rc, err, out, None)
+    rc, _, err = _run(["inputs", fmu, str(acc), str(exc), "--output-file", str(out)] + HOLD,
+                      capsys)
+    assert _refused(rc, err, out, None) == (
+        "driftfmu: error: DriftEstimator's input u is in none of the results (%s: z, z_y; %s: "
+        "x, y); allowed: a result with a column u, or --hold u to write its start value 0.0 "
+        "for every sample" % (acc, exc))
     rc, said, err = _run(["inputs", fmu, str(acc), str(exc), "--output-file", str(out),
-                          "--hold", "u"], capsys)
+                          "--hold", "u"] + HOLD, capsys)
     assert rc == 0 and "z from %s, u held at its start value (--hold u)" % acc in said, said
-    assert out.read_text() == "time,z,u\n" + expected_file([(0.7, 0.0), (0.8, 0.0)], 0.0, 1e-3)
+    assert out.read_text() == "time,z,u,theta,T\n" + expected_file(
+        [(0.7, 0.0) + HELD, (0.8, 0.0) + HELD], 0.0, 1e-3)
 
 
 @pytest.mark.parametrize("model", ["Accelerometer", "DriftEstimator", "DualDriftEstimator",
                                    "Excitation"])
 def test_no_fmu_gets_a_column_of_start_values_for_an_input_no_result_gives(model, paper,
                                                                           tmp_path, capsys):
-    """The class: for every FMU, each input that no result gives is refused by name."""
+    """The class: for every FMU, each input that no result gives is refused by name, all of
+    them in the one line, each with the ``--hold`` that would write it."""
     result = tmp_path / "r.csv"
     result.write_text("time,unrelated\n0,1\n0.001,2\n")
     out = tmp_path / "in.csv"
     rc, _, err = _run(["inputs", str(paper[model]), str(result), "--output-file", str(out)],
                       capsys)
     said = _refused(rc, err, out, None)
-    assert "%s's input " % model in said and "is in none of the results" in said, said
+    names = [n for n, _ in hostinputs.fmu_inputs(str(paper[model]))[1]]
+    assert names, model
+    assert said.startswith("driftfmu: error: %s's input%s %s %s in none of the results" % (
+        model, "s" if len(names) > 1 else "", ", ".join(names),
+        "are" if len(names) > 1 else "is")), said
+    for name in names:
+        assert "--hold %s " % name in said, (name, said)
 
 
 # -- times as hosts and spreadsheets write them ---------------------------------------------------
@@ -253,8 +282,9 @@ def test_times_as_hosts_write_them_are_applied_at_their_samples(
     result = folder / "upstream.csv"
     result.write_bytes(("\ufeff" if bom else "").encode() + text.encode())
     out = folder / "in.csv"
-    hostinputs.write_input_file(acc, [result], out, Ts=Ts, start_time=start)
-    assert out.read_text() == "time,x,y\n" + expected_file(values, start, Ts)
+    hostinputs.write_input_file(acc, [result], out, Ts=Ts, start_time=start,
+                                hold=("theta", "T"))
+    assert out.read_text() == HEADER + expected_file(held(values), start, Ts)
 
 
 @pytest.mark.qualification
@@ -329,11 +359,11 @@ def test_a_result_starting_just_before_the_start_time(side, accepted, start, acc
     result.write_text("time,x,y\n%r,1,0\n%r,2,0\n" % (t0, start + Ts))
     out = tmp_path / "in.csv"
     rc, _, err = _run(["inputs", acc, str(result), "--output-file", str(out),
-                       "--start-time", repr(start)], capsys)
+                       "--start-time", repr(start)] + HOLD, capsys)
     if accepted:
         assert rc == 0, err
-        assert out.read_text() == "time,x,y\n" + expected_file([(1.0, 0.0), (2.0, 0.0)],
-                                                               start, Ts)
+        assert out.read_text() == HEADER + expected_file(held([(1.0, 0.0), (2.0, 0.0)]),
+                                                         start, Ts)
     else:
         assert "before the start time" in _refused(rc, err, out, result, 2)
 
@@ -347,11 +377,11 @@ def test_a_row_just_before_an_instant(side, accepted, acc, tmp_path, capsys):
     result = tmp_path / "r.csv"
     result.write_text("time,x,y\n0.0,1,0\n%r,2,0\n0.002,3,0\n" % t1)
     out = tmp_path / "in.csv"
-    rc, _, err = _run(["inputs", acc, str(result), "--output-file", str(out)], capsys)
+    rc, _, err = _run(["inputs", acc, str(result), "--output-file", str(out)] + HOLD, capsys)
     if accepted:
         assert rc == 0, err
-        assert out.read_text() == "time,x,y\n" + expected_file([(1.0, 0.0), (2.0, 0.0),
-                                                                (3.0, 0.0)], 0.0, Ts)
+        assert out.read_text() == HEADER + expected_file(held([(1.0, 0.0), (2.0, 0.0),
+                                                               (3.0, 0.0)]), 0.0, Ts)
     else:
         assert "no row for sample 2" in _refused(rc, err, out, result, 4)
 
@@ -424,7 +454,7 @@ def test_a_corrupted_row_is_refused_at_its_line(acc, tmp_path_factory, n, at, co
     result.write_bytes(data)
     out = folder / "in.csv"
     with pytest.raises(ValueError) as info:
-        hostinputs.write_input_file(acc, [result], out)
+        hostinputs.write_input_file(acc, [result], out, hold=("theta", "T"))
     said = str(info.value)
     assert "\n" not in said and said.startswith("%s line " % result), said
     number = int(said[len("%s line " % result):].split(":")[0])
@@ -436,7 +466,7 @@ def test_a_corrupted_row_is_refused_at_its_line(acc, tmp_path_factory, n, at, co
 
 def _peak_rss_of_inputs(fmu, result, out):
     import peakrss
-    rc, _, err, peak = peakrss.run(["inputs", fmu, result, "--output-file", out])
+    rc, _, err, peak = peakrss.run(["inputs", fmu, result, "--output-file", out] + HOLD)
     assert rc == 0, err
     return peak
 

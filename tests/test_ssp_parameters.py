@@ -47,12 +47,13 @@ def test_a_plain_name_goes_to_every_component_that_has_it_a_dotted_one_to_one():
     ({"a2": "abc"}, "start value Accelerometer.a2 = 'abc' is not a number"),
     ({"R": -1.0}, "start value Accelerometer.R = -1.0 is out of range; allowed:"),
     ({"DriftEstimator.R": 0.0}, "start value DriftEstimator.R = 0.0 is out of range"),
-    ({"seed": 7.5}, "start value Excitation.seed = 7.5 is out of range"),
+    ({"seed": 7.5}, "start value Excitation.seed = 7.5 is not an integer; allowed: an integer "
+                    "seed >= 0"),
     ({"seed": 2147483648}, "start value Excitation.seed = 2147483648 is out of range"),
     ({"rho": 1.0000000000000002}, "start value Excitation.rho = 1.0000000000000002 is out of"),
     ({"fc": 2500.0000000000005}, "start value Accelerometer.fc"),
     ({"b9": 1.0}, "start value 'b9' is not a parameter of Excitation or Accelerometer or "
-                  "DriftEstimator; allowed: A, B, P0"),
+                  "DriftEstimator; allowed: A, B, E_tau, P0, Pb0, "),
     ({"Accelerometer.P0": 1.0}, "start value 'Accelerometer.P0' is not a parameter"),
     ({"x": 1.0}, "start value 'x' is not a parameter"),        # an output, not a parameter
     ({"Excitation.Ts": 2e-3}, "different sample periods (Excitation.Ts = 0.002, "
