@@ -9,6 +9,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.fmu_src.builder import NAMES, build_fmus
+from leftovers import copy_libraries, left_in
 
 try:
     import fcntl
@@ -174,37 +175,6 @@ def pytest_configure(config):
         _temporary_folder_of_the_run(config)
 
 
-#: Files the code keeps in the temporary folder by design, from run to run: the compiled batch
-#: kernel (simulations/kernel.py) and the fast master's loop (simulations/fastcosim.py).
-KEPT = ("driftfmu-kernel-*.so", "driftfmu-loop-*.so")
-
-#: The private folder driftfmu keeps in the temporary folder by design (simulations/folders.py:
-#: this user's, mode 0700), and what it keeps there from run to run: the compiled libraries
-#: (simulations/trust.py: the batch kernel and the fast master's loop) and the destinations'
-#: locks (simulations/output.py).  Anything else in it (a work folder ``driftfmu_*``) is left by
-#: a test.
-PRIVATE = "driftfmu-%d" % os.geteuid() if hasattr(os, "geteuid") else None
-PRIVATE_KEPT = ("libraries", "locks")
-
-
-def _copy_libraries(src, dst):
-    """The compiled libraries of the private folder ``src`` into that of ``dst`` (made 0700
-    where missing), each file whole (copied beside, then renamed) and only where missing:
-    their names are the SHA-256 of their bytes."""
-    import shutil
-    src, dst = Path(src) / "libraries", Path(dst) / "libraries"
-    if PRIVATE is None or not src.is_dir():
-        return
-    with contextlib.suppress(OSError):
-        for folder in (dst.parent, dst):
-            with contextlib.suppress(FileExistsError):
-                os.mkdir(folder, 0o700)
-        for f in src.iterdir():
-            if f.is_file() and not f.is_symlink() and not (dst / f.name).exists():
-                part = dst / (".%s.part%d" % (f.name, os.getpid()))
-                shutil.copy2(f, part)
-                os.replace(part, dst / f.name)
-
 #: (the temporary folder of the run, the one it replaced, the session).
 _RUN_TMP = []
 
@@ -215,8 +185,8 @@ def _temporary_folder_of_the_run(config):
     folder the run was given (other runs, another engineer's, may use that one meanwhile), and
     checked when the run ends (:func:`pytest_unconfigure`): a test that leaves a file or folder
     there fails the run.  pytest's own folders (``tmp_path``) stay where they were; the
-    compiled caches (:data:`KEPT`) are taken from there and handed back."""
-    import shutil
+    compiled libraries of driftfmu's private folder (tests/leftovers.py) are taken from there
+    and handed back."""
     outer = Path(tempfile.gettempdir())
     config._tmp_path_factory.getbasetemp()  # pytest's folders: in the outer folder, as ever
     os.environ.setdefault("DRIFTFMU_TEST_NATIVE_CACHE", str(NATIVE_CACHE))
@@ -224,11 +194,7 @@ def _temporary_folder_of_the_run(config):
     # others may pass through it, not list or write it: the tests that act as another user
     # (tests/test_trust.py) make folders of their own inside
     os.chmod(run, 0o711)
-    for pattern in KEPT:
-        for cache in outer.glob(pattern):
-            shutil.copy2(cache, run / cache.name)
-    if PRIVATE is not None:
-        _copy_libraries(outer / PRIVATE, run / PRIVATE)
+    copy_libraries(outer, run)
     os.environ["TMPDIR"] = str(run)
     tempfile.tempdir = None  # read TMPDIR again
     _RUN_TMP[:] = [run, outer, None]
@@ -241,22 +207,13 @@ def pytest_sessionstart(session):
 
 def pytest_unconfigure(config):
     """After the run (its workers ended): what the tests left in the run's temporary folder
-    fails it, named; the folder goes, the compiled caches back to the outer folder."""
+    fails it, named; the folder goes, the compiled libraries back to the outer folder."""
     if not _RUN_TMP or hasattr(config, "workerinput"):
         return
-    import fnmatch
     import shutil
     run, outer, session = _RUN_TMP
-    left = sorted(f for f in os.listdir(run)
-                  if not any(fnmatch.fnmatch(f, pattern) for pattern in KEPT) and f != PRIVATE)
-    if PRIVATE is not None and (run / PRIVATE).is_dir():
-        left += sorted("%s/%s" % (PRIVATE, f) for f in os.listdir(run / PRIVATE)
-                       if f not in PRIVATE_KEPT)
-        _copy_libraries(run / PRIVATE, outer / PRIVATE)
-    for name in os.listdir(run):
-        if name not in left and name != PRIVATE and not (outer / name).exists():
-            with contextlib.suppress(OSError):
-                os.replace(run / name, outer / name)
+    left = left_in(run)
+    copy_libraries(run, outer)
     shutil.rmtree(run, ignore_errors=True)
     os.environ["TMPDIR"] = str(outer)
     tempfile.tempdir = None

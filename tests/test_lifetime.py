@@ -20,7 +20,7 @@ from pathlib import Path
 import pytest
 
 from driftfmu.simulations import lifetime
-from leftovers import left_in
+from leftovers import copy_libraries, left_in
 from waiting import BOUND, session_processes, wait_for
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -32,14 +32,12 @@ pytestmark = pytest.mark.skipif(not sys.platform.startswith("linux"),
 def _start(argv, tmp_path, env=None, python=(), **kwargs):
     """Start ``python [python] argv`` (``driftfmu argv`` when ``python`` is empty) in a session
     of its own with ``TMPDIR`` = ``tmp_path/tmp`` (holding the compiled caches of this test
-    run's temporary folder, if any: they are not compiled again); its standard error lines go
+    run's temporary folder's private folder, if any: they are not compiled again); its standard error lines go
     to a queue."""
     import tempfile
     tmp = tmp_path / "tmp"
     tmp.mkdir(exist_ok=True)
-    for cache in Path(tempfile.gettempdir()).glob("driftfmu-*-*.so"):
-        if cache.name.startswith(("driftfmu-kernel-", "driftfmu-loop-")):
-            shutil.copy2(cache, tmp / cache.name)
+    copy_libraries(tempfile.gettempdir(), tmp)
     full = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT), DRIFTFMU_PROGRESS_EVERY="0")
     full.update(env or {})
     command = [sys.executable] + (list(python) or ["-m", "driftfmu"]) + list(argv)
