@@ -405,35 +405,21 @@ def test_the_triage_file_of_the_tree_is_well_formed_and_has_no_stale_entry():
     assert p.returncode == 0, p.stdout + p.stderr
 
 
-def test_the_sample_seed_is_the_last_commit_of_the_code_not_of_its_tests(tmp_path):
-    """CI's order of the survey's mutants is drawn from ``--sample-seed``: the last commit that
-    changed the packages' Python files.  A commit of tests or of the triage file alone keeps
-    it (the sample it answers stays the sample); a commit of the code changes it."""
+def test_the_sample_seed_is_the_release_base_and_is_required(tmp_path):
+    """CI's order of the survey's mutants is drawn from ``--sample-seed``: the triage file's
+    [release] base, whatever the tree holds; a triage file without one is refused."""
     root = _survey_tree(tmp_path)
-    (root / "tools" / "survivors.toml").write_text("")
 
-    def git(*args):  # a commit; its hash
-        subprocess.run(["git", "-c", "user.name=t", "-c", "user.email=t@t", "commit", "-q",
-                        *args], cwd=root, check=True, capture_output=True)
-        return subprocess.run(["git", "rev-parse", "HEAD"], cwd=root, capture_output=True,
-                              text=True, check=True).stdout.strip()
+    def seed(text):
+        (root / "tools" / "survivors.toml").write_text(text)
+        return subprocess.run([sys.executable, str(ROOT / "tools" / "mutation_survey.py"),
+                               "--root", str(root), "--sample-seed"], capture_output=True,
+                              text=True, timeout=BOUND)
 
-    def seed():
-        p = subprocess.run([sys.executable, str(ROOT / "tools" / "mutation_survey.py"),
-                            "--root", str(root), "--sample-seed"], capture_output=True,
-                           text=True, timeout=BOUND)
-        assert p.returncode == 0, p.stderr
-        return p.stdout.strip()
-
-    subprocess.run(["git", "init", "-q"], cwd=root, check=True)
-    subprocess.run(["git", "add", "-A"], cwd=root, check=True)
-    first = git("-m", "first")
-    assert seed() == first
-    (root / "tests" / "test_calc.py").write_text(SURVEY_TREE["tests/test_calc.py"]
-                                                 + "\n\ndef test_more():\n    pass\n")
-    (root / "tools" / "survivors.toml").write_text("# triaged\n")
-    git("-am", "tests and triage")
-    assert seed() == first
-    (root / "models" / "calc.py").write_text(SURVEY_TREE["models/calc.py"] + "\n# changed\n")
-    code = git("-am", "code")
-    assert code != first and seed() == code
+    p = seed('[release]\nbase = "0123abc"\n')
+    assert (p.returncode, p.stdout) == (0, "0123abc\n"), p.stderr
+    p = seed('[release]\nbase = "4567def"\n')
+    assert (p.returncode, p.stdout) == (0, "4567def\n"), p.stderr
+    p = seed("")
+    assert p.returncode == 2 and p.stdout == "", p.stdout
+    assert p.stderr.strip() == "survey: the triage file has no [release] base", p.stderr

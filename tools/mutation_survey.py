@@ -319,18 +319,6 @@ def mutants(root=ROOT, scope=None):
     return out
 
 
-def sample_seed(root=ROOT, packages=PACKAGES):
-    """The last commit that changed a Python file of the packages (the code whose mutants are
-    sampled); tests, documents and the triage file do not count."""
-    p = subprocess.run(["git", "log", "-1", "--format=%H", "--"]
-                       + ["%s/*.py" % package for package in packages],
-                       cwd=root, capture_output=True, text=True)
-    if p.returncode != 0 or not p.stdout.strip():
-        raise SystemExit("survey: no commit of the packages' code in %s: %s"
-                         % (root, p.stderr.strip() or "no history"))
-    return p.stdout.strip()
-
-
 def key(m):
     """The triage key of a mutant (stable across edits elsewhere in the file)."""
     return (m["file"], m["function"], m["operator"], m["original"], m["mutated"])
@@ -897,9 +885,10 @@ def main(argv=None):
     ap.add_argument("--budget", type=float, default=None, metavar="SECONDS",
                     help="start no mutant after SECONDS (those left are reported not run)")
     ap.add_argument("--sample-seed", action="store_true",
-                    help="print the commit that last changed the packages' Python files (the "
-                         "code the mutants come from) and stop: a seed for --shuffle that a "
-                         "commit of tests or of the triage file alone keeps")
+                    help="print the triage file's [release] base and stop: CI's seed for "
+                         "--shuffle, the same order of the mutants from one release to the "
+                         "next, so that the survivors of its sample can be answered before CI "
+                         "runs (a new function's mutants take their places in that order)")
     ap.add_argument("--shuffle", metavar="SEED", help="run the mutants in an order drawn "
                     "from SEED (with --budget: another sample each run)")
     ap.add_argument("--against", nargs="+", metavar="TEST",
@@ -911,15 +900,18 @@ def main(argv=None):
     if args.jobs < 1 or (args.budget is not None and not args.budget > 0):
         ap.error("--jobs: allowed: 1 or more; --budget: allowed: seconds > 0")
     root = os.path.abspath(args.root)
-    if args.sample_seed:
-        print(sample_seed(root))
-        return 0
     try:
         entries, base = load_triage(args.triage or os.path.join(root, "tools",
                                                                 "survivors.toml"))
     except SystemExit as e:
         print("survey: %s" % e, file=sys.stderr)
         return 2
+    if args.sample_seed:
+        if not base:
+            print("survey: the triage file has no [release] base", file=sys.stderr)
+            return 2
+        print(base)
+        return 0
     everything = mutants(root)
     if args.check_triage:
         gone = stale(entries, everything)
