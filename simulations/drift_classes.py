@@ -526,34 +526,51 @@ def plot_drift_classes(path, summary, traces):
     t_s = window_start(st["n"], st["settle"]) * st["Ts"]
     rows = {r["case"]: r for r in summary["cases"]}
     for ax, (title, cases) in zip(axes, PANELS):
+        first = traces[cases[0]]
+        ax.plot(first["t"], [1e3 * v for v in first["drift"]], color="k", lw=1.2,
+                label="true drift")
+        ax.plot(first["t"], [1e3 * v for v in first["estimate"]], color="C0", lw=1.0,
+                label="estimate dc + b_hat + dc_class2")
+        # the residuals: on the same axis for one case; on an axis of their own (right)
+        # where the variants' residuals are small beside the drift
+        right = ax.twinx() if len(cases) > 1 else ax
         for j, case in enumerate(cases):
             tr = traces[case]
-            ls = ("-", "--", ":")[j]
-            label = "" if len(cases) == 1 else " (%s)" % case.replace("class 2", "").strip(", ")
-            if j == 0 or "off" in case and j == 1:
-                ax.plot(tr["t"], [1e3 * v for v in tr["drift"]], color="k", ls=ls, lw=1.2,
-                        label="true drift" + (label if j else ""))
-            ax.plot(tr["t"], [1e3 * v for v in tr["estimate"]], color="C0", ls=ls, lw=1.0,
-                    label="estimate dc + b_hat + dc_class2" + label)
-            ax.plot(tr["t"], [1e3 * v for v in tr["residual"]], color="C3", ls=ls, lw=1.0,
-                    label="residual of z_comp" + label)
+            label = "residual of z_comp" + ("" if len(cases) == 1 else " (%s, right axis)"
+                                            % _short(case))
+            right.plot(tr["t"], [1e3 * v for v in tr["residual"]], color="C%d" % (3 + j),
+                       ls=("-", "--", ":")[j], lw=1.0, label=label)
+        if right is not ax:
+            right.set_ylabel("residual [mV]", fontsize=8)
+            right.axhline(0.0, color="0.5", lw=0.5)
         ax.axvspan(t_s, st["n"] * st["Ts"], color="0.9", zorder=0)
         ax.axhline(0.0, color="k", lw=0.5)
         ax.grid(True, alpha=0.3)
         ax.set_ylabel("[mV]")
-        text = "; ".join("%s: residual %.3g mV of %.3g mV" % (c, 1e3 * rows[c]["residual"],
-                                                              1e3 * rows[c]["drift"])
-                         for c in cases)
-        ax.set_title("%s — %s" % (title, text), fontsize=8)
-        ax.legend(fontsize=6, loc="center right", ncol=1)
+        text = ", ".join("%.3g" % (1e3 * rows[c]["residual"]) for c in cases)
+        ax.set_title("%s: residual %s mV of a drift of %.4g mV (means over the window and %d "
+                     "runs)" % (title + ("" if len(cases) == 1 else " (%s)" % "; ".join(
+                         _short(c) for c in cases)), text, 1e3 * rows[cases[0]]["drift"],
+                                rows[cases[0]]["runs"]), fontsize=8)
+        handles, labels = ax.get_legend_handles_labels()
+        if right is not ax:
+            h, lab = right.get_legend_handles_labels()
+            handles, labels = handles + h, labels + lab
+        ax.legend(handles, labels, fontsize=6, loc="center right", ncol=1)
     axes[-1].set_xlabel("time [s] (block means of %d samples; run 1; the settled window shaded)"
                         % st["block"])
-    fig.suptitle("The letter's drift classes estimated and removed by the DriftEstimator "
-                 "(a2 = %g, Q = %g, R = %g, Ts = %g s, n = %d)"
+    fig.suptitle("Drift classes estimated and removed by the DriftEstimator\n(a2 = %g, "
+                 "Q = %g, R = %g, Ts = %g s, n = %d)"
                  % (st["a2"], st["Q"], st["R"], st["Ts"], st["n"]), fontsize=10)
     output.layout(fig, rect=(0, 0, 1, 0.97))
     output.savefig(fig, path, dpi=110)
     plt.close(fig)
+
+
+def _short(case):
+    """A case's name in a legend: what differs within the class-2 panel."""
+    return {"class 2": "coefficients known", "class 2, coefficients off": "coefficients off",
+            "class 2, coefficients off, bias state": "off, bias state"}.get(case, case)
 
 
 # -- command line -------------------------------------------------------------------------------
