@@ -175,7 +175,7 @@ def _build(install):
                 # the work folder's lock held by the compiler too (folders.held_fds); the
                 # compiler's own temporary files (link-time optimisation writes several) go
                 # into the work folder, so an interrupted compile leaves none in TMPDIR
-                lifetime.run(command, check=True, capture_output=True, env=env, work=work,
+                lifetime.run(command, check=True, capture_output=True, work=work,
                              pass_fds=folders.held_fds(work))
                 break
             except subprocess.CalledProcessError:
