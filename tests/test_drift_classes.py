@@ -282,3 +282,60 @@ def test_the_api_refuses_bad_settings(kwargs, text, tmp_path):
 def test_the_api_refuses_an_unknown_keyword():
     with pytest.raises(TypeError, match="frobnicate"):
         driftfmu.experiment_drift_classes(frobnicate=1)
+
+
+# -- the tilt and temperature wired to the DriftEstimator (masters, batch) -------------------------
+
+def test_the_wired_offset_is_the_tilts():
+    """With ``theta = 0`` nothing (the estimator filters ``z`` itself); otherwise ``a1 sin theta
+    + a2 sin^2 theta`` (with a3, a4 their terms), whatever the temperature (the estimator's own
+    coefficients are off)."""
+    from driftfmu.models import chain
+    assert chain.wired_offset(0.0, 330.0, 1.0, 0.01) is None
+    g = math.sin(0.3)
+    assert chain.wired_offset(0.3, 298.15, 1.0, 0.01) == pytest.approx(g + 0.01 * g * g,
+                                                                       rel=1e-15)
+    assert chain.wired_offset(0.3, 340.0, 2.0, 0.1, 0.05, 0.02) == pytest.approx(
+        2 * g + 0.1 * g ** 2 + 0.05 * g ** 3 + 0.02 * g ** 4, rel=1e-14)
+
+
+@pytest.mark.parametrize("kernel", ["numpy", "c"])
+def test_a_tilted_batch_run_estimates_x_without_the_tilt(kernel):
+    """The batch engine (NumPy and the kernel) removes the tilt's offset before filtering:
+    ``x_hat`` follows ``x`` (its mean error about 0, not the ``sin theta = 0.30 g`` an unwired
+    filter reads as state), and the bits equal models.chain.simulate's, run by run."""
+    from driftfmu.models import chain
+    from driftfmu.simulations import kernel as kern
+    if kernel == "c" and kern.library() is None:
+        pytest.skip("no C compiler: the compiled kernel is not available")
+    seeds = batch.run_seeds(5, 4)
+    res = batch.simulate(2000, seeds, A=0.9, Q=0.0019, theta=0.3, T=310.0, kernel=kernel,
+                         record=("x", "x_hat"))
+    err = (res["x_hat"] - res["x"])[:, 200:]
+    # the filter's error: sd about sqrt(P) = 0.01 g per sample; its mean over 7200 samples
+    # (correlated over ~10) is within 0.01 g of 0, thirty times below the tilt's 0.3 g
+    assert abs(float(err.mean())) < 0.01
+    ref = chain.simulate(2000, int(seeds[2]), A=0.9, Q=0.0019, theta=0.3, T=310.0)
+    assert np.asarray(ref["x_hat"]).tobytes() == res["x_hat"][2].tobytes()
+    # z_comp of the chain: z less the tilt's offset and the drift estimate
+    off = chain.wired_offset(0.3, 310.0, 1.0, 0.01)
+    z_comp = np.asarray(ref["z_comp"])
+    dc = np.asarray(ref["dc_ekf1"])
+    assert z_comp.tobytes() == ((np.asarray(ref["z"]) - off) - dc).tobytes()
+
+
+def test_run_gaussian_gives_the_estimator_the_sensors_tilt_and_temperature(built_fmus):
+    """The master sets the DriftEstimator's theta and T to the Accelerometer's (start values
+    of their inputs), so the FMUs equal models/ with the tilt wired (else run_gaussian's check
+    fails), and z_comp has no tilt offset left."""
+    from driftfmu.simulations import gaussian
+    start = gaussian.start_values(theta=0.3, T=310.0)
+    assert start["DriftEstimator"]["theta"] == start["Accelerometer"]["theta"] == 0.3
+    assert start["DriftEstimator"]["T"] == start["Accelerometer"]["T"] == 310.0
+    plain = gaussian.start_values()
+    assert "theta" not in plain["DriftEstimator"] and "T" not in plain["DriftEstimator"]
+    fmu_dir = built_fmus["DriftEstimator"].parent
+    res = driftfmu.run_gaussian(n=400, theta=0.3, T=310.0, fmu_dir=fmu_dir)
+    z_comp = np.asarray(res["columns"]["z_comp"])
+    # x white (A = 0, Q = 0.01): the mean of z_comp over 400 samples is within 4 sd of 0
+    assert abs(float(z_comp.mean())) < 4 * math.sqrt(0.0101 / 400)
