@@ -606,10 +606,11 @@ def _fraction_option(name):
         try:
             v = float(text)
         except ValueError:
-            v = None
-        if v is None or not math.isfinite(v) or not 0.0 <= v < 1.0:
-            raise argparse.ArgumentTypeError("--%s %s is not allowed; allowed: a number in "
-                                             "[0, 1)" % (name, text))
+            raise argparse.ArgumentTypeError("%s = %r is not allowed; allowed: a number in "
+                                             "[0, 1)" % (name, text)) from None
+        if not math.isfinite(v) or not 0.0 <= v < 1.0:
+            raise argparse.ArgumentTypeError("%s = %r is not allowed; allowed: a number in "
+                                             "[0, 1)" % (name, v))
         return v
     return parse
 

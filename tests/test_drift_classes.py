@@ -251,8 +251,8 @@ def test_the_experiment_through_the_fmus_equals_the_reference(built_fmus, tmp_pa
 # -- refusals ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("argv, text", [
-    (["--settle", "1.5"], "--settle 1.5 is not allowed; allowed: a number in [0, 1)"),
-    (["--wrong", "abc"], "--wrong abc is not allowed; allowed: a number in [0, 1)"),
+    (["--settle", "1.5"], "settle = 1.5 is not allowed; allowed: a number in [0, 1)"),
+    (["--wrong", "abc"], "wrong = 'abc' is not allowed; allowed: a number in [0, 1)"),
     (["--runs", "0"], "runs"),
     (["--n", "1"], "n"),
 ])
