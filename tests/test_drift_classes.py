@@ -184,6 +184,11 @@ def test_qb_follows_the_guidance():
     assert dcl._random_walk_qb(walk) == pytest.approx(bias_model.qb_random_walk(0.02, Ts))
     gm = errors.config(Ts=Ts, bias_gm=0.01, tau_gm=5.0)
     assert dcl._random_walk_qb(gm) == pytest.approx(bias_model.qb_gauss_markov(0.01, 5.0, Ts))
+    flicker = errors.config(Ts=Ts, flicker=0.005, tau_min=1.0, tau_max=100.0)
+    assert flicker.fl_n > 1
+    assert dcl._random_walk_qb(flicker) == pytest.approx(sum(
+        bias_model.qb_gauss_markov(flicker.fl_sigma, tau, Ts)
+        for tau in errors.flicker_taus(1.0, 100.0)), rel=1e-9)
     assert dcl.qb_exposure(0.1, 0.05, 0.01, Ts) == pytest.approx(0.1 ** 2 / 5.0 * Ts)
     q3 = dcl.case_values("class 3", S)[1]["Qb"]
     q4 = dcl.case_values("class 4", S)[1]["Qb"]
@@ -325,17 +330,25 @@ def test_a_tilted_batch_run_estimates_x_without_the_tilt(kernel):
     assert z_comp.tobytes() == ((np.asarray(ref["z"]) - off) - dc).tobytes()
 
 
-@pytest.mark.integration
-def test_run_gaussian_gives_the_estimator_the_sensors_tilt_and_temperature(built_fmus):
-    """The master sets the DriftEstimator's theta and T to the Accelerometer's (start values
-    of their inputs), so the FMUs equal models/ with the tilt wired (else run_gaussian's check
-    fails), and z_comp has no tilt offset left."""
+def test_the_masters_start_values_give_the_estimator_the_sensors_tilt_and_temperature():
+    """run gaussian, the FMU engine and the SSP's bindings (gaussian.start_values): the
+    DriftEstimator's theta and T are the Accelerometer's when set, and absent (its defaults)
+    when not: the letter's run sets what it always set."""
     from driftfmu.simulations import gaussian
     start = gaussian.start_values(theta=0.3, T=310.0)
     assert start["DriftEstimator"]["theta"] == start["Accelerometer"]["theta"] == 0.3
     assert start["DriftEstimator"]["T"] == start["Accelerometer"]["T"] == 310.0
+    only_t = gaussian.start_values(T=310.0, kT_bias=0.01)
+    assert only_t["DriftEstimator"]["T"] == 310.0 and "theta" not in only_t["DriftEstimator"]
+    assert "kT_bias" not in only_t["DriftEstimator"]  # (its coefficients: the user's)
     plain = gaussian.start_values()
     assert "theta" not in plain["DriftEstimator"] and "T" not in plain["DriftEstimator"]
+
+
+@pytest.mark.integration
+def test_run_gaussian_gives_the_estimator_the_sensors_tilt_and_temperature(built_fmus):
+    """The FMUs equal models/ with the tilt wired (else run_gaussian's check fails), and
+    z_comp has no tilt offset left."""
     fmu_dir = built_fmus["DriftEstimator"].parent
     res = driftfmu.run_gaussian(n=400, theta=0.3, T=310.0, fmu_dir=fmu_dir)
     z_comp = np.asarray(res["columns"]["z_comp"])
