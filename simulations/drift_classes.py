@@ -119,8 +119,7 @@ def case_values(case, s):
         sens.update(CLASS3)
         qb += qb_exposure(CLASS3["d_inf"], CLASS3["E_tau"], s["Q"] / (1.0 - s["A"] ** 2),
                           s["Ts"])
-        pb0 += 0.0 if case == "class 3" else 0.0  # the exposure starts at 0
-        est.update(bias=1)
+        est.update(bias=1)  # (the exposure starts at 0: no prior of its own)
     if case in ("class 4", "all classes"):
         sens.update(CLASS4)
         ecfg = errors.config(seed=1, Ts=s["Ts"], **CLASS4)
