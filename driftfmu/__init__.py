@@ -26,8 +26,10 @@ del _os, _checkout
 # The public API (FMPy-style): build the FMUs, co-simulate them, run the letter's experiments.
 # Everything else in the package is internal.
 from driftfmu._api import (  # noqa: E402
-    allan, build_fmus, experiment_adxl203, experiment_dual_axis, identify, montecarlo, run_gaussian,
+    allan, build_fmus, experiment_adxl203, experiment_drift_classes, experiment_dual_axis,
+    identify, montecarlo, run_gaussian,
     run_sinusoidal, simulate, sweep)
 
 __all__ = ["build_fmus", "simulate", "run_gaussian", "run_sinusoidal", "montecarlo", "sweep",
-           "experiment_adxl203", "experiment_dual_axis", "identify", "allan", "__version__"]
+           "experiment_adxl203", "experiment_dual_axis",
+           "experiment_drift_classes", "identify", "allan", "__version__"]

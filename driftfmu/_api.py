@@ -1068,6 +1068,68 @@ def experiment_dual_axis(out: Optional[PathLike] = None, *,
                                    **settings)
 
 
+def experiment_drift_classes(out: Optional[PathLike] = None, *,
+                             progress: Optional[Callable[[int], None]] = None,
+                             **settings: Any) -> Dict[str, Any]:
+    """The letter's four drift classes, each alone and then all together, estimated and removed
+    by the DriftEstimator, through the FMUs.
+
+    Cases: class 1 (``a2 E[x^2]``, EKF1); class 2 (a tilt ``theta`` and a temperature ``T``,
+    wired to the DriftEstimator with the sensor's coefficients; then with the coefficients off
+    by ``wrong``, without and with the bias state); class 3 (the exposure drift, the bias
+    state); class 4 (turn-on bias, random walk, Gauss-Markov and flicker biases, the bias state
+    with ``Qb = K^2 Ts`` summed over the processes); all together.  Per case and run, over the
+    settled window: the true drift ``z - a0 - a1 x - sqrt(R) v``, the estimate ``dc + b_hat +
+    dc_class2`` and the residual drift of ``z_comp``, against a bound of four standard
+    deviations derived from the settings (docs/method.md, section 12).
+
+    Parameters
+    ----------
+    out : str or pathlib.Path, optional
+        If given, ``drift_classes.csv``, ``drift_classes.json`` and ``drift_classes.png`` (all
+        of them or none).
+    progress : callable, optional
+        Called as the experiment goes with the number of runs done so far (of
+        ``7 * runs``), then of the cases validated.
+    **settings
+        ``n`` (samples per run, default 40,000), ``runs`` (3), ``seed`` (1), ``settle`` (the
+        share of each run before the settled window, 0.5), ``wrong`` (the class-2
+        coefficients' error, 0.10), ``block`` (the figure's block length, 1000 samples),
+        ``workers``, ``backend``, ``fmu_dir`` and the letter's ``a0 a1 a2 A Q R Ts``.
+
+    Returns
+    -------
+    dict
+        The summary (the content of ``drift_classes.json``): per case the drift, estimate,
+        residual, bound and fractions, per run the drifts and residuals; the claims and the
+        validation against models/.
+
+    Raises
+    ------
+    ValueError
+        A setting is not allowed, or the runs would not fit the memory.
+    TypeError
+        A keyword the function does not take (the message names every one it takes).
+    """
+    from driftfmu.simulations import budget, checks, drift_classes
+    checks.check_keywords("experiment_drift_classes()", settings,
+                          _allowed(experiment_drift_classes, drift_classes.run_drift_classes,
+                                   extra=tuple(drift_classes.DEFAULTS)
+                                   + tuple(drift_classes.LETTER)))
+    checks.refuse(_settings_problems(
+        dict({k: v for k, v in settings.items() if k not in ("settle", "wrong")}, out=out,
+             progress=progress),
+        counts={"runs": 1, "workers": 1, "block": 1}, choices={"backend": BACKENDS}))
+    s = dict(drift_classes.LETTER, **drift_classes.DEFAULTS)
+    s.update({k: v for k, v in settings.items() if k in s})
+    drift_classes.check_settings(s)
+    _check_folders(out, settings.get("fmu_dir"))
+    budget.check_drift_classes(s["runs"], s["n"], settings.get("workers"), out,
+                               settings.get("backend", "python"), api=True, announce=False)
+    return drift_classes.run_drift_classes(out=out, plot=out is not None, progress=progress,
+                                           **settings)
+
+
 @_keywords_checked
 def identify(files: Sequence[PathLike], f: float, held_out: int = 0,
              out: Optional[PathLike] = None, *, order: int = 2) -> Dict[str, Any]:

@@ -5,7 +5,8 @@ The wired chain Excitation -> Accelerometer -> DriftEstimator as an SSP 1.0 arch
 ``DriftChain.ssp`` holds ``SystemStructure.ssd`` and the three FMUs under ``resources/``.  The
 SSD declares each FMU's outputs, its connected inputs and its bound parameters as connectors
 (unconnected inputs get no connector: they keep their start values, or the values bound to
-them, as the Accelerometer's tilt ``theta`` and temperature ``T`` with its slow errors), the two
+them, as the Accelerometer's tilt ``theta`` and temperature ``T`` with its slow errors, bound
+with the same values at the DriftEstimator's inputs of the same name), the two
 connections of the master (``Excitation.x -> Accelerometer.x``, ``Accelerometer.z ->
 DriftEstimator.z``) and, when the DriftEstimator's ``B != 0``, the known input's
 ``Excitation.u -> DriftEstimator.u`` (eq. 1, :func:`connections`), each component's parameter
@@ -407,7 +408,8 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
     :func:`chain_start_values`); with ``B != 0`` the known input ``u`` is a connection too,
     delayed like the others (the columns ``Excitation.u`` and ``DriftEstimator.u``).  The
     Accelerometer's slow errors (:data:`driftfmu.models.chain.SENSOR_ERRORS_OFF`, bound as its
-    start values, ``theta`` and ``T`` those of its unconnected inputs) advance with the FMU's
+    start values, ``theta`` and ``T`` those of its unconnected inputs and of the
+    DriftEstimator's, which removes the tilt's offset, models.chain.wired_offset) advance with the FMU's
     own sample counter and the input it holds, as its ``z``: the sample it commits in a step
     and the pending one it shows after it both see the input set before the step.
     """
@@ -457,16 +459,22 @@ def jacobi_reference(n, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, 
         raise ValueError("initial = %r is not allowed; allowed: 'zero' or 'outputs'"
                          % (initial,))
     committed = chain.estimator_init(x0, P0)
+    # the tilt and temperature, bound at both FMUs' inputs: the estimator removes the tilt's
+    # offset before filtering (models.chain.wired_offset)
+    g_all = dict(chain.SENSOR_ERRORS_OFF, **{k: v for k, v in general.items()
+                                             if k in chain.SENSOR_ERRORS_OFF})
+    offset = chain.wired_offset(g_all["theta"], g_all["T"], a1, a2, a3, a4)
     t = 0.0
     for i in range(n):
         x = xs[i + 1]                        # x_{i+2}
         commit(u_acc, i + 1)                 # sample i+1, committed in the step from t_i
         z = accelerometer(u_acc, i + 2)      # the pending sample i+2 it shows after it
-        committed = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
-        shown = chain.estimator_step(committed, u_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
+        z_est = u_est if offset is None else u_est - offset
+        committed = chain.estimator_step(committed, z_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
+        shown = chain.estimator_step(committed, z_est, a0, a1, a2, A, Q, R, a3, a4, B, u_in)
         dcs = drift.estimates(shown.drift, a2, a3, a4)
         dc = drift.select(dcs, estimator)
-        values = (shown.x, shown.P) + tuple(dcs) + (dc, chain.compensate(u_est, dc))
+        values = (shown.x, shown.P) + tuple(dcs) + (dc, chain.compensate(z_est, dc))
         u_acc, u_est = x, z                  # the connections, after every FMU has stepped
         if wired:
             cols["Excitation.u"].append(us[i + 1])      # u_{i+2}, beside x_{i+2}

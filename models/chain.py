@@ -71,6 +71,18 @@ def check_sensor_errors(values, function="simulate()"):
                         % (function, ", ".join(unknown), ", ".join(SENSOR_ERRORS_OFF)))
 
 
+def wired_offset(theta, T, a1, a2, a3=0.0, a4=0.0):
+    """The class-2 offset the DriftEstimator removes from ``z`` when the sensor's tilt
+    ``theta`` and temperature ``T`` are wired to its inputs of the same name and its own
+    class-2 coefficients are off (``T0``, ``kT_bias = kT_scale = 0``, its defaults): the
+    tilt's :func:`driftfmu.models.errors.class2_offset`, ``a1 sin(theta) + a2 sin(theta)^2
+    (+ a3, a4 terms)``.  None with ``theta = 0``: the estimator then filters ``z`` itself (the
+    same bits as unwired).  ``theta``, ``T`` are one value for all runs."""
+    if not errors._nonzero(theta):
+        return None
+    return errors.class2_offset(theta, T, a1, a2, errors.OFF["T0"], 0.0, 0.0, a3, a4)
+
+
 class SensorErrors:
     """The slow errors of the chain's sensor for one run or a batch of runs (seeds an int or an
     array): :meth:`measure` is the Accelerometer's first axis, sample by sample, with its
@@ -116,7 +128,9 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
     and range (:data:`SENSOR_ERRORS_OFF`: :mod:`driftfmu.models.errors`' parameters, the tilt
     ``theta`` and temperature ``T`` held over the run, the ADC's ``bits``), as the Accelerometer
     FMU computes them; off by default (the same bits).  The filter keeps the letter's model:
-    the errors are what it does not know.
+    the errors are what it does not know, but for the tilt and temperature, wired to the
+    DriftEstimator's inputs as the masters wire them: it removes the tilt's offset
+    (:func:`wired_offset`) before filtering, and ``z_comp`` is ``z - wired_offset - dc``.
     """
     check_sensor_errors(sensor_errors)
     fA = A if filter_A is None else filter_A
@@ -133,6 +147,8 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
         else None
     if slow is not None and slow.plain:
         slow = None
+    wired = dict(SENSOR_ERRORS_OFF, **sensor_errors)
+    offset = wired_offset(wired["theta"], wired["T"], a1, a2, a3, a4)
     for k in range(1, n + 1):
         u = excitation.input_sample(drive, seed, k, Qu, Xu, fu, Ts)
         if kind == excitation.GAUSSIAN:
@@ -144,10 +160,11 @@ def simulate(n, seed, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P0
             z = sensor.measure(x, a0, a1, a2, R, v, a3, a4)
         else:
             z = slow.measure(x, v, k)
-        est = estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
+        ze = z if offset is None else z - offset  # (the tilt wired to the estimator)
+        est = estimator_step(est, ze, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
         dcs = drift.estimates(est.drift, a2, a3, a4)
         row = ((k - 1) * Ts, x, z, est.x, est.P, dcs[0], dcs[1], dcs[2],
-               compensate(z, drift.select(dcs, estimator)))
+               compensate(ze, drift.select(dcs, estimator)))
         for c, value in zip(FMU_COLUMNS, row):
             cols[c].append(value)
     cols["dc_empirical"], cols["dc_realised"], cols["dc_expected"] = drift.references(

@@ -206,6 +206,8 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
                                                     **sensor_errors),
                                 kind, record, progress, slow is not None)
     shape = (runs,)
+    wired = dict(chain.SENSOR_ERRORS_OFF, **sensor_errors)
+    offset = chain.wired_offset(wired["theta"], wired["T"], a1, a2, a3, a4)
     x = np.broadcast_to(np.asarray(x0, dtype=float), shape).copy()
     est = chain.estimator_init(x.copy(), np.broadcast_to(np.asarray(P0, dtype=float),
                                                          shape).copy())
@@ -243,11 +245,12 @@ def simulate(n, seeds, a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, x0=0.0, P
             else:
                 z = slow.measure(x, V[i], k, (draws[0][i], draws[1][i],
                                               tuple(d[i] for d in draws[2])))
+            ze = z if offset is None else z - offset  # (the tilt wired to the estimator)
             if b is None:
-                est = chain.estimator_step(est, z, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
+                est = chain.estimator_step(est, ze, a0, a1, a2, fA, fQ, R, a3, a4, fB, u)
             else:
-                est, b = bias_model.estimator_step(est, b, z, a0, a1, a2, fA, fQ, R, Fb, Qb, a3,
-                                                   a4, fB, u)
+                est, b = bias_model.estimator_step(est, b, ze, a0, a1, a2, fA, fQ, R, Fb, Qb,
+                                                   a3, a4, fB, u)
                 bias_model.check(est, b, k, seeds)
             zbar = drift.running_mean(zbar, z, k)
             x2 = x * x

@@ -33,6 +33,10 @@ typedef struct {
     ErrorState err; /* models.errors' state (chain.SensorErrors; the slow errors only) */
 } RunState;
 
+/* models.errors.OFF["T0"]: the DriftEstimator's T0 when its class-2 coefficients are off
+ * (any finite value gives the same offset then). */
+#define ERRORS_T0_OFF 298.15
+
 /* The per-run parameters of batch.simulate, in this order, each an array of `runs` values
  * (the general model's: a3, a4, B, the known input's drive, Qu, Xu, fu; then the sensor's
  * slow errors, chain.SENSOR_ERRORS_OFF: models.errors' parameters, the tilt and temperature
@@ -224,7 +228,7 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
             for (int i = 0; i < lanes; i++) {
                 const double a0 = q[P_A0][i], a1 = q[P_A1][i], a2 = q[P_A2][i], R = q[P_R][i];
                 const double a3 = q[P_A3][i], a4 = q[P_A4][i];
-                double z, x2, dc1, dc2, dc3, B = 0.0, u = 0.0;
+                double z, ze, x2, dc1, dc2, dc3, B = 0.0, u = 0.0;
                 if (gaussian) {
                     const int64_t drive = (int64_t)q[P_DRIVE][i];
                     B = q[P_B][i];
@@ -250,8 +254,13 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                     z = sensor_measure_general(s[i].x, a0, a1, a2, R,
                                                keyed_normal(key_measurement[i], k), a3, a4);
                 }
+                /* the tilt wired to the estimator: models.chain.wired_offset */
+                ze = q[P_THETA][i] != 0.0
+                     ? z - errors_class2_offset(q[P_THETA][i], q[P_T][i], a1, a2,
+                                                ERRORS_T0_OFF, 0.0, 0.0, a3, a4)
+                     : z;
                 if (q[P_BIAS][i] != 0.0) { /* models.bias.estimator_step and check */
-                    s[i].est = bias_estimator_step(s[i].est, &s[i].b, z, a0, a1, a2, q[P_FA][i],
+                    s[i].est = bias_estimator_step(s[i].est, &s[i].b, ze, a0, a1, a2, q[P_FA][i],
                                                    q[P_FQ][i], R, Fb[i], q[P_QB][i], a3, a4, B,
                                                    u);
                     if (s[i].bad_k == 0.0 &&
@@ -262,7 +271,7 @@ void driftfmu_batch_run(int64_t k0, int64_t k1, int64_t n, int64_t runs, const u
                         s[i].bad[2] = s[i].b.Pbb;
                     }
                 } else {
-                    s[i].est = chain_estimator_step_general(s[i].est, z, a0, a1, a2, q[P_FA][i],
+                    s[i].est = chain_estimator_step_general(s[i].est, ze, a0, a1, a2, q[P_FA][i],
                                                             q[P_FQ][i], R, a3, a4, B, u);
                 }
                 s[i].zbar = drift_running_mean(s[i].zbar, z, k);

@@ -387,6 +387,41 @@ def check_dual_axis(points, runs, n, engine, workers, out, backend="python", api
         announce=announce)
 
 
+#: Bytes of memory per sample of each run of ``experiment drift-classes`` (the recorded columns
+#: of the FMU runs and of the models/ reference they are checked against, ~8 columns of 8 bytes
+#: twice, and the block means).
+DRIFT_CLASSES_MEMORY = 300
+#: Seconds per run and sample of ``experiment drift-classes`` on one core, by backend (three
+#: FMU instances, as ``run gaussian``, and the models/ reference on arrays).
+DRIFT_CLASSES_SECONDS = {"python": 1.5e-4, "native": 1e-5}
+#: Bytes ``experiment drift-classes`` writes (table, summary, figure).
+DRIFT_CLASSES_DISK = 1e6
+
+
+def check_drift_classes(runs, n, workers, out, backend="python", api=False, announce=True):
+    """The size check of ``driftfmu experiment drift-classes`` (``api``: of
+    :func:`driftfmu.experiment_drift_classes`): every case of
+    :data:`driftfmu.simulations.drift_classes.CASES`, ``runs`` runs of ``n`` samples."""
+    from driftfmu.simulations.drift_classes import CASES
+    total = len(CASES) * runs
+    cores = parallel(workers, total)
+    memory = DRIFT_CLASSES_MEMORY * total * n
+    seconds = DRIFT_CLASSES_SECONDS.get(backend, DRIFT_CLASSES_SECONDS["python"]) * total * n \
+        / cores_for(cores) + 1e-4 * total * n
+    seconds = _plus_command(seconds)
+
+    def fit(share):
+        if runs * share >= 1:
+            return "at most %s" % _setting("runs", int(runs * share), api)
+        return "at most %s at %s" % (_setting("n", max(2, int(n * runs * share)), api),
+                                     _setting("runs", 1, api))
+    what = ("experiment_drift_classes(runs=%d, n=%d)" % (runs, n) if api
+            else "experiment drift-classes --runs %d --n %d" % (runs, n))
+    return check(what, memory, DRIFT_CLASSES_DISK if out else 0, seconds, out,
+                 "fewer %s or a smaller %s" % (_name("runs", api), _name("n", api)), fit,
+                 announce=announce)
+
+
 #: Bytes of memory per byte of the CSV recordings ``identify`` reads (the rows as text, then
 #: as numbers; measured ~10).
 IDENTIFY_MEMORY = 12

@@ -416,7 +416,8 @@ def settled_text(k, n=None):
 #: adds ``driftfmu experiment`` puts its sub-parsers there as ``"experiment"`` for the later ones.
 PLUGINS = ("driftfmu.simulations.doctor", "driftfmu.simulations.sweep", "driftfmu.simulations.montecarlo",
            "driftfmu.simulations.sinusoidal", "driftfmu.simulations.adxl203",
-           "driftfmu.simulations.dual_axis", "driftfmu.simulations.hostinputs",
+           "driftfmu.simulations.dual_axis", "driftfmu.simulations.drift_classes",
+           "driftfmu.simulations.hostinputs",
            "driftfmu.simulations.allan")
 
 

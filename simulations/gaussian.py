@@ -124,8 +124,10 @@ def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3
     general model's ``a3, a4`` (sensor and filter), ``B`` (excitation and filter) and the
     known input ``drive, Qu, Xu, fu`` (excitation), and the sensor's slow errors
     (:data:`driftfmu.models.chain.SENSOR_ERRORS_OFF`: the Accelerometer's parameters, and the
-    start values of its inputs ``theta`` and ``T``, which the chain leaves unconnected); only
-    those given (and not off) are set, so the letter's run sets exactly what it always set.
+    start values of its inputs ``theta`` and ``T``, which no FMU drives, and the same values at
+    the DriftEstimator's inputs of the same name: a tilt set reaches both, and the estimator
+    removes its offset, :func:`driftfmu.models.chain.wired_offset`); only those given (and not
+    off) are set, so the letter's run sets exactly what it always set.
     """
     unknown = set(general) - set(GENERAL_OFF)
     if unknown:
@@ -142,7 +144,8 @@ def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3
                            **inputs),
         "Accelerometer": dict(model, seed=seed, Ts=Ts, noise=1, **sensor_terms, **slow),
         "DriftEstimator": dict(model, A=A, Q=Q, x0=x0, P0=P0, Ts=Ts, estimator=estimator,
-                               **sensor_terms, **({"B": on["B"]} if "B" in on else {})),
+                               **sensor_terms, **({"B": on["B"]} if "B" in on else {}),
+                               **{k: on[k] for k in SENSOR_INPUTS if k in on}),
     }
 
 

@@ -423,6 +423,12 @@ SAME = [
      dict(engine="gpu")),
     (["experiment", "dual-axis", "--Ry", "0"], "experiment_dual_axis", dict(Ry=0.0)),
     (["experiment", "dual-axis", "--f", "600"], "experiment_dual_axis", dict(f=600.0)),
+    (["experiment", "drift-classes", "--settle", "1.5"], "experiment_drift_classes",
+     dict(settle=1.5)),
+    (["experiment", "drift-classes", "--wrong", "-0.1"], "experiment_drift_classes",
+     dict(wrong=-0.1)),
+    (["experiment", "drift-classes", "--runs", "0"], "experiment_drift_classes", dict(runs=0)),
+    (["experiment", "drift-classes", "--n", "1"], "experiment_drift_classes", dict(n=1)),
     (["identify", "{rec}", "--f", "150", "--order", "5"], "identify",
      dict(files=["{rec}"], f=150.0, order=5)),
     (["identify", "{rec}", "--f", "0"], "identify", dict(files=["{rec}"], f=0.0)),
@@ -501,6 +507,8 @@ SIZES = [
       "batch"], "experiment_dual_axis", dict(points=2, runs=1000, n=10, engine="batch")),
     (["experiment", "dual-axis", "--points", "2", "--runs", "1", "--n", "1000"],
      "experiment_dual_axis", dict(points=2, runs=1, n=1000)),
+    (["experiment", "drift-classes", "--runs", "1", "--n", "1000"], "experiment_drift_classes",
+     dict(runs=1, n=1000)),
     (["identify", "{rec}", "--f", "150"], "identify", dict(files="{rec}", f=150.0)),
     (["allan", "{rec}"], "allan", dict(source="{rec}")),
 ]
@@ -528,8 +536,9 @@ def test_the_command_line_and_the_api_refuse_a_size_with_the_same_estimate(
     lambda d: driftfmu.montecarlo(runs=2, n=5, engine="fmu", fmu_dir=d),
     lambda d: driftfmu.experiment_dual_axis(points=2, runs=1, n=5, fmu_dir=d),
     lambda d: driftfmu.experiment_adxl203(freqs=[100.0], sets=3, n=3000, fmu_dir=d),
+    lambda d: driftfmu.experiment_drift_classes(n=5, runs=1, fmu_dir=d),
 ], ids=["simulate", "simulate native", "run_gaussian", "run_sinusoidal native",
-        "montecarlo fmu", "dual-axis", "adxl203"])
+        "montecarlo fmu", "dual-axis", "adxl203", "drift-classes"])
 def test_fmus_are_not_built_into_a_folder_that_holds_other_files(call, tmp_path):
     """``fmu_dir`` naming a folder of the user's (their project, the working folder) without
     the FMUs: refused with what is missing and how to build it there, and the folder left as

@@ -4,7 +4,7 @@ Each figure is written by its command into a temporary folder and copied into do
 are deterministic, so the same sources give the same figures.  From the project root, after
 ``driftfmu build --native`` (or it builds what it needs):
 
-    python tools/docs_figures.py                 # every figure (about 2 minutes on 2 cores)
+    python tools/docs_figures.py                 # every figure (about 4 minutes on 2 cores)
     python tools/docs_figures.py fig4.png        # only these (and what their command writes)
     python tools/docs_figures.py --list          # the commands, one a line
 
@@ -30,6 +30,7 @@ FIGURES = [
     ("driftfmu sweep", ("fig2.png", "fig3.png")),
     ("driftfmu experiment adxl203 --backend native", ("fig4.png", "fig5.png")),
     ("driftfmu experiment dual-axis --engine batch", ("dual_axis.png",)),
+    ("driftfmu experiment drift-classes", ("drift_classes.png",)),
 ]
 
 
