@@ -1508,7 +1508,8 @@ def test_windows_build_under_wine_prints_the_linux_bits(tmp_path):
                        str(tmp_path / (name + ".exe")), "-lm"])
     run_parallel(builds)
     linux = run_parallel([[str(tmp_path / (name + ".elf"))] for name in SLAVES])
-    env = dict(__import__("os").environ, WINEDEBUG="-all")
+    # wine's own temporary folder (wine-XXXXXX) in the test's folder
+    env = dict(__import__("os").environ, WINEDEBUG="-all", TMPDIR=str(tmp_path))
     windows = []
     for name in SLAVES:
         # to files, one after the other: a wineserver started by the first program inherits

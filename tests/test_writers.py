@@ -414,7 +414,10 @@ def test_two_input_files_written_to_one_place_never_tear_it(python_fmus, tmp_pat
 @pytest.mark.qualification
 def test_two_builds_into_one_folder_never_tear_it(tmp_path):
     """Two ``driftfmu build`` into one --out: the second waits for the first; both exit 0;
-    the folder holds the second build's four FMUs."""
+    the folder holds the second build's four FMUs and its container recipe."""
+    from driftfmu.fmu_src import container
     out = tmp_path / "fmus"
     first, second = two_commands(["build", "--out", out], ["build", "--out", out], out)
-    assert len(second.staged()) == 4
+    assert sorted(second.staged()) == sorted(
+        ["Accelerometer.fmu", "DriftEstimator.fmu", "DualDriftEstimator.fmu", "Excitation.fmu",
+         container.FILENAME])

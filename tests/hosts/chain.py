@@ -105,8 +105,8 @@ def run(host, text, keys, cwd, windows=False, env=None, timeout=600, aarch64=Fal
     command = [WINE, str(host), "script.txt"] if windows else [str(host), "script.txt"]
     if aarch64:
         command = [QEMU_AARCH64, "-L", str(AARCH64_SYSROOT)] + command
-    if windows:
-        env = dict(env or os.environ, WINEDEBUG="-all")
+    if windows:  # wine's own temporary folder (wine-XXXXXX) in the test's folder
+        env = dict(env or os.environ, WINEDEBUG="-all", TMPDIR=str(Path(cwd).resolve()))
     result = subprocess.run(command, cwd=cwd, capture_output=True, text=True, env=env,
                             timeout=timeout)
     out = result.stdout
