@@ -12,7 +12,8 @@ ROOT = Path(__file__).resolve().parent.parent
 
 
 def _run(tmp_path, *options):
-    (tmp_path / "conftest.py").write_text((ROOT / "tests" / "conftest.py").read_text())
+    for name in ("conftest.py", "leftovers.py"):  # the suite's conftest and what it imports
+        (tmp_path / name).write_text((ROOT / "tests" / name).read_text())
     (tmp_path / "test_x.py").write_text(textwrap.dedent("""
         def test_a(report):
             report("refused, as it must be: bad -> error")
