@@ -423,3 +423,18 @@ def test_the_sample_seed_is_the_release_base_and_is_required(tmp_path):
     p = seed("")
     assert p.returncode == 2 and p.stdout == "", p.stdout
     assert p.stderr.strip() == "survey: the triage file has no [release] base", p.stderr
+
+
+def test_a_run_whose_tests_pass_but_leave_files_does_not_catch_a_mutant():
+    """tests/conftest.py fails a run that leaves files in its temporary folder; for the survey
+    and the fault list a mutant is caught by a test that fails, not by that line."""
+    survey = _tool("mutation_survey")
+    left = ("3 passed in 1.0s\n\nERROR: the tests left 2 file(s) or folder(s) in the temporary "
+            "folder (TMPDIR): a, b\n")
+    assert survey._result(1, left) == ("passed", None)
+    failed = "FAILED tests/test_x.py::test_y - boom\n1 failed, 2 passed\n" + left
+    assert survey._result(1, failed) == ("failed", "tests/test_x.py::test_y")
+    assert survey._result(1, "INTERNALERROR> boom\n")[0] == "error"
+    assert left.splitlines()[-1].startswith(survey.LEFT_BEHIND)
+    conftest = (ROOT / "tests" / "conftest.py").read_text()
+    assert 'sys.stderr.write("\\n' + survey.LEFT_BEHIND in conftest
