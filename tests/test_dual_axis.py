@@ -558,3 +558,53 @@ def test_new_parameters_are_appended_and_off_by_default():
         starts = {s["name"]: s["start"] for s in cls.VARIABLES}
     assert (starts["dual"], starts["bx"], starts["by"]) == (0, 0.0, 0.0)
     assert {s["name"]: s["start"] for s in Excitation.VARIABLES}["Qy"] == 0.0
+
+
+def _plotted_summary():
+    rows = []
+    for sweep, values in (("dphi", (0.0, 0.5, 1.0)), ("rho", (0.0, 0.45, 0.9))):
+        for v in values:
+            for axis in ("x", "y"):
+                rows.append({"sweep": sweep, "axis": axis, "parameter": v, "cross": -1e-3 * v,
+                             "err_single": 1e-3 * v, "se_single": 1e-5, "err_dual": 1e-6,
+                             "se_dual": 1e-6, "scale": 1e-2})
+    settings = dict(dual_axis.DEFAULTS, runs=4, engine="batch")
+    return {"points": rows, "settings": settings}
+
+
+def test_dual_axis_figure_sets_the_axes_apart_with_capped_bars_and_one_legend(
+        closed_figures, tmp_path):
+    from matplotlib.container import ErrorbarContainer
+    dual_axis.plot_dual_axis(tmp_path / "d.png", _plotted_summary())
+    (fig,) = closed_figures
+    axes = fig.axes
+    assert len(axes) == 4
+    for ax in axes:
+        bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+        assert len(bars) == 2
+        for c in bars:  # capsize 3: caps 6 points wide
+            assert c.lines[1] and all(cap.get_markersize() == 6 for cap in c.lines[1])
+    for ax in axes[2:]:  # bottom: the y axis's points shifted right, the x axis's left
+        bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+        x = np.asarray(bars[0].lines[0].get_xdata())
+        y = np.asarray(bars[1].lines[0].get_xdata())
+        p = x + (y - x) / 2
+        assert np.all(y - x > 0) and np.allclose(y - p, 0.012 * (p[-1] - p[0]))
+    # one legend under the panels: handles and labels of the left column, in order
+    (legend,) = fig.legends
+    labels = [t.get_text() for t in legend.get_texts()]
+    expected = []
+    for ax in (axes[0], axes[2]):
+        expected += ax.get_legend_handles_labels()[1]
+    assert labels == expected and len(labels) == 6
+    assert all(label.startswith(("-b mean(xy)", "single-axis", "dual-axis")) for label in labels)
+    assert len(legend.legend_handles) == 6
+
+
+def test_batch_engine_claims_no_fmu_validation_and_no_backend(monkeypatch):
+    def no_fmus(*args, **kwargs):
+        raise AssertionError("the batch engine went through the FMU path")
+    monkeypatch.setattr(dual_axis, "fmu_paths", no_fmus)
+    s = dual_axis.run_dual_axis(engine="batch", points=3, runs=2, n=200, workers=1, plot=False)
+    assert s["validation"] is None and s["backend"] is None
+    assert s["settings"]["engine"] == "batch"

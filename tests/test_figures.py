@@ -269,6 +269,33 @@ def test_fig5_png(figures, tmp_path):
     assert len([t for t in ax.texts if t.get_text().endswith(" dB")]) == 3
 
 
+def test_fig5_curves_arrows_and_margins_are_10_log10_of_the_values(figures, tmp_path):
+    per, _ = _per((100.0, 150.0, 200.0))
+    adxl203.plot_fig5(tmp_path / "fig5.png", per)
+    (fig,) = figures
+    ax = fig.axes[0]
+    drift = np.array([abs(p["drift_mean"]) for p in per])
+    diff = np.array([p["difference_rms"] for p in per])
+    lines = {line.get_label(): line for line in ax.get_lines()}
+    (d,) = [v for k, v in lines.items() if k.startswith("drift")]
+    (r,) = [v for k, v in lines.items() if k.startswith("rms(EKF1")]
+    assert np.allclose(d.get_ydata(), 10 * np.log10(drift), rtol=0, atol=1e-12)
+    assert np.allclose(r.get_ydata(), 10 * np.log10(diff), rtol=0, atol=1e-12)
+    arrows = [t for t in ax.texts if t.get_text() == ""]
+    labels = [t for t in ax.texts if t.get_text().endswith(" dB")]
+    assert len(arrows) == len(labels) == 3
+    for p, a, b, arrow, label in zip(per, drift, diff, arrows, labels):
+        f = p["frequency"]
+        # the arrow spans the margin, from the drift down to the difference
+        assert arrow.xy == pytest.approx((f, 10 * np.log10(b)))
+        assert arrow.xyann == pytest.approx((f, 10 * np.log10(a)))
+        # the margin, labelled halfway (in dB) and 4 points right of the arrow, level with it
+        assert label.get_text() == "%.1f dB" % (10 * np.log10(a / b))
+        assert label.xy == pytest.approx((f, 5 * np.log10(a * b)))
+        assert label.get_anncoords() == "offset points" and tuple(label.xyann) == (4, 0)
+        assert (label.get_ha(), label.get_va()) == ("left", "center")
+
+
 def test_a_laid_out_figure_is_drawn_once_to_the_same_pixels(tmp_path, monkeypatch):
     """``output.savefig`` after ``tight_layout`` draws the figure once (matplotlib's savefig
     draws it twice while the placeholder layout engine that tight_layout leaves is set), and

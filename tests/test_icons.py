@@ -60,3 +60,57 @@ def test_a_model_without_a_drawing_of_its_own_still_gets_a_named_block():
     assert icons.entries("SomeNewModel", 3)["terminalsAndIcons/icon.png"] == \
         icons.png("SomeNewModel")
     assert set(icons.entries("SomeNewModel", 2)) == {"model.png"}
+
+
+def _glyph(name):
+    """The axes ``icons._draw`` draws model ``name``'s glyph in (data coordinates 0..1)."""
+    from matplotlib.figure import Figure
+    ax = Figure().add_axes((0, 0, 1, 1))
+    ax.set_xlim(0, 1)
+    ax.set_ylim(0, 1)
+    icons._draw(ax, name)
+    return ax
+
+
+def test_the_blocks_frame_is_a_bold_line_of_about_3_5_px():
+    # lw 2.5 pt at 100 dpi: 3.5 px, three of them fully dark at mid-height on either side
+    from PIL import Image
+    image = Image.open(io.BytesIO(icons.png("SomeNewModel"))).convert("RGBA")
+    y = icons.SIZE // 2
+    for columns in (range(0, 20), range(icons.SIZE - 20, icons.SIZE)):
+        dark = [x for x in columns if image.getpixel((x, y))[3] == 255
+                and image.getpixel((x, y))[0] < 128]
+        assert len(dark) >= 3, columns
+        assert max(dark) - min(dark) == len(dark) - 1 and len(dark) <= 4  # one line
+
+
+def test_the_glyphs_labels_and_their_font_sizes():
+    sizes = {}
+    for name in ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator"):
+        sizes.update({t.get_text(): t.get_fontsize() for t in _glyph(name).texts})
+    assert sizes == {"x(t)": 11, "z = h(x)": 10, "EKF dc": 10}
+
+
+def test_the_sensors_characteristic_spans_its_axes_both_sides_of_zero():
+    ax = _glyph("Accelerometer")
+    curve, horizontal, vertical = ax.get_lines()
+    x, y = (list(v) for v in curve.get_data())
+    # x from -1 to 1 drawn over the horizontal axis line, from end to end, through the origin
+    assert (min(x), max(x)) == pytest.approx(tuple(horizontal.get_xdata()))
+    assert list(vertical.get_xdata()) == [0.5, 0.5] and 0.5 in [round(v, 12) for v in x]
+    assert y[x.index(min(x))] < 0.3 < y[-1]  # the bent characteristic: below, then above
+    # the model's curve bold (2 pt), like every glyph's; its axes thin (1 pt)
+    assert (curve.get_linewidth(), horizontal.get_linewidth(), vertical.get_linewidth()) == \
+        (2, 1, 1)
+
+
+def test_the_dual_estimators_glyph_draws_one_trace_pair_per_axis_apart():
+    single = _glyph("DriftEstimator").get_lines()
+    dual = _glyph("DualDriftEstimator").get_lines()
+    assert len(single) == 2 and len(dual) == 4
+    # the single estimator's pair in the middle; the dual one's two pairs above and below it
+    mid = [sum(line.get_ydata()) / len(line.get_ydata()) for line in single]
+    upper = [sum(line.get_ydata()) / len(line.get_ydata()) for line in dual[:2]]
+    lower = [sum(line.get_ydata()) / len(line.get_ydata()) for line in dual[2:]]
+    assert all(u > m + 0.1 and m > lo + 0.1 for u, m, lo in zip(upper, mid, lower))
+    assert all(0 < v < 1 for line in dual for v in line.get_ydata())
