@@ -225,3 +225,23 @@ def test_a_stopped_worker_leaves_its_parents_fmu_folders(monkeypatch):
         assert os.path.isdir(mine) and mine in cosim.EXTRACTED
     finally:
         cosim._remove(mine)
+
+
+def test_a_cluster_that_cannot_tell_its_threads_runs_one_task_at_a_time():
+    class Counted:
+        def nthreads(self):
+            return {"tcp://a": 2, "tcp://b": 3}
+
+    class Silent:
+        def nthreads(self):
+            raise AttributeError("no nthreads")
+
+    assert batch._cluster_threads(Counted()) == 5
+    assert batch._cluster_threads(Silent()) == 1
+
+
+def test_estimate_refuses_a1_zero_and_accepts_a_negative_one():
+    zs = np.zeros((2, 5))
+    with pytest.raises(batch.UsageError, match=r"a1 = 0\.0 is out of range; allowed: a1 != 0"):
+        batch.estimate(zs, a1=0.0)
+    assert batch.estimate(zs, a1=-1.0)["final_x_hat"].shape == (2,)

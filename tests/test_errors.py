@@ -554,3 +554,48 @@ def test_flicker_components_variance_and_autocorrelation_equal_imu_error_models(
         assert_correlation(comp[0], comp[8], phi ** 8)
         total += var
     assert_variance(sum(states[8].fl), total)  # the components are independent
+
+
+# -- the survey's survivors (models/errors.py) ----------------------------------------------------
+
+HELD = dict(seed=3, random_walk=0.02, bias_gm=0.03, tau_gm=0.02, flicker=0.01, tau_min=0.003,
+            tau_max=3.0, d_inf=0.04, E_tau=0.5)
+
+
+def test_hold_advances_each_sample_between_communication_points_with_its_own_draws():
+    """errors.hold(state, x, seed, k0, m): the samples k0 + 1 .. k0 + m - 1, each with the
+    draws of its own index: m = 1 holds nothing, m = 2 is one advance with sample k0 + 1's
+    draws, m = 3 two with k0 + 1's then k0 + 2's."""
+    ecfg = errors.config(**HELD)
+    state = errors.initial_state(3, ecfg)
+    assert errors.hold(state, 0.7, 3, 10, 1, ecfg) == state
+    one = errors.advance(state, 0.7, *errors.draws(3, 11, ecfg), ecfg)[0]
+    assert one != state
+    assert errors.hold(state, 0.7, 3, 10, 2, ecfg) == one
+    two = errors.advance(one, 0.7, *errors.draws(3, 12, ecfg), ecfg)[0]
+    assert errors.hold(state, 0.7, 3, 10, 3, ecfg) == two
+    assert two != errors.advance(one, 0.7, *errors.draws(3, 11, ecfg), ecfg)[0]
+
+
+@pytest.mark.parametrize("bias_gm", [1.0, 0.5, 2.0])
+def test_draws_give_the_gauss_markov_draw_whenever_its_sigma_is_not_zero(bias_gm):
+    """n_gm is stream STREAM_BIAS_GM's draw of sample k for any bias_gm != 0 (1.0 included),
+    0.0 with bias_gm = 0."""
+    ecfg = errors.config(seed=9, bias_gm=bias_gm, tau_gm=0.02)
+    assert ecfg.gm_sigma == bias_gm
+    for k in (1, 2, 17):
+        n_gm = errors.draws(9, k, ecfg)[1]
+        assert n_gm == noise.normal(9, errors.STREAM_BIAS_GM, k) and n_gm != 0.0
+    assert errors.draws(9, 1, errors.config(seed=9, bias_gm=0.0))[1] == 0.0
+
+
+def test_a_random_walk_that_is_off_keeps_its_state_bit_for_bit():
+    """advance: with random_walk = 0 the walk's state is kept as it is, whatever the draw
+    passed: -0.0 (a state the FMU accepts, as 0) stays -0.0, and the sample b is the other
+    processes' alone."""
+    ecfg = errors.config(seed=2, bias_on=0.05)
+    for n_rw in (0.0, math.inf):
+        state, b = errors.advance(errors.ErrorState(-0.0, 0.0, 0.0, ()), 0.3, n_rw, 0.0, (),
+                                  ecfg)
+        assert math.copysign(1.0, state.rw) == -1.0 and state.rw == 0.0
+        assert b == ecfg.b_on

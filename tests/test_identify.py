@@ -275,3 +275,13 @@ def test_a_fit_has_the_same_bits_on_every_processor():
         assert p.returncode == 0, p.stderr
         outs[core] = p.stdout
     assert len(set(outs.values())) == 1, outs
+
+
+def test_read_csv_refuses_time_that_does_not_increase_and_reads_time_that_does(tmp_path):
+    ok, repeated = tmp_path / "ok.csv", tmp_path / "repeated.csv"
+    ok.write_text("time,x,z\n0.0,1,2\n0.001,1,2\n0.002,1,2\n")
+    repeated.write_text("time,x,z\n0.0,1,2\n0.001,1,2\n0.001,1,2\n")
+    assert list(identify.read_csv(ok)[0]) == [0.0, 0.001, 0.002]
+    with pytest.raises(ValueError, match=r"repeated\.csv: time is not strictly increasing; "
+                                         r"allowed: uniformly sampled, increasing time"):
+        identify.read_csv(repeated)

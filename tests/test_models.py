@@ -189,3 +189,11 @@ def test_parameter_problems_name_value_and_range(name, value, text):
 
 def test_good_parameters_have_no_problem():
     assert parameters.check(parameters.defaults(*parameters.PARAMETERS)) == []
+
+
+def test_exp_of_an_int_or_a_numpy_scalar_is_the_floats():
+    """_ops.exp takes its general path for an int and a NumPy float64 (not type float): the
+    same value as the float's."""
+    for x in (1, -3, 0):
+        assert _ops.exp(x) == _ops.exp(float(x))
+    assert _ops.exp(np.float64(0.5)) == _ops.exp(0.5) == pytest.approx(math.exp(0.5), rel=1e-15)

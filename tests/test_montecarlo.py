@@ -118,3 +118,12 @@ def test_cli_bad_options_exit_2(argv, capsys):
     with pytest.raises(SystemExit) as exc:
         main(["montecarlo"] + argv)
     assert exc.value.code == 2
+
+
+def test_montecarlo_sinusoidal_filters_with_the_Q_given():
+    """Q given is the filter's (default X^2 / 2): its summary says so and the estimates differ."""
+    given = montecarlo.montecarlo_sinusoidal(runs=2, n=40, Q=0.3, plot=False)
+    default = montecarlo.montecarlo_sinusoidal(runs=2, n=40, plot=False)
+    assert given["summary"]["parameters"]["Q"] == 0.3
+    assert default["summary"]["parameters"]["Q"] == 0.5
+    assert not np.array_equal(given["sine_dc1"], default["sine_dc1"])
