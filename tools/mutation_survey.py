@@ -752,6 +752,9 @@ def run_all(root, found, rec, jobs=1, budget=None, log=print, against=None):
                     pending = []
                     break
                 m = pending.pop(0)
+                if m.get("beyond_limit"):
+                    rows[m["number"]] = _row(m, "not run", "over --limit", 0, 0.0, [])
+                    continue
                 unit, integration = selection(rec, m) if against is None else (against, [])
                 stages = [s for s in (unit, integration) if s]
                 source = mutant_source(root, m)
@@ -896,6 +899,9 @@ def main(argv=None):
                          "--shuffle, the same order of the mutants from one release to the "
                          "next, so that the survivors of its sample can be answered before CI "
                          "runs (a new function's mutants take their places in that order)")
+    ap.add_argument("--limit", type=int, default=None, metavar="N",
+                    help="run the first N mutants of the order only (with --shuffle: the same "
+                         "N each run, those after reported not run)")
     ap.add_argument("--shuffle", metavar="SEED", help="run the mutants in an order drawn "
                     "from SEED (with --budget: another sample each run)")
     ap.add_argument("--against", nargs="+", metavar="TEST",
@@ -959,6 +965,12 @@ def main(argv=None):
     if args.shuffle:
         found.sort(key=lambda m: hashlib.sha256(("%s\0%r\0%d" % (args.shuffle, key(m),
                                                                  m["nth"])).encode()).digest())
+    if args.limit is not None:
+        if args.limit < 1:
+            print("survey: --limit %d: allowed: 1 or more" % args.limit, file=sys.stderr)
+            return 2
+        for m in found[args.limit:]:
+            m["beyond_limit"] = True
     return mutate.stoppable("survey", _survey, args, root, found, entries, everything)
 
 
