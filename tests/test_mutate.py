@@ -438,3 +438,11 @@ def test_a_run_whose_tests_pass_but_leave_files_does_not_catch_a_mutant():
     assert left.splitlines()[-1].startswith(survey.LEFT_BEHIND)
     conftest = (ROOT / "tests" / "conftest.py").read_text()
     assert 'sys.stderr.write("\\n' + survey.LEFT_BEHIND in conftest
+
+
+@pytest.mark.parametrize("limit", ["0", "-1"])
+def test_a_limit_below_one_is_refused_in_one_line(tmp_path, limit):
+    root = _survey_tree(tmp_path)
+    p = _run_survey(tmp_path, root, "--limit", limit)
+    assert p.returncode == 2, p.stdout + p.stderr
+    assert p.stderr.strip() == "survey: --limit %s: allowed: 1 or more" % limit, p.stderr
