@@ -237,7 +237,9 @@ def test_the_archive_bound_on_both_sides(extra, refused, paper, tmp_path, monkey
         problem = fmucheck.archive_problem(path, z)
     assert (problem is not None) == refused, problem
     if refused:
-        assert "its members declare" in problem and "in all" in problem
+        assert problem == "%s: its members declare %s uncompressed in all; expected: an " \
+            "archive of at most %s" % (path, fmucheck.size_text(total),
+                                       fmucheck.size_text(total - 1)), problem
 
 
 @pytest.mark.parametrize("extra, refused", [(0, False), (1, True)])
@@ -372,6 +374,23 @@ def test_an_elf_file_that_is_not_this_machines_library_is_named(data, words):
     assert _problem(data, "Linux").startswith(words), _problem(data, "Linux")
     assert fmucheck.binary_problem(lambda o, n: data[o:o + n], len(data), "Linux", "any") \
         is None or words[:20] not in ("an ELF library for a",)
+
+
+def test_a_big_endian_elf_file_is_named_by_its_byte_order():
+    """EI_DATA (byte 5) 2: big-endian; the byte after it (EI_VERSION, 1) says nothing of it."""
+    data = _elf_edit(5, "<B", 2)
+    assert _problem(data, "Linux") == "a 64-bit big-endian ELF file; this host loads 64-bit " \
+        "little-endian libraries", _problem(data, "Linux")
+
+
+def test_a_mach_o_load_command_past_the_declared_size_is_named():
+    """One load command 8 bytes longer than sizeofcmds allows (the file holds its bytes)."""
+    data = bytearray(_macho())
+    struct.pack_into("<I", data, 32 + 4, 80)  # cmdsize of the one LC_SEGMENT_64: 72 -> 80
+    assert _problem(bytes(data), "Darwin") == "a Mach-O library whose load commands do not " \
+        "fit their declared size", _problem(bytes(data), "Darwin")
+    struct.pack_into("<I", data, 20, 80)  # sizeofcmds 80 too: it fits
+    assert _problem(bytes(data), "Darwin") is None
 
 
 def test_a_section_past_the_end_is_named_though_the_segments_fit():

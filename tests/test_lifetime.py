@@ -213,6 +213,42 @@ def test_a_worker_started_for_a_process_that_is_gone_ends_at_once(owner, alive):
                                 else ["-", str(int(signal.SIGKILL))]), r.stdout
 
 
+#: A process that forks a child which calls ``lifetime.end_with_parent(owner)`` (argv[1]:
+#: "parent" or "grandparent") and prints the child's parent-death signal (PR_GET_PDEATHSIG)
+#: and whether a thread of the child watches the owner.
+_SIGNAL = textwrap.dedent("""
+    import ctypes, os, sys, threading
+    from driftfmu.simulations import lifetime
+    owner = {"parent": os.getpid(), "grandparent": os.getppid()}[sys.argv[1]]
+    r, w = os.pipe()
+    pid = os.fork()
+    if pid == 0:
+        os.close(r)
+        lifetime.end_with_parent(owner)
+        signum = ctypes.c_int(-1)
+        lifetime._prctl()(2, ctypes.addressof(signum), 0, 0, 0)
+        watch = any(t.name == "driftfmu-owner-watch" for t in threading.enumerate())
+        os.write(w, b"%d %s" % (signum.value, str(watch).encode()))
+        os._exit(0)
+    os.close(w)
+    said = os.read(r, 100)
+    os.waitpid(pid, 0)
+    print(said.decode() or "-")
+""")
+
+
+@pytest.mark.parametrize("owner, watch", [("parent", False), ("grandparent", True)])
+def test_a_worker_gets_the_parent_death_signal_and_watches_only_an_owner_not_its_parent(
+        owner, watch):
+    """The parent-death signal is SIGKILL in every worker; a thread watches the owner only
+    where the owner is not the parent (a fork server's worker), whom the signal does not
+    follow."""
+    r = subprocess.run([sys.executable, "-c", _SIGNAL, owner], capture_output=True, text=True,
+                       timeout=BOUND, env=dict(os.environ, PYTHONPATH=str(ROOT)))
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.split() == [str(int(signal.SIGKILL)), str(watch)], r.stdout
+
+
 _PREEXEC = textwrap.dedent("""
     import os
     from driftfmu.simulations import lifetime
