@@ -456,3 +456,22 @@ def test_a_constant_signal_resolves_nothing_and_does_not_fail():
     assert set(r["grid"]["adev"]) == {0.0} and not any(r["grid"]["read"])
     assert all(r[k]["value"] is None for k in "NBK")
     assert allan.local_slopes([1.0, 2.0, 4.0], [1.0, 0.0, 0.0]) == [None, None, None]
+
+
+@pytest.mark.parametrize("nu", [1.5, 10.0, 250.0])
+@pytest.mark.parametrize("p", [0.025, 0.5, 0.975])
+def test_chi2_quantile_stops_when_newton_has_converged(monkeypatch, nu, p):
+    """The quantile's iteration stops once a step no longer moves it (Newton's quadratic
+    convergence: a handful of evaluations), not after its 200-iteration bound, and gives SciPy's
+    value."""
+    scipy_stats = pytest.importorskip("scipy.stats")
+    calls = []
+    gamma_p = allan.gamma_p
+
+    def counted(a, x):
+        calls.append(x)
+        return gamma_p(a, x)
+    monkeypatch.setattr(allan, "gamma_p", counted)
+    q = allan.chi2_quantile(p, nu)
+    assert q == pytest.approx(scipy_stats.chi2.ppf(p, nu), rel=1e-9)
+    assert len(calls) <= 40, len(calls)
