@@ -599,3 +599,16 @@ def test_a_random_walk_that_is_off_keeps_its_state_bit_for_bit():
                                   ecfg)
         assert math.copysign(1.0, state.rw) == -1.0 and state.rw == 0.0
         assert b == ecfg.b_on
+
+
+def test_the_chains_sensor_with_slow_errors_keeps_its_quartic_term():
+    """models.chain's sensor with a slow error on (not the plain path) measures the general
+    polynomial: at x = 1.5 with the same draws, a4 = 0.05 adds a4 x^4 to z, and a3 a3 x^3."""
+    x, values = 1.5, {"bias_on": 0.01}
+    base = chain.SensorErrors(1, 0.0, 1.0, 0.0, 1e-4, 0.0, 0.0, 1e-3, values)
+    quartic = chain.SensorErrors(1, 0.0, 1.0, 0.0, 1e-4, 0.0, 0.05, 1e-3, values)
+    cubic = chain.SensorErrors(1, 0.0, 1.0, 0.0, 1e-4, 0.02, 0.0, 1e-3, values)
+    assert not base.plain
+    z0, z4, z3 = (s.measure(x, 0.0, 1) for s in (base, quartic, cubic))
+    assert z4 - z0 == pytest.approx(0.05 * x ** 4, rel=1e-12)
+    assert z3 - z0 == pytest.approx(0.02 * x ** 3, rel=1e-12)
