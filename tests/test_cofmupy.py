@@ -60,8 +60,16 @@ def _run(tmp_path, fmus, config, script):
         shutil.copy(fmus[name], tmp_path / ("%s.fmu" % name))
     (tmp_path / "chain.json").write_text(json.dumps(config))
     (tmp_path / "run.py").write_text(script + DUMP)
+    # cofmupy extracts each FMU into the temporary folder and leaves it there (docs/hosts.md):
+    # its own temporary folder, counted
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
     done = subprocess.run([_python(), "run.py"], cwd=tmp_path, capture_output=True, text=True,
-                          timeout=600)
+                          timeout=600, env=dict(os.environ, TMPDIR=str(tmp)))
+    if done.returncode == 0:
+        assert len(os.listdir(tmp)) == len(CHAIN), (
+            "cofmupy left %s in its temporary folder: docs/hosts.md says one extraction per "
+            "FMU" % sorted(os.listdir(tmp)))
     return done, (json.loads((tmp_path / "results.json").read_text())
                   if done.returncode == 0 else None)
 
