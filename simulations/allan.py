@@ -299,24 +299,6 @@ def _taus_option(text):
     return taus
 
 
-def _start_values(pairs):
-    """``--start-values NAME VALUE ...`` as a dict (a value as an int when it reads as one)."""
-    if len(pairs) % 2:
-        raise UsageError("--start-values %s: a name without a value; allowed: NAME VALUE "
-                         "pairs, e.g. --start-values R 1e-6 Q 0" % " ".join(pairs))
-    out = {}
-    for name, text in zip(pairs[::2], pairs[1::2]):
-        try:
-            out[name] = int(text)
-        except ValueError:
-            try:
-                out[name] = float(text)
-            except ValueError:
-                raise UsageError("--start-values %s %s: %r is not a number; allowed: NAME "
-                                 "VALUE pairs of numbers" % (name, text, text)) from None
-    return out
-
-
 def add_cli(groups):
     """``driftfmu allan``."""
     from driftfmu.simulations import checks, cli
@@ -368,7 +350,7 @@ def _cmd_allan(args):
     if args.csv is not None:
         kwargs["time"] = args.time
     else:
-        kwargs.update(start_values=_start_values(args.start_values or []),
+        kwargs.update(start_values=cli.start_values(args.start_values, numbers=True) or {},
                       stop_time=args.stop_time, backend=args.backend, fmu_dir=args.fmu_dir)
     with cli.progress(None, "allan deviation", "tau") as update:
         r = driftfmu.allan(args.csv, progress=update, **kwargs)

@@ -306,12 +306,16 @@ def cmd_build(args):
                             cache=None if args.no_cache else native_build.user_cache())
 
 
-def start_values(pairs):
+def start_values(pairs, numbers=False):
     """``--start-values NAME VALUE ...`` as a dict (None when not given): a value that reads
-    as an integer is one, else a float; text that is no number stays text, for the check that
-    names it."""
+    as an integer is one, else a float.  Text that is no number stays text, for the check that
+    names it (with ``numbers``: refused here, in one line).  A name without a value is
+    refused."""
     if pairs is None:
         return None
+    if len(pairs) % 2:
+        raise UsageError("--start-values %s: a name without a value; allowed: NAME VALUE "
+                         "pairs, e.g. --start-values a2 0.02 seed 7" % " ".join(pairs))
     out = {}
     for name, text in zip(pairs[::2], pairs[1::2]):
         try:
@@ -320,6 +324,9 @@ def start_values(pairs):
             try:
                 out[name] = float(text)
             except ValueError:
+                if numbers:
+                    raise UsageError("--start-values %s %s: %r is not a number; allowed: "
+                                     "NAME VALUE pairs of numbers" % (name, text, text)) from None
                 out[name] = text
     return out
 
@@ -359,10 +366,6 @@ def check_build_args(args):
         if not args.ssp:
             raise UsageError("--start-values sets the SSP archive's parameter values; allowed: "
                              "--start-values with --ssp")
-        if len(args.start_values) % 2:
-            raise UsageError("--start-values %s: a name without a value; allowed: pairs NAME "
-                             "VALUE, e.g. --start-values a2 0.02 seed 7"
-                             % " ".join(args.start_values))
         from driftfmu.fmu_src.ssp import parameter_values
         parameter_values(start_values(args.start_values))  # refused before anything is built
 

@@ -11,6 +11,7 @@ import pytest
 
 import driftfmu
 from driftfmu.simulations import allan as sim_allan
+from driftfmu.simulations import cli as sim_cli
 from driftfmu.simulations import output
 from driftfmu.simulations.cli import main
 from driftfmu.simulations.errors import UsageError
@@ -284,7 +285,8 @@ def test_start_values_need_pairs_and_numbers(capsys, tmp_path):
                        (["--start-values", "Q", "zero"], "'zero' is not a number")):
         status, _, err = _cli(["allan"] + argv + ["--out", str(tmp_path / "o")], capsys)
         assert status == 2 and len(err) == 1 and said in err[0], err
-    assert sim_allan._start_values(["seed", "3", "R", "1e-6"]) == {"seed": 3, "R": 1e-6}
+    assert sim_cli.start_values(["seed", "3", "R", "1e-6"], numbers=True) == {"seed": 3, "R": 1e-6}
+    assert sim_cli.start_values(["seed", "x"]) == {"seed": "x"}  # named by the check that follows
 
 
 # -- all or nothing ----------------------------------------------------------------------------
