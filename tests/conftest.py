@@ -212,6 +212,15 @@ def pytest_unconfigure(config):
         return
     import shutil
     run, outer, session = _RUN_TMP
+    # what this process removes when it ends (the masters' unpacked FMUs: simulations/cosim.py
+    # new_extract_folder), removed now: a run in one process (-n 0, the mutation survey's) is
+    # judged as a run whose workers have ended
+    cosim = sys.modules.get("driftfmu.simulations.cosim")
+    if cosim is not None:
+        cosim.remove_extracted()
+        fast = sys.modules.get("driftfmu.simulations.fastcosim")
+        if fast is not None:
+            fast._UNPACKED.clear()  # (their folders gone)
     left = left_in(run)
     copy_libraries(run, outer)
     shutil.rmtree(run, ignore_errors=True)
