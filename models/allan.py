@@ -146,7 +146,8 @@ def edf(n, m):
 def gamma_p(a, x):
     """The regularized lower incomplete gamma function ``P(a, x)`` (``a > 0``, ``x >= 0``): its
     series for ``x < a + 1``, else one minus its continued fraction (modified Lentz), each to
-    about 1e-15."""
+    about 1e-15.  ValueError where the continued fraction has not converged in 9999 terms
+    (from ``a`` about 1.3e9, near ``x = a``) instead of an unconverged value."""
     if x <= 0.0:
         return 0.0
     front = math.exp(a * math.log(x) - x - math.lgamma(a))
@@ -174,6 +175,11 @@ def gamma_p(a, x):
         h *= step
         if abs(step - 1.0) < 1e-16:
             break
+    else:
+        if h == h:  # (NaN arguments give NaN, as every step does)
+            raise ValueError("P(a, x) at a = %r, x = %r: the continued fraction has not "
+                             "converged in 9999 terms (near x = a it needs more the larger a "
+                             "is); allowed: a up to about 1e9" % (a, x))
     return 1.0 - front * h
 
 

@@ -161,6 +161,10 @@ VOLATILE = ("wall_time_s", "workers", "backend", "timing")
 
 def _stored_run(fmu_dir, backend, tmp_path, monkeypatch, kernel_on):
     from pathlib import Path
+    from driftfmu.simulations import kernel
+    if kernel_on and not kernel.enabled():
+        # (the mutation survey runs with the kernel off: this side would fail on any code)
+        pytest.skip("DRIFTFMU_KERNEL=numpy switches the kernel off")
     if not kernel_on:
         monkeypatch.setenv("DRIFTFMU_KERNEL", "numpy")
     data = Path(__file__).parent / "data"
@@ -178,6 +182,9 @@ def _stored_run(fmu_dir, backend, tmp_path, monkeypatch, kernel_on):
     t = s["timing"]
     assert set(t["workers_s"]) == {"simulation", "identification", "validation"}
     assert all(v >= 0.0 for v in t["workers_s"].values()) and t["writing_s"] > 0.0
+    # every held-out set was checked: that took time, and no more than the workers had
+    assert t["workers_s"]["validation"] > 0.0
+    assert sum(t["workers_s"].values()) <= s["workers"] * s["wall_time_s"]
     assert {p.name for p in tmp_path.iterdir()} == {"adxl203.csv", "adxl203.json",
                                                      "adxl203.npz", "fig4.png", "fig5.png"}
 
@@ -204,3 +211,33 @@ def test_a_set_that_differs_from_the_reference_is_caught():
     assert experiment._max_abs_diff(raw, ref) == 2e-12
     raw["DriftEstimator.dc_ekf1"] = np.array([0.0, math.nan, 0.0])
     assert math.isnan(experiment._max_abs_diff(raw, ref))
+
+
+#: The cheapest run that has every part: one frequency, two fitting sets, one held out.
+TINY = dict(freqs=(100.0,), sets=3, held_out=1, n=4000, workers=2, plot=False)
+
+
+@pytest.mark.integration
+def test_a_run_without_validation_spends_no_validation_time(built_fmus):
+    # the workers' seconds count from zero and add only what the sets spent: no validation, none
+    s = experiment.run_adxl203(fmu_dir=built_fmus["Excitation"].parent, validate=False, **TINY)
+    w = s["timing"]["workers_s"]
+    assert w["validation"] == 0.0 and s["validation"]["max_abs_diff"] is None
+    assert w["simulation"] > 0.0 and w["identification"] > 0.0
+    # ... and the workers spent no more than the phases lasted, times the workers
+    assert sum(w.values()) <= s["workers"] * s["wall_time_s"]
+
+
+@pytest.mark.integration
+def test_the_claim_holds_at_the_claimed_margin_and_fails_just_above_it(built_fmus, monkeypatch):
+    # "claim_holds": a margin of at least CLAIM_DB dB at every frequency; the same seed gives
+    # the same margin, so the claim is moved onto it and one step past it
+    kw = dict(TINY, fmu_dir=built_fmus["Excitation"].parent, validate=False)
+    first = experiment.run_adxl203(**kw)
+    m = first["min_margin_db"]
+    assert first["claim_holds"] == (m >= experiment.CLAIM_DB)
+    for claim, holds in ((m, True), (math.nextafter(m, math.inf), False)):
+        monkeypatch.setattr(experiment, "CLAIM_DB", claim)
+        s = experiment.run_adxl203(**kw)
+        assert s["min_margin_db"] == m and s["claim_db"] == claim
+        assert s["claim_holds"] is holds, (claim, m)

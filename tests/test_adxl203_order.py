@@ -70,6 +70,8 @@ def test_order_3_runs_the_filter_with_the_identified_cubic_term(built_fmus, tmp_
                  str(kw["fmu_dir"]), "--out", str(tmp_path)]) == 0
     s = json.loads((tmp_path / "adxl203.json").read_text())
     assert s["settings"]["order"] == 3 and "of order 3" in s["identification"]
+    # the summary names the terms the filter runs with: a3, and no a4 (that is order 4's)
+    assert s["identification"].endswith(", of order 3: the filter runs with its a3")
     # the FMUs (DriftEstimator with a3) equal the reference, every held-out set
     assert s["validation"]["max_abs_diff"] == 0.0
     truth = adxl203.config(**adxl203.ADXL203).a3
@@ -94,6 +96,18 @@ def test_order_3_runs_the_filter_with_the_identified_cubic_term(built_fmus, tmp_
     # the model's: the empirical drift of the held-out sets is the same
     two = experiment.run_adxl203(**kw)
     assert two["settings"]["order"] == 2 and "a3" not in two["model"]
+    assert two["identification"].endswith("one model per frequency")   # no order named
     for p3, p2 in zip(s["per_frequency"], two["per_frequency"]):
         assert p3["dc_ekf1"] != p2["dc_ekf1"]
         assert p3["dc_empirical"][0] == pytest.approx(p2["dc_empirical"][0], rel=1e-9, abs=1e-6)
+
+
+@pytest.mark.integration
+def test_order_4_says_the_filter_runs_with_a3_and_a4(built_fmus):
+    # the other side of order 3's sentence: order 4 names both higher terms, and has them
+    s = experiment.run_adxl203(freqs=(100.0,), sets=3, held_out=1, n=4000, workers=2,
+                               fmu_dir=built_fmus["Excitation"].parent, validate=False,
+                               plot=False, order=4)
+    assert s["settings"]["order"] == 4
+    assert s["identification"].endswith(", of order 4: the filter runs with its a3, a4")
+    assert {"a3", "a4"} <= set(s["model"]) and {"a3", "a4"} <= set(s["per_frequency"][0]["model"])

@@ -271,6 +271,22 @@ def test_gamma_p_equals_scipys_on_both_branches():
     assert allan.gamma_p(2.0, 0.0) == 0.0
 
 
+def test_gamma_p_refuses_where_its_continued_fraction_has_not_converged():
+    # near x = a the fraction needs more terms the larger a is (9027 at a = 1e9); the last
+    # that it may take is the 9999th: here it converges at the 9999th and at the 10000th term
+    from scipy.special import gammainc
+    a = 1295996276.0
+    assert allan.gamma_p(a, a + 1.0) == pytest.approx(gammainc(a, a + 1.0), abs=1e-6)
+    a = 1295974451.0
+    with pytest.raises(ValueError, match=r"at a = 1295974451\.0, x = 1295974452\.0: the "
+                                         r"continued fraction has not converged in 9999 terms"):
+        allan.gamma_p(a, a + 1.0)
+    # far from the median the fraction is short whatever a (the 68 % interval's quantiles)
+    assert allan.gamma_p(1e11, 1e11 + 1e6) == pytest.approx(gammainc(1e11, 1e11 + 1e6),
+                                                            abs=1e-4)
+    assert math.isnan(allan.gamma_p(3.0, math.nan))
+
+
 def test_interval_is_the_one_sigma_chi2_interval():
     p = scipy_stats.norm.cdf(1.0)  # 84.13 %
     for nu in (1.0, 4.0, 250.0):

@@ -280,6 +280,23 @@ def test_the_api_refuses_before_anything_runs(kwargs, said, tmp_path, monkeypatc
     assert os.listdir(tmp_path) == []  # no FMU built, nothing written
 
 
+def test_docs_cli_names_the_options_as_the_help_does(capsys):
+    # docs/cli.md's row of the command: every option with the value it takes, as `driftfmu
+    # allan --help` shows it (a user reads one and types what the other says)
+    from pathlib import Path
+    docs = (Path(__file__).parent.parent / "docs" / "cli.md").read_text(encoding="utf-8")
+    (row,) = [line for line in docs.splitlines() if line.startswith("| `driftfmu allan ")]
+    synopsis = row.split("`")[1].replace("\\|", "|")
+    options = re.findall(r"\[(--[\w-]+)(?: ([^\]]*?))?(?: \.\.\.)?\]", synopsis)
+    assert {o for o, _ in options} >= {"--taus", "--start-values", "--column"}, synopsis
+    with pytest.raises(SystemExit) as exc:
+        main(["allan", "--help"])
+    assert exc.value.code == 0
+    usage = " ".join(capsys.readouterr().out.split("\n\n")[0].split())
+    for option, value in options:
+        assert "[%s %s" % (option, value) in usage, (option, value, usage)
+
+
 def test_start_values_need_pairs_and_numbers(capsys, tmp_path):
     for argv, said in ((["--start-values", "Q"], "a name without a value"),
                        (["--start-values", "Q", "zero"], "'zero' is not a number")):
@@ -333,6 +350,65 @@ def test_the_figure_names_its_lines_values_and_what_is_not_resolved(tmp_path, cl
     driftfmu.allan(white, out=tmp_path / "w")
     text = texts(closed_figures[-1])
     assert "K: not resolved (no 2 consecutive tau" in text and "B: not resolved (no floor" in text
+
+
+def _white_and_random_walk(path, n=2 ** 17, K=2e-3, seed=3):
+    """White noise of density 1e-3 plus a random walk of ``K``: N and K resolved, B not."""
+    rng = np.random.default_rng(seed)
+    z = 1e-3 / math.sqrt(TS) * rng.standard_normal(n) + np.cumsum(
+        K * math.sqrt(TS) * rng.standard_normal(n))
+    return _csv(path, t=np.arange(n) * TS, z=z)
+
+
+def test_each_figures_line_its_fitted_stretch_and_its_reading_point_share_its_colour(
+        tmp_path, closed_figures):
+    # docs/results.md: each figure's line dashed over the whole range, thick over the tau it
+    # was fitted on, a diamond where it is read, all in the figure's own colour; the estimates
+    # are dots smaller than the diamonds; a figure not resolved is a legend line, nothing drawn
+    from matplotlib.colors import same_color
+    r = driftfmu.allan(_white_and_random_walk(tmp_path / "rec.csv"), out=tmp_path / "o")
+    ax = closed_figures[-1].axes[0]
+    (estimates,) = [c for c in ax.containers if c.get_label().startswith("overlapping")]
+    dots = estimates.lines[0]
+    colours = [dots.get_color()]
+    for name in ("N", "B", "K"):   # all three resolved: the floor where the two lines cross
+        fig_ = r[name]
+        read_at = {"N": 1.0, "K": 3.0}.get(name, math.sqrt(fig_["tau_from"] * fig_["tau_to"]))
+        (dashed,) = [ln for ln in ax.get_lines() if ln.get_label().startswith(name + " = ")]
+        (thick,) = [ln for ln in ax.get_lines() if len(ln.get_xdata()) > 1
+                    and ln.get_xdata()[0] == fig_["tau_from"]
+                    and ln.get_xdata()[-1] == fig_["tau_to"]]
+        (diamond,) = [ln for ln in ax.get_lines() if ln.get_marker() == "D"
+                      and list(ln.get_xdata()) == [read_at]]
+        assert dashed.get_linestyle() == "--" and thick.get_linestyle() == "-"
+        assert thick.get_linewidth() > 2 * dashed.get_linewidth()
+        assert same_color(thick.get_color(), dashed.get_color()), name
+        assert same_color(diamond.get_color(), dashed.get_color()), name
+        assert dots.get_markersize() < diamond.get_markersize()
+        colours.append(dashed.get_color())
+    assert not any(same_color(a, b) for i, a in enumerate(colours) for b in colours[i + 1:])
+    # white noise alone: K and B not resolved; their legend lines have nothing beside them, and
+    # nothing is drawn for them
+    r = driftfmu.allan(_csv(tmp_path / "white.csv", n=5000), out=tmp_path / "w")
+    assert r["N"]["value"] is not None and r["K"]["value"] is r["B"]["value"] is None
+    ax = closed_figures[-1].axes[0]
+    legend = ax.get_legend()
+    for name in ("K", "B"):
+        (i,) = [i for i, t in enumerate(legend.get_texts())
+                if t.get_text().startswith(name + ": not resolved")]
+        handle = legend.legend_handles[i]
+        assert handle.get_linestyle() == "None" and handle.get_marker() in ("None", "", " ")
+        (empty,) = [ln for ln in ax.get_lines()
+                    if ln.get_label().startswith(name + ": not resolved")]
+        assert len(empty.get_xdata()) == 0
+
+
+def test_the_figure_is_1080_by_720_pixels(tmp_path):
+    # docs/results.md: 9 x 6 in at 120 dpi (the PNG's header: width, height)
+    driftfmu.allan(_csv(tmp_path / "rec.csv", n=1000), out=tmp_path / "o")
+    head = (tmp_path / "o" / "allan.png").read_bytes()[:24]
+    assert head[:8] == b"\x89PNG\r\n\x1a\n" and head[12:16] == b"IHDR"
+    assert (int.from_bytes(head[16:20], "big"), int.from_bytes(head[20:24], "big")) == (1080, 720)
 
 
 # -- a co-simulation ------------------------------------------------------------------------------
