@@ -420,6 +420,21 @@ def test_a_cache_entry_another_user_could_have_written_is_compiled_again_never_s
     assert (entry.stat().st_uid, entry.stat().st_mode & 0o777) == (os.geteuid(), 0o600)
 
 
+def test_a_cache_entry_that_cannot_be_replaced_leaves_no_part_of_the_write(
+        cached_excitation, tmp_path):
+    """The entry's name taken by a folder (not empty: no rename replaces it): the library
+    written beside it cannot take its place; the build ships the bytes of a build without a
+    cache, and the part it wrote is removed (the cache holds what it held)."""
+    plain, written = cached_excitation
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / written.name).mkdir()
+    (cache / written.name / "a file").write_text("in the way")
+    assert _build_excitation(tmp_path / "second", cache=cache).read_bytes() == plain
+    assert sorted(os.listdir(cache)) == [written.name]
+    assert os.listdir(cache / written.name) == ["a file"]
+
+
 def test_the_cache_key_does_not_name_where_ziglang_is_installed(tmp_path, monkeypatch):
     """ziglang in another virtual environment (another Python running ``-m ziglang``, clang's
     ``InstalledDir`` elsewhere) is the same compiler: the same key.  Another ziglang version,
