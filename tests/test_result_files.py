@@ -301,6 +301,16 @@ def test_an_fmu_of_another_model_without_ts_or_start_values(tmp_path, capsys):
         'variability="fixed" initial="exact"><Real start="0.002"/></ScalarVariable>\n',
         '<Unknown index="2"/>')
     assert hostinputs.fmu_inputs(str(with_ts)) == ("Gain", [("u", 2.5)], 0.002, 0.0)
+    # two inputs, both held: refused as the Excitation's one is (the plural from two on)
+    two = _foreign_fmu(tmp_path / "Gain2.fmu", GAIN_U + GAIN_U.replace('"u"', '"v"').replace(
+        '"y"', '"w"').replace('="0"', '="2"').replace('="1"', '="3"'),
+        '<Unknown index="2"/><Unknown index="4"/>')
+    result.write_text("time,x\n0,0.5\n0.001,0.25\n")
+    rc, _, err = _run(["inputs", str(two), str(result), "--output-file", str(out), "--Ts",
+                       "0.001", "--hold", "u", "--hold", "v"], capsys)
+    assert _refused(rc, err, out, None) == (
+        "driftfmu: error: Gain's inputs u, v are all held (--hold u --hold v), so no result "
+        "gives the samples; allowed: at least one input from a result's column")
 
 
 # -- times as hosts and spreadsheets write them ---------------------------------------------------
