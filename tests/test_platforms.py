@@ -435,6 +435,27 @@ def test_a_cache_entry_that_cannot_be_replaced_leaves_no_part_of_the_write(
     assert os.listdir(cache / written.name) == ["a file"]
 
 
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="no /proc/self/fd to count")
+def test_reading_cache_entries_leaves_no_descriptor_open(tmp_path):
+    """Each entry read (a whole one, a folder, one others may write, a symbolic link, none)
+    closes what it opened: a long build reads one entry per library."""
+    whole = tmp_path / "whole"
+    whole.write_bytes(native_build.cache_entry(b"a library"))
+    whole.chmod(0o600)
+    (tmp_path / "folder").mkdir()
+    shared = tmp_path / "shared"
+    shared.write_bytes(whole.read_bytes())
+    shared.chmod(0o666)
+    (tmp_path / "link").symlink_to(whole)
+    want = {"whole": b"a library", "folder": None, "shared": None, "link": None,
+            "missing": None}
+    before = sorted(os.listdir("/proc/self/fd"))
+    for _ in range(3):
+        for name, data in want.items():
+            assert native_build._read_cache_entry(tmp_path / name) == data, name
+    assert sorted(os.listdir("/proc/self/fd")) == before
+
+
 def test_the_cache_key_does_not_name_where_ziglang_is_installed(tmp_path, monkeypatch):
     """ziglang in another virtual environment (another Python running ``-m ziglang``, clang's
     ``InstalledDir`` elsewhere) is the same compiler: the same key.  Another ziglang version,
