@@ -677,10 +677,11 @@ def _read_cache_entry(path):
         fd = os.open(path, os.O_RDONLY | getattr(os, "O_NOFOLLOW", 0))
     except OSError:  # not there (or removed meanwhile), or a symbolic link
         return None
+    st = os.fstat(fd)  # (before fdopen, which raises IsADirectoryError for a folder)
+    if not stat.S_ISREG(st.st_mode) or trust.others_can_write(st):
+        os.close(fd)
+        return None
     with os.fdopen(fd, "rb") as fh:
-        st = os.fstat(fh.fileno())
-        if not stat.S_ISREG(st.st_mode) or trust.others_can_write(st):
-            return None
         try:
             raw = fh.read()
         except OSError:

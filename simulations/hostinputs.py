@@ -311,6 +311,13 @@ def plan(fmu, results, Ts=None, start_time=None, hold=()):
             sources[name] = found
     if missing:
         raise UsageError(_missing(model, missing, dict(inputs), headers))
+    if all(sources[name] is None for name in names):
+        # (a result's column sets how many samples the file has: without one it never ends)
+        raise UsageError("%s's input%s %s %s held (%s), so no result gives the samples; "
+                         "allowed: at least one input from a result's column" % (
+                             model, "s" if len(names) > 1 else "", ", ".join(names),
+                             "are all" if len(names) > 1 else "is",
+                             " ".join("--hold %s" % n for n in names)))
     return model, inputs, Ts, start, sources
 
 

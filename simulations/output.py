@@ -514,15 +514,15 @@ def _is(path, inode):
 
 
 def _forward(steps):
-    """Do the steps not done yet (each only where its file is the one named): the number
-    done now.  A file that is not the one named raises :class:`_Conflict`."""
+    """Do the steps not done yet (each only where its file is the one named): the number of
+    moves done now (the folders made are no moves).  A file that is not the one named raises
+    :class:`_Conflict`."""
     done = 0
     for step in steps:
         if step[0] == "mkdir":
             if not _is_dir(step[1]):
                 folders.checkpoint("mkdir")
                 os.mkdir(step[1])
-                done += 1
         elif step[0] == "aside":
             _, dest, aside, inode = step
             if _is(aside, inode) or not _exists(dest):
@@ -963,7 +963,8 @@ CLIPPING_NOTE = "_clipping note"
 
 def mark_clipping(ax):
     """Mark every curve of ``ax`` that leaves the y range: small triangles on the frame where
-    it is off the scale (pointing the way it went), and a note naming the curve, the samples
+    it is off the scale (pointing the way it went; one per sample off the scale, at most 12 per
+    curve and side, spread from the first such sample to the last), and a note naming the curve, the samples
     and how far it went.  Nothing is clipped without a mark (issue 19: drift.png's bottom panel
     hid k = 1-99 of the empirical drift), and the note covers no curve: beside the axes under
     their legend where the legend sits beside them, in the legend where it sits on the axes,

@@ -112,6 +112,20 @@ def _small_machine(monkeypatch):
     monkeypatch.setattr(budget, "BASE_MEMORY", 0)
 
 
+@pytest.mark.parametrize("command", ["gaussian", "sinusoidal"])
+def test_a_long_api_run_writes_no_note_to_standard_error(command, monkeypatch, capsys):
+    """The command announces a long run with a ``driftfmu: note:`` line; the function does not
+    (its caller reports through ``progress``); the run itself is left out (a stand-in)."""
+    from driftfmu.simulations import gaussian, sinusoidal
+    monkeypatch.setattr(budget, "RUN_SECONDS", {"python": 1.0, "native": 1.0})  # 1000 s
+    monkeypatch.setattr(gaussian, "run_gaussian", lambda **kw: "ran")
+    monkeypatch.setattr(sinusoidal, "run_sinusoidal", lambda **kw: "ran")
+    budget.check_run(command, 1000, None)
+    assert capsys.readouterr().err.startswith("driftfmu: note: run %s --n 1000: " % command)
+    assert getattr(driftfmu, "run_" + command)(n=1000) == "ran"
+    assert capsys.readouterr().err == ""
+
+
 def test_the_api_names_its_keywords_and_the_command_line_its_options(monkeypatch):
     """One estimate for both; each says how to proceed in its own spelling."""
     _small_machine(monkeypatch)

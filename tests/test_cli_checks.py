@@ -667,6 +667,28 @@ def test_a_report_lost_after_the_results_are_in_place_is_a_warning(tmp_path):
     assert json.loads((tmp_path / "out" / "identify.json").read_text())
     assert sorted(p.name for p in (tmp_path / "out").iterdir()) == ["identify.json"]
 
+
+def test_standard_output_answers_as_its_stream_while_a_command_runs(monkeypatch, tmp_path):
+    """While a command runs, standard output is wrapped (a failed write is told apart from a
+    failed result); what a library asks of it besides writing (its encoding, whether it is a
+    terminal, its file descriptor) is the stream's answer."""
+    from driftfmu.simulations import cli
+    seen = []
+
+    def command(argv, previous):
+        out = sys.stdout
+        seen.append((out is not stream, out.encoding, out.isatty(), out.fileno()))
+        print("a line of the report")
+        return 0
+    monkeypatch.setattr(cli, "_command", command)
+    with open(tmp_path / "report.txt", "w", encoding="utf-8") as stream:
+        monkeypatch.setattr(sys, "stdout", stream)
+        assert main(["anything"]) == 0
+        assert sys.stdout is stream
+        assert seen == [(True, "utf-8", False, stream.fileno())]
+    assert (tmp_path / "report.txt").read_text() == "a line of the report\n"
+
+
 # -- a name nearly right: what was meant, as the API's keywords have it -------------------------
 
 @pytest.mark.parametrize("argv, line", [
@@ -729,3 +751,20 @@ def test_without_zig_the_warning_names_the_extra_that_gives_the_missing_platform
     project = ROOT / "pyproject.toml"
     if project.exists():  # a source checkout: the extra it names installs ziglang
         assert re.search(r'^native = \["ziglang>=[0-9.]+"\]$', project.read_text(), re.M)
+
+
+@pytest.mark.parametrize("missing", [1, 2])
+def test_the_warning_says_it_of_one_missing_platform_and_them_of_two(missing, monkeypatch):
+    """The warning's pronouns follow the count of missing platforms, on both sides of one."""
+    from driftfmu.fmu_src import native_build
+    gone = [p for p in native_build.PLATFORMS if p.endswith("darwin")][:missing]
+    monkeypatch.setattr(native_build, "compiler",
+                        lambda p: None if p in gone else (["cc"], [], "cc"))
+    lines = []
+    assert native_build.available_platforms(lines.append) == \
+        [p for p in native_build.PLATFORMS if p not in gone]
+    word = "it" if missing == 1 else "them"
+    assert lines == [
+        "warning: no compiler for %s here, so the native FMUs carry no binary for %s; to "
+        "build %s: %s: the extra driftfmu[native] (pip install \"driftfmu[native]\": ziglang, "
+        "a C compiler for every platform)" % (", ".join(gone), word, word, ", ".join(gone))]

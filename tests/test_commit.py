@@ -221,6 +221,12 @@ def test_a_commit_killed_at_every_step_is_completed_by_the_next_run(case, server
         if decided < i <= done:
             assert len(said) == 1 and said[0].startswith(
                 "completed the results commit of %s" % out), (i, steps[i], said)
+            # the moves the kill left (from the step it stopped, which did not happen), of all
+            moves = [s for s in steps[decided + 1:done] if s != "mkdir"]
+            left = sum(s != "mkdir" for s in steps[i:done])
+            assert said[0].endswith(
+                ": %d of its %d moves were left; every new file is in place" % (left, len(moves))
+                if left else ": every new file was in place already"), (i, steps[i], said)
         else:
             assert said == [], (i, steps[i], said)
 

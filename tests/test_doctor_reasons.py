@@ -57,6 +57,32 @@ def _verdict(fmu, capsys):
     return out, verdict[0]
 
 
+def test_the_python_an_fmu_was_built_with_is_named_only_when_it_differs(tmp_path):
+    """A Python version in the build record other than this process's is named; the same
+    version, or no record (a native FMU), says nothing of it."""
+    import json
+    import sys
+
+    import paperfmu
+    here = "%d.%d" % sys.version_info[:2]
+    line = ("this process runs Python %s; the FMU was built with %%s — fine for Python hosts, "
+            "whose own interpreter runs the FMU's code" % here)
+    fmu = paperfmu.paper_fmu(tmp_path / "Excitation.fmu", "Excitation")
+    said = [msg for _, msg in doctor.diagnose(fmu)]
+    assert not [m for m in said if "the FMU was built with" in m], said
+    for version, named in (("3.9.7", "3.9"), ("%s.1" % here, None)):
+        with_record = tmp_path / ("Excitation_%s.fmu" % version)
+        with zipfile.ZipFile(fmu) as zin, zipfile.ZipFile(with_record, "w") as zout:
+            for item in zin.infolist():
+                zout.writestr(item, zin.read(item.filename))
+            zout.writestr("resources/driftfmu_build.json",
+                          json.dumps({"python_version": version, "loader": "C"}))
+        said = [msg for _, msg in doctor.diagnose(with_record)]
+        assert "built by driftfmu with Python %s (C loader)" % version in said, said
+        assert [m for m in said if "the FMU was built with" in m] == \
+            ([line % named] if named else []), said
+
+
 @pytest.mark.integration
 def test_a_broken_model_description_is_named_with_a_verdict(built_fmus, tmp_path, capsys):
     bad = _rewrite(built_fmus["Excitation"], tmp_path / "Excitation.fmu",

@@ -150,6 +150,28 @@ def test_drift_png_marks_what_its_range_clips(figures, tmp_path):
     assert note and "empirical" in note[0]
 
 
+@pytest.mark.parametrize("off", [1, 12, 13, 40])
+def test_a_clipped_curve_gets_at_most_twelve_marks_from_its_first_to_its_last(off):
+    """Marks of one curve and side: one per sample off the scale up to 12, then 12 spread
+    from the first such sample to the last (both sides of the bound)."""
+    fig, ax = plt.subplots()
+    x = np.arange(100.0)
+    y = np.zeros(100)
+    y[20:20 + off] = 5.0
+    ax.plot(x, y, label="drift")
+    ax.set_ylim(-1, 1)
+    ax.set_xlim(0, 99)
+    try:
+        output.mark_clipping(ax)
+        (marks,) = [line for line in ax.get_lines() if line.get_label() == "_clipped drift"]
+        xs = np.asarray(marks.get_xdata())
+        assert xs.size == min(off, 12)
+        assert xs[0] == 20 and xs[-1] == 20 + off - 1
+        assert np.all(np.diff(xs) > 0) and np.all(np.asarray(marks.get_ydata()) == 1)
+    finally:
+        plt.close(fig)
+
+
 def test_drift_png_of_one_sample_draws_without_warning(figures, tmp_path):
     output.plot_drift(tmp_path / "drift.png", _one_run(n=1), "One sample: still a figure, "
                       "without a warning from matplotlib")

@@ -408,6 +408,36 @@ def test_a_section_past_the_end_is_named_though_the_segments_fit():
     assert why.startswith("truncated: the file has %d bytes, its section %d" % (len(data), i))
 
 
+@pytest.mark.parametrize("past", [0, 1])
+def test_a_section_that_ends_at_the_files_end_is_whole_and_one_byte_more_is_not(past):
+    """Both sides of the bound: a section's bytes may reach the last byte of the file."""
+    data = bytearray(paperfmu.library())
+    shoff, = struct.unpack_from("<Q", data, 40)
+    shnum, = struct.unpack_from("<H", data, 60)
+    at = next(shoff + 64 * i for i in range(shnum)
+              if struct.unpack_from("<I", data, shoff + 64 * i + 4)[0] not in (0, 8))
+    offset, = struct.unpack_from("<Q", data, at + 24)
+    struct.pack_into("<Q", data, at + 32, len(data) - offset + past)  # sh_size
+    why = _problem(bytes(data), "Linux")
+    if past:
+        assert why.startswith("truncated: the file has %d bytes, its section %d reaches byte "
+                              "%d " % (len(data), (at - shoff) // 64, len(data) + 1)), why
+    else:
+        assert why is None, why
+
+
+@pytest.mark.parametrize("phnum", [0, 1])
+def test_an_elf_library_needs_one_program_header_at_least(phnum):
+    """Both sides of the bound: no program header is no library a loader maps; one is."""
+    data = _elf_edit(56, "<H", phnum)  # e_phnum (libm's first one is its first PT_LOAD)
+    why = _problem(data, "Linux")
+    if phnum:
+        assert why is None, why
+    else:
+        assert why == "an ELF library without a valid program header table (0 entries of 56 " \
+            "bytes)", why
+
+
 def test_a_cut_library_without_section_headers_is_named_by_its_segments():
     """A library stripped of its section headers (``sstrip``; the loader needs only the
     program headers) and cut: the loaded segment that reaches past the end is named."""
@@ -648,6 +678,19 @@ def test_an_fmu_that_cannot_be_instantiated_says_the_fmus_own_reason():
     assert "on this host: Exec format error; expected" in said
 
 
+def test_an_fmu_that_logged_a_fatal_error_is_named_by_it_not_by_a_later_line():
+    # fmi2Fatal is logged as [fatal]; a warning or info line after it is not the reason
+    from driftfmu.simulations.cosim import not_instantiated
+    said = str(not_instantiated("X.fmu", Exception("Failed to instantiate model"), [
+        "X [fatal] X: out of memory",
+        "X [warning] X: the instance is not usable"]))
+    assert "on this host: X: out of memory; expected" in said
+    said = str(not_instantiated("X.fmu", Exception("Failed to instantiate model"), [
+        "X [ok] X: loaded",
+        "X [warning] X: the instance is not usable"]))
+    assert "on this host: Failed to instantiate model; expected" in said
+
+
 def test_the_apis_variables_are_read_from_a_checked_fmu(paper, tmp_path):
     from driftfmu._api import _variables
     path = T.EDITS["swapped value references"][0](paper["DriftEstimator", 2],
@@ -655,6 +698,28 @@ def test_the_apis_variables_are_read_from_a_checked_fmu(paper, tmp_path):
     with pytest.raises(FileProblem, match="x_hat has the value reference 15"):
         _variables(path)
     assert "x_hat" in _variables(paper["DriftEstimator", 2])
+
+
+def test_an_fmu_is_checked_once_per_process_until_its_file_changes(paper, tmp_path,
+                                                                    monkeypatch):
+    """check_fmu keeps its answer by the file's identity: a second call reads nothing; a file
+    changed (or replaced) in place is checked anew; a missing file is never kept."""
+    import shutil
+    path = tmp_path / "Accelerometer.fmu"
+    shutil.copyfile(paper["Accelerometer", 2], path)
+    monkeypatch.setattr(fmucheck, "_CHECKED", {})
+    seen = []
+    real = fmucheck.inspect
+    monkeypatch.setattr(fmucheck, "inspect", lambda *a: seen.append(a) or real(*a))
+    md = fmucheck.check_fmu(str(path), "Accelerometer")
+    assert fmucheck.check_fmu(str(path), "Accelerometer") is md and len(seen) == 1
+    st = path.stat()
+    os.utime(path, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))
+    assert fmucheck.check_fmu(str(path), "Accelerometer") is not md and len(seen) == 2
+    for _ in range(2):
+        with pytest.raises(FileProblem):
+            fmucheck.check_fmu(str(tmp_path / "missing.fmu"), "Accelerometer")
+    assert len(seen) == 4
 
 
 def test_inputs_refuses_an_edited_fmu(paper, tmp_path, capsys):

@@ -420,6 +420,42 @@ def test_a_cache_entry_another_user_could_have_written_is_compiled_again_never_s
     assert (entry.stat().st_uid, entry.stat().st_mode & 0o777) == (os.geteuid(), 0o600)
 
 
+def test_a_cache_entry_that_cannot_be_replaced_leaves_no_part_of_the_write(
+        cached_excitation, tmp_path):
+    """The entry's name taken by a folder (not empty: no rename replaces it): the library
+    written beside it cannot take its place; the build ships the bytes of a build without a
+    cache, and the part it wrote is removed (the cache holds what it held)."""
+    plain, written = cached_excitation
+    cache = tmp_path / "cache"
+    cache.mkdir()
+    (cache / written.name).mkdir()
+    (cache / written.name / "a file").write_text("in the way")
+    assert _build_excitation(tmp_path / "second", cache=cache).read_bytes() == plain
+    assert sorted(os.listdir(cache)) == [written.name]
+    assert os.listdir(cache / written.name) == ["a file"]
+
+
+@pytest.mark.skipif(not os.path.isdir("/proc/self/fd"), reason="no /proc/self/fd to count")
+def test_reading_cache_entries_leaves_no_descriptor_open(tmp_path):
+    """Each entry read (a whole one, a folder, one others may write, a symbolic link, none)
+    closes what it opened: a long build reads one entry per library."""
+    whole = tmp_path / "whole"
+    whole.write_bytes(native_build.cache_entry(b"a library"))
+    whole.chmod(0o600)
+    (tmp_path / "folder").mkdir()
+    shared = tmp_path / "shared"
+    shared.write_bytes(whole.read_bytes())
+    shared.chmod(0o666)
+    (tmp_path / "link").symlink_to(whole)
+    want = {"whole": b"a library", "folder": None, "shared": None, "link": None,
+            "missing": None}
+    before = sorted(os.listdir("/proc/self/fd"))
+    for _ in range(3):
+        for name, data in want.items():
+            assert native_build._read_cache_entry(tmp_path / name) == data, name
+    assert sorted(os.listdir("/proc/self/fd")) == before
+
+
 def test_the_cache_key_does_not_name_where_ziglang_is_installed(tmp_path, monkeypatch):
     """ziglang in another virtual environment (another Python running ``-m ziglang``, clang's
     ``InstalledDir`` elsewhere) is the same compiler: the same key.  Another ziglang version,

@@ -229,6 +229,90 @@ def test_no_fmu_gets_a_column_of_start_values_for_an_input_no_result_gives(model
         assert "--hold %s " % name in said, (name, said)
 
 
+@pytest.mark.parametrize("model, hold", [
+    ("Excitation", ["u_in"]), ("DriftEstimator", ["z", "u", "theta", "T"])])
+def test_an_fmu_whose_every_input_is_held_is_refused(model, hold, paper, tmp_path, capsys,
+                                                      monkeypatch):
+    """With every input held no result's rows count the samples: the command wrote without
+    end (an endless file); now one line (``_count`` is bounded here, so that the old fault
+    ends and fails the test instead of filling the disk)."""
+    monkeypatch.setattr(hostinputs, "_count", lambda: iter(range(1000)))
+    result = tmp_path / "r.csv"
+    result.write_text("time,unrelated\n0,1\n0.001,2\n")
+    out = tmp_path / "in.csv"
+    rc, _, err = _run(["inputs", str(paper[model]), str(result), "--output-file", str(out)] +
+                      [a for name in hold for a in ("--hold", name)], capsys)
+    assert _refused(rc, err, out, None) == (
+        "driftfmu: error: %s's input%s %s %s held (%s), so no result gives the samples; "
+        "allowed: at least one input from a result's column" % (
+            model, "s" if len(hold) > 1 else "", ", ".join(hold),
+            "are all" if len(hold) > 1 else "is", " ".join("--hold " + n for n in hold)))
+    # one input from a result: written, the rest held
+    result.write_text("time,z\n0,0.7\n0.001,0.8\n")
+    if model == "DriftEstimator":
+        rc, said, err = _run(["inputs", str(paper[model]), str(result), "--output-file",
+                              str(out), "--hold", "u"] + HOLD, capsys)
+        assert rc == 0 and out.exists(), err
+
+
+def _foreign_fmu(path, md_variables, structure):
+    """An FMU of a model that is not driftfmu's (``Gain``): FMI 2.0, the given variables, and
+    a whole shared library of this machine as its binary (tests/paperfmu.py)."""
+    import zipfile
+
+    import paperfmu
+    md = ('<?xml version="1.0" encoding="UTF-8"?>\n<fmiModelDescription fmiVersion="2.0" '
+          'modelName="Gain" guid="{gain}" variableNamingConvention="flat" '
+          'numberOfEventIndicators="0">\n<CoSimulation modelIdentifier="Gain"/>\n'
+          '<ModelVariables>\n%s</ModelVariables>\n<ModelStructure><Outputs>%s</Outputs>'
+          '</ModelStructure>\n</fmiModelDescription>\n' % (md_variables, structure))
+    with zipfile.ZipFile(path, "w") as z:
+        z.writestr("modelDescription.xml", md)
+        z.writestr("binaries/linux64/Gain.so", paperfmu.library())
+    return path
+
+
+GAIN_U = ('<ScalarVariable name="u" valueReference="0" causality="input" '
+          'variability="continuous"><Real/></ScalarVariable>\n'
+          '<ScalarVariable name="y" valueReference="1" causality="output" '
+          'variability="continuous"><Real/></ScalarVariable>\n')
+
+
+def test_an_fmu_of_another_model_without_ts_or_start_values(tmp_path, capsys):
+    """Its model description is all there is: an input without a start value (which FMI
+    requires, and some tools omit) is held at 0; without a parameter Ts, --Ts is needed; with a
+    Ts, its start value is the sample period."""
+    fmu = _foreign_fmu(tmp_path / "Gain.fmu", GAIN_U, '<Unknown index="2"/>')
+    assert hostinputs.fmu_inputs(str(fmu)) == ("Gain", [("u", 0.0)], None, 0.0)
+    result = tmp_path / "r.csv"
+    result.write_text("time,v\n0,0.5\n0.001,0.25\n")
+    out = tmp_path / "in.csv"
+    rc, _, err = _run(["inputs", str(fmu), str(result), "--output-file", str(out),
+                       "--hold", "u"], capsys)
+    assert _refused(rc, err, out, None).startswith(
+        "driftfmu: error: Ts is not given and the FMU has none; allowed: --Ts, ")
+    rc, _, err = _run(["inputs", str(fmu), str(result), "--output-file", str(out),
+                       "--Ts", "0.001"], capsys)
+    assert _refused(rc, err, out, None).endswith(
+        "or --hold u to write its start value 0.0 for every sample")
+    with_ts = _foreign_fmu(tmp_path / "GainTs.fmu", GAIN_U.replace(
+        'continuous"><Real/>', 'continuous"><Real start="2.5"/>', 1) +
+        '<ScalarVariable name="Ts" valueReference="2" causality="parameter" '
+        'variability="fixed" initial="exact"><Real start="0.002"/></ScalarVariable>\n',
+        '<Unknown index="2"/>')
+    assert hostinputs.fmu_inputs(str(with_ts)) == ("Gain", [("u", 2.5)], 0.002, 0.0)
+    # two inputs, both held: refused as the Excitation's one is (the plural from two on)
+    two = _foreign_fmu(tmp_path / "Gain2.fmu", GAIN_U + GAIN_U.replace('"u"', '"v"').replace(
+        '"y"', '"w"').replace('="0"', '="2"').replace('="1"', '="3"'),
+        '<Unknown index="2"/><Unknown index="4"/>')
+    result.write_text("time,x\n0,0.5\n0.001,0.25\n")
+    rc, _, err = _run(["inputs", str(two), str(result), "--output-file", str(out), "--Ts",
+                       "0.001", "--hold", "u", "--hold", "v"], capsys)
+    assert _refused(rc, err, out, None) == (
+        "driftfmu: error: Gain's inputs u, v are all held (--hold u --hold v), so no result "
+        "gives the samples; allowed: at least one input from a result's column")
+
+
 # -- times as hosts and spreadsheets write them ---------------------------------------------------
 
 FORMATS = {

@@ -361,6 +361,45 @@ def test_symbolic_links_on_the_way_are_followed_and_checked(tmp_path):
     assert trust.path_problem(links / "good" / ".." / good.name) is None
 
 
+def test_another_owner_is_named_with_the_owners_allowed(monkeypatch):
+    """The message names who may own the file: this user, and root unless this user is root
+    or the caller allows other owners."""
+    def status(uid):
+        return os.stat_result((stat.S_IFDIR | 0o700, 1, 1, 1, uid, uid, 0, 0, 0, 0))
+    monkeypatch.setattr(trust, "_me", lambda: 1000)
+    assert trust.others_can_write(status(OTHER)) == \
+        "is owned by uid %d, not by this user (uid 1000) or root" % OTHER
+    assert trust.others_can_write(status(OTHER), owners=(1000,)) == \
+        "is owned by uid %d, not by this user (uid 1000)" % OTHER
+    assert trust.others_can_write(status(0)) is None
+    assert trust.others_can_write(status(0), owners=(1000,)) == \
+        "is owned by uid 0, not by this user (uid 1000)"
+    monkeypatch.setattr(trust, "_me", lambda: 0)
+    assert trust.others_can_write(status(OTHER)) == \
+        "is owned by uid %d, not by this user (uid 0)" % OTHER
+
+
+@pytest.mark.parametrize("count", [trust.MAX_LINKS, trust.MAX_LINKS + 1])
+def test_symbolic_links_are_followed_as_far_as_the_kernel_follows_them(count, tmp_path):
+    """A path through MAX_LINKS links resolves (for the kernel and for path_problem); one
+    more link is too many for both."""
+    target = chain(tmp_path, 0o700)
+    links = tmp_path / "links"
+    links.mkdir(mode=0o700)
+    last = target
+    for i in range(count):
+        link = links / ("l%d" % i)
+        link.symlink_to(last)
+        last = link
+    if count <= trust.MAX_LINKS:
+        assert os.path.samestat(os.stat(last), os.stat(target))
+        assert trust.path_problem(last) is None
+    else:
+        with pytest.raises(OSError, match="symbolic links"):
+            os.stat(last)
+        assert trust.path_problem(last) == "%s: too many symbolic links" % last
+
+
 @AS_ROOT
 def test_a_group_is_this_users_alone_only_without_other_members(monkeypatch):
     """The user private group (group-writable folders of Debian's ``umask 002``): a group whose
