@@ -126,6 +126,23 @@ def test_sigma_is_the_spread_of_the_residual(case):
         (spread, dcl.sigma(case, s))
 
 
+def test_the_reference_of_class_1_is_the_chain_of_models_at_a_correlated_excitation():
+    """Class 1 alone is the letter's chain: :func:`reference` equals models.chain.simulate (the
+    batch engine's and the FMUs' definition) bit for bit, also at ``A = 0.9``, where the
+    filter's start (``x0 = 0``, ``P0 = Q / (1 - A^2)``) shows in its first estimates."""
+    from driftfmu.models import chain
+    s = dict(S, n=400, A=0.9, Q=0.0019)
+    ref = dcl.reference("class 1", s, SEEDS, s["n"])
+    ch = chain.simulate(s["n"], SEEDS, a0=s["a0"], a1=s["a1"], a2=s["a2"], A=0.9, Q=0.0019,
+                        R=s["R"], Ts=s["Ts"])
+    for mine, theirs in (("x", "x"), ("z", "z"), ("x_hat", "x_hat"), ("dc", "dc_ekf1"),
+                         ("z_comp", "z_comp")):
+        assert ref[mine].tobytes() == np.asarray(ch[theirs]).tobytes(), mine
+    # the start matters here: the first estimate from a prior P0 = Q, not Q / (1 - A^2), differs
+    other = chain.simulate(2, SEEDS, a2=s["a2"], A=0.9, Q=0.0019, R=s["R"], P0=0.0019)
+    assert np.all(np.asarray(other["x_hat"])[:, 0] != ref["x_hat"][:, 0])
+
+
 # -- the formulas, by hand ---------------------------------------------------------------------
 
 def test_window_start_and_means_take_the_samples_after_the_settling_share():
@@ -252,6 +269,18 @@ def test_the_experiment_through_the_fmus_equals_the_reference(built_fmus, tmp_pa
     c = dcl.CLASS2
     assert row["dc_class2"] == pytest.approx(errors.class2_offset(
         c["theta"], c["T"], 1.0, 0.0, c["T0"], c["kT_bias"], c["kT_scale"]), rel=1e-12)
+
+
+@pytest.mark.integration
+def test_a_correlated_excitation_through_the_fmus_equals_the_reference(built_fmus):
+    """``A`` and ``Q`` are settings of the experiment: at ``A = 0.9`` (where the filter's prior
+    ``P0 = Q / (1 - A^2)`` and start ``x0 = 0`` shape its first steps; at the letter's ``A = 0``
+    the first prediction forgets both) the FMUs still equal models/ bit for bit."""
+    fmu_dir = built_fmus["DriftEstimator"].parent
+    s = driftfmu.experiment_drift_classes(n=40, runs=1, workers=1, fmu_dir=fmu_dir, A=0.9,
+                                          Q=0.0019)
+    assert s["validation"]["bit_identical"] and s["validation"]["max_abs_diff"] == 0.0
+    assert (s["settings"]["A"], s["settings"]["Q"]) == (0.9, 0.0019)
 
 
 # -- refusals ------------------------------------------------------------------------------------
