@@ -150,20 +150,23 @@ def test_window_start_and_means_take_the_samples_after_the_settling_share():
     assert dcl.window_start(10, 0.0) == 0 and dcl.window_start(10, 0.99) == 9
     s = dict(S, a0=0.5, a1=2.0, R=0.04)
     n = 10
-    x = np.arange(n, dtype=float)[None, :] / 10
-    v = np.ones((1, n))
-    d = np.array([[9.0] * 5 + [1.0, 2.0, 3.0, 4.0, 5.0]])  # first half unlike the second
+    # two runs (rows), each its own means: the second's state three times the first's
+    x = np.arange(n, dtype=float)[None, :] / 10 * np.array([[1.0], [3.0]])
+    v = np.ones((2, n))
+    d = np.array([[9.0] * 5 + [1.0, 2.0, 3.0, 4.0, 5.0],   # first half unlike the second
+                  [9.0] * 5 + [2.0, 4.0, 6.0, 8.0, 10.0]])
     cols = {"x": x, "v": v, "z": 0.5 + 2.0 * x + 0.2 * v + d,
-            "z_comp": 0.5 + 2.0 * x + 0.2 * v + d / 4, "dc": np.full((1, n), 1.0),
-            "b_hat": np.full((1, n), 2.0), "dc_class2": np.full((1, n), 0.25), "a2": 0.5}
+            "z_comp": 0.5 + 2.0 * x + 0.2 * v + d / 4, "dc": np.array([[1.0], [1.5]]) * np.ones(n),
+            "b_hat": np.full((2, n), 2.0), "dc_class2": np.full((2, n), 0.25), "a2": 0.5}
     dd, rr = dcl.drift_and_residual(cols, s)
     np.testing.assert_allclose(dd, d, atol=1e-12)
     np.testing.assert_allclose(rr, d / 4, atol=1e-12)
     m = dcl.window_means(cols, s, 0.5)
-    np.testing.assert_allclose(m["drift"], [3.0], atol=1e-12)
-    np.testing.assert_allclose(m["residual"], [0.75], atol=1e-12)
-    np.testing.assert_allclose(m["estimate"], [3.25], atol=1e-12)
-    np.testing.assert_allclose(m["class1_true"], [0.5 * np.mean(x[0, 5:] ** 2)], atol=1e-15)
+    np.testing.assert_allclose(m["drift"], [3.0, 6.0], atol=1e-12)
+    np.testing.assert_allclose(m["residual"], [0.75, 1.5], atol=1e-12)
+    np.testing.assert_allclose(m["estimate"], [3.25, 3.75], atol=1e-12)
+    # class 1's true part per run: a2 mean(x^2) over the window (0.255 and 9 times that)
+    np.testing.assert_allclose(m["class1_true"], [0.5 * 0.51, 0.5 * 9 * 0.51], rtol=1e-12)
 
 
 def test_sigma_by_hand():
