@@ -195,6 +195,33 @@ def test_sigma_by_hand():
     assert dcl.bound("class 3", s) == 4 * dcl.sigma("class 3", s)
 
 
+def test_drift_size_by_hand():
+    """Each case's nominal drift size :func:`drift_size` (the denominator of the table's
+    ``fraction_bound``) against its formula computed here, at a correlated excitation
+    (``sigma_x^2 = Q / (1 - A^2)``, not ``Q``) and a window whose middle is ``t = (k_s + n) Ts
+    / 2 = 0.65 s``."""
+    s = dict(S, n=1000, settle=0.3, A=0.9, Q=0.0019)
+    ks, Ts = 300, s["Ts"]
+    vx = 0.0019 / (1 - 0.81)
+    c2, c3, c4 = dcl.CLASS2, dcl.CLASS3, dcl.CLASS4
+
+    def offset(a2, kT_bias, kT_scale):
+        return errors.class2_offset(c2["theta"], c2["T"], s["a1"], a2, c2["T0"], kT_bias,
+                                    kT_scale)
+    one = s["a2"] * vx
+    two = offset(0.0, c2["kT_bias"], c2["kT_scale"])
+    off = abs(offset(0.0, 1.1 * c2["kT_bias"], 1.1 * c2["kT_scale"]) - two)
+    three = c3["d_inf"] * (1 - math.exp(-ks * Ts * vx / c3["E_tau"]))
+    four2 = (c4["bias_on"] ** 2 + c4["bias_gm"] ** 2 + c4["flicker"] ** 2
+             + c4["random_walk"] ** 2 * 0.65)
+    every = one + offset(s["a2"], c2["kT_bias"], c2["kT_scale"]) + three
+    for case, size in (("class 1", one), ("class 2", two), ("class 2, coefficients off", off),
+                       ("class 2, coefficients off, bias state", off), ("class 3", three),
+                       ("class 4", math.sqrt(four2)),
+                       ("all classes", math.sqrt(every ** 2 + four2))):
+        assert dcl.drift_size(case, s) == pytest.approx(size, rel=1e-12), case
+
+
 def test_qb_follows_the_guidance():
     """Class 4: ``Qb = K^2 Ts`` for a walk alone, plus each Gauss-Markov process's
     ``sigma^2 (1 - exp(-2 Ts / tau))``; class 3: the walk that grows by ``d_inf`` over the
