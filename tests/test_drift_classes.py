@@ -404,6 +404,16 @@ def test_the_masters_start_values_give_the_estimator_the_sensors_tilt_and_temper
     assert "theta" not in plain["DriftEstimator"] and "T" not in plain["DriftEstimator"]
 
 
+def test_the_masters_start_values_refuse_a_name_they_do_not_know():
+    """A misspelt parameter (the SSP's bindings and the benchmarks call start_values directly,
+    without run_gaussian's keyword check) is a TypeError that names it, not a bare KeyError
+    from deep inside; a known one at its off value sets nothing."""
+    from driftfmu.simulations import gaussian
+    with pytest.raises(TypeError, match=r"^unknown parameter\(s\) T_sensor, thta$"):
+        gaussian.start_values(thta=0.3, T_sensor=310.0)
+    assert "theta" not in gaussian.start_values(theta=0.0)["DriftEstimator"]
+
+
 @pytest.mark.integration
 def test_run_gaussian_gives_the_estimator_the_sensors_tilt_and_temperature(built_fmus):
     """The FMUs equal models/ with the tilt wired (else run_gaussian's check fails), and
