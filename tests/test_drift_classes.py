@@ -275,6 +275,79 @@ def test_expected_residual_is_the_offsets_error():
     assert dcl.expected_residual("class 2, coefficients off, bias state", S) == 0.0
 
 
+# -- the figure ----------------------------------------------------------------------------------
+
+def _figure(tmp_path, closed_figures):
+    """drift_classes.png of made-up block means (the figure's input, no FMU run): each case's
+    true drift 10 mV and more, its estimate a little below, its residual a few mV."""
+    s = dict(dcl.LETTER, **dict(dcl.DEFAULTS, n=4000, block=1000))
+    t = [0.5, 1.5, 2.5, 3.5]
+    traces, rows = {}, []
+    for i, case in enumerate(dcl.CASES):
+        drift = [0.01 * (i + 1) * (1 + 0.1 * j) for j in range(4)]
+        traces[case] = {"t": t, "drift": drift, "estimate": [0.95 * d for d in drift],
+                        "residual": [0.002 * (-1) ** j * (i + 1) for j in range(4)]}
+        rows.append({"case": case, "residual": 1e-4 * (i + 1), "drift": drift[-1], "runs": 1})
+    dcl.plot_drift_classes(tmp_path / "drift_classes.png", {"settings": s, "cases": rows},
+                           traces)
+    (fig,) = closed_figures
+    return fig
+
+
+def _curves(ax):
+    """The axes' data curves (not the zero lines, not the clipping marks)."""
+    return [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+
+
+def _zero_lines(ax):
+    return [line for line in ax.get_lines() if line.get_label().startswith("_child")
+            and list(line.get_ydata()) == [0.0, 0.0]]
+
+
+def test_the_figure_draws_each_curve_in_the_colour_the_results_page_names(tmp_path,
+                                                                          closed_figures):
+    """docs/results.md: the true drift black, the estimate blue, the residual of ``z_comp``
+    red; for class 2 the three variants' residuals on an axis of their own (right), each its
+    own colour and dash."""
+    from matplotlib.colors import same_color
+    fig = _figure(tmp_path, closed_figures)
+    panels, twins = fig.axes[:len(dcl.PANELS)], fig.axes[len(dcl.PANELS):]
+    assert len(twins) == 1  # class 2's right axis, the only one
+    right = twins[0]
+    for ax, (title, cases) in zip(panels, dcl.PANELS):
+        curves = {line.get_label(): line for line in _curves(ax)}
+        assert same_color(curves["true drift"].get_color(), "black"), title
+        assert same_color(curves["estimate dc + b_hat + dc_class2"].get_color(), "tab:blue")
+        if len(cases) == 1:
+            assert same_color(curves["residual of z_comp"].get_color(), "tab:red"), title
+        else:
+            assert ax.get_shared_x_axes().joined(ax, right)
+            residuals = _curves(right)
+            assert [line.get_label() for line in residuals] == [
+                "residual of z_comp (%s, right axis)" % dcl._short(c) for c in cases]
+            assert same_color(residuals[0].get_color(), "tab:red")
+            styles = {(line.get_color(), line.get_linestyle()) for line in residuals}
+            colours = [line.get_color() for line in residuals]
+            assert len(styles) == 3 and len(set(colours)) == 3
+            assert not any(same_color(c, "black") or same_color(c, "tab:blue")
+                           for c in colours)
+
+
+def test_the_figures_zero_lines_are_thinner_than_its_curves(tmp_path, closed_figures):
+    """Each axes' zero line (the panel's black one, the right axis's grey one) is a reference
+    drawn under the data: thinner than every curve of its axes, so that a residual near 0 is
+    not hidden by it, and neutral (black or grey), not in a curve's colour."""
+    from matplotlib.colors import to_rgba
+    fig = _figure(tmp_path, closed_figures)
+    for ax in fig.axes:
+        zeros, curves = _zero_lines(ax), _curves(ax)
+        assert len(zeros) == 1 and curves, ax.get_title()
+        r, g, b, _ = to_rgba(zeros[0].get_color())
+        assert r == g == b, (ax.get_title(), zeros[0].get_color())
+        assert zeros[0].get_linewidth() < min(line.get_linewidth() for line in curves), \
+            (ax.get_title(), zeros[0].get_linewidth())
+
+
 # -- through the FMUs ----------------------------------------------------------------------------
 
 @pytest.mark.integration
