@@ -353,12 +353,20 @@ def test_the_figures_zero_lines_are_thinner_than_its_curves(tmp_path, closed_fig
 @pytest.mark.integration
 def test_the_experiment_through_the_fmus_equals_the_reference(built_fmus, tmp_path):
     """Every case through the Python FMUs, the outputs equal models/ bit for bit; the files
-    are written, the table has a row per case."""
+    are written, the table has a row per case; the progress counts the runs, then the
+    validation as a phase of its own, case by case."""
     fmu_dir = built_fmus["DriftEstimator"].parent
     out = tmp_path / "out"
     seen = []
+
+    class Recorder:
+        def __call__(self, done):
+            seen.append(done)
+
+        def phase(self, desc, total, unit=None):
+            seen.append((desc, total, unit))
     s = driftfmu.experiment_drift_classes(out=out, n=300, runs=1, workers=1, fmu_dir=fmu_dir,
-                                          progress=seen.append)
+                                          progress=Recorder())
     assert s["validation"]["bit_identical"] and s["validation"]["max_abs_diff"] == 0.0
     assert sorted(p.name for p in out.iterdir()) == ["drift_classes.csv", "drift_classes.json",
                                                      "drift_classes.png"]
@@ -366,7 +374,12 @@ def test_the_experiment_through_the_fmus_equals_the_reference(built_fmus, tmp_pa
         == list(dcl.CASES)
     table = np.genfromtxt(out / "drift_classes.csv", delimiter=",", names=True)
     assert list(table["case"]) == list(range(1, len(dcl.CASES) + 1))
-    assert seen and max(seen) == len(dcl.CASES)
+    phase = [i for i, v in enumerate(seen) if isinstance(v, tuple)]
+    assert len(phase) == 1, seen
+    i = phase[0]
+    assert seen[i] == ("validation (FMU outputs against models/)", len(dcl.CASES), "case")
+    assert sorted(seen[:i]) == list(range(1, len(dcl.CASES) + 1))  # the runs: 7 cases x 1 run
+    assert seen[i + 1:] == list(range(1, len(dcl.CASES) + 1))  # then the cases' validation
     # the class-2 offset the estimator removed is the one the sensor's tilt and temperature make
     row = {r["case"]: r for r in s["cases"]}["class 2"]
     c = dcl.CLASS2
