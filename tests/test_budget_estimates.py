@@ -234,3 +234,34 @@ def test_a_backend_without_its_own_figure_is_estimated_as_the_python_fmus(machin
         B.check_adxl203((100.0,), 3, 1000, 1, None, backend="python", announce=False)
     assert B.check_dual_axis(2, 3, 100, "fmu", 1, None, backend="elsewhere", announce=False) \
         == B.check_dual_axis(2, 3, 100, "fmu", 1, None, backend="python", announce=False)
+
+
+@pytest.mark.parametrize("api", [False, True])
+def test_drift_classes_refused_names_the_runs_or_the_samples_at_one_run_that_fit(machine, api):
+    """``experiment drift-classes`` keeps every case's runs (7 cases): a refusal names the runs
+    that fit while at least one does (``runs x share >= 1``), else the samples that fit in one
+    run.  Both sides of that bound: 2 runs at exactly half the room (share 0.5: 1 run fits) and
+    at one sample more (share just below 0.5: no whole run fits); and results that do not fit
+    on disk at all name the smallest run the experiment takes (n = 2)."""
+    runs = 2
+    n = int(_room(B.DRIFT_CLASSES_MEMORY * 7 * runs) / 0.5)   # 7,500,000: share exactly 0.5
+    for n_, fits in ((n, "runs=1" if api else "--runs 1"), (n + 1, None)):
+        with pytest.raises(UsageError) as e:
+            B.check_drift_classes(runs, n_, 1, None, api=api, announce=False)
+        text = str(e.value)
+        assert text.startswith("experiment_drift_classes(runs=2, n=%d) needs about " % n_ if api
+                               else "experiment drift-classes --runs 2 --n %d needs about "
+                               % n_), text
+        if fits is None:
+            share = _room(B.DRIFT_CLASSES_MEMORY * 7 * runs * n_)
+            assert share < 0.5
+            fits = ("n=%d at runs=1" if api else "--n %d at --runs 1") \
+                % max(2, int(n_ * runs * share))
+        assert text.endswith("allowed: a run that fits: at most %s; or fewer %s or a smaller %s"
+                             % ((fits,) + (("runs", "n") if api else ("--runs", "--n")))), text
+    # results that do not fit on disk at all: the smallest run the experiment takes (n = 2)
+    with pytest.MonkeyPatch.context() as m:
+        m.setattr(B, "free_disk", lambda folder: 1.0)
+        with pytest.raises(UsageError) as e:
+            B.check_drift_classes(1, 1000, 1, "results/x", api=api, announce=False)
+    assert ("at most n=2 at runs=1;" if api else "at most --n 2 at --runs 1;") in str(e.value)

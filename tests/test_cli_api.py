@@ -30,6 +30,17 @@ COMMANDS = [
       "0.5", "--fu", "150", "--out", "{tmp}/o"],
      "run_sinusoidal", {"out": "{tmp}/o", "n": 9, "parameters": {
          "process": 1, "B": 1.0, "drive": 2, "Xu": 0.5, "fu": 150.0, "Qu": 0.0}}),
+    # every other option of run sinusoidal away from its default, each reaching its keyword
+    (["run", "sinusoidal", "--n", "9", "--X", "0.7", "--phi", "0.3", "--Ts", "0.002",
+      "--seed", "5", "--a0", "0.1", "--a1", "1.5", "--a2", "0.02", "--R", "2e-4", "--Qh", "3e-8",
+      "--A", "0.5", "--Q", "0.04", "--P0", "0.06", "--estimator", "2", "--Xy", "0.25",
+      "--phiy", "0.4", "--fmu-dir", "{tmp}/f", "--backend", "native", "--out", "{tmp}/o"],
+     "run_sinusoidal", {"out": "{tmp}/o", "n": 9, "fmu_dir": "{tmp}/f", "backend": "native",
+                        "parameters": {"X": 0.7, "f": 150.0, "phi": 0.3, "Ts": 0.002,
+                                       "seed": 5, "a0": 0.1, "a1": 1.5, "a2": 0.02,
+                                       "R": 2e-4, "process": 2, "Qh": 3e-8, "A": 0.5,
+                                       "Q": 0.04, "P0": 0.06, "estimator": 2,
+                                       "Xy": 0.25, "phiy": 0.4}}),
     (["montecarlo", "gaussian", "--runs", "3", "--n", "5", "--summary-only", "--a3", "0.002",
       "--out", "{tmp}/o"],
      "montecarlo", {"kind": "gaussian", "runs": 3, "n": 5, "out": "{tmp}/o",

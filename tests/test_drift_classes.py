@@ -126,6 +126,23 @@ def test_sigma_is_the_spread_of_the_residual(case):
         (spread, dcl.sigma(case, s))
 
 
+def test_the_reference_of_class_1_is_the_chain_of_models_at_a_correlated_excitation():
+    """Class 1 alone is the letter's chain: :func:`reference` equals models.chain.simulate (the
+    batch engine's and the FMUs' definition) bit for bit, also at ``A = 0.9``, where the
+    filter's start (``x0 = 0``, ``P0 = Q / (1 - A^2)``) shows in its first estimates."""
+    from driftfmu.models import chain
+    s = dict(S, n=400, A=0.9, Q=0.0019)
+    ref = dcl.reference("class 1", s, SEEDS, s["n"])
+    ch = chain.simulate(s["n"], SEEDS, a0=s["a0"], a1=s["a1"], a2=s["a2"], A=0.9, Q=0.0019,
+                        R=s["R"], Ts=s["Ts"])
+    for mine, theirs in (("x", "x"), ("z", "z"), ("x_hat", "x_hat"), ("dc", "dc_ekf1"),
+                         ("z_comp", "z_comp")):
+        assert ref[mine].tobytes() == np.asarray(ch[theirs]).tobytes(), mine
+    # the start matters here: the first estimate from a prior P0 = Q, not Q / (1 - A^2), differs
+    other = chain.simulate(2, SEEDS, a2=s["a2"], A=0.9, Q=0.0019, R=s["R"], P0=0.0019)
+    assert np.all(np.asarray(other["x_hat"])[:, 0] != ref["x_hat"][:, 0])
+
+
 # -- the formulas, by hand ---------------------------------------------------------------------
 
 def test_window_start_and_means_take_the_samples_after_the_settling_share():
@@ -133,20 +150,23 @@ def test_window_start_and_means_take_the_samples_after_the_settling_share():
     assert dcl.window_start(10, 0.0) == 0 and dcl.window_start(10, 0.99) == 9
     s = dict(S, a0=0.5, a1=2.0, R=0.04)
     n = 10
-    x = np.arange(n, dtype=float)[None, :] / 10
-    v = np.ones((1, n))
-    d = np.array([[9.0] * 5 + [1.0, 2.0, 3.0, 4.0, 5.0]])  # first half unlike the second
+    # two runs (rows), each its own means: the second's state three times the first's
+    x = np.arange(n, dtype=float)[None, :] / 10 * np.array([[1.0], [3.0]])
+    v = np.ones((2, n))
+    d = np.array([[9.0] * 5 + [1.0, 2.0, 3.0, 4.0, 5.0],   # first half unlike the second
+                  [9.0] * 5 + [2.0, 4.0, 6.0, 8.0, 10.0]])
     cols = {"x": x, "v": v, "z": 0.5 + 2.0 * x + 0.2 * v + d,
-            "z_comp": 0.5 + 2.0 * x + 0.2 * v + d / 4, "dc": np.full((1, n), 1.0),
-            "b_hat": np.full((1, n), 2.0), "dc_class2": np.full((1, n), 0.25), "a2": 0.5}
+            "z_comp": 0.5 + 2.0 * x + 0.2 * v + d / 4, "dc": np.array([[1.0], [1.5]]) * np.ones(n),
+            "b_hat": np.full((2, n), 2.0), "dc_class2": np.full((2, n), 0.25), "a2": 0.5}
     dd, rr = dcl.drift_and_residual(cols, s)
     np.testing.assert_allclose(dd, d, atol=1e-12)
     np.testing.assert_allclose(rr, d / 4, atol=1e-12)
     m = dcl.window_means(cols, s, 0.5)
-    np.testing.assert_allclose(m["drift"], [3.0], atol=1e-12)
-    np.testing.assert_allclose(m["residual"], [0.75], atol=1e-12)
-    np.testing.assert_allclose(m["estimate"], [3.25], atol=1e-12)
-    np.testing.assert_allclose(m["class1_true"], [0.5 * np.mean(x[0, 5:] ** 2)], atol=1e-15)
+    np.testing.assert_allclose(m["drift"], [3.0, 6.0], atol=1e-12)
+    np.testing.assert_allclose(m["residual"], [0.75, 1.5], atol=1e-12)
+    np.testing.assert_allclose(m["estimate"], [3.25, 3.75], atol=1e-12)
+    # class 1's true part per run: a2 mean(x^2) over the window (0.255 and 9 times that)
+    np.testing.assert_allclose(m["class1_true"], [0.5 * 0.51, 0.5 * 9 * 0.51], rtol=1e-12)
 
 
 def test_sigma_by_hand():
@@ -173,6 +193,33 @@ def test_sigma_by_hand():
     assert dcl.sigma("class 3", s) == pytest.approx(math.sqrt(g * r * (2 - g) / (g * W)),
                                                     rel=1e-12)
     assert dcl.bound("class 3", s) == 4 * dcl.sigma("class 3", s)
+
+
+def test_drift_size_by_hand():
+    """Each case's nominal drift size :func:`drift_size` (the denominator of the table's
+    ``fraction_bound``) against its formula computed here, at a correlated excitation
+    (``sigma_x^2 = Q / (1 - A^2)``, not ``Q``) and a window whose middle is ``t = (k_s + n) Ts
+    / 2 = 0.65 s``."""
+    s = dict(S, n=1000, settle=0.3, A=0.9, Q=0.0019)
+    ks, Ts = 300, s["Ts"]
+    vx = 0.0019 / (1 - 0.81)
+    c2, c3, c4 = dcl.CLASS2, dcl.CLASS3, dcl.CLASS4
+
+    def offset(a2, kT_bias, kT_scale):
+        return errors.class2_offset(c2["theta"], c2["T"], s["a1"], a2, c2["T0"], kT_bias,
+                                    kT_scale)
+    one = s["a2"] * vx
+    two = offset(0.0, c2["kT_bias"], c2["kT_scale"])
+    off = abs(offset(0.0, 1.1 * c2["kT_bias"], 1.1 * c2["kT_scale"]) - two)
+    three = c3["d_inf"] * (1 - math.exp(-ks * Ts * vx / c3["E_tau"]))
+    four2 = (c4["bias_on"] ** 2 + c4["bias_gm"] ** 2 + c4["flicker"] ** 2
+             + c4["random_walk"] ** 2 * 0.65)
+    every = one + offset(s["a2"], c2["kT_bias"], c2["kT_scale"]) + three
+    for case, size in (("class 1", one), ("class 2", two), ("class 2, coefficients off", off),
+                       ("class 2, coefficients off, bias state", off), ("class 3", three),
+                       ("class 4", math.sqrt(four2)),
+                       ("all classes", math.sqrt(every ** 2 + four2))):
+        assert dcl.drift_size(case, s) == pytest.approx(size, rel=1e-12), case
 
 
 def test_qb_follows_the_guidance():
@@ -228,17 +275,98 @@ def test_expected_residual_is_the_offsets_error():
     assert dcl.expected_residual("class 2, coefficients off, bias state", S) == 0.0
 
 
+# -- the figure ----------------------------------------------------------------------------------
+
+def _figure(tmp_path, closed_figures):
+    """drift_classes.png of made-up block means (the figure's input, no FMU run): each case's
+    true drift 10 mV and more, its estimate a little below, its residual a few mV."""
+    s = dict(dcl.LETTER, **dict(dcl.DEFAULTS, n=4000, block=1000))
+    t = [0.5, 1.5, 2.5, 3.5]
+    traces, rows = {}, []
+    for i, case in enumerate(dcl.CASES):
+        drift = [0.01 * (i + 1) * (1 + 0.1 * j) for j in range(4)]
+        traces[case] = {"t": t, "drift": drift, "estimate": [0.95 * d for d in drift],
+                        "residual": [0.002 * (-1) ** j * (i + 1) for j in range(4)]}
+        rows.append({"case": case, "residual": 1e-4 * (i + 1), "drift": drift[-1], "runs": 1})
+    dcl.plot_drift_classes(tmp_path / "drift_classes.png", {"settings": s, "cases": rows},
+                           traces)
+    (fig,) = closed_figures
+    return fig
+
+
+def _curves(ax):
+    """The axes' data curves (not the zero lines, not the clipping marks)."""
+    return [line for line in ax.get_lines() if not line.get_label().startswith("_")]
+
+
+def _zero_lines(ax):
+    return [line for line in ax.get_lines() if line.get_label().startswith("_child")
+            and list(line.get_ydata()) == [0.0, 0.0]]
+
+
+def test_the_figure_draws_each_curve_in_the_colour_the_results_page_names(tmp_path,
+                                                                          closed_figures):
+    """docs/results.md: the true drift black, the estimate blue, the residual of ``z_comp``
+    red; for class 2 the three variants' residuals on an axis of their own (right), each its
+    own colour and dash."""
+    from matplotlib.colors import same_color
+    fig = _figure(tmp_path, closed_figures)
+    panels, twins = fig.axes[:len(dcl.PANELS)], fig.axes[len(dcl.PANELS):]
+    assert len(twins) == 1  # class 2's right axis, the only one
+    right = twins[0]
+    for ax, (title, cases) in zip(panels, dcl.PANELS):
+        curves = {line.get_label(): line for line in _curves(ax)}
+        assert same_color(curves["true drift"].get_color(), "black"), title
+        assert same_color(curves["estimate dc + b_hat + dc_class2"].get_color(), "tab:blue")
+        if len(cases) == 1:
+            assert same_color(curves["residual of z_comp"].get_color(), "tab:red"), title
+        else:
+            assert ax.get_shared_x_axes().joined(ax, right)
+            residuals = _curves(right)
+            assert [line.get_label() for line in residuals] == [
+                "residual of z_comp (%s, right axis)" % dcl._short(c) for c in cases]
+            assert same_color(residuals[0].get_color(), "tab:red")
+            styles = {(line.get_color(), line.get_linestyle()) for line in residuals}
+            colours = [line.get_color() for line in residuals]
+            assert len(styles) == 3 and len(set(colours)) == 3
+            assert not any(same_color(c, "black") or same_color(c, "tab:blue")
+                           for c in colours)
+
+
+def test_the_figures_zero_lines_are_thinner_than_its_curves(tmp_path, closed_figures):
+    """Each axes' zero line (the panel's black one, the right axis's grey one) is a reference
+    drawn under the data: thinner than every curve of its axes, so that a residual near 0 is
+    not hidden by it, and neutral (black or grey), not in a curve's colour."""
+    from matplotlib.colors import to_rgba
+    fig = _figure(tmp_path, closed_figures)
+    for ax in fig.axes:
+        zeros, curves = _zero_lines(ax), _curves(ax)
+        assert len(zeros) == 1 and curves, ax.get_title()
+        r, g, b, _ = to_rgba(zeros[0].get_color())
+        assert r == g == b, (ax.get_title(), zeros[0].get_color())
+        assert zeros[0].get_linewidth() < min(line.get_linewidth() for line in curves), \
+            (ax.get_title(), zeros[0].get_linewidth())
+
+
 # -- through the FMUs ----------------------------------------------------------------------------
 
 @pytest.mark.integration
 def test_the_experiment_through_the_fmus_equals_the_reference(built_fmus, tmp_path):
     """Every case through the Python FMUs, the outputs equal models/ bit for bit; the files
-    are written, the table has a row per case."""
+    are written, the table has a row per case; the progress counts the runs, then the
+    validation as a phase of its own, case by case."""
     fmu_dir = built_fmus["DriftEstimator"].parent
     out = tmp_path / "out"
     seen = []
+
+    class Recorder:
+        def __call__(self, done):
+            seen.append(done)
+
+        def phase(self, desc, total, unit=None):
+            seen.append((desc, total, unit))
     s = driftfmu.experiment_drift_classes(out=out, n=300, runs=1, workers=1, fmu_dir=fmu_dir,
-                                          progress=seen.append)
+                                          progress=Recorder())
     assert s["validation"]["bit_identical"] and s["validation"]["max_abs_diff"] == 0.0
     assert sorted(p.name for p in out.iterdir()) == ["drift_classes.csv", "drift_classes.json",
                                                      "drift_classes.png"]
@@ -246,12 +374,29 @@ def test_the_experiment_through_the_fmus_equals_the_reference(built_fmus, tmp_pa
         == list(dcl.CASES)
     table = np.genfromtxt(out / "drift_classes.csv", delimiter=",", names=True)
     assert list(table["case"]) == list(range(1, len(dcl.CASES) + 1))
-    assert seen and max(seen) == len(dcl.CASES)
+    phase = [i for i, v in enumerate(seen) if isinstance(v, tuple)]
+    assert len(phase) == 1, seen
+    i = phase[0]
+    assert seen[i] == ("validation (FMU outputs against models/)", len(dcl.CASES), "case")
+    assert sorted(seen[:i]) == list(range(1, len(dcl.CASES) + 1))  # the runs: 7 cases x 1 run
+    assert seen[i + 1:] == list(range(1, len(dcl.CASES) + 1))  # then the cases' validation
     # the class-2 offset the estimator removed is the one the sensor's tilt and temperature make
     row = {r["case"]: r for r in s["cases"]}["class 2"]
     c = dcl.CLASS2
     assert row["dc_class2"] == pytest.approx(errors.class2_offset(
         c["theta"], c["T"], 1.0, 0.0, c["T0"], c["kT_bias"], c["kT_scale"]), rel=1e-12)
+
+
+@pytest.mark.integration
+def test_a_correlated_excitation_through_the_fmus_equals_the_reference(built_fmus):
+    """``A`` and ``Q`` are settings of the experiment: at ``A = 0.9`` (where the filter's prior
+    ``P0 = Q / (1 - A^2)`` and start ``x0 = 0`` shape its first steps; at the letter's ``A = 0``
+    the first prediction forgets both) the FMUs still equal models/ bit for bit."""
+    fmu_dir = built_fmus["DriftEstimator"].parent
+    s = driftfmu.experiment_drift_classes(n=40, runs=1, workers=1, fmu_dir=fmu_dir, A=0.9,
+                                          Q=0.0019)
+    assert s["validation"]["bit_identical"] and s["validation"]["max_abs_diff"] == 0.0
+    assert (s["settings"]["A"], s["settings"]["Q"]) == (0.9, 0.0019)
 
 
 # -- refusals ------------------------------------------------------------------------------------
@@ -343,6 +488,16 @@ def test_the_masters_start_values_give_the_estimator_the_sensors_tilt_and_temper
     assert "kT_bias" not in only_t["DriftEstimator"]  # (its coefficients: the user's)
     plain = gaussian.start_values()
     assert "theta" not in plain["DriftEstimator"] and "T" not in plain["DriftEstimator"]
+
+
+def test_the_masters_start_values_refuse_a_name_they_do_not_know():
+    """A misspelt parameter (the SSP's bindings and the benchmarks call start_values directly,
+    without run_gaussian's keyword check) is a TypeError that names it, not a bare KeyError
+    from deep inside; a known one at its off value sets nothing."""
+    from driftfmu.simulations import gaussian
+    with pytest.raises(TypeError, match=r"^unknown parameter\(s\) T_sensor, thta$"):
+        gaussian.start_values(thta=0.3, T_sensor=310.0)
+    assert "theta" not in gaussian.start_values(theta=0.0)["DriftEstimator"]
 
 
 @pytest.mark.integration

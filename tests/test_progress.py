@@ -107,6 +107,20 @@ def test_a_new_phase_restarts_the_count_and_is_announced_in_a_long_run():
     cli.start_phase(None, "x", 1)
 
 
+@pytest.mark.parametrize("into_the_run, said", [(9.75, False), (10.0, True)])
+def test_a_new_phase_is_announced_only_when_the_run_has_taken_an_interval(into_the_run, said):
+    """A phase starting ``every`` seconds or more into the run (counted from the run's start,
+    not from the clock's zero: time.monotonic reads the seconds since the machine booted) is
+    announced at once; one starting sooner stays silent, as a short run should."""
+    clock, out = Clock(), io.StringIO()
+    clock.t = 86400.0  # a machine up for a day
+    p = cli.Progress(10, "runs", "run", every=10.0, stream=out, clock=clock)
+    clock.t += into_the_run
+    cli.start_phase(p, "validation", 4, "point")
+    assert out.getvalue() == ("driftfmu: progress: validation 0 % (0/4 points), 0 s\n"
+                              if said else "")
+
+
 def test_the_time_left_counts_from_the_start_of_the_work_not_its_set_up():
     """A run that first builds its FMUs for 60 s, then co-simulates 100 samples in 10 s: 900
     samples are 90 s more, not the 630 s that counting the build would say."""
