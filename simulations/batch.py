@@ -862,9 +862,13 @@ def stop_pool(pool, timeout=2.0):
     pipe's read end too, so the write never fails); the executor's manager thread may be
     reading half a result that a stopped worker was sending (this process holds the pipe's
     write end, so no end of file comes); the manager thread joins the feeder, and the
-    interpreter's exit joins the manager thread.  So both pipes' ends held here are closed
-    (the write fails, the read sees the end of the file) and the queue is told not to join
-    its feeder; the manager thread is waited for at most ``timeout`` more seconds.
+    interpreter's exit joins the manager thread.  So the result pipe's write end is closed here
+    (the read sees the end of the file; the manager never closes it), and the manager, which
+    finds the pool broken once its workers are gone, closes the task pipe's read end itself
+    (CPython's terminate_broken: the feeder's write fails).  That end is closed here only when
+    the manager has not ended within ``timeout``: closing it from two threads at once closes
+    the descriptor twice (an EBADF traceback in the manager thread, or another file that was
+    given the number meanwhile), as CI once saw under load.
     """
     procs = list((getattr(pool, "_processes", None) or {}).values())
     call_queue = getattr(pool, "_call_queue", None)
@@ -888,13 +892,18 @@ def stop_pool(pool, timeout=2.0):
     if call_queue is not None:
         with contextlib.suppress(Exception):
             call_queue.cancel_join_thread()
-        with contextlib.suppress(Exception):
-            call_queue._reader.close()
     if result_queue is not None:  # a worker stopped half-way through sending its result
         with contextlib.suppress(Exception):  # leaves the manager reading: this ends the read
             result_queue._writer.close()
     if manager is not None:
         manager.join(timeout)
+    if call_queue is not None and (manager is None or manager.is_alive()):
+        # the manager shut down without finding the pool broken and waits for a feeder
+        # blocked on the full task pipe (or never started): its read end closed here
+        with contextlib.suppress(Exception):
+            call_queue._reader.close()
+        if manager is not None:
+            manager.join(timeout)
 
 
 def mp_context(preload="driftfmu.simulations.batch"):

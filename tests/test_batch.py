@@ -227,6 +227,64 @@ def test_a_stopped_worker_leaves_its_parents_fmu_folders(monkeypatch):
         cosim._remove(mine)
 
 
+def _stopped_pool(record=None):
+    """A pool of one worker stopped (stop_pool) while its task runs and another is queued;
+    ``record``: a list that gets the thread of each close of the task pipe's read end."""
+    import threading
+    import time
+    reader = None
+    with pytest.raises(RuntimeError):
+        with batch.process_pool(1) as pool:
+            assert pool.submit(int, "7").result() == 7  # the worker runs
+            pool.submit(time.sleep, 60)
+            pool.submit(time.sleep, 60)
+            if record is not None:
+                reader = pool._call_queue._reader
+                close = reader.close
+
+                def recorded():  # who asks (the feeder thread holds the method bound)
+                    record.append(threading.current_thread().name)
+                    close()
+                reader.close = recorded
+            raise RuntimeError("stop the pool")
+    return reader
+
+
+def test_a_stopped_pools_task_pipe_is_closed_by_its_manager_thread_alone(monkeypatch):
+    """The executor's threads close the task pipe's read end (the manager when it finds the
+    pool broken, CPython's terminate_broken; the feeder when the manager shuts the queue
+    down); stop_pool closing it too, from this thread, closed the descriptor twice when the
+    two met (CI: an EBADF traceback from the manager thread)."""
+    import multiprocessing
+    import threading
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork here")
+    monkeypatch.setattr(batch, "mp_context", lambda preload=None:
+                        multiprocessing.get_context("fork"))
+    record = []
+    reader = _stopped_pool(record)
+    # closed (by the manager, or by the feeder when the manager shut the queue down), not here
+    assert reader.closed and threading.current_thread().name not in record, record
+
+
+def test_pools_stopped_one_after_another_raise_nothing_in_any_thread(monkeypatch):
+    """Twelve pools stopped while their tasks run: no thread ends with an exception (the
+    manager's close of the task pipe and stop_pool's once raced: EBADF)."""
+    import multiprocessing
+    import threading
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("no fork here")
+    # forked (a fork server, chosen when other threads run, keeps a folder to this process's end)
+    monkeypatch.setattr(batch, "mp_context", lambda preload=None:
+                        multiprocessing.get_context("fork"))
+    raised = []
+    monkeypatch.setattr(threading, "excepthook", lambda args: raised.append(
+        "%s: %r" % (args.thread, args.exc_value)))
+    for _ in range(12):
+        _stopped_pool()
+    assert raised == []
+
+
 def test_a_cluster_that_cannot_tell_its_threads_runs_one_task_at_a_time():
     class Counted:
         def nthreads(self):
