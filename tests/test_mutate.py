@@ -300,6 +300,20 @@ def test_the_selection_is_the_tests_that_run_the_mutated_line():
     assert survey.selection(rec, dict(m, lines=[4, 4])) == ([], [])
 
 
+def test_the_test_a_triage_entry_names_runs_first_though_the_record_missed_it():
+    """A line that a test runs only in a worker process (the experiments' FMU runs) is not in
+    the record: the test the triage entry names is run anyway, first."""
+    survey = _tool("mutation_survey")
+    named = dict(verdict="test", test="tests/test_d.py::through_the_fmus")
+    assert survey.with_named_test(["tests/test_a.py::t0"], named) == [
+        "tests/test_d.py::through_the_fmus", "tests/test_a.py::t0"]
+    assert survey.with_named_test([], named) == ["tests/test_d.py::through_the_fmus"]
+    assert survey.with_named_test(["tests/test_d.py::through_the_fmus"], named) == [
+        "tests/test_d.py::through_the_fmus"]  # not twice
+    assert survey.with_named_test(["t"], dict(verdict="equivalent", reason="r")) == ["t"]
+    assert survey.with_named_test(["t"], None) == ["t"]
+
+
 def test_an_fmus_bundled_copy_is_mapped_to_the_trees_file():
     survey = _tool("mutation_survey")
     name = survey._tree_name
@@ -384,6 +398,23 @@ def test_a_survivor_is_untriaged_until_the_triage_file_names_it(tmp_path):
     p = _run_survey(tmp_path, root, "--function", "models/calc.py:half")
     assert p.returncode == 1, p.stdout + p.stderr
     assert "which no longer catches it" in p.stdout
+    # a test that runs the line where the record cannot see it (a forked process, as a
+    # pool's worker), named by
+    # the entry of the mutant no recorded test reaches: run, and it catches the mutant
+    (root / "tests" / "test_other.py").write_text(
+        "import os\nfrom driftfmu.models.calc import half\n\ndef test_half_big():\n"
+        "    pid = os.fork()\n    if pid == 0:\n        os._exit(0 if half(20) == 10 else 1)\n"
+        "    assert os.waitpid(pid, 0)[1] == 0\n")
+    unseen = entries.split("[[survivor]]")
+    unseen = "".join("[[survivor]]" + e.replace(
+        'verdict = "equivalent"\nreason = "planted"\n',
+        'verdict = "test"\ntest = "tests/test_other.py::test_half_big"\n')
+        if 'original = "x / 2"' in e else ("[[survivor]]" + e if e.strip() else e)
+        for e in unseen)
+    (root / "tools" / "survivors.toml").write_text(unseen)
+    p = _run_survey(tmp_path, root, "--function", "models/calc.py:half")
+    assert p.returncode == 0, p.stdout + p.stderr
+    assert "no test runs this line" not in p.stdout
 
 
 def test_a_malformed_triage_entry_is_refused(tmp_path):

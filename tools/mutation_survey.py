@@ -731,10 +731,21 @@ def timeout_for(rec, tests):
                                                 for t in tests)
 
 
-def run_all(root, found, rec, jobs=1, budget=None, log=print, against=None):
+def with_named_test(tests, entry):
+    """The unit tests of a selection, with the test that the triage ``entry`` says catches the
+    mutant first: the record sees the lines run in this process only, not those a test runs
+    in the worker processes of a pool (the FMU runs of an experiment), so that test may
+    reach the line unseen."""
+    if entry is None or entry.get("verdict") != "test" or entry["test"] in tests:
+        return tests
+    return [entry["test"]] + list(tests)
+
+
+def run_all(root, found, rec, jobs=1, budget=None, log=print, against=None, entries=()):
     """Run each mutant of ``found`` against its selection: stage 1 the unit tests that reach
-    it, stage 2 (when it passes them or has none) the integration tests.  Rows in the order
-    of ``found``; a mutant not started within ``budget`` seconds gets status "not run"."""
+    it (and the test its triage entry names, :func:`with_named_test`), stage 2 (when it
+    passes them or has none) the integration tests.  Rows in the order of ``found``; a mutant
+    not started within ``budget`` seconds gets status "not run"."""
     _preload()
     slots = [Slot(root) for _ in range(max(1, jobs))]
     t0 = time.monotonic()
@@ -756,6 +767,8 @@ def run_all(root, found, rec, jobs=1, budget=None, log=print, against=None):
                     rows[m["number"]] = _row(m, "not run", "over --limit", 0, 0.0, [])
                     continue
                 unit, integration = selection(rec, m) if against is None else (against, [])
+                if against is None:
+                    unit = with_named_test(unit, triage_of(entries, m))
                 stages = [s for s in (unit, integration) if s]
                 source = mutant_source(root, m)
                 if source is None:
@@ -982,7 +995,8 @@ def _survey(args, root, found, entries, everything):
         rec = {"tests": {}, "lines": {}}
     else:
         rec = cached_record(root, args.record_tests, args.record_workers, refresh=args.refresh)
-    rows = run_all(root, found, rec, args.jobs, args.budget, against=args.against)
+    rows = run_all(root, found, rec, args.jobs, args.budget, against=args.against,
+                   entries=entries)
     if args.out:
         with open(args.out, "w") as fh:
             json.dump(rows, fh, indent=1)
