@@ -329,7 +329,7 @@ def test_a_failure_while_writing_leaves_the_old_results(tmp_path, monkeypatch):
 # -- the figure ------------------------------------------------------------------------------------
 
 def test_the_figure_names_its_lines_values_and_what_is_not_resolved(tmp_path, closed_figures):
-    from tests.test_figure_labels import texts
+    from test_figure_labels import texts  # (tests/ is on sys.path: no package)
     rng = np.random.default_rng(3)
     n, K = 2 ** 17, 2e-3
     z = 1e-3 / math.sqrt(TS) * rng.standard_normal(n) + np.cumsum(
