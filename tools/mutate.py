@@ -174,6 +174,14 @@ def kill_group(p, grace=GRACE):
 #: How tests/conftest.py starts the line that fails a run whose tests all passed but left
 #: files in its temporary folder.
 LEFT_BEHIND = "ERROR: the tests left "
+
+
+def only_left_files(returncode, out):
+    """True when a run whose tests all passed failed only for the files it left in its
+    temporary folder (tests/conftest.py): no test fails, so nothing is caught by it."""
+    return returncode == 1 and any(ln.startswith(LEFT_BEHIND) for ln in out.splitlines())
+
+
 _FAILED = re.compile(r"^(FAILED|ERROR) (.+?)(?: - .*)?$")  # ids may hold spaces
 
 
@@ -217,9 +225,7 @@ def run_tests(copy, tests, timeout, ignore=(), twins=False, integration=False):
         return "passed", None, seconds
     if p.returncode == 1 and first:
         return "failed", first, seconds
-    if p.returncode == 1 and any(ln.startswith(LEFT_BEHIND) for ln in out.splitlines()):
-        # every test passed; the run only left files in its temporary folder (tests/conftest.py
-        # fails a run for that): no test fails, so the fault is not caught
+    if only_left_files(p.returncode, out):  # every test passed: the fault is not caught
         return "passed", None, seconds
     if p.returncode in (4, 5):  # usage error, no tests collected: nothing was tested
         return "not run", "pytest exit status %d" % p.returncode, seconds

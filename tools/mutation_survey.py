@@ -663,9 +663,7 @@ def _result(returncode, out):
         return "passed", None
     if returncode == 1 and first:
         return "failed", first
-    if returncode == 1 and any(ln.startswith(LEFT_BEHIND) for ln in out.splitlines()):
-        # every test passed; the run only left files in its temporary folder (tests/conftest.py
-        # fails a run for that): not a test that fails, so the mutant is not caught by it
+    if mutate.only_left_files(returncode, out):  # every test passed: the mutant is not caught
         return "passed", None
     if returncode == 5:
         return "not run", "no test collected"
