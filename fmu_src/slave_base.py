@@ -118,7 +118,7 @@ class Blocks:
     about 0.15 s), the first :attr:`WARM_UP` samples also run one by one, so that a short run
     never pays for the import and a long one pays once."""
 
-    SIZE = 1024
+    SIZE = 4096
     WARM_UP = 4096
 
     def __init__(self, f, warm_up=None):

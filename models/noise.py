@@ -118,10 +118,13 @@ def inverse_normal_cdf(p):
             return -_lower_tail(1.0 - p)
         return _central(p)
     out = _central(p)
-    lo = p < P_LOW
-    hi = p > 1.0 - P_LOW
-    out[lo] = _lower_tail(p[lo])
-    out[hi] = -_lower_tail(1.0 - p[hi])
+    # both tails at once (one pass of the tail's arithmetic over few values): the lower tail at
+    # p, the upper at 1 - p, negated
+    tail = (p < P_LOW) | (p > 1.0 - P_LOW)
+    pt = p[tail]
+    lower = pt < P_LOW
+    t = _lower_tail(_ops.where(lower, pt, 1.0 - pt))
+    out[tail] = _ops.where(lower, t, -t)
     return out
 
 

@@ -65,6 +65,26 @@ def test_noise_same_bits_for_scalars_and_batches():
         assert np.array_equal(batch[i], single)
 
 
+@pytest.mark.parametrize("which", ["both tails and centre", "lower tail only", "upper tail only",
+                                   "centre only", "tails only"])
+def test_inverse_normal_cdf_same_bits_on_arrays_at_and_around_the_tail_bounds(which):
+    # the array path takes both tails in one pass (the upper at 1 - p, negated): each value as
+    # the float path gives it, the bounds P_LOW and 1 - P_LOW and their neighbours included
+    lo, hi = noise.P_LOW, 1.0 - noise.P_LOW
+    near = lambda b: [np.nextafter(b, 0.0), b, np.nextafter(b, 1.0)]
+    parts = {"lower": [1e-16, 1e-9, 0.001, 0.02] + near(lo)[:1],
+             "upper": [0.98, 0.999, 1.0 - 1e-9, 1.0 - 2.0 ** -52] + near(hi)[2:],
+             "centre": [0.5, 0.3, 0.7] + near(lo)[1:] + near(hi)[:2]}
+    keys = {"both tails and centre": ("lower", "centre", "upper"), "lower tail only":
+            ("lower",), "upper tail only": ("upper",), "centre only": ("centre",),
+            "tails only": ("upper", "lower")}[which]
+    p = np.array([q for key in keys for q in parts[key]])
+    got = noise.inverse_normal_cdf(p.copy())
+    want = np.array([noise.inverse_normal_cdf(float(q)) for q in p])
+    assert got.tobytes() == want.tobytes(), (p, got, want)
+    assert (np.sign(got[p < 0.5]) <= 0).all() and (np.sign(got[p > 0.5]) >= 0).all()
+
+
 def test_normal_moments_within_sampling_error():
     n = 400_000
     v = noise.normal(np.uint64(3) + np.zeros(1, dtype=np.uint64), 1,
