@@ -131,7 +131,9 @@ def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3
     """
     unknown = set(general) - set(GENERAL_OFF)
     if unknown:
-        raise TypeError("unknown parameter(s) %s" % ", ".join(sorted(unknown)))
+        raise TypeError("unknown parameter(s) %s; allowed: a0, a1, a2, A, Q, R, seed, Ts, x0, "
+                        "P0, estimator, %s" % (", ".join(sorted(unknown)),
+                                               ", ".join(GENERAL_OFF)))
     if P0 is None:
         P0 = Q / (1.0 - A * A)
     model = dict(a0=a0, a1=a1, a2=a2, R=R)

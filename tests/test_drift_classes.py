@@ -495,8 +495,13 @@ def test_the_masters_start_values_refuse_a_name_they_do_not_know():
     without run_gaussian's keyword check) is a TypeError that names it, not a bare KeyError
     from deep inside; a known one at its off value sets nothing."""
     from driftfmu.simulations import gaussian
-    with pytest.raises(TypeError, match=r"^unknown parameter\(s\) T_sensor, thta$"):
+    with pytest.raises(TypeError, match=r"^unknown parameter\(s\) T_sensor, thta; allowed: "
+                       r"a0, a1, a2, A, Q, R, seed, Ts, x0, P0, estimator, (\w+, )+\w+$") as err:
         gaussian.start_values(thta=0.3, T_sensor=310.0)
+    allowed = set(str(err.value).split("allowed: ")[1].split(", "))
+    assert set(gaussian.GENERAL_OFF) | {"theta", "T", "a3", "B", "bias_on"} <= allowed
+    for name in sorted(allowed):  # every name it allows is one start_values takes
+        gaussian.start_values(**{name: 1 if name in ("seed", "estimator") else 0.5})
     assert "theta" not in gaussian.start_values(theta=0.0)["DriftEstimator"]
 
 
