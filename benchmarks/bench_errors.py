@@ -20,7 +20,16 @@ installed, the native FMU's instructions per step are counted too (callgrind, th
 two run lengths: the host's start and the FMU's loading cancel): a count does not depend on
 what else runs on the machine, as a wall time does.
 
-    python benchmarks/bench_errors.py [--steps 400000] [--python-steps 40000] [--repeats 5]
+The Python runs are long enough that what a run pays once does not hide the step: the FMU
+imports NumPy after its first samples (about 0.07 s), which over 40,000 steps added about 1.7 µs
+to every step of all three and brought the ratios towards 1; over 200,000 it adds about 0.3 µs.
+
+``--each`` also measures what each term adds to the step with every one on (that step less
+the same step with the term off): the native FMU's instructions (callgrind) and the Python FMU's
+time.
+
+    python benchmarks/bench_errors.py [--steps 400000] [--python-steps 200000] [--repeats 5]
+                                      [--each]
 """
 import argparse
 import os
@@ -47,6 +56,18 @@ ALL_ON = dict(bias_on=0.05, random_walk=0.002, bias_gm=0.003, tau_gm=1.0, flicke
               tau_min=0.1, tau_max=100.0, d_inf=0.04, E_tau=50.0, T0=298.15, kT_bias=0.002,
               kT_scale=-0.001, range=1.7, bits=16)
 INPUTS_ON = dict(x=0.5, theta=0.1, T=300.0)
+#: ``--each``: every term, as the start values that turn it off in the step with every one on.
+TERMS = {
+    "turn-on bias": dict(bias_on=0.0),
+    "random walk": dict(random_walk=0.0),
+    "Gauss-Markov bias": dict(bias_gm=0.0),
+    "flicker bias (four components)": dict(flicker=0.0),
+    "exposure drift": dict(d_inf=0.0),
+    "tilt": dict(theta=0.0),
+    "temperature bias and scale factor": dict(kT_bias=0.0, kT_scale=0.0),
+    "range": dict(range=0.0),
+    "16-bit ADC": dict(bits=0),
+}
 #: What the child process that builds the Accelerometer of a tree runs (PYTHONPATH: the tree).
 BUILD = """
 import sys
@@ -107,12 +128,14 @@ def instructions(host, fmu, start, work, steps=(20000, 40000)):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--steps", type=int, default=400000, help="steps of the native runs")
-    ap.add_argument("--python-steps", type=int, default=40000,
+    ap.add_argument("--python-steps", type=int, default=200000,
                     help="steps of the runs with the Python FMU")
     ap.add_argument("--repeats", type=int, default=5)
     ap.add_argument("--before", default=BEFORE,
                     help="git commit of the Accelerometer before the slow errors (default: %s)"
                          % BEFORE)
+    ap.add_argument("--each", action="store_true",
+                    help="also what each term adds to the step with every one on")
     ap.add_argument("--no-record", action="store_true",
                     help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
@@ -125,20 +148,26 @@ def main(argv=None):
         host = chain.compile_host(tmp / "chain_host")
         starts = {"before": dict(x=0.5), "off": dict(x=0.5), "on": dict(ALL_ON, **INPUTS_ON)}
         which = {"before": "before", "off": "now", "on": "now"}
+        labels = ["before", "off", "on"]
+        if args.each:
+            for term, zeros in TERMS.items():
+                starts[term] = dict(starts["on"], **zeros)
+                which[term] = "now"
+            labels += list(TERMS)
         for r in range(args.repeats):
             for backend in ("native", "python"):
                 steps = args.steps if backend == "native" else args.python_steps
                 env = chain.python_fmu_env() if backend == "python" else None
-                for label in ("before", "off", "on"):
-                    work = tmp / ("r%d_%s_%s" % (r, backend, label))
+                for label in labels[:3] if backend == "native" else labels:
+                    work = tmp / ("r%d_%s_%d" % (r, backend, labels.index(label)))
                     work.mkdir()
                     measured.setdefault((backend, label), []).append(step_ns(
                         host, fmus[which[label]][backend], starts[label], steps, work, env))
                     shutil.rmtree(work)
         counted = {}
         if shutil.which("valgrind"):
-            for label in ("before", "off", "on"):
-                work = tmp / ("ir_%s" % label)
+            for label in labels:
+                work = tmp / ("ir_%d" % labels.index(label))
                 work.mkdir()
                 counted[label] = instructions(host, fmus[which[label]]["native"],
                                               starts[label], work)
@@ -179,6 +208,24 @@ def main(argv=None):
             figures.row("the same, every slow error on", on, "instructions", against, on / b,
                         "<= 2", on / b <= 2.0),
         ]
+    if args.each:
+        print("what each term adds to the step with every one on (that step less the step with "
+              "the term off):")
+        b_ir, b_py = counted.get("before"), median[("python", "before")]
+        for term in TERMS:
+            py = median[("python", "on")] - median[("python", term)]
+            line = "  %-34s Python %7.0f ns (%.2f of the step before)" % (term, py, py / b_py)
+            rows.append(figures.row("what the %s adds to the Python step with every slow error "
+                                    "on" % term, py / 1e3, "µs", "the Python Accelerometer "
+                                    "before the slow errors (%s)" % args.before, py / b_py))
+            if counted:
+                ir = counted["on"] - counted[term]
+                line += ", native %5.0f instructions (%.2f)" % (ir, ir / b_ir)
+                rows.append(figures.row("what the %s adds to the native step with every slow "
+                                        "error on (callgrind)" % term, ir, "instructions",
+                                        "the native FMI 2.0 Accelerometer before the slow "
+                                        "errors (%s)" % args.before, ir / b_ir))
+            print(line)
     print("goals (off <= 1.05 x before, on <= 2 x before): %s" % ("met" if met_all
                                                                  else "NOT met"))
     figures.record(__file__, argv, rows, load,

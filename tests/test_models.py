@@ -65,6 +65,14 @@ def test_noise_same_bits_for_scalars_and_batches():
         assert np.array_equal(batch[i], single)
 
 
+@pytest.mark.parametrize("p", [1e-9, 0.01, 0.3, 0.5, 0.99, 1.0 - 1e-9])
+def test_inverse_normal_cdf_of_a_numpy_scalar_is_the_floats(p):
+    # a value read out of an array (numpy.float64) takes the float path: the same bits, a
+    # scalar back (the array path would index it)
+    got = noise.inverse_normal_cdf(np.float64(p))
+    assert np.ndim(got) == 0 and float(got) == noise.inverse_normal_cdf(p)
+
+
 @pytest.mark.parametrize("which", ["both tails and centre", "lower tail only", "upper tail only",
                                    "centre only", "tails only"])
 def test_inverse_normal_cdf_same_bits_on_arrays_at_and_around_the_tail_bounds(which):
