@@ -24,9 +24,10 @@ The Python runs are long enough that what a run pays once does not hide the step
 imports NumPy after its first samples (about 0.07 s), which over 40,000 steps added about 1.7 µs
 to every step of all three and brought the ratios towards 1; over 200,000 it adds about 0.3 µs.
 
-``--each`` also measures what each term adds to the step with every one on (that step less
-the same step with the term off): the native FMU's instructions (callgrind) and the Python FMU's
-time.
+``--each`` also counts what each term adds to the native step with every one on (that step
+less the same step with the term off; callgrind, so valgrind is needed): a count, exact from run
+to run, where the difference of two wall times of a few percent each would be the machine's
+scatter.
 
     python benchmarks/bench_errors.py [--steps 400000] [--python-steps 200000] [--repeats 5]
                                       [--each]
@@ -135,7 +136,8 @@ def main(argv=None):
                     help="git commit of the Accelerometer before the slow errors (default: %s)"
                          % BEFORE)
     ap.add_argument("--each", action="store_true",
-                    help="also what each term adds to the step with every one on")
+                    help="also count what each term adds to the native step with every one on "
+                         "(valgrind)")
     ap.add_argument("--no-record", action="store_true",
                     help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
@@ -158,8 +160,8 @@ def main(argv=None):
             for backend in ("native", "python"):
                 steps = args.steps if backend == "native" else args.python_steps
                 env = chain.python_fmu_env() if backend == "python" else None
-                for label in labels[:3] if backend == "native" else labels:
-                    work = tmp / ("r%d_%s_%d" % (r, backend, labels.index(label)))
+                for label in ("before", "off", "on"):
+                    work = tmp / ("r%d_%s_%s" % (r, backend, label))
                     work.mkdir()
                     measured.setdefault((backend, label), []).append(step_ns(
                         host, fmus[which[label]][backend], starts[label], steps, work, env))
@@ -208,24 +210,19 @@ def main(argv=None):
             figures.row("the same, every slow error on", on, "instructions", against, on / b,
                         "<= 2", on / b <= 2.0),
         ]
-    if args.each:
-        print("what each term adds to the step with every one on (that step less the step with "
-              "the term off):")
-        b_ir, b_py = counted.get("before"), median[("python", "before")]
+    if args.each and counted:
+        print("what each term adds to the native step with every one on (that step less the "
+              "step with the term off), callgrind:")
         for term in TERMS:
-            py = median[("python", "on")] - median[("python", term)]
-            line = "  %-34s Python %7.0f ns (%.2f of the step before)" % (term, py, py / b_py)
-            rows.append(figures.row("what the %s adds to the Python step with every slow error "
-                                    "on" % term, py / 1e3, "µs", "the Python Accelerometer "
-                                    "before the slow errors (%s)" % args.before, py / b_py))
-            if counted:
-                ir = counted["on"] - counted[term]
-                line += ", native %5.0f instructions (%.2f)" % (ir, ir / b_ir)
-                rows.append(figures.row("what the %s adds to the native step with every slow "
-                                        "error on (callgrind)" % term, ir, "instructions",
-                                        "the native FMI 2.0 Accelerometer before the slow "
-                                        "errors (%s)" % args.before, ir / b_ir))
-            print(line)
+            ir = counted["on"] - counted[term]
+            print("  %-34s %5.0f instructions (%.2f of the step before)"
+                  % (term, ir, ir / counted["before"]))
+            rows.append(figures.row("what the %s adds to the native step with every slow error "
+                                    "on (callgrind; %.0f %% of the step before them)"
+                                    % (term, 100.0 * ir / counted["before"]), ir,
+                                    "instructions"))
+    elif args.each:
+        print("--each: valgrind is not installed, no count of each term")
     print("goals (off <= 1.05 x before, on <= 2 x before): %s" % ("met" if met_all
                                                                  else "NOT met"))
     figures.record(__file__, argv, rows, load,
