@@ -374,7 +374,8 @@ def _fmu_task(task):
 def run_drift_classes(out=None, fmu_dir="build/fmus", backend="python", workers=None,
                       progress=None, plot=True, **settings):
     """Co-simulate every case of :data:`CASES` ``runs`` times; with ``out`` write
-    ``drift_classes.csv``, ``drift_classes.json`` and ``drift_classes.png`` (all or none).
+    ``drift_classes.csv``, ``drift_classes.json`` and (with ``plot``) ``drift_classes.png``
+    (all or none).
     Returns the summary (the JSON's content).
 
     Raises

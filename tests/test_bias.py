@@ -211,6 +211,30 @@ def test_estimate_over_recordings_equals_the_models_run_by_run():
     assert plain["final_x_hat"][0] == st.x
 
 
+@pytest.mark.parametrize("bias_on", [0, 1])
+def test_estimate_of_the_general_sensor_equals_the_models_run_by_run(bias_on):
+    """a3 and a4 reach the filter (each changes its output), with the bias state and without."""
+    rng = np.random.default_rng(4306)
+    zs = 0.02 + 0.3 * rng.standard_normal((3, 80))
+    kw = dict(a0=0.01, a1=1.1, a2=0.05, A=0.5, Q=0.04, R=1e-4, a3=0.02, a4=0.03, bias=bias_on,
+              Qb=1e-8, tau_b=0.2, b0=0.01, Pb0=1e-3)
+    out = batch.estimate(zs, record=("x_hat",), **kw)
+    Fb = bias.factor(0.2, 1e-3)
+    for r in range(3):
+        st, b = chain.estimator_init(0.0, 0.04 / 0.75), bias.init(0.01, 1e-3)
+        for k in range(80):
+            z = float(zs[r, k])
+            if bias_on:
+                st, b = bias.estimator_step(st, b, z, 0.01, 1.1, 0.05, 0.5, 0.04, 1e-4, Fb,
+                                            1e-8, 0.02, 0.03)
+            else:
+                st = chain.estimator_step(st, z, 0.01, 1.1, 0.05, 0.5, 0.04, 1e-4, 0.02, 0.03)
+            assert out["x_hat"][r, k] == st.x
+    for name in ("a3", "a4"):  # (each term changes the estimate: the check above can fail)
+        other = batch.estimate(zs, **dict(kw, **{name: 0.0}))
+        assert np.all(other["final_x_hat"] != out["final_x_hat"])
+
+
 @pytest.mark.parametrize("kw,text", [
     (dict(Qb=-1e-9), "Qb = -1e-09 is out of range; allowed: Qb >= 0"),
     (dict(Pb0=-1.0), "Pb0 = -1.0 is out of range; allowed: Pb0 >= 0"),

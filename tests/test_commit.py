@@ -322,7 +322,9 @@ def test_an_unfinished_commit_moved_or_copied_elsewhere_is_left_as_it_is_and_sai
 def test_the_commit_writes_to_disk_what_each_step_needs_before_it(tmp_path, monkeypatch):
     """fsync: the staged files and the staging folders' records before the journal is named,
     the journal and its folder before the first move, every folder a move changed before the
-    journal is marked done (so that a power loss, too, leaves a commit the next run can finish).
+    journal is marked done (so that a power loss, too, leaves a commit the next run can finish),
+    and the journal's folder after it is marked done (the mark's name; were it lost, the next
+    run would find the journal with every move done).
     """
     events = []
     monkeypatch.setattr(output, "_sync", lambda fd: events.append(
@@ -350,6 +352,7 @@ def test_the_commit_writes_to_disk_what_each_step_needs_before_it(tmp_path, monk
     changed = {str(out), str(out / "sub"), str(out / "sub" / "deeper"), str(ssp.parent),
                stages[0], stages[1]}
     assert changed <= {e[1] for e in events[first_move:done] if e[0] == "sync"}
+    assert [e[1] for e in events[done:] if e[0] == "sync"] == [stages[0]]
 
 
 @pytest.mark.parametrize("kind", ["a folder for a file", "a file for a folder",

@@ -173,6 +173,22 @@ def test_the_description_steps_at_half_the_sample_period():
     assert json.loads(container.text(d)) == d
 
 
+def test_the_description_file_has_a_line_per_setting_and_per_row_of_a_list():
+    """The file a user reads and edits: a line per setting, and a list (the FMUs, the links,
+    the inputs, the outputs) a row per line, so that a change shows as the rows it touches."""
+    d = container.description()
+    lines = container.text(d).splitlines()
+    lists = {k: v for k, v in d.items() if isinstance(v, list)}
+    assert set(lists) == {"fmu", "link", "input", "output"}
+    assert len(lines) == 2 + len(d) + sum(len(v) + 1 for v in lists.values())
+    for key, rows in lists.items():
+        at = lines.index('  "%s": [' % key)
+        listed = lines[at + 1:at + 1 + len(rows)]
+        assert [json.loads(line.strip().rstrip(",")) for line in listed] == rows
+        assert lines[at + 1 + len(rows)] in ("  ],", "  ]")
+    assert '  "step_size": %s,' % json.dumps(d["step_size"]) in lines
+
+
 @pytest.mark.integration
 def test_at_a_step_of_ts_the_container_commits_the_next_measurement(native_fmus, tmp_path):
     """Why the step is Ts/2: at Ts the sequential container sets the DriftEstimator's z to the

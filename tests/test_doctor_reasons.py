@@ -83,6 +83,31 @@ def test_the_python_an_fmu_was_built_with_is_named_only_when_it_differs(tmp_path
             ([line % named] if named else []), said
 
 
+def test_a_start_value_outside_its_declared_range_is_named_once(tmp_path):
+    """A start value past its declared max is named (the first such one only: one line); one
+    at the max is not."""
+    import paperfmu
+    fmu = paperfmu.paper_fmu(tmp_path / "paper.fmu", "Accelerometer")
+    noise = '<Integer min="0" max="1" start="1" />'  # noise: 1 on, 0 off
+    vs = '<Real unit="V" min="0.0" max="6.0" start="0.0" />'
+
+    def said(name, edits):
+        edited = _rewrite(fmu, tmp_path / name, replace={"modelDescription.xml": lambda data: (
+            data.decode().replace(noise, edits[0]).replace(vs, edits[1]).encode())})
+        return [msg for level, msg in doctor.diagnose(edited) if level == doctor.FAIL
+                and "outside its declared range" in msg]
+
+    at_max = ('<Integer min="0" max="1" start="1" />', '<Real unit="V" min="0.0" max="6.0" '
+              'start="6.0" />')
+    assert said("Accelerometer.fmu", at_max) == []
+    past = ('<Integer min="0" max="1" start="2" />', '<Real unit="V" min="0.0" max="6.0" '
+            'start="6.5" />')
+    assert said("Accelerometer_past.fmu", past) == [
+        "its modelDescription.xml gives start value of noise is 2, outside its declared "
+        "range; expected: noise >= 0 and noise <= 1. A host would start the FMU outside what "
+        "it declares"]
+
+
 @pytest.mark.integration
 def test_a_broken_model_description_is_named_with_a_verdict(built_fmus, tmp_path, capsys):
     bad = _rewrite(built_fmus["Excitation"], tmp_path / "Excitation.fmu",

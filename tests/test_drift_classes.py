@@ -399,6 +399,20 @@ def test_a_correlated_excitation_through_the_fmus_equals_the_reference(built_fmu
     assert (s["settings"]["A"], s["settings"]["Q"]) == (0.9, 0.0019)
 
 
+@pytest.mark.integration
+def test_without_the_plot_the_experiment_writes_its_table_and_summary_only(built_fmus,
+                                                                           tmp_path,
+                                                                           monkeypatch):
+    """``plot=False``: drift_classes.csv and drift_classes.json, no figure drawn."""
+    def no_plot(*args):
+        raise AssertionError("the figure was drawn with plot=False")
+    monkeypatch.setattr(dcl, "plot_drift_classes", no_plot)
+    out = tmp_path / "out"
+    dcl.run_drift_classes(out=out, fmu_dir=built_fmus["DriftEstimator"].parent, workers=1,
+                          plot=False, n=40, runs=1)
+    assert sorted(p.name for p in out.iterdir()) == ["drift_classes.csv", "drift_classes.json"]
+
+
 # -- refusals ------------------------------------------------------------------------------------
 
 @pytest.mark.parametrize("argv, text", [

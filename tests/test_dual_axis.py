@@ -601,6 +601,25 @@ def test_dual_axis_figure_sets_the_axes_apart_with_capped_bars_and_one_legend(
     assert len(legend.legend_handles) == 6
 
 
+def test_dual_axis_figure_titles_at_9_points_and_its_lines_1_point_wide(closed_figures,
+                                                                         tmp_path):
+    """The panels' titles at 9 pt under the 10-pt suptitle; the dashed cross-term lines and
+    the lines joining the dual-axis points 1 pt wide (thinner than matplotlib's 1.5 default,
+    so the error bars stand out)."""
+    from matplotlib.container import ErrorbarContainer
+    dual_axis.plot_dual_axis(tmp_path / "d.png", _plotted_summary())
+    (fig,) = closed_figures
+    top_left, top_right, bottom_left, bottom_right = fig.axes
+    assert [ax.title.get_fontsize() for ax in (top_left, top_right)] == [9, 9]
+    assert fig._suptitle.get_fontsize() == 10
+    for ax in (top_left, top_right):
+        dashed = [line for line in ax.get_lines() if line.get_linestyle() == "--"]
+        assert len(dashed) == 2 and all(line.get_linewidth() == 1.0 for line in dashed)
+    for ax in (bottom_left, bottom_right):
+        bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
+        assert len(bars) == 2 and all(c.lines[0].get_linewidth() == 1.0 for c in bars)
+
+
 def test_batch_engine_claims_no_fmu_validation_and_no_backend(monkeypatch):
     def no_fmus(*args, **kwargs):
         raise AssertionError("the batch engine went through the FMU path")

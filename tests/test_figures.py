@@ -318,6 +318,23 @@ def test_fig5_curves_arrows_and_margins_are_10_log10_of_the_values(figures, tmp_
         assert (label.get_ha(), label.get_va()) == ("left", "center")
 
 
+@pytest.mark.parametrize("freqs, xlim", [
+    ((100.0, 150.0, 200.0), (100.0 - 0.4 * 50, 200.0 + 0.6 * 50)),  # the closest two apart
+    ((100.0,), (100.0 - 0.4 * 20, 100.0 + 0.6 * 20)),  # one: a fifth of it
+    ((5.0,), (5.0 - 0.4, 5.0 + 0.6)),  # (a fifth of it: 1 Hz, the floor)
+    ((2.0,), (2.0 - 0.4, 2.0 + 0.6))],  # one below 5 Hz: 1 Hz
+    ids=["three", "one of 100 Hz", "one of 5 Hz", "one of 2 Hz"])
+def test_fig5_frames_its_frequencies_with_room_for_the_labels(freqs, xlim, figures,
+                                                               tmp_path):
+    """The frequency axis runs 0.4 steps left of the first frequency and 0.6 right of the last
+    (room for the margins' labels); a step is the closest two frequencies apart, or for a
+    single frequency a fifth of it but at least 1 Hz."""
+    per, _ = _per(freqs)
+    adxl203.plot_fig5(tmp_path / "fig5.png", per)
+    (fig,) = figures
+    assert fig.axes[0].get_xlim() == pytest.approx(xlim, rel=1e-12)
+
+
 def test_a_laid_out_figure_is_drawn_once_to_the_same_pixels(tmp_path, monkeypatch):
     """``output.savefig`` after ``tight_layout`` draws the figure once (matplotlib's savefig
     draws it twice while the placeholder layout engine that tight_layout leaves is set), and

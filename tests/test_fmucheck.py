@@ -625,6 +625,24 @@ def test_an_archive_without_a_system_structure_is_named(paper, tmp_path):
         fmucheck.check_ssp(bad)
 
 
+def test_a_folder_or_a_missing_file_is_refused_saying_what_to_give(tmp_path):
+    """An FMU or SSP unzipped to a folder is refused, saying to give the archive itself; a
+    path that does not exist, saying which kind of file."""
+    folder = tmp_path / "Accelerometer.fmu"
+    folder.mkdir()
+    missing = tmp_path / "missing.ssp"
+    for check, path, line in (
+            (fmucheck.check_fmu, folder, "%s: is a folder; expected: the FMU file itself (the "
+             "zip archive, not the folder it was unzipped to)"),
+            (fmucheck.check_ssp, folder, "%s: is a folder; expected: the SSP file itself (the "
+             "zip archive, not the folder it was unzipped to)"),
+            (fmucheck.check_fmu, missing, "%s: does not exist; expected: an FMU file"),
+            (fmucheck.check_ssp, missing, "%s: does not exist; expected: an SSP file")):
+        with pytest.raises(FileProblem) as info:
+            check(path)
+        assert str(info.value) == line % path
+
+
 def test_sizes_are_said_in_words():
     assert fmucheck.size_text(3 << 30) == "3 GiB"
     assert fmucheck.size_text(16 * 2 ** 20) == "16 MiB"
@@ -720,6 +738,29 @@ def test_an_fmu_is_checked_once_per_process_until_its_file_changes(paper, tmp_pa
         with pytest.raises(FileProblem):
             fmucheck.check_fmu(str(tmp_path / "missing.fmu"), "Accelerometer")
     assert len(seen) == 4
+
+
+def test_an_ssp_is_checked_once_per_process_until_its_file_changes(ssp, monkeypatch):
+    """check_ssp keeps a passed archive by the file's identity: a second call inspects
+    nothing; a file changed in place is checked anew; one with a problem is never kept."""
+    monkeypatch.setattr(fmucheck, "_SSP_CHECKED", set())
+    seen = []
+    real = fmucheck.inspect_ssp
+    monkeypatch.setattr(fmucheck, "inspect_ssp",
+                        lambda *a, **k: seen.append(a[0]) or real(*a, **k))
+    fmucheck.check_ssp(ssp)
+    fmucheck.check_ssp(ssp)
+    assert seen == [ssp]
+    st = ssp.stat()
+    os.utime(ssp, ns=(st.st_atime_ns, st.st_mtime_ns + 10 ** 9))
+    fmucheck.check_ssp(ssp)
+    fmucheck.check_ssp(ssp)
+    assert seen == [ssp, ssp]
+    edited = _ssd(ssp, lambda t: t.replace(R, R.replace("0.0001", "-1"), 1), member=ACC)
+    for _ in range(2):
+        with pytest.raises(FileProblem, match="R = -1 is out of range"):
+            fmucheck.check_ssp(edited)
+    assert seen == [ssp, ssp, edited, edited]
 
 
 def test_inputs_refuses_an_edited_fmu(paper, tmp_path, capsys):

@@ -91,6 +91,18 @@ def test_the_glyphs_labels_and_their_font_sizes():
     assert sizes == {"x(t)": 11, "z = h(x)": 10, "EKF dc": 10}
 
 
+def test_each_glyphs_label_is_centred_under_it():
+    """The label sits on the block's middle line (x = 0.5, centred) below its glyph's lines:
+    a label off the middle is cut off by the block's edge."""
+    for name in ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator"):
+        ax = _glyph(name)
+        (label,) = ax.texts
+        x, y = label.get_position()
+        assert (x, label.get_horizontalalignment()) == (0.5, "center"), name
+        lowest = min(v for line in ax.get_lines() for v in line.get_ydata())
+        assert 0.0 <= y < lowest, name
+
+
 def test_the_sensors_characteristic_spans_its_axes_both_sides_of_zero():
     ax = _glyph("Accelerometer")
     curve, horizontal, vertical = ax.get_lines()

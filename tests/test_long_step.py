@@ -141,3 +141,24 @@ def test_the_written_out_4x4_check_on_both_sides_of_each_correlation(i, j, scale
     general = covariance._valid_floats(lower)
     assert general == (scale == 1.0), (i, j, scale)
     assert covariance._valid4_floats(*flat) == general
+
+
+@pytest.mark.parametrize("i, j", _PAIRS)
+@pytest.mark.parametrize("scale", [1.0, 1.0 + 2.0 ** -19], ids=["correlation 1", "past it"])
+def test_a_long_step_checks_each_entry_of_the_harmonic_covariance_in_its_place(i, j, scale):
+    """predict_run's check reads each of the ten entries of the 4x4 covariance where it
+    belongs: a correlation of 1 between one pair (valid) is predicted as far as asked, one just
+    past the slack is refused before the first update, as the sample-at-a-time loop does."""
+    s = ready(DualDriftEstimator, **SETTINGS[2])
+    names = (("P11",), ("P12", "P22"), ("P13", "P23", "P33"), ("P14", "P24", "P34", "P44"))
+    variances = (4.0, 0.25, 9.0, 1.0)
+    entries = {names[a][b]: variances[a] if a == b else 0.0
+               for a in range(4) for b in range(a + 1)}
+    entries[names[i][j]] = (scale * covariance.BOUND if scale > 1 else 1.0) * \
+        math.sqrt(variances[i] * variances[j])
+    state = s._committed["_state"]._replace(**entries)
+    want, n = state, 0
+    while n < 5 and dualaxis.valid(want):
+        want, n = dualaxis.estimator_predict(want, s._model), n + 1
+    assert n == (5 if scale == 1.0 else 0)
+    assert dualaxis.predict_run(state, s._model, 5) == (want, n)

@@ -106,9 +106,10 @@ HOSTILE = [
      "the result starts at t = 0.001 s, after the start time 0.0 s"),
     ("one row", b"time,x,y\n0,1,0\n", [], None, "gives one sample only"),
     ("no rows", b"time,x,y\n", [], None, "gives no sample"),
-    ("empty", b"", [], 1, "no header with a first column 'time'"),
+    ("empty", b"", [], 1, "no header with a first column 'time' (found '')"),
     ("no header", b"0,1,0\n0.001,2,0\n", [], 1, "no header with a first column 'time'"),
-    ("header without time", b"t,x,y\n0,1,0\n", [], 1, "no header with a first column 'time'"),
+    ("header without time", b"t,x,y\n0,1,0\n", [], 1,
+     "no header with a first column 'time' (found 't,x,y')"),
     ("semicolons", b"time;x;y\n0;1;0\n", [], 1, "uses ';' as the separator"),
     ("tabs", b"time\tx\ty\n0\t1\t0\n", [], 1, "no header with a first column 'time'"),
     ("a name twice", b"time,x,x\n0,1,0\n", [], 1, "the header names x twice"),
@@ -132,7 +133,8 @@ HOSTILE = [
     ("--hold of no input", GOOD.encode(), ["--hold", "z"], None,
      "--hold z: Accelerometer has no input z; allowed: its inputs x, y, theta, T"),
     ("--hold of a given input", GOOD.encode(), ["--hold", "x"], None,
-     "which --hold x holds; allowed: one of the two"),
+     "upstream.csv has the column x for the input x, which --hold x holds; allowed: one of "
+     "the two"),
     ("no column for an input", b"time,x\n0,1\n0.001,2\n", [], None,
      "Accelerometer's input y is in none of the results"),
 ]
