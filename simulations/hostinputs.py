@@ -97,9 +97,7 @@ def fmu_inputs(fmu):
     parameter ``Ts``; start time: its default experiment's, else 0)."""
     from driftfmu.simulations import fmucheck
     path = Path(fmu)
-    if not path.is_file():
-        raise UsageError("FMU %s does not exist; allowed: the path of one of the FMUs' .fmu "
-                         "files" % fmu)
+    # check_fmu refuses a missing path and a folder first, each as what it is
     md = fmucheck.check_fmu(str(path), expected=fmucheck.expected_model(path), validate=False)
     inputs = [(v.name, float(v.start) if v.start is not None else 0.0)
               for v in md.modelVariables if v.causality == "input"]

@@ -274,6 +274,22 @@ def _foreign_fmu(path, md_variables, structure):
     return path
 
 
+def test_an_fmu_that_is_missing_or_a_folder_is_refused_as_what_it_is(tmp_path, capsys):
+    """The FMU given to ``driftfmu inputs``: a path that does not exist is refused saying so, a
+    folder (an unzipped FMU) saying it is a folder and that the archive is wanted."""
+    result = tmp_path / "r.csv"
+    result.write_text("time,x\n0,0.5\n0.001,0.25\n")
+    out = tmp_path / "in.csv"
+    missing = tmp_path / "Accelerometer.fmu"
+    folder = tmp_path / "unzipped" / "Accelerometer.fmu"
+    folder.mkdir(parents=True)
+    for fmu, said in ((missing, "%s: does not exist; expected: an FMU file" % missing),
+                      (folder, "%s: is a folder; expected: the FMU file itself (the zip "
+                               "archive, not the folder it was unzipped to)" % folder)):
+        rc, _, err = _run(["inputs", str(fmu), str(result), "--output-file", str(out)], capsys)
+        assert _refused(rc, err, out, fmu) == "driftfmu: error: " + said
+
+
 GAIN_U = ('<ScalarVariable name="u" valueReference="0" causality="input" '
           'variability="continuous"><Real/></ScalarVariable>\n'
           '<ScalarVariable name="y" valueReference="1" causality="output" '
