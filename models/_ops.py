@@ -35,12 +35,14 @@ def sqrt(x):
 
 def floor(x):
     """Floor of a float (as float) or an array; inf and nan are their own floor (as C's
-    ``floor`` and NumPy's: math.floor would raise, the C twin ``ops_floor`` does not)."""
+    ``floor`` and NumPy's: math.floor would raise, the C twin ``ops_floor`` does not).  The
+    floor of -0.0 is 0.0 on both paths (as ``float(math.floor(-0.0))`` and ``ops_floor``; NumPy's
+    is -0.0, which ``+ 0.0`` turns into 0.0 and leaves every other value as it is)."""
     if is_scalar(x):
         if x - x != 0.0:
             return x
         return float(math.floor(x))
-    return _np().floor(x)
+    return _np().floor(x) + 0.0
 
 
 def frexp(x):

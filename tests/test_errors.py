@@ -310,6 +310,20 @@ def test_tilt_and_temperature_against_hand_computation():
     assert _ops.sin(-1.0) == pytest.approx(math.sin(-1.0), abs=2 * EPS)
 
 
+def test_the_tilt_of_one_sample_has_the_arrays_bits_whatever_tilt_came_before():
+    """``x + sin(theta)`` of one sample (the FMU's path, which keeps the sine of the tilt it
+    held last) has the bits of the array form (the batch engine's) after any tilt, the signed
+    zeros included: -0.0 + sin(0.0) is 0.0, -0.0 + sin(-0.0) is -0.0."""
+    tilts = (-0.0, 0.0, 1.0, -1.0, 0.3, 5e-324)
+    for before in tilts:
+        for theta in tilts:
+            for x in (-0.0, 0.0, 0.25):
+                errors.tilt(0.5, before)
+                one = errors.tilt(x, theta)
+                arrays = errors.tilt(np.array([x]), np.array([theta]))[0]
+                assert np.float64(one).tobytes() == arrays.tobytes(), (before, theta, x)
+
+
 def test_temperature_terms_equal_imu_error_models_linear_thermal_model():
     """A linear sensor (a0 = a2 = 0, a1 = 1) shows imu-error-model's distortion of a rate with
     the same coefficients: ``x (1 + kT_scale dT) + kT_bias dT`` (its temperatures in Celsius,

@@ -38,6 +38,22 @@ def test_special_functions_same_bits_on_floats_and_arrays(fn):
     assert np.array_equal(fn(xs), np.array([fn(float(x)) for x in xs]))
 
 
+@pytest.mark.parametrize("fn", [_ops.floor, _ops.sin2pi, _ops.sin])
+def test_floor_and_sine_same_bits_on_floats_and_arrays_at_the_signed_zeros(fn):
+    """The sign of a zero too: floor(-0.0) is 0.0 and sin(-0.0) is -0.0 on both paths (the C
+    twins' ``ops_floor`` and ``ops_sin``), and the values around them keep their bits."""
+    xs = np.array([-0.0, 0.0, -5e-324, 5e-324, -1e-300, 1e-300, -0.5, 0.5, -1.0, 1.0,
+                   -0.9999999999999999, 0.9999999999999999, -7.0, 7.0, np.inf, -np.inf])
+    got = fn(xs)
+    want = np.array([fn(float(x)) for x in xs])
+    finite = np.isfinite(want)
+    assert np.array_equal(np.isfinite(got), finite)
+    assert np.array_equal(got[finite].view(np.uint64), want[finite].view(np.uint64)), \
+        [(x, a, b) for x, a, b in zip(xs, got, want) if a.tobytes() != b.tobytes()]
+    # the C twins' values at -0.0: ops_floor(-0.0) is 0.0, ops_sin(-0.0) is -0.0
+    assert math.copysign(1.0, got[0]) == (1.0 if fn is _ops.floor else -1.0)
+
+
 def test_exp_same_bits_on_floats_and_arrays_over_its_whole_range():
     xs = np.concatenate([np.random.default_rng(5).uniform(-760.0, 720.0, 3000),
                          [0.0, -0.0, _ops.EXP_HIGH, _ops.EXP_LOW, 1e4, -1e4, np.inf, -np.inf]])
