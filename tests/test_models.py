@@ -54,6 +54,17 @@ def test_floor_and_sine_same_bits_on_floats_and_arrays_at_the_signed_zeros(fn):
     assert math.copysign(1.0, got[0]) == (1.0 if fn is _ops.floor else -1.0)
 
 
+def test_floor_of_a_float_is_a_float():
+    """As its docstring says: a Python float (the FMUs' path stays in plain floats), not a
+    NumPy scalar; -0.0's floor 0.0, inf and nan their own."""
+    for x, want in ((2.5, 2.0), (-2.5, -3.0), (-0.0, 0.0), (1e300, 1e300), (-5e-324, -1.0),
+                    (math.inf, math.inf)):
+        got = _ops.floor(x)
+        assert type(got) is float and got == want and math.copysign(1.0, got) == \
+            math.copysign(1.0, want), (x, got)
+    assert type(_ops.floor(math.nan)) is float and math.isnan(_ops.floor(math.nan))
+
+
 def test_exp_same_bits_on_floats_and_arrays_over_its_whole_range():
     xs = np.concatenate([np.random.default_rng(5).uniform(-760.0, 720.0, 3000),
                          [0.0, -0.0, _ops.EXP_HIGH, _ops.EXP_LOW, 1e4, -1e4, np.inf, -np.inf]])
