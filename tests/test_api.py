@@ -43,6 +43,17 @@ def test_simulate_the_chain_equals_models_sample_by_sample(fmu_dir):
 
 
 @pytest.mark.integration
+def test_a_run_that_stops_where_it_starts_is_its_first_communication_point(fmu_dir):
+    """stop_time = start_time (the bound of stop_time >= start_time; one ulp below it is
+    refused, above): one row, at the start, models/' first sample."""
+    result = driftfmu.simulate(stop_time=0.0, start_values={"seed": 7}, fmu_dir=fmu_dir)
+    assert result.shape == (1,) and result["time"].tolist() == [0.0]
+    ref = chain.simulate(1, 7)
+    for c in ("x", "z", "x_hat", "dc_ekf1"):
+        np.testing.assert_array_equal(result[c], np.asarray(ref[c]), err_msg=c)
+
+
+@pytest.mark.integration
 @pytest.mark.parametrize("fmi_version", [2, 3])
 def test_native_backend_gives_the_python_fmus_bits(fmu_dir, fmi_version):
     kw = dict(stop_time=_stop(N), start_values={"seed": 3}, fmu_dir=fmu_dir)
@@ -98,6 +109,7 @@ def test_a_name_recorded_from_two_fmus_is_qualified(fmu_dir):
     (dict(stop_time="1"), ["stop_time = '1' is not a number"]),
     (dict(stop_time=True), ["stop_time = True is not a number"]),
     (dict(step_size=None, start_time="0"), ["start_time = '0' is not a number"]),
+    (dict(stop_time=-5e-324), ["stop_time = -5e-324 are not allowed", "stop_time >= start_time"]),
 ])
 def test_simulate_refuses_bad_settings_before_building(kwargs, words, tmp_path):
     with pytest.raises(ValueError) as info:

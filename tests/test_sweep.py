@@ -133,11 +133,21 @@ def test_files_are_written(local, tmp_path):
     (dict(seed=2 ** 31 - 10, runs=20), "seed"),
     (dict(a2=[0.01, 0.02, 0.01]), r"the a2 grid has 0.01 more than once; allowed: distinct"),
     (dict(R=[1e-4, 1e-4]), r"the R grid has 0.0001 more than once"),
+    pytest.param(dict(Q=-1e-300), r"Q = -1e-300 is out of range; allowed: Q >= 0",
+                 id="Q below 0"),
+    pytest.param(dict(Q=float("nan")), r"Q = nan is not finite; allowed: a finite value with "
+                 r"Q >= 0", id="Q nan"),
 ])
 def test_bad_input_is_refused_before_anything_runs(kw, match):
     args = dict(KW, **kw)
     with pytest.raises(ValueError, match=match):
         sweep.sweep(**args)
+
+
+def test_a_sweep_without_process_noise_runs():
+    """Q = 0, the bound of Q >= 0 (one past it is refused above): the sweep runs."""
+    res = sweep.sweep(**dict(KW, Q=0.0, runs=2, n=20))
+    assert res["grid_dc1"].shape == (2, 2, 2) and np.all(np.isfinite(res["grid_zbar"]))
 
 
 def test_cli_writes_the_files_and_prints_its_wall_time(tmp_path, capsys):
