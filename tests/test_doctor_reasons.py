@@ -108,6 +108,60 @@ def test_a_start_value_outside_its_declared_range_is_named_once(tmp_path):
         "it declares"]
 
 
+def test_an_archive_is_an_ssp_only_with_a_system_structure_and_no_model_description(tmp_path):
+    """A zip archive with neither modelDescription.xml nor SystemStructure.ssd is named an FMU
+    without a model description (not diagnosed as an SSP); an FMU that also carries a
+    SystemStructure.ssd is diagnosed as the FMU it is."""
+    import paperfmu
+    neither = tmp_path / "Accelerometer.fmu"
+    with zipfile.ZipFile(neither, "w") as zf:
+        zf.writestr("resources/readme.txt", "no model description here")
+    assert doctor.diagnose(neither) == [(doctor.FAIL, "%s has no modelDescription.xml"
+                                         % neither)]
+    fmu = paperfmu.paper_fmu(tmp_path / "paper.fmu", "Accelerometer")
+    both = tmp_path / "with_ssd" / "Accelerometer.fmu"
+    both.parent.mkdir()
+    with zipfile.ZipFile(fmu) as zin, zipfile.ZipFile(both, "w") as zout:
+        for item in zin.infolist():
+            zout.writestr(item, zin.read(item.filename))
+        zout.writestr("SystemStructure.ssd", "<not read/>")
+    said = doctor.diagnose(both)
+    assert said[0][0] == doctor.OK and said[0][1].startswith(
+        "FMI 2.0 co-simulation FMU 'Accelerometer'"), said
+
+
+@pytest.mark.parametrize("edited, more", [
+    pytest.param(("Ts",), "", id="one"),
+    pytest.param(("Ts", "a3"), " (and 1 more difference)", id="two"),
+    pytest.param(("Ts", "a3", "fc"), " (and 2 more differences)", id="three")])
+def test_the_differences_from_the_table_past_the_first_are_counted_in_words(edited, more,
+                                                                            tmp_path):
+    """The first difference of a model description from driftfmu's table is named, the others
+    counted: none, "1 more difference" (two found), "2 more differences" (three found)."""
+    import paperfmu
+    fmu = paperfmu.paper_fmu(tmp_path / "paper.fmu", "Accelerometer")
+    starts = {"Ts": ('unit="s" min="1e-09" start="0.001"', 'unit="s" min="1e-09" start="0.002"'),
+              "a3": ('unit="V/g3" start="0.0"', 'unit="V/g3" start="0.5"'),
+              "fc": ('unit="Hz" min="0.0" max="2500.0" start="0.0"',
+                     'unit="Hz" min="0.0" max="2500.0" start="10.0"')}
+
+    def edit(data):
+        text = data.decode()
+        for name in edited:
+            assert text.count(starts[name][0]) == 1, name
+            text = text.replace(*starts[name])
+        return text.encode()
+
+    fmu = _rewrite(fmu, tmp_path / "Accelerometer.fmu", replace={"modelDescription.xml": edit})
+    said = [msg for level, msg in doctor.diagnose(fmu) if level == doctor.FAIL
+            and "is not driftfmu's Accelerometer" in msg]
+    assert len(said) == 1, said
+    assert said[0].startswith("its modelDescription.xml is not driftfmu's Accelerometer as its "
+                              "code runs: the start value of Ts is 0.002; expected: 0.001,"), said
+    assert said[0].endswith("%s. A host would be silently wrong; rebuild the FMU (driftfmu "
+                            "build)" % more), said
+
+
 @pytest.mark.integration
 def test_a_broken_model_description_is_named_with_a_verdict(built_fmus, tmp_path, capsys):
     bad = _rewrite(built_fmus["Excitation"], tmp_path / "Excitation.fmu",
