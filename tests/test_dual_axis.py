@@ -469,6 +469,19 @@ def test_cli_batch_run_writes_and_reports(tmp_path, capsys):
                                                      "dual_axis.png"]
 
 
+def test_the_table_codes_the_sweep_and_the_axis_as_the_results_say(tmp_path):
+    """``dual_axis.csv``: ``sweep`` 1 for dphi, 2 for rho; ``axis`` 1 for x, 2 for y
+    (docs/results.md), one row per point of the summary, in its order."""
+    s = dual_axis.run_dual_axis(out=tmp_path / "o", engine="batch", points=2, runs=2, n=60,
+                                workers=1, plot=False)
+    with open(tmp_path / "o" / "dual_axis.csv") as fh:
+        table = list(csv.DictReader(fh))
+    codes = [(float(row["sweep"]), float(row["axis"])) for row in table]
+    assert codes == [({"dphi": 1.0, "rho": 2.0}[p["sweep"]], {"x": 1.0, "y": 2.0}[p["axis"]])
+                     for p in s["points"]]
+    assert set(codes) == {(1.0, 1.0), (1.0, 2.0), (2.0, 1.0), (2.0, 2.0)}
+
+
 def test_second_gauss_markov_axis_under_any_step_is_the_sample_by_sample_run():
     from driftfmu.fmu_src.Excitation import Excitation
     e = Excitation(instance_name="e")
@@ -618,6 +631,22 @@ def test_dual_axis_figure_titles_at_9_points_and_its_lines_1_point_wide(closed_f
     for ax in (bottom_left, bottom_right):
         bars = [c for c in ax.containers if isinstance(c, ErrorbarContainer)]
         assert len(bars) == 2 and all(c.lines[0].get_linewidth() == 1.0 for c in bars)
+
+
+def test_dual_axis_figure_draws_open_6_point_and_filled_5_point_markers(closed_figures,
+                                                                         tmp_path):
+    """Top: the single-axis EKF1's points open markers of 6 pt (the dashed line they miss
+    shows through); bottom: the dual-axis EKF1's points filled markers of 5 pt."""
+    from matplotlib.container import ErrorbarContainer
+    dual_axis.plot_dual_axis(tmp_path / "d.png", _plotted_summary())
+    (fig,) = closed_figures
+    for row, (size, face) in ((fig.axes[:2], (6, "none")), (fig.axes[2:], (5, None))):
+        for ax in row:
+            points = [c.lines[0] for c in ax.containers if isinstance(c, ErrorbarContainer)]
+            assert len(points) == 2
+            for line in points:
+                assert line.get_markersize() == size
+                assert (line.get_markerfacecolor() == "none") == (face == "none")
 
 
 def test_batch_engine_claims_no_fmu_validation_and_no_backend(monkeypatch):
