@@ -187,6 +187,29 @@ def test_a_value_that_is_not_a_finite_number(cell, tmp_path, capsys):
              tmp_path, capsys)
 
 
+@pytest.mark.parametrize("edit", ["repeated", "swapped", "all equal", "backwards"])
+def test_an_arrays_time_not_strictly_increasing(edit):
+    """driftfmu.simulate's array (not a CSV file): a time that repeats, goes back or stands
+    still is refused as not increasing; the same times in order pass."""
+    data = np.zeros(50, dtype=[("time", float), ("z", float)])
+    data["time"] = np.arange(50) * TS
+    data["z"] = np.sin(np.arange(50.0))
+    assert driftfmu.allan(data)["adev"][0] > 0.0
+    t = data["time"]
+    if edit == "repeated":
+        t[20] = t[19]
+    elif edit == "swapped":
+        t[20], t[21] = t[21], t[20]
+    elif edit == "all equal":
+        t[:] = 0.0
+    else:
+        t[:] = t[::-1].copy()
+    with pytest.raises(UsageError) as info:
+        driftfmu.allan(data)
+    assert str(info.value) == ("time is not strictly increasing; allowed: uniformly sampled, "
+                               "increasing time")
+
+
 def test_a_nan_in_an_array(tmp_path):
     data = np.zeros(10, dtype=[("time", float), ("z", float)])
     data["time"] = np.arange(10) * TS
