@@ -44,7 +44,8 @@ def test_floor_and_sine_same_bits_on_floats_and_arrays_at_the_signed_zeros(fn):
     twins' ``ops_floor`` and ``ops_sin``), and the values around them keep their bits."""
     xs = np.array([-0.0, 0.0, -5e-324, 5e-324, -1e-300, 1e-300, -0.5, 0.5, -1.0, 1.0,
                    -0.9999999999999999, 0.9999999999999999, -7.0, 7.0, np.inf, -np.inf])
-    got = fn(xs)
+    with np.errstate(invalid="ignore"):  # (sin of inf: inf - inf, nan on both paths)
+        got = fn(xs)
     want = np.array([fn(float(x)) for x in xs])
     finite = np.isfinite(want)
     assert np.array_equal(np.isfinite(got), finite)
