@@ -198,8 +198,8 @@ def _diagnose_fmu(fmu, zf, names, out):
                         % model))
     checked.append("every start value against its declared min and max")
     for what, want in fmucheck.range_problems(desc)[:1]:
-        out.append((FAIL, "its modelDescription.xml gives %s; expected: %s. A host would "
-                          "start the FMU outside what it declares" % (what[4:], want)))
+        out.append((FAIL, "its modelDescription.xml: %s; expected: %s. A host would start "
+                          "the FMU outside what it declares" % (what, want)))
     plat = _platform_dir(md.fmiVersion)
     ext = {"Linux": ".so", "Darwin": ".dylib", "Windows": ".dll"}.get(platform.system(), ".so")
     binary = "binaries/%s/%s%s" % (plat, desc.identifier, ext)

@@ -103,7 +103,7 @@ def test_a_start_value_outside_its_declared_range_is_named_once(tmp_path):
     past = ('<Integer min="0" max="1" start="2" />', '<Real unit="V" min="0.0" max="6.0" '
             'start="6.5" />')
     assert said("Accelerometer_past.fmu", past) == [
-        "its modelDescription.xml gives start value of noise is 2, outside its declared "
+        "its modelDescription.xml: the start value of noise is 2, outside its declared "
         "range; expected: noise >= 0 and noise <= 1. A host would start the FMU outside what "
         "it declares"]
 
