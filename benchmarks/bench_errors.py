@@ -168,8 +168,8 @@ def main(argv=None):
                     shutil.rmtree(work)
         counted = {}
         if shutil.which("valgrind"):
-            for label in labels:
-                work = tmp / ("ir_%d" % labels.index(label))
+            for i, label in enumerate(labels):
+                work = tmp / ("ir_%d" % i)
                 work.mkdir()
                 counted[label] = instructions(host, fmus[which[label]]["native"],
                                               starts[label], work)

@@ -6,6 +6,7 @@ Excitation (Gaussian) -> Accelerometer -> DriftEstimator, fixed step ``Ts``, one
 The master checks the FMUs against :func:`driftfmu.models.chain.simulate` on the same seed, sample by
 sample, and reports the drift estimates against the three references.
 """
+import inspect
 import math
 from pathlib import Path
 
@@ -131,9 +132,10 @@ def start_values(a0=0.0, a1=1.0, a2=0.01, A=0.0, Q=0.01, R=1e-4, seed=1, Ts=1e-3
     """
     unknown = set(general) - set(GENERAL_OFF)
     if unknown:
-        raise TypeError("unknown parameter(s) %s; allowed: a0, a1, a2, A, Q, R, seed, Ts, x0, "
-                        "P0, estimator, %s" % (", ".join(sorted(unknown)),
-                                               ", ".join(GENERAL_OFF)))
+        named = [n for n, p in inspect.signature(start_values).parameters.items()
+                 if p.kind is p.POSITIONAL_OR_KEYWORD]
+        raise TypeError("unknown parameter(s) %s; allowed: %s" % (
+            ", ".join(sorted(unknown)), ", ".join(named + list(GENERAL_OFF))))
     if P0 is None:
         P0 = Q / (1.0 - A * A)
     model = dict(a0=a0, a1=a1, a2=a2, R=R)

@@ -965,11 +965,12 @@ def mark_clipping(ax):
     """Mark every curve of ``ax`` that leaves the y range: small triangles on the frame where
     it is off the scale (pointing the way it went; one per sample off the scale, at most 12 per
     curve and side, spread from the first such sample to the last), and a note naming the
-    curve, the samples and how far it went.  Nothing is clipped without a mark (issue 19: drift.png's bottom panel
-    hid k = 1-99 of the empirical drift), and the note covers no curve: beside the axes under
-    their legend where the legend sits beside them, in the legend where it sits on the axes,
-    else inside where it covers the fewest points (a legend's ``loc="best"``).  Log axes:
-    values <= 0 are not drawable and not counted.  Returns the notes."""
+    curve, the samples and how far it went.  Nothing is clipped without a mark (issue 19:
+    drift.png's bottom panel hid k = 1-99 of the empirical drift), and the note covers no
+    curve: beside the axes under their legend where the legend sits beside them, in the legend
+    where it sits on the axes, else inside where it covers the fewest points (a legend's
+    ``loc="best"``).  Log axes: values <= 0 are not drawable and not counted.  Returns the
+    notes."""
     import numpy as np
     y0, y1 = sorted(ax.get_ylim())
     x0, x1 = sorted(ax.get_xlim())
