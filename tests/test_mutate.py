@@ -471,6 +471,38 @@ def test_a_run_whose_tests_pass_but_leave_files_does_not_catch_a_mutant():
     assert 'sys.stderr.write("\\n' + survey.LEFT_BEHIND in conftest
 
 
+def test_against_a_parametrised_tests_function_runs_every_case_of_it_and_nothing_else():
+    """--against names tests as paths or node ids; the node id of a parametrised test's
+    function names each of its cases (it selected none before, and every mutant passed);
+    a case's own id names that case alone; other tests are deselected."""
+    survey = _tool("mutation_survey")
+
+    class Item:
+        def __init__(self, nodeid):
+            self.nodeid = nodeid
+
+    class Hook:
+        deselected = []
+
+        def pytest_deselected(self, items):
+            self.deselected += [it.nodeid for it in items]
+
+    class Config:
+        hook = Hook()
+
+    names = ["t.py::test_f[a]", "t.py::test_f[b]", "t.py::test_g", "t.py::test_ff[a]",
+             "u.py::test_f[a]"]
+    for ids, kept in ((["t.py::test_g", "t.py::test_f"],
+                       ["t.py::test_g", "t.py::test_f[a]", "t.py::test_f[b]"]),
+                      (["t.py::test_f[b]"], ["t.py::test_f[b]"]),
+                      (["t.py::test_f[a]", "t.py::test_g"], ["t.py::test_f[a]", "t.py::test_g"])):
+        items, config = [Item(n) for n in names], Config()
+        config.hook.deselected = []
+        survey._Only(ids).pytest_collection_modifyitems(config, items)
+        assert [it.nodeid for it in items] == kept, ids
+        assert sorted(config.hook.deselected) == sorted(set(names) - set(kept))
+
+
 @pytest.mark.parametrize("limit", ["0", "-1"])
 def test_a_limit_below_one_is_refused_in_one_line(tmp_path, limit):
     root = _survey_tree(tmp_path)

@@ -603,12 +603,21 @@ class _Only:
         self.ids = {t: i for i, t in enumerate(ids)}
         self.whole = {t for t in ids if "::" not in t}
 
+    def _id(self, item):
+        """The id of ``ids`` that names ``item``: its node id, or the node id of its test
+        function without the parameters (``--against tests/t.py::test_f`` names every
+        ``test_f[...]``); None."""
+        for key in (item.nodeid, item.nodeid.split("[", 1)[0]):
+            if key in self.ids:
+                return key
+        return None
+
     def pytest_collection_modifyitems(self, config, items):
         if self.whole:
             return
-        keep = [it for it in items if it.nodeid in self.ids]
-        drop = [it for it in items if it.nodeid not in self.ids]
-        keep.sort(key=lambda it: self.ids[it.nodeid])
+        keep = [it for it in items if self._id(it) is not None]
+        drop = [it for it in items if self._id(it) is None]
+        keep.sort(key=lambda it: self.ids[self._id(it)])
         items[:] = keep
         if drop:
             config.hook.pytest_deselected(items=drop)
