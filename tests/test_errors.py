@@ -355,10 +355,14 @@ def test_adc_over_the_measurement_range_rounds_to_its_grid_and_clips():
     ``2^bits`` codes; with Vs or without range it keeps the stand-in's span (its bits)."""
     cfg = adxl203.config(a0=0.5, a1=-2.0, a2=0.0, bits=4, range=1.0)
     assert cfg.lo == -1.5 and cfg.lsb == 0.25 and cfg.levels == 16
-    for V, q in ((0.5, 0.5), (0.61, 0.5), (0.63, 0.75), (-1.5, -1.5), (-9.0, -1.5),
-                 (2.24, 2.25), (2.5, 2.25), (9.0, 2.25)):
+    cases = ((0.5, 0.5), (0.61, 0.5), (0.63, 0.75), (-1.5, -1.5), (-9.0, -1.5), (2.24, 2.25),
+             (2.5, 2.25), (9.0, 2.25))
+    for V, q in cases:
         assert adxl203.quantise(V, cfg) == q, V
     assert math.isnan(adxl203.quantise(math.nan, cfg))
+    # the batch engine's path: the same codes over an array (with a nan kept as it is)
+    got = adxl203.quantise(np.array([V for V, _ in cases] + [math.nan]), cfg)
+    assert got[:-1].tolist() == [q for _, q in cases] and math.isnan(got[-1])
     assert adxl203.config(bits=4).lo == 0.0 and adxl203.config(bits=4).lsb == 5.0 / 16
     assert adxl203.config(bits=4, Vs=5.0, range=1.0).lsb == 5.0 / 16
     assert adxl203.config(range=1.0).levels == 0
