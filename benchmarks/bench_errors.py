@@ -16,9 +16,9 @@ its output z read at every step:
 Goals: off costs no more than before (within the scatter of alternating runs: at most 1.05
 times), on at most 2 times before.  Each figure is the median of ``--repeats`` runs, the three
 alternating run by run, for the Python FMU and the native FMI 2.0 FMU.  Where valgrind is
-installed, the native FMU's instructions per step are counted too (callgrind, the difference of
-two run lengths: the host's start and the FMU's loading cancel): a count does not depend on
-what else runs on the machine, as a wall time does.
+installed, the instructions per step of both FMUs are counted too (callgrind, the difference
+of two run lengths: the host's start, the FMU's loading and NumPy's import cancel): a count does
+not depend on what else runs on the machine, as a wall time does.
 
 The Python runs are long enough that what a run pays once does not hide the step: the FMU
 imports NumPy after its first samples (about 0.07 s), which over 40,000 steps added about 1.7 µs
@@ -108,9 +108,10 @@ def step_ns(host, fmu, start, steps, work, env=None):
     return ns
 
 
-def instructions(host, fmu, start, work, steps=(20000, 40000)):
+def instructions(host, fmu, start, work, steps=(20000, 40000), env=None):
     """Instructions per step of the Accelerometer ``fmu`` alone in the C host (callgrind: the
-    difference of the counts of two run lengths over the difference of the steps)."""
+    difference of the counts of two run lengths over the difference of the steps; ``env`` the
+    host's environment, :func:`chain.python_fmu_env` for the Python FMU)."""
     counts = []
     for n in steps:
         folder = work / ("n%d" % n)
@@ -121,7 +122,7 @@ def instructions(host, fmu, start, work, steps=(20000, 40000)):
         (folder / "script.txt").write_text(text)
         done = subprocess.run(["valgrind", "--tool=callgrind", "--callgrind-out-file=/dev/null",
                                str(host), "script.txt"], cwd=folder, capture_output=True,
-                              text=True)
+                              text=True, env=env)
         counts.append(int(re.search(r"Collected : (\d+)", done.stderr).group(1)))
     return (counts[1] - counts[0]) / (steps[1] - steps[0])
 
@@ -166,13 +167,19 @@ def main(argv=None):
                     measured.setdefault((backend, label), []).append(step_ns(
                         host, fmus[which[label]][backend], starts[label], steps, work, env))
                     shutil.rmtree(work)
-        counted = {}
+        counted, counted_python = {}, {}
         if shutil.which("valgrind"):
             for i, label in enumerate(labels):
                 work = tmp / ("ir_%d" % i)
                 work.mkdir()
                 counted[label] = instructions(host, fmus[which[label]]["native"],
                                               starts[label], work)
+            for label in ("before", "off", "on"):  # (the Python FMU: 10,000 vs 30,000 steps,
+                work = tmp / ("ir_python_%s" % label)  # each past NumPy's import)
+                work.mkdir()
+                counted_python[label] = instructions(
+                    host, fmus[which[label]]["python"], starts[label], work, (10000, 30000),
+                    chain.python_fmu_env())
     median = {key: statistics.median(v) for key, v in measured.items()}
     print("machine: %s; load average %s"
           % (figures.machine(), " ".join("%.1f" % x for x in os.getloadavg())))
@@ -197,14 +204,16 @@ def main(argv=None):
             figures.row("the same, every slow error on", on / 1e3, "µs", against, on / b,
                         "<= 2", met_on),
         ]
-    if counted:
-        b, off, on = (counted[k] for k in ("before", "off", "on"))
-        print("  native FMI 2.0 instructions per step (callgrind): before %.0f, off %.0f (%.3f), "
-              "on %.0f (%.3f)" % (b, off, off / b, on, on / b))
-        against = "the native FMI 2.0 Accelerometer before the slow errors (%s)" % args.before
+    for count, title in ((counted, "native FMI 2.0"), (counted_python, "Python")):
+        if not count:
+            continue
+        b, off, on = (count[k] for k in ("before", "off", "on"))
+        print("  %s instructions per step (callgrind): before %.0f, off %.0f (%.3f), "
+              "on %.0f (%.3f)" % (title, b, off, off / b, on, on / b))
+        against = "the %s Accelerometer before the slow errors (%s)" % (title, args.before)
         rows += [
-            figures.row("instructions of one step of the native FMI 2.0 Accelerometer before "
-                        "the slow errors (callgrind)", b, "instructions"),
+            figures.row("instructions of one step of the %s Accelerometer before the slow "
+                        "errors (callgrind)" % title, b, "instructions"),
             figures.row("the same, this code, every slow error off", off, "instructions",
                         against, off / b, "<= 1.05 (no more than before)", off / b <= 1.05),
             figures.row("the same, every slow error on", on, "instructions", against, on / b,

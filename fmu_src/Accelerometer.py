@@ -145,11 +145,56 @@ class Accelerometer(SlaveBase):
         self._n_gm = self._stream("gm", 0, seed, warm_up) if ecfg.gm_sigma != 0.0 else None
         self._n_fl = tuple(self._stream("fl", i, seed, warm_up) for i in range(ecfg.fl_n))
         self._rows_k0, self._rows = 0, ()  # the draws of a block of samples, as _draws gives them
+        # the input-independent processes in runs of samples (errors.run, _row)
+        self._runs = ecfg.rw != 0.0 or ecfg.gm_sigma != 0.0 or ecfg.fl_n != 0
+        self._run, self._run_k0, self._run_from, self._run_size = (), 0, None, RUN_FIRST
+        self._last_in = self._last = None  # the error state given and made by the last sample
+        self._chain = 0  # samples that followed one another since the last that did not
         self.hidden_valid = self._errors_valid if ecfg.on else None
 
     def _stream(self, name, i, seed, warm_up):
         stream = errors.stream_of(name, i)
         return self.blocks("%s%d" % (name, i), seed, lambda k: normal(seed, stream, k), warm_up)
+
+    def _row(self, err, k):
+        """errors.run's row of sample ``k`` from ``err``, the error state after sample ``k -
+        1``: from the run in store where ``err`` holds the very numbers that run left at ``k -
+        1`` (the same objects, so the same values); else None, and the sample is computed on its
+        own (errors.advance).  A new run starts from ``err`` once :data:`RUN_AFTER` samples in a
+        row have each started from the state the one before made (a master that restores states
+        often never pays for a run it does not use), with :data:`RUN_FIRST` samples, and the
+        next one, where a run was used to its end, with twice as many (at most Blocks.SIZE), over
+        the draws the blocks hold from ``k`` (None while they run sample by sample)."""
+        run, i = self._run, k - self._run_k0
+        if 0 <= i <= len(run):
+            prev = run[i - 1] if i else self._run_from
+            if err[3] is prev[2] and err[0] is prev[0] and err[1] is prev[1]:  # (fl, rw, gm)
+                if i < len(run):
+                    return run[i]
+                return self._new_run(err, k, min(2 * self._run_size, Blocks.SIZE))
+        if err is self._last:
+            self._chain += 1
+        elif err is not self._last_in:  # (the same sample again, other inputs: no break)
+            self._chain = 0
+        if self._chain >= RUN_AFTER:
+            return self._new_run(err, k, RUN_FIRST)
+        return None
+
+    def _new_run(self, err, k, size):
+        """A run of errors.run from ``err`` at sample ``k`` (at most ``size`` samples, to the end
+        of the blocks of draws); its first row, or None where the blocks run sample by
+        sample."""
+        draws = [None if b is None else b.run(k) for b in (self._n_rw, self._n_gm) + self._n_fl]
+        present = [d for d in draws if d is not None]
+        if len(present) != len([b for b in (self._n_rw, self._n_gm) + self._n_fl
+                                if b is not None]):
+            self._chain = 0  # (the warm-up: a run once RUN_AFTER more samples followed)
+            return None
+        n = min(size, min(map(len, present)))
+        draws = [None if d is None else d[:n] for d in draws]
+        self._run = errors.run(err, (draws[0], draws[1], tuple(draws[2:])), self._ecfg)
+        self._run_k0, self._run_from, self._run_size = k, (err.rw, err.gm, err.fl), size
+        return self._run[0]
 
     def _draws(self, k):
         """errors.draws(seed, k, ecfg), from the blocks: the tuples of a run of samples from
@@ -190,6 +235,18 @@ class Accelerometer(SlaveBase):
         """The first axis with the slow errors (adxl203.measure_errors): (lp, err, z)."""
         v = self._v[1](k) if self.noise else 0.0  # (adxl203.noise)
         ecfg = self._ecfg
+        if self._runs:  # (the walk, the Gauss-Markov or the flicker bias on: err is a state)
+            row = self._row(err, k)
+            self._last_in = err
+            if row is not None:
+                lp, err, z = adxl203.measure_errors_run(prev, err, row, self.x, self.y, v,
+                                                        self.theta, self.T, self._cfg, ecfg)
+            else:
+                lp, err, z = adxl203.measure_errors(prev, err, self.x, self.y, v,
+                                                    self._draws(k), self.theta, self.T,
+                                                    self._cfg, ecfg)
+            self._last = err
+            return lp, err, z
         lp, err, z = adxl203.measure_errors(prev, err or OFF_STATE, self.x, self.y, v,
                                             self._draws(k), self.theta, self.T, self._cfg, ecfg)
         return lp, err if ecfg.on else None, z
@@ -272,6 +329,11 @@ class Accelerometer(SlaveBase):
                     "allowed: null" % ", ".join(ERROR_SWITCHES)]
         return ["hidden state _err: %s" % p for p in errors.state_problems(err, self._ecfg)]
 
+
+#: A run of the input-independent processes (Accelerometer._row) starts once this many samples in
+#: a row each started from the state the one before made, with RUN_FIRST samples.
+RUN_AFTER = 64
+RUN_FIRST = 64
 
 #: The error state of a sensor whose errors are off but whose tilt is not 0 (nothing to keep).
 OFF_STATE = errors.ErrorState(0.0, 0.0, 0.0, ())

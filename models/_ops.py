@@ -103,7 +103,7 @@ EXP_HIGH = 709.78
 EXP_LOW = -745.1332191019412
 
 
-def exp(x):
+def exp(x, _floor=math.floor, _ldexp=math.ldexp):
     """``e^x`` of a float or an array, by arithmetic only (same bits on both paths).
 
     ``x = n ln 2 + r`` with ``n = floor(x / ln 2 + 1/2)``; ``r = (x - n LN2_HI) - n LN2_LO``,
@@ -116,13 +116,14 @@ def exp(x):
     ``nan`` for ``nan``.
     """
     if type(x) is float and EXP_LOW <= x <= EXP_HIGH:  # one FMU instance: the same steps,
-        n = float(math.floor(x * INV_LN2 + 0.5))       # the loop below written out
+        m = _floor(x * INV_LN2 + 0.5)                  # the loop below written out (n = m)
+        n = float(m)
         r = (x - n * LN2_HI) - n * LN2_LO
         c = _EXP_COEFF
         poly = (((((((((((((c[14] * r + c[13]) * r + c[12]) * r + c[11]) * r + c[10]) * r
                          + c[9]) * r + c[8]) * r + c[7]) * r + c[6]) * r + c[5]) * r + c[4])
                     * r + c[3]) * r + c[2]) * r + c[1]) * r + c[0]
-        return math.ldexp(poly, int(n))
+        return _ldexp(poly, m)
     big = x > EXP_HIGH
     tiny = x < EXP_LOW
     nan = x != x

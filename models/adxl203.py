@@ -158,7 +158,7 @@ def lowpass(prev, s, alpha):
     return alpha * prev + (1.0 - alpha) * s
 
 
-def quantise(V, cfg):
+def quantise(V, cfg, _floor=math.floor):
     """ADC: nearest code of ``V - lo`` on the grid ``lsb``, clipped to ``[0, levels - 1]``, as
     the voltage ``lo + code lsb`` (``lo = 0.0``: ``code lsb``, the same bits); a non-finite
     ``V`` (an overflow upstream) stays as it is, so that the FMU names it instead of showing
@@ -168,13 +168,13 @@ def quantise(V, cfg):
     if type(V) is float:  # one FMU instance: the same steps, written out for a float
         if V - V != 0.0:
             return V
-        lo = cfg.lo
-        code = (V / cfg.lsb if lo == 0.0 else (V - lo) / cfg.lsb) + 0.5
-        code = code if code - code != 0.0 else float(math.floor(code))  # (_ops.floor)
+        lsb, levels, _, lo = cfg[9:]  # (Config's last fields)
+        code = (V / lsb if lo == 0.0 else (V - lo) / lsb) + 0.5
+        code = code if code - code != 0.0 else float(_floor(code))  # (_ops.floor)
         code = 0.0 if code < 0.0 else code
-        top = cfg.levels - 1.0
+        top = levels - 1.0
         code = top if code > top else code
-        return code * cfg.lsb if lo == 0.0 else lo + code * cfg.lsb
+        return code * lsb if lo == 0.0 else lo + code * lsb
     if cfg.lo == 0.0:
         code = _ops.floor(V / cfg.lsb + 0.5)
     else:
@@ -225,6 +225,52 @@ def measure_errors(prev, state, own, other, v, draws, theta, T, cfg, ecfg):
     if ecfg.kT_bias != 0.0:
         V = V + errors.thermal_bias(T, ecfg)
     return e, state, quantise(V, cfg)
+
+
+def measure_errors_run(prev, state, row, own, other, v, theta, T, cfg, ecfg, _exp=_ops.exp,
+                       _sin=_ops.sin, _TILT=errors._TILT, _new_state=tuple.__new__,
+                       _ErrorState=errors.ErrorState):
+    """:func:`measure_errors` of one FMU instance (``own``, ``other``, ``v``, ``theta`` and ``T``
+    floats) with the sample's input-independent processes given: ``row`` is the sample's
+    ``(rw, gm, fl, p)`` of :func:`driftfmu.models.errors.run` from ``state``, and ``p`` plus
+    the exposure drift is :func:`~driftfmu.models.errors.advance`'s sum ``b``.
+
+    The rest is written out for floats: the exposure (:func:`~driftfmu.models.errors.exposure`),
+    what the sensor senses (:func:`~driftfmu.models.errors.sensed`: ``class2`` with
+    ``temperature``, ``saturate``) and the temperature's bias
+    (:func:`~driftfmu.models.errors.thermal_bias`), the same operations on the same conditions
+    as :func:`measure_errors`, which spares a Python FMU's sample seven calls.  The same bits
+    (tests/test_errors.py compares the two, term by term and with every term on)."""
+    rw, gm, fl, b = row
+    E = state[2]
+    d_inf, E_tau, Ts, T0, kT_bias, kT_scale, limit = ecfg[-7:]  # (ErrorConfig's last fields)
+    if d_inf != 0.0:
+        E = E + own * own * Ts  # (errors.exposure)
+        b = b + d_inf * (1.0 - _exp(-E / E_tau))
+    dT = T - T0  # (errors.sensed: errors.class2 with errors.temperature, errors.saturate)
+    u = own
+    if theta != 0.0:  # (errors.tilt: its sine held while theta is)
+        held = _TILT[0]
+        if theta != held[0]:
+            held = _TILT[0] = (theta, _sin(theta))
+        u = u + held[1]
+    if kT_scale != 0.0:
+        u = (1.0 + kT_scale * dT) * u
+    if limit != 0.0:
+        u = limit if u > limit else u
+        u = -limit if u < -limit else u
+    if cfg.plain:
+        e, V = None, sensor.measure(u, cfg.a0, cfg.a1, cfg.a2, cfg.R, v, cfg.a3, cfg.a4)
+    else:
+        e = sense(u, other, v, cfg)
+        alpha = cfg.alpha
+        if alpha is not None and prev is not None:  # (lowpass)
+            e = alpha * prev + (1.0 - alpha) * e
+        V = cfg.a0 + e
+    V = V + b  # (the processes' bias)
+    if kT_bias != 0.0:
+        V = V + kT_bias * dT  # (errors.thermal_bias)
+    return e, _new_state(_ErrorState, (rw, gm, E, fl)), quantise(V, cfg)
 
 
 def hold(prev, own, other, seed, k0, m, cfg, axis=1, noise_on=True):

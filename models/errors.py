@@ -383,6 +383,62 @@ def hold(state, x, seed, k0, m, ecfg):
     return state
 
 
+def run(state, draws, ecfg):
+    """The processes of :func:`advance` that do not depend on the input (the random walk, the
+    Gauss-Markov and flicker biases) over consecutive samples, for one FMU instance: from
+    ``state`` (the state before the first sample, floats) and ``draws = (n_rw, n_gm, n_fl)``,
+    the samples' draws (sequences of floats of one length; ``n_fl`` one per flicker component;
+    None for a process that is off), a list of ``(rw, gm, fl, p)`` per sample: the walk, the
+    Gauss-Markov bias and the tuple of flicker components after it, and ``p`` the sum that
+    :func:`advance` forms before it adds the exposure drift (the turn-on bias, the walk, the
+    Gauss-Markov bias, the flicker bias, in that order, each only when on).  A process that is
+    off keeps its state, as in :func:`advance`.
+
+    The same operations in the same order as :func:`advance` sample by sample (the same bits;
+    tests/test_errors.py compares them): the products ``c n`` and the sums across the
+    processes are element by element over NumPy arrays (one correctly rounded operation per
+    element, as on floats), and each recurrence ``a b + (c n)`` runs over the run in one Python
+    loop, so that a Python FMU pays the calls and tuples of :func:`advance` once per run
+    instead of once per sample.  Needs NumPy (the FMU uses it where its blocks of draws are
+    NumPy's)."""
+    np = _ops._np()
+    rw, gm, _, fl = state
+    n_rw, n_gm, n_fl = draws
+    n = len(next(d for d in (n_rw, n_gm) + tuple(n_fl) if d is not None))
+    p = np.full(n, 0.0 + ecfg.b_on if ecfg.bias_on != 0.0 else 0.0)
+    rws = [rw] * n
+    if ecfg.rw != 0.0:
+        rws = []
+        for x in (ecfg.rw * np.asarray(n_rw)).tolist():
+            rw = rw + x  # (random_walk: b + step n)
+            rws.append(rw)
+        p = p + np.array(rws)
+    gms = [gm] * n
+    if ecfg.gm_sigma != 0.0:
+        gms = _recurrence(gm, ecfg.gm_a, ecfg.gm_c, n_gm)  # (gauss_markov)
+        p = p + np.array(gms)
+    fls = [fl] * n
+    if ecfg.fl_n:
+        components = [_recurrence(b, a, c, x)  # (flicker: gauss_markov of each component)
+                      for b, a, c, x in zip(fl, ecfg.fl_a, ecfg.fl_c, n_fl)]
+        total = np.zeros(n)
+        for out in components:  # (flicker: their sum in order)
+            total = total + np.array(out)
+        p = p + total
+        fls = list(zip(*components))
+    return list(zip(rws, gms, fls, p.tolist()))
+
+
+def _recurrence(b, a, c, n):
+    """The states ``b_k = a b_{k-1} + c n_k`` of a Gauss-Markov process over the draws ``n``
+    from ``b`` (:func:`gauss_markov` over a run: the products ``c n_k`` over an array)."""
+    out = []
+    for x in (c * _ops._np().asarray(n)).tolist():
+        b = a * b + x
+        out.append(b)
+    return out
+
+
 def state_problems(state, ecfg):
     """Why ``state`` (an :class:`ErrorState` read back from an FMU state) cannot be the state of
     a sensor with ``ecfg``: a number that is not finite, a negative exposure, a process that is

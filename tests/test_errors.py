@@ -9,6 +9,8 @@ number of independent values each estimate averages.  The Accelerometer FMU comp
 with these very functions (tests/test_errors_fmu.py shows the bits equal), so the series here
 are the FMU's output.
 """
+import array
+import itertools
 import math
 
 import numpy as np
@@ -363,6 +365,15 @@ def test_adc_over_the_measurement_range_rounds_to_its_grid_and_clips():
     # the batch engine's path: the same codes over an array (with a nan kept as it is)
     got = adxl203.quantise(np.array([V for V, _ in cases] + [math.nan]), cfg)
     assert got[:-1].tolist() == [q for _, q in cases] and math.isnan(got[-1])
+    # a finite voltage whose code overflows (V / lsb = inf) is full scale, not an error
+    for V, q in ((1e308, 2.25), (-1e308, -1.5)):
+        with np.errstate(over="ignore"):  # (NumPy's warning of the overflowing division)
+            assert adxl203.quantise(V, cfg) == q and adxl203.quantise(np.array([V]), cfg)[0] == q
+    # a lowest level of exactly 1.0 (a0 - |a1| range = 1.5 - 0.5): codes from it, not from 0
+    one = adxl203.config(a0=1.5, a1=0.5, a2=0.0, bits=2, range=1.0)
+    assert one.lo == 1.0 and one.lsb == 0.25
+    for V, q in ((0.0, 1.0), (1.3, 1.25), (1.9, 1.75), (3.0, 1.75)):
+        assert adxl203.quantise(V, one) == q and adxl203.quantise(np.array([V]), one)[0] == q, V
     assert adxl203.config(bits=4).lo == 0.0 and adxl203.config(bits=4).lsb == 5.0 / 16
     assert adxl203.config(bits=4, Vs=5.0, range=1.0).lsb == 5.0 / 16
     assert adxl203.config(range=1.0).levels == 0
@@ -630,3 +641,118 @@ def test_the_chains_sensor_with_slow_errors_keeps_its_quartic_term():
     z0, z4, z3 = (s.measure(x, 0.0, 1) for s in (base, quartic, cubic))
     assert z4 - z0 == pytest.approx(0.05 * x ** 4, rel=1e-12)
     assert z3 - z0 == pytest.approx(0.02 * x ** 3, rel=1e-12)
+
+
+# -- one FMU instance's runs: errors.run and adxl203.measure_errors_run have the bits of advance
+# -- and measure_errors (the Python Accelerometer computes with them) ----------------------------
+
+def hexes(*values):
+    """The bits of floats (and of tuples of them), -0.0 apart from 0.0."""
+    out = []
+    for v in values:
+        out += hexes(*v) if isinstance(v, tuple) else [float(v).hex()]
+    return out
+
+
+#: The input-independent processes, each with signs that make the sums' order matter.
+RUN_TERMS = dict(bias_on=1.0, random_walk=0.002, bias_gm=0.003, flicker=0.001)
+RUN_SUBSETS = [on for r in range(1, 5) for on in itertools.combinations(RUN_TERMS, r)
+               if set(on) - {"bias_on"}]
+
+
+def run_draws(seed, ks, ecfg, kind=list):
+    """errors.run's draws for samples ``ks`` (``kind``: list, array('d') or NumPy array), and
+    errors.draws of each sample."""
+    each = [errors.draws(seed, k, ecfg) for k in ks]
+    n_rw = kind([d[0] for d in each]) if ecfg.rw != 0.0 else None
+    n_gm = kind([d[1] for d in each]) if ecfg.gm_sigma != 0.0 else None
+    n_fl = tuple(kind([d[2][i] for d in each]) for i in range(ecfg.fl_n))
+    return (n_rw, n_gm, n_fl), each
+
+
+@pytest.mark.parametrize("on", RUN_SUBSETS, ids="+".join)
+def test_a_run_of_the_input_independent_processes_has_the_bits_of_advance(on):
+    """errors.run over 300 samples from a stationary state: each row is the walk, the
+    Gauss-Markov bias and the flicker components that errors.advance gives sample by sample,
+    and p its sum b (no exposure drift here), bit for bit; a process that is off keeps its state
+    object."""
+    values = dict(tau_gm=0.05, tau_min=0.01, tau_max=10.0, **{n: RUN_TERMS[n] for n in on})
+    ecfg = errors.config(seed=7, Ts=1e-3, **values)
+    start = errors.initial_state(7, ecfg)
+    for kind in (list, lambda v: array.array("d", v), np.array):
+        draws, each = run_draws(7, range(1, 301), ecfg, kind)
+        rows = errors.run(start, draws, ecfg)
+        assert len(rows) == 300
+        state = start
+        for k, (row, d) in enumerate(zip(rows, each), 1):
+            state, b = errors.advance(state, 0.0, *d, ecfg)
+            assert hexes(*row) == hexes(state.rw, state.gm, state.fl, b), k
+        if ecfg.rw == 0.0:
+            assert all(row[0] is start.rw for row in rows)
+
+
+@pytest.mark.parametrize("flicker", [1.0, 0.0])
+def test_a_run_keeps_signed_zeros_and_the_order_of_its_sums_as_advance(flicker):
+    """Draws and states of -0.0 and 0.0, and values whose sums round differently in another
+    order, with and without the flicker bias: errors.run's rows are advance's, bit for bit (a
+    sum of zeros keeps its sign as advance's does; p adds the turn-on bias, the walk, the
+    Gauss-Markov bias and the flicker bias in that order, the components in theirs)."""
+    ecfg = errors.config(seed=3, Ts=1e-3, bias_on=1.0, random_walk=1.0, bias_gm=1.0, tau_gm=0.5,
+                         flicker=flicker, tau_min=0.1, tau_max=10.0)
+    ecfg = ecfg._replace(b_on=-0.0)
+    start = errors.ErrorState(-0.0, -0.0, 0.0, tuple(-0.0 for _ in range(ecfg.fl_n)))
+    big, tiny = 1e16, 1.0
+    cols = [[-0.0, 0.0, -0.0, big, tiny, -big, tiny, 3.0, -0.0],
+            [-0.0, -0.0, 0.0, tiny, big, tiny, -big, -3.0, 0.0]]
+    cols += [[-0.0, tiny, -tiny, -big, big, 0.5, -0.5, 1e-300, -0.0][::1 - 2 * (i % 2)]
+             for i in range(ecfg.fl_n)]
+    rows = errors.run(start, (cols[0], cols[1], tuple(cols[2:])), ecfg)
+    state = start
+    for j, row in enumerate(rows):
+        state, b = errors.advance(state, 0.0, cols[0][j], cols[1][j],
+                                  tuple(c[j] for c in cols[2:]), ecfg)
+        assert hexes(*row) == hexes(state.rw, state.gm, state.fl, b), j
+
+
+#: Sensors for measure_errors_run: the plain path, the output filter, the ADC over the range,
+#: each with the class-2 terms and the exposure on or off.
+RUN_SENSORS = [dict(), dict(a4=0.02), dict(fc=150.0), dict(bits=10, range=1.2),
+               dict(fc=80.0, bits=12, range=0.9)]
+RUN_ERRORS = [dict(random_walk=0.01),
+              dict(bias_gm=0.02, tau_gm=0.05, d_inf=0.05, E_tau=0.02),
+              dict(flicker=0.01, tau_min=0.01, tau_max=1.0, kT_bias=0.003, T0=300.0),
+              dict(random_walk=0.01, bias_on=0.1, kT_scale=-0.002, range=0.8, d_inf=0.03,
+                   E_tau=0.1),
+              dict(bias_gm=0.01, flicker=0.005, kT_bias=-0.001, kT_scale=0.004, range=1.5),
+              dict(random_walk=0.01, d_inf=-0.04, E_tau=0.05, kT_bias=1.0, kT_scale=1.0,
+                   range=2.0)]
+
+
+@pytest.mark.parametrize("sensor_values", RUN_SENSORS, ids=lambda v: "+".join(v) or "plain")
+@pytest.mark.parametrize("error_values", RUN_ERRORS, ids=lambda v: "+".join(v))
+def test_measure_errors_run_has_the_bits_of_measure_errors(sensor_values, error_values):
+    """adxl203.measure_errors_run with errors.run's row of each sample gives the filter state,
+    the error state and z of adxl203.measure_errors with that sample's draws, bit for bit, for
+    inputs that move (x beyond the range on both sides; a tilt of 0, -0.0, one equal to the sine
+    of the one before, others held and changed; temperatures on both sides of T0)."""
+    values = dict(sensor_values, **error_values)
+    p = adxl203.sensor_parameters(a0=0.3, a1=1.1, a2=0.02, a3=0.01, R=1e-4, seed=5, Ts=1e-3,
+                                  **values)
+    cfg, ecfg = adxl203.config(**p), errors.config(**p)
+    rng = np.random.default_rng(11)
+    n = 400
+    draws, each = run_draws(5, range(1, n + 1), ecfg)
+    rows = errors.run(errors.initial_state(5, ecfg), draws, ecfg)
+    thetas = [0.0, -0.0, 0.3, _ops.sin(0.3), -0.2, 1.0]  # (a tilt equal to the last one's sine)
+    a = b = (None, errors.initial_state(5, ecfg))
+    for k in range(1, n + 1):
+        x = float(rng.uniform(-2.5, 2.5))
+        theta = thetas[k % 6] if k % 7 else float(rng.uniform(-1, 1))
+        T = float(rng.uniform(280.0, 320.0))
+        v = adxl203.noise(5, k)
+        got = adxl203.measure_errors_run(a[0], a[1], rows[k - 1], x, 0.1, v, theta, T, cfg, ecfg)
+        want = adxl203.measure_errors(b[0], b[1], x, 0.1, v, each[k - 1], theta, T, cfg, ecfg)
+        assert hexes(got[0] if got[0] is not None else 0.0, *got[1], got[2]) == \
+            hexes(want[0] if want[0] is not None else 0.0, *want[1], want[2]), k
+        assert (got[0] is None) == (want[0] is None)
+        a, b = got[:2], want[:2]

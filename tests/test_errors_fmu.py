@@ -171,6 +171,202 @@ def test_with_every_term_off_the_state_has_no_error_part_and_the_tilt_still_acts
     assert get(d, "z") == z
 
 
+# -- the runs of the input-independent processes (Accelerometer._row, errors.run) -----------------
+
+def _reference(values, inputs, n):
+    """z of samples 1 .. n of adxl203.measure_errors with errors.draws, ``inputs(k)`` the
+    sample's (x, theta, T)."""
+    cfg, ecfg = adxl203.config(**values), errors.config(**values)
+    seed = values["seed"]
+    lp, state, out = None, errors.initial_state(seed, ecfg), {}
+    for k in range(1, n + 1):
+        x, theta, T = inputs(k)
+        lp, state, out[k] = adxl203.measure_errors(lp, state, x, 0.0, adxl203.noise(seed, k),
+                                                   errors.draws(seed, k, ecfg), theta, T, cfg,
+                                                   ecfg)
+    return out
+
+
+def _inputs(k):
+    return (math.sin(0.01 * k) * 1.5, 0.1 if k % 50 else -0.2, 290.0 + (k % 17))
+
+
+def _put_inputs(s, k):
+    for name, v in zip(("x", "theta", "T"), _inputs(k)):
+        put(s, name, v)
+
+
+RUN_VALUES = dict(ALL_ON, a0=0.2, a1=1.1, a2=0.02, R=1e-5, seed=31, Ts=1e-3, bits=14)
+
+
+def test_a_long_run_takes_runs_of_doubling_size_with_the_bits_of_measure_errors():
+    """Sample by sample for 9000 samples: z equals adxl203.measure_errors' bit for bit, the
+    slave computes the walk, the Gauss-Markov and flicker biases in runs (errors.run) after
+    RUN_AFTER samples, and each run it starts at the end of the last is twice as long, up to
+    Blocks.SIZE."""
+    from driftfmu.fmu_src import Accelerometer as module
+    want = _reference(RUN_VALUES, _inputs, 9000)
+    s = initialised(**RUN_VALUES)
+    sizes, starts = [], []
+    for k in range(1, 9001):
+        _put_inputs(s, k)
+        assert get(s, "z") == want[k], k
+        if s._run and s._run_k0 not in starts:
+            starts.append(s._run_k0)
+            sizes.append(s._run_size)
+        s.do_step((k - 1) * 1e-3, 1e-3)
+    assert starts[0] == module.RUN_AFTER + 1
+    expected = [min(module.RUN_FIRST * 2 ** i, module.Blocks.SIZE) for i in range(len(sizes))]
+    assert sizes == expected and sizes[-1] == module.Blocks.SIZE
+
+
+@pytest.mark.parametrize("values", [dict(random_walk=0.02), dict(bias_gm=0.03, tau_gm=0.02),
+                                    dict(flicker=0.01, tau_min=0.01, tau_max=1.0),
+                                    dict(d_inf=0.04, E_tau=0.5, kT_bias=0.002)])
+def test_each_process_alone_takes_runs_and_the_others_do_not_need_them(values):
+    """The walk, the Gauss-Markov bias or the flicker bias alone: the slave takes runs of it
+    (errors.run); without any of them (the exposure drift and the temperature only) there is
+    nothing to run; z equals the reference throughout."""
+    values = dict(values, a0=0.2, a1=1.1, a2=0.02, R=1e-5, seed=8, Ts=1e-3)
+    want = _reference(values, _inputs, 300)
+    s = initialised(**values)
+    for k in range(1, 301):
+        _put_inputs(s, k)
+        assert get(s, "z") == want[k], k
+        s.do_step((k - 1) * 1e-3, 1e-3)
+    assert bool(s._run) == ("d_inf" not in values)
+
+
+def test_a_restore_at_every_step_starts_no_run_and_gives_the_same_bits():
+    """A master that restores a serialised state before every step (a rollback master): every
+    z equals the reference, and no run is ever started (each would be thrown away)."""
+    want = _reference(RUN_VALUES, _inputs, 400)
+    s = initialised(**RUN_VALUES)
+    for k in range(1, 401):
+        _put_inputs(s, k)
+        assert get(s, "z") == want[k], k
+        s.do_step((k - 1) * 1e-3, 1e-3)
+        state = Accelerometer._fmu_state_to_bytes(s._get_fmu_state())
+        s._set_fmu_state(Accelerometer._fmu_state_from_bytes(state))
+        assert not messages(s)
+    assert s._run == ()
+
+
+@pytest.mark.parametrize("after", [0, 1, 2])
+def test_a_run_starts_after_RUN_AFTER_samples_that_follow_one_another_and_not_before(after):
+    """A restored state drops the run in store (prepare); then the samples that each start from
+    the state the one before made are counted: with RUN_AFTER of them after the first the next
+    sample starts a run, with one fewer it does not, and every z equals the reference."""
+    from driftfmu.fmu_src import Accelerometer as module
+    n0 = 3 * module.RUN_AFTER
+    want = _reference(RUN_VALUES, _inputs, n0 + module.RUN_AFTER + 10)
+    s = initialised(**RUN_VALUES)
+    for k in range(1, n0 + 1):
+        _put_inputs(s, k)
+        s.do_step((k - 1) * 1e-3, 1e-3)
+    assert s._run
+    s._set_fmu_state(Accelerometer._fmu_state_from_bytes(
+        Accelerometer._fmu_state_to_bytes(s._get_fmu_state())))
+    assert s._run == ()
+    k = n0 + 1
+    for _ in range(module.RUN_AFTER + after):
+        _put_inputs(s, k)
+        assert get(s, "z") == want[k], k
+        s.do_step((k - 1) * 1e-3, 1e-3)
+        k += 1
+    assert bool(s._run) == (after >= 1), after
+    if after:
+        assert s._run_k0 == n0 + module.RUN_AFTER + 1
+    _put_inputs(s, k)
+    assert get(s, "z") == want[k]
+
+
+@pytest.mark.parametrize("m, runs", [(2, True), (5, False)])
+def test_steps_of_several_samples_give_the_same_bits_and_start_runs_only_where_used(m, runs):
+    """Steps of m samples: with m = 2 each sample is computed on its own from the one before
+    (runs start and are used); with m = 5 the samples before the last are held
+    (Accelerometer.hold: errors.advance), so no sample starts from the state the one before made
+    and no run is started (it would not be used).  z at every step equals the reference."""
+    n = 200 * m + 1
+    want = _reference(RUN_VALUES, lambda k: (0.4, 0.1, 300.0), n)
+    s = initialised(**RUN_VALUES)
+    for name, v in zip(("x", "theta", "T"), (0.4, 0.1, 300.0)):
+        put(s, name, v)
+    for j in range(200):
+        assert s.do_step(m * 1e-3 * j, m * 1e-3) is not False
+        assert get(s, "z") == want[m * (j + 1) + 1], j
+    assert bool(s._run) == runs
+
+
+def test_while_the_blocks_warm_up_no_run_starts_and_after_it_runs_do(monkeypatch):
+    """In a host that has not imported NumPy (a C host) the blocks of draws run sample by
+    sample for their warm-up (slave_base.Blocks.WARM_UP over the streams): a run cannot start
+    then (Accelerometer._new_run finds no arrays), and it starts once they hold arrays; every z
+    equals the reference."""
+    from driftfmu.fmu_src import Accelerometer as module
+    from driftfmu.fmu_src import slave_base
+    monkeypatch.setattr(slave_base, "_numpy_imported", lambda: False)
+    want = _reference(RUN_VALUES, _inputs, 1500)
+    s = initialised(**RUN_VALUES)
+    streams = (s._n_rw, s._n_gm) + s._n_fl
+    first = None
+    for k in range(1, 1501):
+        _put_inputs(s, k)
+        assert get(s, "z") == want[k], k
+        if s._run and first is None:
+            first = s._run_k0
+            assert all(b._values is not None for b in streams)  # (arrays by then)
+        s.do_step((k - 1) * 1e-3, 1e-3)
+    # the samples followed one another from the start: without the warm-up the first run
+    # would start at RUN_AFTER + 1 (test_a_long_run_takes_runs_of_doubling_size_...); each
+    # attempt that finds no arrays starts the count again, so the next is RUN_AFTER samples on
+    assert first is not None and first > module.RUN_AFTER + 1, first
+    assert (first - 1) % module.RUN_AFTER == 0, first
+
+
+def test_a_row_of_the_run_is_used_only_for_the_numbers_it_was_computed_from():
+    """Accelerometer._row gives the run's row of sample k for the very state the run left at
+    k - 1; for a state with equal numbers that are other objects, or with other numbers, it
+    gives none (the sample is computed on its own); and a committed state changed under the run
+    gives the z of measure_errors from that state, not the run's."""
+    s = initialised(**RUN_VALUES)
+    for k in range(1, 300):
+        _put_inputs(s, k)
+        s.do_step((k - 1) * 1e-3, 1e-3)
+    k, err = s.k, s._committed["_err"]
+    assert s._run and s._run_k0 < k < s._run_k0 + len(s._run)
+    row = s._run[k - s._run_k0]
+    assert s._row(err, k) is row
+    copied = errors.ErrorState(*(float(repr(v)) for v in err[:3]),
+                               tuple(float(repr(v)) for v in err.fl))
+    assert copied == err and s._row(copied, k) is None
+    moved = err._replace(rw=err.rw + 0.5)
+    s._committed["_err"] = moved
+    s._dirty = True
+    _put_inputs(s, k)
+    cfg, ecfg = adxl203.config(**RUN_VALUES), errors.config(**RUN_VALUES)
+    x, theta, T = _inputs(k)
+    z = adxl203.measure_errors(s._committed["_lp"], moved, x, 0.0, adxl203.noise(31, k),
+                               errors.draws(31, k, ecfg), theta, T, cfg, ecfg)[2]
+    assert get(s, "z") == z
+
+
+def test_reading_the_outputs_again_with_other_inputs_keeps_the_runs_and_their_bits():
+    """A master that sets the inputs, reads z, sets other inputs and reads z again before every
+    step (the same sample again: no break in the chain): the runs start as without it, and each
+    z equals measure_errors' for the inputs set last."""
+    want = _reference(RUN_VALUES, _inputs, 600)
+    s = initialised(**RUN_VALUES)
+    for k in range(1, 601):
+        put(s, "x", -3.0)
+        put(s, "theta", 0.5)
+        get(s, "z")
+        _put_inputs(s, k)
+        assert get(s, "z") == want[k], k
+        s.do_step((k - 1) * 1e-3, 1e-3)
+    assert s._run and s._run_size > 64
+
+
 # -- the error state in the FMU state -------------------------------------------------------------
 
 def _stepped(**values):
