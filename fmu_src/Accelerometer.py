@@ -184,13 +184,12 @@ class Accelerometer(SlaveBase):
         """A run of errors.run from ``err`` at sample ``k`` (at most ``size`` samples, to the end
         of the blocks of draws); its first row, or None where the blocks run sample by
         sample."""
-        draws = [None if b is None else b.run(k) for b in (self._n_rw, self._n_gm) + self._n_fl]
-        present = [d for d in draws if d is not None]
-        if len(present) != len([b for b in (self._n_rw, self._n_gm) + self._n_fl
-                                if b is not None]):
+        streams = (self._n_rw, self._n_gm) + self._n_fl
+        draws = [None if b is None else b.run(k) for b in streams]
+        if any(b is not None and d is None for b, d in zip(streams, draws)):
             self._chain = 0  # (the warm-up: a run once RUN_AFTER more samples followed)
             return None
-        n = min(size, min(map(len, present)))
+        n = min(size, min(len(d) for d in draws if d is not None))
         draws = [None if d is None else d[:n] for d in draws]
         self._run = errors.run(err, (draws[0], draws[1], tuple(draws[2:])), self._ecfg)
         self._run_k0, self._run_from, self._run_size = k, (err.rw, err.gm, err.fl), size

@@ -237,10 +237,12 @@ def measure_errors_run(prev, state, row, own, other, v, theta, T, cfg, ecfg, _ex
 
     The rest is written out for floats: the exposure (:func:`~driftfmu.models.errors.exposure`),
     what the sensor senses (:func:`~driftfmu.models.errors.sensed`: ``class2`` with
-    ``temperature``, ``saturate``) and the temperature's bias
-    (:func:`~driftfmu.models.errors.thermal_bias`), the same operations on the same conditions
-    as :func:`measure_errors`, which spares a Python FMU's sample seven calls.  The same bits
-    (tests/test_errors.py compares the two, term by term and with every term on)."""
+    ``temperature`` and ``tilt``, whose held sine it shares, and ``saturate``), the output
+    filter (:func:`lowpass`) and the temperature's bias
+    (:func:`~driftfmu.models.errors.thermal_bias`): the same operations on the same conditions
+    as :func:`measure_errors`, without the calls between them, which cost a Python FMU's sample
+    more than their arithmetic.  The same bits (tests/test_errors.py compares the two, term by
+    term and with every term on)."""
     rw, gm, fl, b = row
     E = state[2]
     d_inf, E_tau, Ts, T0, kT_bias, kT_scale, limit = ecfg[-7:]  # (ErrorConfig's last fields)

@@ -714,6 +714,14 @@ def test_a_run_keeps_signed_zeros_and_the_order_of_its_sums_as_advance(flicker):
         assert hexes(*row) == hexes(state.rw, state.gm, state.fl, b), j
 
 
+def test_the_float_paths_read_the_fields_they_name():
+    """measure_errors_run and quantise read their constants by position (one unpacking on the
+    float path): the positions are the fields' (a field added before them would shift them)."""
+    assert errors.ErrorConfig._fields[-7:] == ("d_inf", "E_tau", "Ts", "T0", "kT_bias",
+                                               "kT_scale", "range")
+    assert adxl203.Config._fields[9:] == ("lsb", "levels", "a4", "lo")
+
+
 #: Sensors for measure_errors_run: the plain path, the output filter, the ADC over the range,
 #: each with the class-2 terms and the exposure on or off.
 RUN_SENSORS = [dict(), dict(a4=0.02), dict(fc=150.0), dict(bits=10, range=1.2),
