@@ -407,11 +407,8 @@ def run(state, draws, ecfg):
     n = len(next(d for d in (n_rw, n_gm) + tuple(n_fl) if d is not None))
     p = np.full(n, 0.0 + ecfg.b_on if ecfg.bias_on != 0.0 else 0.0)
     rws = [rw] * n
-    if ecfg.rw != 0.0:
-        rws = []
-        for x in (ecfg.rw * np.asarray(n_rw)).tolist():
-            rw = rw + x  # (random_walk: b + step n)
-            rws.append(rw)
+    if ecfg.rw != 0.0:  # (random_walk: b + step n, which is 1.0 b + step n bit for bit)
+        rws = _recurrence(rw, 1.0, ecfg.rw, n_rw)
         p = p + np.array(rws)
     gms = [gm] * n
     if ecfg.gm_sigma != 0.0:

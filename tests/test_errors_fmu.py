@@ -196,6 +196,13 @@ def _put_inputs(s, k):
         put(s, name, v)
 
 
+def _checked_step(s, want, k):
+    """Sample k with the inputs of _inputs(k): z is ``want[k]``; then the step to sample k + 1."""
+    _put_inputs(s, k)
+    assert get(s, "z") == want[k], k
+    assert s.do_step((k - 1) * 1e-3, 1e-3) is not False
+
+
 RUN_VALUES = dict(ALL_ON, a0=0.2, a1=1.1, a2=0.02, R=1e-5, seed=31, Ts=1e-3, bits=14)
 
 
@@ -209,12 +216,10 @@ def test_a_long_run_takes_runs_of_doubling_size_with_the_bits_of_measure_errors(
     s = initialised(**RUN_VALUES)
     sizes, starts = [], []
     for k in range(1, 9001):
-        _put_inputs(s, k)
-        assert get(s, "z") == want[k], k
+        _checked_step(s, want, k)
         if s._run and s._run_k0 not in starts:
             starts.append(s._run_k0)
             sizes.append(s._run_size)
-        s.do_step((k - 1) * 1e-3, 1e-3)
     assert starts[0] == module.RUN_AFTER + 1
     expected = [min(module.RUN_FIRST * 2 ** i, module.Blocks.SIZE) for i in range(len(sizes))]
     assert sizes == expected and sizes[-1] == module.Blocks.SIZE
@@ -231,9 +236,7 @@ def test_each_process_alone_takes_runs_and_the_others_do_not_need_them(values):
     want = _reference(values, _inputs, 300)
     s = initialised(**values)
     for k in range(1, 301):
-        _put_inputs(s, k)
-        assert get(s, "z") == want[k], k
-        s.do_step((k - 1) * 1e-3, 1e-3)
+        _checked_step(s, want, k)
     assert bool(s._run) == ("d_inf" not in values)
 
 
@@ -243,9 +246,7 @@ def test_a_restore_at_every_step_starts_no_run_and_gives_the_same_bits():
     want = _reference(RUN_VALUES, _inputs, 400)
     s = initialised(**RUN_VALUES)
     for k in range(1, 401):
-        _put_inputs(s, k)
-        assert get(s, "z") == want[k], k
-        s.do_step((k - 1) * 1e-3, 1e-3)
+        _checked_step(s, want, k)
         state = Accelerometer._fmu_state_to_bytes(s._get_fmu_state())
         s._set_fmu_state(Accelerometer._fmu_state_from_bytes(state))
         assert not messages(s)
@@ -270,9 +271,7 @@ def test_a_run_starts_after_RUN_AFTER_samples_that_follow_one_another_and_not_be
     assert s._run == ()
     k = n0 + 1
     for _ in range(module.RUN_AFTER + after):
-        _put_inputs(s, k)
-        assert get(s, "z") == want[k], k
-        s.do_step((k - 1) * 1e-3, 1e-3)
+        _checked_step(s, want, k)
         k += 1
     assert bool(s._run) == (after >= 1), after
     if after:
@@ -311,12 +310,10 @@ def test_while_the_blocks_warm_up_no_run_starts_and_after_it_runs_do(monkeypatch
     streams = (s._n_rw, s._n_gm) + s._n_fl
     first = None
     for k in range(1, 1501):
-        _put_inputs(s, k)
-        assert get(s, "z") == want[k], k
+        _checked_step(s, want, k)
         if s._run and first is None:
             first = s._run_k0
             assert all(b._values is not None for b in streams)  # (arrays by then)
-        s.do_step((k - 1) * 1e-3, 1e-3)
     # the samples followed one another from the start: without the warm-up the first run
     # would start at RUN_AFTER + 1 (test_a_long_run_takes_runs_of_doubling_size_...); each
     # attempt that finds no arrays starts the count again, so the next is RUN_AFTER samples on
@@ -361,10 +358,9 @@ def test_reading_the_outputs_again_with_other_inputs_keeps_the_runs_and_their_bi
         put(s, "x", -3.0)
         put(s, "theta", 0.5)
         get(s, "z")
-        _put_inputs(s, k)
-        assert get(s, "z") == want[k], k
-        s.do_step((k - 1) * 1e-3, 1e-3)
-    assert s._run and s._run_size > 64
+        _checked_step(s, want, k)
+    from driftfmu.fmu_src import Accelerometer as module
+    assert s._run and s._run_size > module.RUN_FIRST
 
 
 # -- the error state in the FMU state -------------------------------------------------------------
