@@ -3,7 +3,9 @@ arithmetic-only exponential ``ops_exp`` (its scaling by 2^n built from the expon
 subnormal results by ldexp) against the C library's ``exp`` (Python's math.exp), and the draw
 from a stream's key ``noise_normal_keyed`` (the inverse normal CDF's central branch inline, its
 tails out of line) against SciPy's ``norm.ppf`` of the same uniform, within Acklam's stated
-relative accuracy (1.15e-9)."""
+relative accuracy (1.15e-9); ``ops_floor`` (through int64 below 2^52, the library's floor from
+there) against math.floor, and ``ops_log`` (frexp read from the bits of a positive normal
+number, called for any other) on both sides of each edge of its two paths."""
 import ctypes
 import math
 import random
@@ -11,7 +13,8 @@ import sys
 
 import pytest
 
-from test_native_models import CC, D, U64, compile_models
+from driftfmu.models import _ops
+from test_native_models import CC, D, U64, compile_models, same
 
 #: Acklam's rational approximation: relative error below 1.15e-9 over (0, 1) (his page); the
 #: margin covers the rounding of the double evaluation (about 1e-15).
@@ -25,7 +28,8 @@ def c(tmp_path_factory):
     lib = ctypes.CDLL(str(compile_models(tmp_path_factory.mktemp("native_ops"))))
     for name, res, args in (("ops_exp", D, (D,)), ("noise_key", U64, (U64, U64)),
                             ("noise_uniform", D, (U64, U64, U64)),
-                            ("noise_normal_keyed", D, (U64, U64))):
+                            ("noise_normal_keyed", D, (U64, U64)), ("ops_floor", D, (D,)),
+                            ("ops_log", D, (D,))):
         f = getattr(lib, name)
         f.restype, f.argtypes = res, args
     return lib
@@ -74,3 +78,33 @@ def test_keyed_normal_is_the_inverse_normal_cdf_of_its_uniform(c):
             tails[1] += p > 1.0 - 0.02425
     n = 60000 * 0.02425  # the expected count of each tail, +- 6 standard deviations
     assert all(abs(t - n) < 6 * math.sqrt(n) for t in tails), tails
+
+
+def test_log_equals_models_where_frexp_is_read_from_the_bits_and_where_it_is_called(c):
+    # ops_log reads frexp from the bits of a positive normal finite x and calls frexp for any
+    # other: both sides of each edge (the smallest normal, the largest finite) and beyond them
+    top = 1.7976931348623157e308
+    xs = [2.2250738585072014e-308, 2.225073858507201e-308, 5e-324, top, math.inf, 0.0, -0.0,
+          math.nan, 0.5, math.nextafter(0.5, 0.0), 1.0, math.nextafter(1.0, 0.0)]
+    for x in xs:
+        assert same(_ops.log(x), c.ops_log(x)), x
+    assert math.isnan(c.ops_log(math.inf)) and math.isnan(c.ops_log(math.nan))
+    assert c.ops_log(top) == pytest.approx(math.log(top), rel=1e-15)
+    assert c.ops_log(2.2250738585072014e-308) == pytest.approx(-708.3964185322641, rel=1e-15)
+
+
+def test_floor_equals_models_on_both_sides_of_two_to_the_52(c):
+    # below 2^52 ops_floor truncates through int64 (one less where that is above x); from 2^52
+    # on it calls floor: each side, both signs, the zeros and the non-finite
+    big = 4503599627370496.0  # 2^52
+    xs = [big, math.nextafter(big, 0.0), -big, math.nextafter(-big, 0.0),
+          math.nextafter(big, math.inf), 2.0 ** 63, -(2.0 ** 63), 1e300, -1e300, math.inf,
+          -math.inf, math.nan, 0.0, -0.0, 0.5, -0.5, 1e-300, -1e-300, 5e-324, -5e-324, 3.0,
+          -3.0, 2.5, -2.5, math.nextafter(1.0, 0.0), math.nextafter(-1.0, 0.0),
+          math.nextafter(-1.0, -2.0), 4503599627370495.5, -4503599627370495.5]
+    for x in xs:
+        assert same(_ops.floor(x), c.ops_floor(x)), x
+        if math.isfinite(x):
+            assert c.ops_floor(x) == math.floor(x), x
+    assert math.copysign(1.0, c.ops_floor(-0.0)) == 1.0
+    assert math.copysign(1.0, c.ops_floor(0.5)) == 1.0

@@ -78,10 +78,10 @@ double errors_flicker(const double *components, const double *a, const double *c
 {
     double total = 0.0;
     int64_t i;
-    for (i = 0; i < m; i++) /* (component i reads only components[i]: out may be components) */
+    for (i = 0; i < m; i++) { /* (component i reads only components[i]: out may be them) */
         out[i] = errors_gauss_markov(components[i], a[i], c[i], n[i]);
-    for (i = 0; i < m; i++)
         total = total + out[i];
+    }
     return total;
 }
 

@@ -6,10 +6,18 @@
 
 double ops_sqrt(double x) { return sqrt(x); }
 
-/* float(math.floor(x)) goes through a Python int, so a zero result is +0.0 (floor(-0.0) too). */
+/* float(math.floor(x)) goes through a Python int, so a zero result is +0.0 (floor(-0.0) too).
+ * Below 2^52 in magnitude without the library call: x truncated towards zero is an exact int64
+ * and its double exact (a zero +0.0), one less where that is above x (exact too).  From 2^52 on,
+ * every double is whole, and inf and nan are their own floor: the library's floor gives x. */
 double ops_floor(double x)
 {
-    double r = floor(x);
+    double r;
+    if (fabs(x) < 4503599627370496.0) {
+        r = (double)(int64_t)x;
+        return r > x ? r - 1.0 : r;
+    }
+    r = floor(x);
     return r == 0.0 ? 0.0 : r;
 }
 
@@ -28,21 +36,45 @@ double ops_ldexp(double m, int64_t e)
     return ldexp(m, (int)e);
 }
 
+/* frexp of a positive normal x from its bits (the library call otherwise): the biased exponent
+ * less 1022, and the significand under the exponent of [0.5, 1).  Both exact, as frexp's. */
+static void log_frexp(double x, double *m, int64_t *e)
+{
+    union { double d; uint64_t u; } b;
+    b.d = x;
+    if (x > 0.0 && (b.u >> 52) - 1 < 0x7FE) { /* biased exponent 1 .. 0x7FE: normal, finite */
+        *e = (int64_t)(b.u >> 52) - 1022;
+        b.u = (b.u & UINT64_C(0x000FFFFFFFFFFFFF)) | UINT64_C(0x3FE0000000000000);
+        *m = b.d;
+        return;
+    }
+    ops_frexp(x, m, e);
+}
+
 double ops_log(double x)
 {
     double m, s, s2, poly;
     int64_t e;
-    int k;
-    ops_frexp(x, &m, &e);
+    log_frexp(x, &m, &e);
     if (m < OPS_SQRT_HALF) {
         m = m * 2.0;
         e = e - 1;
     }
     s = (m - 1.0) / (m + 1.0);
     s2 = s * s;
+    /* Horner over k = 21, 19, .., 1, written out: 1.0 / k is a constant the compiler folds
+     * (correctly rounded, as Python's), not a division at every call */
     poly = 1.0 / 21.0;
-    for (k = 19; k >= 1; k -= 2)
-        poly = poly * s2 + 1.0 / (double)k;
+    poly = poly * s2 + 1.0 / 19.0;
+    poly = poly * s2 + 1.0 / 17.0;
+    poly = poly * s2 + 1.0 / 15.0;
+    poly = poly * s2 + 1.0 / 13.0;
+    poly = poly * s2 + 1.0 / 11.0;
+    poly = poly * s2 + 1.0 / 9.0;
+    poly = poly * s2 + 1.0 / 7.0;
+    poly = poly * s2 + 1.0 / 5.0;
+    poly = poly * s2 + 1.0 / 3.0;
+    poly = poly * s2 + 1.0 / 1.0;
     return (double)e * OPS_LN2 + 2.0 * s * poly;
 }
 
