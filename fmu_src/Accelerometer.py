@@ -216,6 +216,26 @@ class Accelerometer(SlaveBase):
         self._rows_k0, self._rows = k, list(zip(rw, gm, zip(*runs) if runs else [()] * n))
         return self._rows[0]
 
+    def _hold_errors(self, err, k, m):
+        """errors.hold's state after the ``m`` samples from ``k`` with the input held: over the
+        runs of draws the blocks hold (errors.hold_run), sample by sample (errors.advance_state)
+        where they hold none (no NumPy, the warm-up)."""
+        ecfg, x, end = self._ecfg, self.x, k + m
+        streams = [b for b in (self._n_rw, self._n_gm) + self._n_fl if b is not None]
+        while k < end:
+            runs = [b.run(k, end - k) for b in streams]
+            if None in runs:
+                err = errors.advance_state(err, x, *self._draws(k), ecfg)
+                k += 1
+                continue
+            n = min([end - k] + [len(r) for r in runs])
+            runs = iter([r if len(r) == n else r[:n] for r in runs])
+            n_rw = next(runs) if self._n_rw is not None else None
+            n_gm = next(runs) if self._n_gm is not None else None
+            err = errors.hold_run(err, x, n, (n_rw, n_gm, tuple(runs)), ecfg)
+            k += n
+        return err
+
     def initial_hidden(self):
         ecfg = self._ecfg
         return {"_lp": None, "_lpy": None,
@@ -290,9 +310,7 @@ class Accelerometer(SlaveBase):
         if n > 1:  # the samples before the last change only the filter and error states:
             lp, lpy, err, cfg = hidden["_lp"], hidden["_lpy"], hidden["_err"], self._cfg
             if err is not None:  # (adxl203.hold, errors.hold: the same bits, faster)
-                ecfg, x = self._ecfg, self.x
-                for k in range(k0, k0 + n - 1):
-                    err = errors.advance(err, x, *self._draws(k), ecfg)[0]
+                err = self._hold_errors(err, k0, n - 1)
             if cfg.alpha is not None:
                 own = self.x
                 if self._ecfg.on or self.theta != 0.0:

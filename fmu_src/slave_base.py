@@ -136,14 +136,16 @@ class Blocks:
             return values[i] if values is not None else self._f(k)
         return self._fill(k)
 
-    def run(self, k):
-        """The stored values from sample ``k`` to the end of its block (an ``array('d')``),
-        after ``self(k)``; None where ``f`` runs on the one ``k`` (no NumPy, the warm-up, a
-        block that is not all finite), the caller then calls ``self(k)`` sample by sample."""
+    def run(self, k, n=None):
+        """The stored values from sample ``k`` to the end of its block (an ``array('d')``; at
+        most ``n`` of them where ``n`` is given), after ``self(k)``; None where ``f`` runs on
+        the one ``k`` (no NumPy, the warm-up, a block that is not all finite), the caller then
+        calls ``self(k)`` sample by sample."""
         self(k)
         if self._values is None or not self._k0 <= k < self._end:
             return None
-        return self._values[k - self._k0:]
+        i = k - self._k0
+        return self._values[i:] if n is None else self._values[i:i + n]
 
     def _fill(self, k):
         if self._warm < self.WARM_UP and not _numpy_imported():

@@ -356,6 +356,23 @@ def advance(state, x, n_rw, n_gm, n_fl, ecfg):
     return _new_state(ErrorState, (rw, gm, E, fl)), b
 
 
+def advance_state(state, x, n_rw, n_gm, n_fl, ecfg):
+    """:func:`advance`'s new state alone, for a sample whose output no one sees (one between
+    communication points, :func:`hold`): the same operations on the state, in the same order,
+    without the sum and the exposure drift's exponential (the same bits as ``advance(...)[0]``;
+    tests/test_errors.py compares them)."""
+    rw, gm, E, fl = state
+    if ecfg.rw != 0.0:
+        rw = random_walk(rw, ecfg.rw, n_rw)
+    if ecfg.gm_sigma != 0.0:
+        gm = gauss_markov(gm, ecfg.gm_a, ecfg.gm_c, n_gm)
+    if ecfg.fl_n:
+        fl = flicker(fl, ecfg.fl_a, ecfg.fl_c, n_fl)[0]
+    if ecfg.d_inf != 0.0:
+        E = E + x * x * ecfg.Ts  # (exposure's E)
+    return _new_state(ErrorState, (rw, gm, E, fl))
+
+
 def thermal_bias(T, ecfg):
     """The temperature's bias ``kT_bias (T - T0)`` [V] (0.0 while ``kT_bias = 0``)."""
     if ecfg.kT_bias == 0.0:
@@ -379,7 +396,7 @@ def hold(state, x, seed, k0, m, ecfg):
     if not (ecfg.rw != 0.0 or ecfg.gm_sigma != 0.0 or ecfg.d_inf != 0.0 or ecfg.fl_n):
         return state
     for j in range(1, m):
-        state = advance(state, x, *draws(seed, k0 + j, ecfg), ecfg)[0]
+        state = advance_state(state, x, *draws(seed, k0 + j, ecfg), ecfg)
     return state
 
 
@@ -424,6 +441,40 @@ def run(state, draws, ecfg):
         p = p + total
         fls = list(zip(*components))
     return list(zip(rws, gms, fls, p.tolist()))
+
+
+def hold_run(state, x, m, draws, ecfg):
+    """:func:`hold` over a run, for one FMU instance: the state after ``m >= 0`` consecutive
+    samples with the input held at ``x``, from their draws (``draws`` as for :func:`run`,
+    sequences of ``m`` floats).  The same operations as :func:`advance_state` sample by sample,
+    so the same bits (tests/test_errors.py compares them), process by process instead of sample
+    by sample: each recurrence runs over the run in one loop of floats, without a call or a
+    state per sample, and the exposure adds ``x^2 Ts``, formed once (the same product at every
+    sample)."""
+    if m == 0:
+        return state
+    rw, gm, E, fl = state
+    n_rw, n_gm, n_fl = draws
+    if ecfg.rw != 0.0:
+        step = ecfg.rw
+        for n in n_rw:
+            rw = rw + step * n  # (random_walk)
+    if ecfg.gm_sigma != 0.0:
+        a, c = ecfg.gm_a, ecfg.gm_c
+        for n in n_gm:
+            gm = a * gm + c * n  # (gauss_markov)
+    if ecfg.fl_n:
+        out = []
+        for b, a, c, ns in zip(fl, ecfg.fl_a, ecfg.fl_c, n_fl):
+            for n in ns:
+                b = a * b + c * n  # (flicker's component: gauss_markov)
+            out.append(b)
+        fl = tuple(out)
+    if ecfg.d_inf != 0.0:
+        step = x * x * ecfg.Ts  # (exposure's E)
+        for _ in range(m):
+            E = E + step
+    return _new_state(ErrorState, (rw, gm, E, fl))
 
 
 def _recurrence(b, a, c, n):

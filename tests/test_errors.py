@@ -12,6 +12,7 @@ are the FMU's output.
 import array
 import itertools
 import math
+import random
 
 import numpy as np
 import pytest
@@ -604,6 +605,71 @@ def test_hold_advances_each_sample_between_communication_points_with_its_own_dra
     two = errors.advance(one, 0.7, *errors.draws(3, 12, ecfg), ecfg)[0]
     assert errors.hold(state, 0.7, 3, 10, 3, ecfg) == two
     assert two != errors.advance(one, 0.7, *errors.draws(3, 11, ecfg), ecfg)[0]
+
+
+STATE_TERMS = dict(bias_on=0.05, random_walk=0.002, bias_gm=0.003, flicker=0.001, d_inf=0.04)
+STATE_SUBSETS = [on for r in range(1, 6) for on in itertools.combinations(STATE_TERMS, r)]
+
+
+@pytest.mark.parametrize("on", STATE_SUBSETS, ids="+".join)
+def test_advance_state_is_the_state_of_advance_bit_for_bit(on):
+    """errors.advance_state (a sample between communication points, no sum, no exponential) is
+    advance's new state, bit for bit, for every subset of the processes: over 200 samples with
+    inputs x of both signs, 0.0 and -0.0, and from states of -0.0 and of both signs; a process
+    that is off keeps its state object."""
+    rng = random.Random(len(on) * 31 + sum(map(len, on)))
+    values = dict(tau_gm=0.05, tau_min=0.01, tau_max=10.0, E_tau=0.5,
+                  **{n: STATE_TERMS[n] for n in on})
+    ecfg = errors.config(seed=11, Ts=1e-3, **values)
+    fl = tuple(rng.choice((-0.0, 0.0, rng.uniform(-1e-3, 1e-3))) for _ in range(ecfg.fl_n))
+    starts = [errors.initial_state(11, ecfg),
+              errors.ErrorState(-0.0, -0.0, 0.0, fl), errors.ErrorState(-2e-3, 3e-3, 1.5, fl)]
+    for start in starts:
+        a = b = start
+        for k in range(1, 201):
+            x = rng.choice((0.0, -0.0, rng.uniform(-3.0, 3.0), 1e-200))
+            d = errors.draws(11, k, ecfg)
+            a = errors.advance(a, x, *d, ecfg)[0]
+            b_next = errors.advance_state(b, x, *d, ecfg)
+            off = {"rw": ecfg.rw == 0.0, "gm": ecfg.gm_sigma == 0.0, "E": ecfg.d_inf == 0.0,
+                   "fl": ecfg.fl_n == 0}
+            for name in off:
+                if off[name]:
+                    assert getattr(b_next, name) is getattr(b, name), name
+            b = b_next
+            assert hexes(*b) == hexes(*a), (k, x)
+    assert type(b) is errors.ErrorState
+
+
+@pytest.mark.parametrize("on", STATE_SUBSETS, ids="+".join)
+def test_hold_run_is_advance_state_sample_by_sample_bit_for_bit(on):
+    """errors.hold_run over m samples (m = 0, 1, 2, 97) is advance_state over them one by one,
+    bit for bit, for every subset of the processes, with draws as list, array('d') and NumPy,
+    inputs x of both signs and -0.0, from states of -0.0 and of both signs; m = 0 gives the
+    state itself."""
+    rng = random.Random(len(on) * 17 + sum(map(len, on)))
+    values = dict(tau_gm=0.05, tau_min=0.01, tau_max=10.0, E_tau=0.5,
+                  **{n: STATE_TERMS[n] for n in on})
+    ecfg = errors.config(seed=13, Ts=1e-3, **values)
+    fl = tuple(rng.choice((-0.0, rng.uniform(-1e-3, 1e-3))) for _ in range(ecfg.fl_n))
+    for start in (errors.initial_state(13, ecfg), errors.ErrorState(-0.0, -0.0, 0.0, fl),
+                  errors.ErrorState(-2e-3, 3e-3, 1.5, fl)):
+        for m, x, kind in ((0, 0.5, list), (1, -0.0, list), (2, -1.25, array_d), (97, 0.3,
+                                                                                  np.array)):
+            k0 = rng.randint(1, 5000)
+            draws, each = run_draws(13, range(k0, k0 + m), ecfg, kind)
+            got = errors.hold_run(start, x, m, draws, ecfg)
+            want = start
+            for d in each:
+                want = errors.advance_state(want, x, *d, ecfg)
+            assert hexes(*got) == hexes(*want), (m, x)
+            assert type(got) is errors.ErrorState
+            if m == 0:
+                assert got is start
+
+
+def array_d(values):
+    return array.array("d", values)
 
 
 @pytest.mark.parametrize("bias_gm", [1.0, 0.5, 2.0])

@@ -136,6 +136,34 @@ def test_any_communication_step_and_a_restored_state_give_the_same_bits():
     assert get(s, "z") == zs[k + 7]
 
 
+HELD_ALONE = [dict(bias_on=0.05), dict(random_walk=0.02), dict(bias_gm=0.03, tau_gm=0.02),
+              dict(flicker=0.01, tau_min=0.003, tau_max=3.0), dict(d_inf=0.04, E_tau=0.05),
+              dict(kT_bias=0.002, T0=290.0)]
+
+
+@pytest.mark.parametrize("alone", HELD_ALONE + [dict(kv for d in HELD_ALONE for kv in d.items())],
+                         ids=lambda d: "+".join(k for k in d if k in ERROR_SWITCHES))
+def test_steps_of_several_samples_advance_each_process_alone_by_the_samples_they_span(alone):
+    """Each slow error alone, and all of them, in steps of 1 to 9 samples (and across a block's
+    end of draws): the z a master sees after each step is adxl203.measure_errors' of that
+    sample, the held samples between advanced by the ones they span (errors.hold_run over the
+    blocks' runs, or errors.advance_state), bit for bit."""
+    values = dict(alone, seed=17, Ts=1e-3, R=1e-6, a2=0.05)
+    x = 0.8
+    want = _reference(values, lambda k: (x, 0.0, 300.0), 4200)
+    s = initialised(**values)
+    put(s, "x", x)
+    put(s, "T", 300.0)
+    rng, t, k = random.Random(5), 0.0, 1
+    sizes = [rng.randint(1, 9) for _ in range(300)]
+    sizes += [4100 - 1 - sum(sizes), 7, 1]  # (one long step to past the first block's end)
+    for m in sizes:
+        assert get(s, "z") == want[k], (k, m)
+        assert s.do_step(t, m * 1e-3) is not False
+        t, k = t + m * 1e-3, k + m
+    assert get(s, "z") == want[k] and k > 4096
+
+
 def test_held_inputs_over_a_long_step_equal_single_samples():
     """One step of 50 samples equals 50 steps of one with the inputs held (errors.hold's
     loop, with the filter on and off)."""

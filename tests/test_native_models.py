@@ -169,6 +169,8 @@ SIGNATURES = {
     "errors_draws": (None, I64, I64, ctypes.POINTER(ErrorConfig), PD, PD, PD),
     "errors_advance": (None, ctypes.POINTER(ErrorState), D, D, D, PD, ctypes.POINTER(ErrorConfig),
                        ctypes.POINTER(ErrorState), PD),
+    "errors_advance_state": (None, ctypes.POINTER(ErrorState), D, D, D, PD,
+                             ctypes.POINTER(ErrorConfig)),
     "errors_thermal_bias": (D, D, ctypes.POINTER(ErrorConfig)),
     "errors_sensed": (D, D, D, D, ctypes.POINTER(ErrorConfig), PTILT),
     "errors_hold": (ErrorState, ErrorState, D, I64, I64, I64, ctypes.POINTER(ErrorConfig)),
@@ -920,6 +922,10 @@ def test_error_config_state_draws_and_composition_equal_models(c):
                              ctypes.byref(cst2), ctypes.byref(b))
             error_state(st2, cst2, ecfg.fl_n)
             assert same(b_py, b.value)
+            cst3 = ErrorState(cs_state.rw, cs_state.gm, cs_state.E, cs_state.fl)
+            c.errors_advance_state(ctypes.byref(cst3), x, n_rw, n_gm, n_fl, pe)
+            error_state(errors.advance_state(state, x, *draws, ecfg), cst3, ecfg.fl_n)
+            error_state(st2, cst3, ecfg.fl_n)
             e_set, e, z = I64(), D(), D()
             c.adxl203_measure_errors(lp_set, lp_c, ctypes.byref(cs_state), x, y, v, n_rw, n_gm,
                                      n_fl, theta, T, ctypes.byref(ccfg), pe, ctypes.byref(held),

@@ -456,6 +456,23 @@ def test_blocks_give_the_float_paths_bits_in_any_order_of_samples():
         assert all(type(block(k)) is float for k in order[:5])
 
 
+def test_a_blocks_run_is_its_values_from_k_to_the_blocks_end_or_n_of_them():
+    """Blocks.run(k) is the values from sample k to the end of its block; run(k, n) the first n
+    of them, or all where fewer are left (n on both sides of what is left, n = 0 and 1); each
+    with the float path's bits."""
+    from driftfmu.models import noise
+    f = lambda k: noise.normal(7, noise.STREAM_MEASUREMENT, k)  # noqa: E731
+    size = slave_base.Blocks.SIZE
+    block = slave_base.Blocks(f)
+    assert _bits(block.run(1)) == _bits([f(k) for k in range(1, size + 1)])
+    k = size - 3  # four values left in the block of 1 .. SIZE
+    assert len(block.run(k)) == 4
+    for n, want in ((0, 0), (1, 1), (3, 3), (4, 4), (5, 4), (10 ** 6, 4)):
+        got = block.run(k, n)
+        assert len(got) == want and _bits(got) == _bits([f(j) for j in range(k, k + want)]), n
+    assert _bits(block.run(size + 2, 2)) == _bits([f(size + 2), f(size + 3)])  # the next block
+
+
 def test_blocks_run_f_sample_by_sample_without_numpy(monkeypatch):
     monkeypatch.setattr(slave_base, "_NUMPY", None)
     calls = []

@@ -178,20 +178,27 @@ static double measurement_noise(const ModelInstance *comp, int64_t k, int64_t ax
     return noise_normal_keyed(axis == 1 ? comp->h.keys.v : comp->h.keys.v_y, (uint64_t)k);
 }
 
+/* errors_draws(seed, k, ...), from the streams' keys (Accelerometer._draws). */
+static void keyed_draws(const ModelInstance *comp, int64_t k, double *n_rw, double *n_gm,
+                        double *n_fl)
+{
+    const ErrorConfig *ecfg = &comp->h.ecfg;
+    const ErrorKeys *keys = &comp->h.keys;
+    int64_t i;
+    *n_rw = ecfg->rw != 0.0 ? noise_normal_keyed(keys->rw, (uint64_t)k) : 0.0;
+    *n_gm = ecfg->gm_sigma != 0.0 ? noise_normal_keyed(keys->gm, (uint64_t)k) : 0.0;
+    for (i = 0; i < ecfg->fl_n; i++)
+        n_fl[i] = noise_normal_keyed(keys->fl[i], (uint64_t)k);
+}
+
 /* Accelerometer._axis_errors: the first axis with the slow errors. */
 static void axis_errors_sample(ModelInstance *comp, int64_t *set, double *lp, ErrorState *err,
                                int64_t k, double *z)
 {
     const ErrorConfig *ecfg = &comp->h.ecfg;
-    const ErrorKeys *keys = &comp->h.keys;
     double v = comp->v.noise ? measurement_noise(comp, k, 1) : 0.0, n_rw, n_gm,
            n_fl[ERRORS_FLICKER_MAX];
-    int64_t i;
-    /* errors_draws(seed, k, ...), from the streams' keys */
-    n_rw = ecfg->rw != 0.0 ? noise_normal_keyed(keys->rw, (uint64_t)k) : 0.0;
-    n_gm = ecfg->gm_sigma != 0.0 ? noise_normal_keyed(keys->gm, (uint64_t)k) : 0.0;
-    for (i = 0; i < ecfg->fl_n; i++)
-        n_fl[i] = noise_normal_keyed(keys->fl[i], (uint64_t)k);
+    keyed_draws(comp, k, &n_rw, &n_gm, n_fl);
     /* (every process off: the state stays 0.0, Python's None) */
     adxl203_measure_errors(*set, *lp, err, comp->v.x, comp->v.y, v, n_rw, n_gm, n_fl,
                            comp->v.theta, comp->v.T, &comp->h.cfg, ecfg, &comp->h.tilt, set, lp,
@@ -214,25 +221,44 @@ static void axis_sample(const ModelInstance *comp, int64_t *set, double *lp, dou
     adxl203_measure(*set, *lp, own, other, v, &comp->h.cfg, set, lp, z);
 }
 
-/* Accelerometer.sample over n >= 1 samples from k0 with the inputs held (Accelerometer.hold:
- * without a filter and without a slow error's state only the last leaves a trace); the outputs
- * of the last.  Returns the name of a value that is not finite, or NULL. */
+/* Accelerometer.hold over n >= 1 samples from k0 with the inputs held: the samples before the
+ * last change only the error state (errors_advance_state, as errors_hold, with the draws from
+ * the streams' keys) and the output filters (adxl203_hold, of what the sensor senses: the slow
+ * errors' class 2 and range, where on); the last is Accelerometer.sample.  Its outputs; returns
+ * the name of a value that is not finite, or NULL. */
 static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_t *lpy_set,
                         double *lpy, ErrorState *err, int64_t k0, int64_t n)
 {
     int64_t i;
     double z = comp->v.z, z_y = comp->v.z_y;
     const int errors = comp->h.ecfg.on || comp->v.theta != 0.0;
-    if (!comp->h.cfg.has_alpha && !comp->h.ecfg.on && n > 1) {
+    if (n > 1) {
+        const Config *cfg = &comp->h.cfg;
+        if (comp->h.ecfg.on) {
+            for (i = k0; i < k0 + n - 1; i++) {
+                double n_rw, n_gm, n_fl[ERRORS_FLICKER_MAX];
+                keyed_draws(comp, i, &n_rw, &n_gm, n_fl);
+                errors_advance_state(err, comp->v.x, n_rw, n_gm, n_fl, &comp->h.ecfg);
+            }
+        }
+        if (cfg->has_alpha) {
+            const double own = errors ? errors_sensed(comp->v.x, comp->v.theta, comp->v.T,
+                                                      &comp->h.ecfg, &comp->h.tilt)
+                                      : comp->v.x;
+            adxl203_hold(*lp_set, *lp, own, comp->v.y, comp->v.seed, k0 - 1, n, cfg, 1,
+                         comp->v.noise, lp_set, lp);
+            if (comp->v.axes == 2)
+                adxl203_hold(*lpy_set, *lpy, comp->v.y, comp->v.x, comp->v.seed, k0 - 1, n, cfg,
+                             2, comp->v.noise, lpy_set, lpy);
+        }
         k0 = k0 + n - 1;
         n = 1;
     }
     if (comp->v.dual) { /* Accelerometer._dual: no filter (dual = 1 needs fc = 0) */
         double vx = 0.0, vy = 0.0;
-        int64_t k = k0 + n - 1;
         if (comp->v.noise) {
-            vx = measurement_noise(comp, k, 1);
-            vy = measurement_noise(comp, k, 2);
+            vx = measurement_noise(comp, k0, 1);
+            vy = measurement_noise(comp, k0, 2);
         }
         dualaxis_measure(comp->v.x, comp->v.y, comp->h.ax, comp->h.ay, vx, vy, &z, &z_y);
         *lp_set = *lpy_set = 0;
@@ -243,17 +269,15 @@ static const char *hold(ModelInstance *comp, int64_t *lp_set, double *lp, int64_
         if (!isfinite(z_y)) return "z_y";
         return NULL;
     }
-    for (i = 0; i < n; i++) {
-        if (errors)
-            axis_errors_sample(comp, lp_set, lp, err, k0 + i, &z);
-        else
-            axis_sample(comp, lp_set, lp, comp->v.x, comp->v.y, k0 + i, 1, &z);
-        if (comp->v.axes != 2) {
-            *lpy_set = 0;
-            *lpy = 0.0;
-        } else {
-            axis_sample(comp, lpy_set, lpy, comp->v.y, comp->v.x, k0 + i, 2, &z_y);
-        }
+    if (errors) /* Accelerometer.sample: the last */
+        axis_errors_sample(comp, lp_set, lp, err, k0, &z);
+    else
+        axis_sample(comp, lp_set, lp, comp->v.x, comp->v.y, k0, 1, &z);
+    if (comp->v.axes != 2) {
+        *lpy_set = 0;
+        *lpy = 0.0;
+    } else {
+        axis_sample(comp, lpy_set, lpy, comp->v.y, comp->v.x, k0, 2, &z_y);
     }
     comp->v.z = z;
     if (comp->v.axes == 2) comp->v.z_y = z_y;

@@ -248,6 +248,18 @@ void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
     *b = sum;
 }
 
+void errors_advance_state(ErrorState *state, double x, double n_rw, double n_gm,
+                          const double *n_fl, const ErrorConfig *ecfg)
+{
+    int64_t i;
+    if (ecfg->rw != 0.0) state->rw = errors_random_walk(state->rw, ecfg->rw, n_rw);
+    if (ecfg->gm_sigma != 0.0)
+        state->gm = errors_gauss_markov(state->gm, ecfg->gm_a, ecfg->gm_c, n_gm);
+    for (i = 0; i < ecfg->fl_n; i++) /* (flicker's components, without their sum) */
+        state->fl[i] = errors_gauss_markov(state->fl[i], ecfg->fl_a[i], ecfg->fl_c[i], n_fl[i]);
+    if (ecfg->d_inf != 0.0) state->E = state->E + x * x * ecfg->Ts; /* (exposure's E) */
+}
+
 double errors_thermal_bias(double T, const ErrorConfig *ecfg)
 {
     double scale, bias;
@@ -272,9 +284,9 @@ ErrorState errors_hold(ErrorState state, double x, int64_t seed, int64_t k0, int
     if (!(ecfg->rw != 0.0 || ecfg->gm_sigma != 0.0 || ecfg->d_inf != 0.0 || ecfg->fl_n))
         return state;
     for (j = 1; j < m; j++) {
-        double n_rw, n_gm, n_fl[ERRORS_FLICKER_MAX], b;
+        double n_rw, n_gm, n_fl[ERRORS_FLICKER_MAX];
         errors_draws(seed, k0 + j, ecfg, &n_rw, &n_gm, n_fl);
-        errors_advance(&state, x, n_rw, n_gm, n_fl, ecfg, &state, &b);
+        errors_advance_state(&state, x, n_rw, n_gm, n_fl, ecfg);
     }
     return state;
 }

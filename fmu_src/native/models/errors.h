@@ -86,6 +86,10 @@ void errors_draws(int64_t seed, int64_t k, const ErrorConfig *ecfg, double *n_rw
  * their samples. */
 void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
                     const double *n_fl, const ErrorConfig *ecfg, ErrorState *out, double *b);
+/* errors_advance's new state alone, in place (a sample whose output no one sees: no sum, no
+ * exposure drift's exponential). */
+void errors_advance_state(ErrorState *state, double x, double n_rw, double n_gm,
+                          const double *n_fl, const ErrorConfig *ecfg);
 double errors_thermal_bias(double T, const ErrorConfig *ecfg);
 double errors_sensed(double x, double theta, double T, const ErrorConfig *ecfg,
                      ErrorTilt *held);
