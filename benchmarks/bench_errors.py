@@ -29,8 +29,16 @@ less the same step with the term off; callgrind, so valgrind is needed): a count
 to run, where the difference of two wall times of a few percent each would be the machine's
 scatter.
 
+Steps of several samples (``--held``, default 10 samples a step): the cost of a sample when the
+master steps over ``--held`` samples at a time, the inputs held, before the slow errors, this
+code with every slow error off and on, and with every one on the code of ``--held-before``
+(default :data:`HELD_BEFORE`, where a held sample was computed in full in the native FMU and
+advanced the error state through errors.advance in the Python FMU).  No goal is set on these:
+before the slow errors a held sample without the output filter cost nothing (only the last
+sample of a step was computed), and with a slow error on every sample's state must advance.
+
     python benchmarks/bench_errors.py [--steps 400000] [--python-steps 200000] [--repeats 5]
-                                      [--each]
+                                      [--each] [--held 10] [--held-before 1a4cf70]
 """
 import argparse
 import os
@@ -52,6 +60,8 @@ import figures  # noqa: E402
 
 #: The commit the slow errors branched from: main before issue 42.
 BEFORE = "9ff02a8"
+#: The commit before the held samples of a step advanced only the error state and the filter.
+HELD_BEFORE = "1a4cf70"
 #: Every slow error on (models/errors.py), and the ADC over the range.
 ALL_ON = dict(bias_on=0.05, random_walk=0.002, bias_gm=0.003, tau_gm=1.0, flicker=0.001,
               tau_min=0.1, tau_max=100.0, d_inf=0.04, E_tau=50.0, T0=298.15, kT_bias=0.002,
@@ -99,11 +109,12 @@ def export(ref, folder):
     return folder
 
 
-def step_ns(host, fmu, start, steps, work, env=None):
-    """ns per step of the Accelerometer ``fmu`` alone in the C host, z read at every step."""
+def step_ns(host, fmu, start, steps, work, env=None, samples=1):
+    """ns per step of the Accelerometer ``fmu`` alone in the C host, z read at every step, each
+    step over ``samples`` samples (Ts = 1 ms)."""
     unpacked = {"Accelerometer": chain.unpack(fmu, work / "Accelerometer")}
     text, keys = chain.script(2, unpacked, {"Accelerometer": start}, (),
-                              {"Accelerometer": ["z"]}, steps, 1e-3, quiet=True)
+                              {"Accelerometer": ["z"]}, steps, 1e-3 * samples, quiet=True)
     _, ns, _ = chain.run(host, text, keys, work, env=env)
     return ns
 
@@ -139,6 +150,11 @@ def main(argv=None):
     ap.add_argument("--each", action="store_true",
                     help="also count what each term adds to the native step with every one on "
                          "(valgrind)")
+    ap.add_argument("--held", type=int, default=10,
+                    help="samples a step in the figures of steps of several samples (0: none)")
+    ap.add_argument("--held-before", default=HELD_BEFORE,
+                    help="git commit of the Accelerometer whose held samples are compared "
+                         "(default: %s)" % HELD_BEFORE)
     ap.add_argument("--no-record", action="store_true",
                     help="print the figures only (benchmarks/figures.json, docs/performance.md)")
     args = ap.parse_args(argv)
@@ -148,6 +164,8 @@ def main(argv=None):
         tmp = Path(tmp)
         fmus = {"before": build(export(args.before, tmp / "before"), tmp / "fmus_before"),
                 "now": build(ROOT, tmp / "fmus_now")}
+        if args.held > 1:
+            fmus["held"] = build(export(args.held_before, tmp / "held"), tmp / "fmus_held")
         host = chain.compile_host(tmp / "chain_host")
         starts = {"before": dict(x=0.5), "off": dict(x=0.5), "on": dict(ALL_ON, **INPUTS_ON)}
         which = {"before": "before", "off": "now", "on": "now"}
@@ -167,6 +185,17 @@ def main(argv=None):
                     measured.setdefault((backend, label), []).append(step_ns(
                         host, fmus[which[label]][backend], starts[label], steps, work, env))
                     shutil.rmtree(work)
+                if args.held > 1:  # (ns a sample; 10 times fewer steps of 10 samples)
+                    for label, tree in (("before", "before"), ("off", "now"), ("on", "now"),
+                                        ("held", "held")):
+                        work = tmp / ("r%d_%s_held_%s" % (r, backend, label))
+                        work.mkdir()
+                        ns = step_ns(host, fmus[tree][backend],
+                                     starts["on" if label == "held" else label],
+                                     max(1, steps // args.held), work, env, args.held)
+                        measured.setdefault((backend, "held " + label), []).append(
+                            ns / args.held)
+                        shutil.rmtree(work)
         counted, counted_python = {}, {}
         if shutil.which("valgrind"):
             for i, label in enumerate(labels):
@@ -204,6 +233,31 @@ def main(argv=None):
             figures.row("the same, every slow error on", on / 1e3, "µs", against, on / b,
                         "<= 2", met_on),
         ]
+    if args.held > 1:
+        print("one sample of steps of %d samples (inputs held), median of %d runs:"
+              % (args.held, args.repeats))
+        for backend, title in (("native", "native FMI 2.0"), ("python", "Python")):
+            b, off, on, old = (median[(backend, "held " + k)]
+                               for k in ("before", "off", "on", "held"))
+            print("  %-15s before %8.1f ns, off %8.1f ns, on %8.1f ns (%.2f x before); on at "
+                  "%s %8.1f ns (this code %.3f of it)" % (title, b, off, on, on / b,
+                                                         args.held_before, old, on / old))
+            where = "in steps of %d samples" % args.held
+            against = "the %s Accelerometer before the slow errors (%s), %s" % (
+                title, args.before, where)
+            rows += [
+                figures.row("one sample of the %s Accelerometer before the slow errors, %s"
+                            % (title, where), b / 1e3, "µs"),
+                figures.row("the same, this code, every slow error off", off / 1e3, "µs",
+                            against, off / b),
+                figures.row("the same, every slow error on", on / 1e3, "µs", against, on / b),
+                figures.row("the same, every slow error on, the code of %s (held samples "
+                            "computed in full)" % args.held_before, old / 1e3, "µs"),
+                figures.row("this code against %s, every slow error on, %s"
+                            % (args.held_before, where), on / 1e3, "µs",
+                            "the %s Accelerometer of %s, %s" % (title, args.held_before, where),
+                            on / old),
+            ]
     for count, title in ((counted, "native FMI 2.0"), (counted_python, "Python")):
         if not count:
             continue

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from driftfmu.models import chain, drift, errors, excitation
+from driftfmu.models import _ops, chain, drift, errors, excitation
 from driftfmu.simulations import batch, checks, output
 from driftfmu.simulations.gaussian import GENERAL_OFF, SETTLE_BAND, plot_title, settle_hold
 from driftfmu.simulations.sinusoidal import check_frequency
@@ -104,17 +104,32 @@ def summarise(traj, references, a1=None, Q=None, R=None, A=None, settle_by=SETTL
     d1, d2 = ((traj["final_dc_ekf1"], traj["final_dc_ekf2"]) if reduced
               else (traj["dc_ekf1"][:, -1], traj["dc_ekf2"][:, -1]))
     with np.errstate(divide="ignore", invalid="ignore"):
-        gaps = 10.0 * np.log10(d1 / d2)
-    gaps = gaps[np.isfinite(gaps)]
+        ratios = np.asarray(d1 / d2, dtype=float)
+        of_means = float(np.mean(d1) / np.mean(d2))
+    gaps = _db(ratios[np.isfinite(ratios) & (ratios > 0.0)])
     summary["ekf1_ekf2_gap_db"] = {"mean": float(np.mean(gaps)) if gaps.size else math.nan,
                                    "std": float(np.std(gaps)) if gaps.size else math.nan,
                                    "max_abs": float(np.max(np.abs(gaps))) if gaps.size
                                    else math.nan,
-                                   "of_means": float(10.0 * np.log10(np.mean(d1) /
-                                                                     np.mean(d2)))}
+                                   "of_means": _db_of(of_means)}
     if A == 0.0 and None not in (a1, Q, R):
         summary["ekf1_ekf2_gap_db"]["expected"] = drift.expected_gap_db(a1, Q, R)
     return summary
+
+
+def _db(ratios):
+    """``10 log10`` of an array of finite positive ratios, by models._ops.log (arithmetic
+    only): the same bits on every machine, where NumPy's log10 of an array takes the CPU's
+    SIMD code (AVX-512 and AVX2 differ in the last bits)."""
+    return 10.0 * (_ops.log(ratios) / errors.LN10) if ratios.size else ratios
+
+
+def _db_of(ratio):
+    """``10 log10`` of one ratio: :func:`_db`'s for a finite positive one; ``-inf`` for 0,
+    ``inf`` for inf, nan for a negative one or nan (as log10)."""
+    if ratio > 0.0 and ratio < math.inf:
+        return 10.0 * (_ops.log(ratio) / errors.LN10)
+    return -math.inf if ratio == 0.0 else math.inf if ratio == math.inf else math.nan
 
 
 #: The general model's parameters of the sinusoidal population: the sensor's (a sinusoidal

@@ -607,7 +607,8 @@ def test_hold_advances_each_sample_between_communication_points_with_its_own_dra
     assert two != errors.advance(one, 0.7, *errors.draws(3, 11, ecfg), ecfg)[0]
 
 
-STATE_TERMS = dict(bias_on=0.05, random_walk=0.002, bias_gm=0.003, flicker=0.001, d_inf=0.04)
+#: (d_inf negative: a drift that pulls down is allowed, and the exposure grows all the same)
+STATE_TERMS = dict(bias_on=0.05, random_walk=0.002, bias_gm=0.003, flicker=0.001, d_inf=-0.04)
 STATE_SUBSETS = [on for r in range(1, 6) for on in itertools.combinations(STATE_TERMS, r)]
 
 
@@ -670,6 +671,25 @@ def test_hold_run_is_advance_state_sample_by_sample_bit_for_bit(on):
 
 def array_d(values):
     return array.array("d", values)
+
+
+@pytest.mark.parametrize("alone", [dict(random_walk=1.0), dict(bias_gm=1.0, tau_gm=2.0),
+                                   dict(flicker=1.0, tau_min=2.0, tau_max=50.0),
+                                   dict(d_inf=1.0), dict(d_inf=-1.0)], ids=str)
+def test_hold_advances_each_process_alone_even_at_the_value_1(alone):
+    """errors.hold with one process alone (Ts = 1 s, so that rw, gm_sigma and d_inf are 1.0 or
+    -1.0 exactly) advances it over the held samples as advance_state does; with every process
+    off (the turn-on bias alone has no state) it gives the state itself."""
+    ecfg = errors.config(seed=5, Ts=1.0, E_tau=50.0, **alone)
+    state = errors.initial_state(5, ecfg)
+    want = state
+    for k in (8, 9, 10):
+        want = errors.advance_state(want, 0.6, *errors.draws(5, k, ecfg), ecfg)
+    got = errors.hold(state, 0.6, 5, 7, 4, ecfg)
+    assert hexes(*got) == hexes(*want) and got != state
+    off = errors.config(seed=5, Ts=1.0, bias_on=1.0)
+    still = errors.initial_state(5, off)
+    assert errors.hold(still, 0.6, 5, 7, 4, off) is still
 
 
 @pytest.mark.parametrize("bias_gm", [1.0, 0.5, 2.0])

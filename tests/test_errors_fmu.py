@@ -179,6 +179,35 @@ def test_held_inputs_over_a_long_step_equal_single_samples():
         assert get(a, "z") == get(b, "z") and a._committed["_err"] == b._committed["_err"]
 
 
+@pytest.mark.parametrize("case", [
+    dict(theta=-0.3), dict(theta=1.0), dict(axes=2, noise=1), dict(axes=2, noise=0),
+    dict(axes=2, noise=1, kT_scale=-0.003, T0=290.0, range=1.2, theta=-0.2)],
+    ids=lambda d: ",".join("%s=%s" % kv for kv in d.items()))
+def test_a_step_of_several_samples_with_the_filter_equals_single_samples(case):
+    """With the output filter on, one step of 23 samples equals 23 steps of one (which run
+    Accelerometer.sample, not the hold), z and z_y and the filters' states bit for bit: the
+    tilt alone (negative, and exactly 1.0 rad), the second axis with and without the
+    measurement noise, and the second axis with the slow errors' class 2 and range."""
+    values = dict(seed=6, Ts=1e-3, fc=150.0, R=1e-4, a2=0.05,
+                  **{k: v for k, v in case.items() if k != "theta"})
+    a, b = initialised(**values), initialised(**values)
+    for s in (a, b):
+        put(s, "x", 0.7)
+        put(s, "y", -0.4) if "axes" in case else None
+        put(s, "theta", case.get("theta", 0.0))
+        put(s, "T", 301.0)
+    assert a.do_step(0.0, 0.023) is not False, messages(a)
+    for k in range(23):
+        assert b.do_step(k * 1e-3, 1e-3) is not False, messages(b)
+    names = ["z", "z_y"] if "axes" in case else ["z"]
+    assert [get(a, n) for n in names] == [get(b, n) for n in names]
+    assert (a._committed["_lp"], a._committed["_lpy"]) == \
+        (b._committed["_lp"], b._committed["_lpy"])
+    assert a._committed["_lp"] is not None
+    if "axes" in case:
+        assert a._committed["_lpy"] is not None
+
+
 def test_with_every_term_off_the_state_has_no_error_part_and_the_tilt_still_acts():
     s = initialised()
     assert s._committed["_err"] is None and s._get_fmu_state()["_err"] is None
@@ -347,6 +376,34 @@ def test_while_the_blocks_warm_up_no_run_starts_and_after_it_runs_do(monkeypatch
     # attempt that finds no arrays starts the count again, so the next is RUN_AFTER samples on
     assert first is not None and first > module.RUN_AFTER + 1, first
     assert (first - 1) % module.RUN_AFTER == 0, first
+
+
+def test_steps_of_several_samples_in_a_c_host_through_the_blocks_warm_up(monkeypatch):
+    """In a host that has not imported NumPy the held samples of a step take their draws one by
+    one while the blocks warm up (errors.advance_state), and runs of them afterwards
+    (errors.hold_run): steps of 1 to 9 samples from the first sample to past the warm-up give
+    every z of the reference, and both kinds of held samples occur."""
+    from driftfmu.fmu_src import slave_base
+    monkeypatch.setattr(slave_base, "_numpy_imported", lambda: False)
+    values = dict(RUN_VALUES, seed=19)
+    x = 0.9
+    want = _reference(values, lambda k: (x, 0.1, 299.0), 2200)
+    s = initialised(**values)
+    for name, v in zip(("x", "theta", "T"), (x, 0.1, 299.0)):
+        put(s, name, v)
+    kinds = []
+    hold_run, advance_state = errors.hold_run, errors.advance_state
+    monkeypatch.setattr(errors, "hold_run", lambda *a: kinds.append("run") or hold_run(*a))
+    monkeypatch.setattr(errors, "advance_state",
+                        lambda *a: kinds.append("one") or advance_state(*a))
+    rng, t, k = random.Random(23), 0.0, 1
+    while k < 2100:
+        m = rng.randint(1, 9)
+        assert get(s, "z") == want[k], k
+        assert s.do_step(t, m * 1e-3) is not False, messages(s)
+        t, k = t + m * 1e-3, k + m
+    assert get(s, "z") == want[k]
+    assert "one" in kinds and "run" in kinds and kinds.index("run") > kinds.index("one")
 
 
 def test_a_row_of_the_run_is_used_only_for_the_numbers_it_was_computed_from():

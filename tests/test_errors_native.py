@@ -88,7 +88,8 @@ def test_the_three_fmus_give_the_same_bits_with_every_term_on(dirs):
 
 ALONE = [dict(bias_on=0.05), dict(random_walk=0.02), dict(bias_gm=0.03, tau_gm=0.02),
          dict(flicker=0.01, tau_min=0.003, tau_max=3.0), dict(d_inf=0.04, E_tau=0.05),
-         dict(kT_bias=0.002, kT_scale=-0.003, T0=290.0), dict(range=0.9)]
+         dict(kT_bias=0.002, kT_scale=-0.003, T0=290.0), dict(range=0.9),
+         dict(tilt_alone=None)]  # (no slow error: the tilt input alone)
 
 
 @pytest.mark.parametrize("fc", [0.0, 300.0])
@@ -104,7 +105,8 @@ def test_each_term_alone_in_steps_of_several_samples_gives_the_same_bits(dirs, a
     for backend in diff.BACKENDS:
         drv = driver(dirs, backend)
         try:
-            started(drv, dict(alone, fc=fc, a2=0.05))
+            started(drv, dict({k: v for k, v in alone.items() if k != "tilt_alone"}, fc=fc,
+                              a2=0.05))
             t, out = 0.0, []
             for inputs, h in plan:
                 assert call(drv, "setr", ["x", "theta", "T"], inputs) == OK, text(drv)

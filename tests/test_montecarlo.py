@@ -127,3 +127,40 @@ def test_montecarlo_sinusoidal_filters_with_the_Q_given():
     assert given["summary"]["parameters"]["Q"] == 0.3
     assert default["summary"]["parameters"]["Q"] == 0.5
     assert not np.array_equal(given["sine_dc1"], default["sine_dc1"])
+
+
+def test_the_gap_in_db_is_log10_to_a_few_ulp_and_takes_no_cpus_simd():
+    """montecarlo's dB (10 log10 of EKF1/EKF2) is models._ops.log's, the same bits on every
+    machine (NumPy's log10 of an array takes the CPU's SIMD code, which differs in the last bits
+    between AVX-512 and AVX2): within 4 ulp of math.log10 over ratios from 1e-300 to 1e300, the
+    float path's bits on arrays, and log10's answers at 0, inf, negative numbers and nan."""
+    from driftfmu.models import _ops, errors
+    rng = np.random.default_rng(11)
+    ratios = np.concatenate([10.0 ** rng.uniform(-300, 300, 3000),
+                             rng.uniform(0.5, 2.0, 3000), [1.0, 10.0, 5e-324, 1.7e308]])
+    got = montecarlo._db(ratios)
+    for r, g in zip(ratios, got):
+        want = 10.0 * math.log10(r)
+        assert abs(g - want) <= 4 * math.ulp(want) + 1e-300, r
+        assert g == montecarlo._db_of(float(r)) == 10.0 * (_ops.log(float(r)) / errors.LN10)
+    assert montecarlo._db(np.array([])).size == 0
+    assert montecarlo._db_of(0.0) == -math.inf and montecarlo._db_of(math.inf) == math.inf
+    assert all(math.isnan(montecarlo._db_of(v)) for v in (-1.0, -math.inf, math.nan))
+
+
+def test_the_gap_summary_keeps_only_finite_positive_ratios():
+    """summary's gap statistics over the runs whose final EKF1/EKF2 ratio is finite and
+    positive (as 10 log10 was finite for them): a run with EKF2 = 0 and one with a negative
+    EKF1 are left out of the mean, std and max; of_means is 10 log10 of the means' ratio."""
+    traj = dict(final_dc_ekf1=np.array([2.0, 1.0, -1.0, 4.0]),
+                final_dc_ekf2=np.array([1.0, 0.0, 1.0, 2.0]))
+    for e in ("ekf1", "ekf2", "ekf3"):
+        for ref in ("empirical", "realised"):
+            traj["settled_%s_%s" % (ref, e)] = np.array([1, 1, 1, 1])
+    traj.update(dc_ekf1=np.zeros((4, 10)), dc_empirical=np.zeros((4, 10)),
+                dc_realised=np.zeros((4, 10)))
+    s = montecarlo.summarise(traj, ("realised", "empirical"))
+    g = s["ekf1_ekf2_gap_db"]
+    assert g["mean"] == pytest.approx(10.0 * math.log10(2.0), rel=1e-15)
+    assert g["std"] == 0.0 and g["max_abs"] == g["mean"]
+    assert g["of_means"] == pytest.approx(10.0 * math.log10(1.5 / 1.0), rel=1e-15)

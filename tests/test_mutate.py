@@ -417,6 +417,25 @@ def test_a_survivor_is_untriaged_until_the_triage_file_names_it(tmp_path):
     assert "no test runs this line" not in p.stdout
 
 
+@pytest.mark.qualification  # a run of the survey itself
+def test_the_record_names_the_tests_that_failed_under_coverage(tmp_path):
+    """A test that fails while the record is made is named in the survey's output (its lines
+    then count as reached by no test) and selected for no mutant; one that passes is not
+    named."""
+    root = _survey_tree(tmp_path)
+    (root / "tests" / "test_bad.py").write_text(
+        "from driftfmu.models.calc import add\n\ndef test_bad():\n    assert add(1, 1) == 3\n")
+    p = _run_survey(tmp_path, root, "--function", "models/calc.py:add")
+    out = p.stdout + p.stderr
+    assert "survey: failed under coverage, so not used: tests/test_bad.py::test_bad" in out, out
+    assert "test_calc.py::test_add" not in out.split("failed under coverage")[1].split("\n")[0]
+    import json
+    (record,) = (tmp_path / "cache").glob("*.json")
+    rec = json.loads(record.read_text())
+    assert rec["tests"]["tests/test_bad.py::test_bad"][0] is False
+    assert rec["tests"]["tests/test_calc.py::test_add"][0] is True
+
+
 def test_a_malformed_triage_entry_is_refused(tmp_path):
     survey = _tool("mutation_survey")
     path = tmp_path / "s.toml"

@@ -471,6 +471,15 @@ def test_a_blocks_run_is_its_values_from_k_to_the_blocks_end_or_n_of_them():
         got = block.run(k, n)
         assert len(got) == want and _bits(got) == _bits([f(j) for j in range(k, k + want)]), n
     assert _bits(block.run(size + 2, 2)) == _bits([f(size + 2), f(size + 3)])  # the next block
+    # no run where f runs on the one k: a block that is not all finite, and a sample past
+    # 2**62 (the one beyond a block that ends there included)
+    import numpy as np
+    bad = slave_base.Blocks(lambda k: np.where(np.asarray(k) == 9, math.inf, 0.5))
+    assert bad.run(3) is None and bad.run(3, 2) is None
+    top = slave_base.Blocks(f)
+    k0 = 2 ** 62 - 10
+    assert len(top.run(k0)) == size  # the block k0 .. k0 + SIZE - 1
+    assert top.run(k0 + size) is None and top.run(k0 + size, 1) is None
 
 
 def test_blocks_run_f_sample_by_sample_without_numpy(monkeypatch):

@@ -516,7 +516,7 @@ def record(root, tests=("tests",), workers="2", log=print):
         summary = [ln for ln in out.splitlines() if re.search(r"\d+ (passed|failed)", ln)]
         log("survey: recorded in %.0f s (%s)" % (time.perf_counter() - t0,
                                                   (summary or ["no summary"])[-1].strip()))
-        result = {}
+        result, failed = {}, []
         folder = os.path.dirname(data)
         for f in os.listdir(folder):
             if f.endswith(".tests"):
@@ -525,6 +525,10 @@ def record(root, tests=("tests",), workers="2", log=print):
                         t = json.loads(line)
                         result[t["test"]] = [t["outcome"] == "passed", t["integration"],
                                              t["seconds"]]
+                        if t["outcome"] == "failed":
+                            failed.append(t["test"])
+        if failed:  # (their lines count as reached by no test: the survey shows such mutants)
+            log("survey: failed under coverage, so not used: %s" % ", ".join(sorted(failed)))
         import coverage
         combined = coverage.CoverageData(basename=os.path.join(tmp, "combined"))
         for f in os.listdir(folder):
