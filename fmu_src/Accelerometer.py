@@ -16,7 +16,7 @@ import math
 
 from driftfmu.fmu_src.slave_base import DEFAULT_EXPERIMENT, Blocks, SlaveBase, var, _is_number
 from driftfmu.models import adxl203, dualaxis, errors
-from driftfmu.models.noise import normal
+from driftfmu.models.noise import ziggurat
 
 #: The parameters that switch a slow error on (:mod:`driftfmu.models.errors`; 0: off).
 ERROR_SWITCHES = ("bias_on", "random_walk", "bias_gm", "flicker", "d_inf", "kT_bias",
@@ -154,7 +154,7 @@ class Accelerometer(SlaveBase):
 
     def _stream(self, name, i, seed, warm_up):
         stream = errors.stream_of(name, i)
-        return self.blocks("%s%d" % (name, i), seed, lambda k: normal(seed, stream, k), warm_up)
+        return self.blocks("%s%d" % (name, i), seed, lambda k: ziggurat(seed, stream, k), warm_up)
 
     def _row(self, err, k):
         """errors.run's row of sample ``k`` from ``err``, the error state after sample ``k -

@@ -48,7 +48,9 @@ The sensor composes them (:func:`driftfmu.models.adxl203.measure_errors`):
 
 Every process draws from a counter-based noise stream of its own
 (:data:`driftfmu.models.noise.STREAM_TURN_ON` ...), so turning one on changes no other draw;
-index 0 of a stream is the draw before sample 1.  Every term is off by default, and then the
+index 0 of a stream is the draw before sample 1.  The draws are standard normal by the ziggurat
+(:func:`driftfmu.models.noise.ziggurat`), which costs less than the quantile the letter's
+streams use: a sample with every process on draws up to ten of them.  Every term is off by default, and then the
 sensor is the one without them, the same bits (nothing here is evaluated).  All functions run
 on floats (one FMU instance) and on arrays of runs (the batch engine) with the same bits; the
 coefficients are computed once, with the arithmetic-only ``exp``, ``log`` and ``sin`` of
@@ -59,7 +61,7 @@ import math
 from collections import namedtuple
 
 from . import _ops, sensor
-from .noise import STREAM_BIAS_GM, STREAM_FLICKER, STREAM_RANDOM_WALK, STREAM_TURN_ON, normal
+from .noise import STREAM_BIAS_GM, STREAM_FLICKER, STREAM_RANDOM_WALK, STREAM_TURN_ON, ziggurat
 
 #: Most components of the flicker bias (one per decade of its band, at least two).
 FLICKER_MAX = 8
@@ -99,7 +101,7 @@ _new_state = tuple.__new__
 def turn_on(bias_on, seed):
     """The turn-on bias of ``seed``: ``bias_on n_0``, ``n_0`` the draw before sample 1 of the
     turn-on stream (one value per seed, an int or an array of them)."""
-    return bias_on * normal(seed, STREAM_TURN_ON, 0)
+    return bias_on * ziggurat(seed, STREAM_TURN_ON, 0)
 
 
 def random_walk(b, step, n):
@@ -310,17 +312,17 @@ def problems(p):
 def initial_state(seed, ecfg):
     """The state before sample 1: the walk and the exposure at 0, the Gauss-Markov bias and the
     flicker components drawn from their stationary distributions (index 0 of their streams)."""
-    gm = ecfg.gm_sigma * normal(seed, STREAM_BIAS_GM, 0) if ecfg.gm_sigma != 0.0 else 0.0
-    fl = tuple(ecfg.fl_sigma * normal(seed, STREAM_FLICKER + i, 0) for i in range(ecfg.fl_n))
+    gm = ecfg.gm_sigma * ziggurat(seed, STREAM_BIAS_GM, 0) if ecfg.gm_sigma != 0.0 else 0.0
+    fl = tuple(ecfg.fl_sigma * ziggurat(seed, STREAM_FLICKER + i, 0) for i in range(ecfg.fl_n))
     return ErrorState(0.0, gm, 0.0, fl)
 
 
 def draws(seed, k, ecfg):
     """The standard normal draws of sample ``k``: ``(n_rw, n_gm, (n_fl_0, ...))``, 0.0 for a
     process that is off."""
-    n_rw = normal(seed, STREAM_RANDOM_WALK, k) if ecfg.rw != 0.0 else 0.0
-    n_gm = normal(seed, STREAM_BIAS_GM, k) if ecfg.gm_sigma != 0.0 else 0.0
-    return n_rw, n_gm, tuple(normal(seed, STREAM_FLICKER + i, k) for i in range(ecfg.fl_n))
+    n_rw = ziggurat(seed, STREAM_RANDOM_WALK, k) if ecfg.rw != 0.0 else 0.0
+    n_gm = ziggurat(seed, STREAM_BIAS_GM, k) if ecfg.gm_sigma != 0.0 else 0.0
+    return n_rw, n_gm, tuple(ziggurat(seed, STREAM_FLICKER + i, k) for i in range(ecfg.fl_n))
 
 
 def stream_of(name, i=0):

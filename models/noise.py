@@ -131,3 +131,113 @@ def inverse_normal_cdf(p):
 def normal(seed, stream, k):
     """Standard normal draw for sample ``k`` of ``stream`` under ``seed``."""
     return inverse_normal_cdf(uniform(seed, stream, k))
+
+
+# -- the slow errors' draws: the ziggurat -------------------------------------------------------
+#
+# The sensor's slow errors (models/errors.py) draw up to ten numbers a sample, where the letter's
+# sensor draws one; their streams use the ziggurat method of Marsaglia and Tsang (2000), which
+# takes most draws with a table look-up, one multiplication and one comparison (Acklam's
+# quantile above takes two polynomials and a division).  The letter's streams keep the quantile.
+#
+# The normal density's right half (up to the factor 1/sqrt(2 pi)), f(x) = exp(-x^2/2), is
+# covered by ZIG_N layers of equal area ZIG_V: layer i (i >= 1) the box of width x_i between the
+# heights f(x_i) and f(x_(i+1)); layer 0 the box of width x_1 = ZIG_R under f(ZIG_R) with the tail
+# beyond ZIG_R, as one box of width x_0 = ZIG_V / f(ZIG_R).  A draw: a 64-bit word w of the
+# stream; i = the low 8 bits; u = the top 53 bits over [-1, 1); x = u x_i.  Where |u| <
+# x_(i+1) / x_i (98.5 % of the draws), x is under the curve: done.  Otherwise, for i >= 1, a
+# height y uniform between f(x_i) and f(x_(i+1)) accepts x where y < f(x) (the wedge); for i = 0,
+# a draw from the tail beyond ZIG_R (Marsaglia's: a = -log(U1) / R, b = -log(U2) until 2 b > a^2,
+# then R + a, with u's sign).  A rejected draw starts again.  The words after w: w' = mix(w +
+# GOLDEN), one each for a height, a tail's U1 and U2, a new start.
+#
+# The tables come from ZIG_R and ZIG_V by x_(i+1) = sqrt(-2 log(ZIG_V / x_i + f(x_i))) with the
+# arithmetic-only exp and log of _ops, so the same bits on every machine; the C twin has them as
+# literals (fmu_src/native/models/ziggurat_table.h, written by generate.py, compared by a test).
+
+#: Layers of the ziggurat.
+ZIG_N = 256
+#: The right edge of the base layer (Marsaglia and Tsang's r for 256 layers).
+ZIG_R = 3.6541528853610088
+#: The area of each layer under f(x) = exp(-x^2/2) (Marsaglia and Tsang's v for 256 layers).
+ZIG_V = 4.92867323399e-3
+
+
+def _density(x):
+    """``exp(-x^2/2)`` by the arithmetic-only exp (float or array)."""
+    return _ops.exp(-0.5 * x * x)
+
+
+def _ziggurat_tables():
+    x = [0.0] * (ZIG_N + 1)
+    x[0] = ZIG_V / _density(ZIG_R)
+    x[1] = ZIG_R
+    for i in range(2, ZIG_N):
+        x[i] = _ops.sqrt(-2.0 * _ops.log(ZIG_V / x[i - 1] + _density(x[i - 1])))
+    ratio = tuple(x[i + 1] / x[i] for i in range(ZIG_N))
+    return tuple(x), ratio, tuple(_density(v) for v in x)
+
+
+#: The layers' edges x_0 .. x_256 (x_256 = 0), the fast acceptance bound x_(i+1) / x_i of each
+#: layer, and f at each edge.
+ZIG_X, ZIG_RATIO, ZIG_F = _ziggurat_tables()
+
+
+def _next_word(w):
+    """The word after ``w`` in a draw that needs more than one (a Python int)."""
+    return _mix((w + GOLDEN) & MASK64)
+
+
+def _open_uniform(w):
+    """The uniform in (0, 1) of a word (as :func:`uniform`)."""
+    return ((w >> 12) + 0.5) * 2.0 ** -52
+
+
+def _ziggurat_rest(w, i, u, x):
+    """The draw whose first try (word ``w``: layer ``i``, ``u``, ``x``) was not in its layer's
+    fast region."""
+    while True:
+        if i == 0:
+            while True:  # the tail beyond ZIG_R
+                w = _next_word(w)
+                a = -_ops.log(_open_uniform(w)) / ZIG_R
+                w = _next_word(w)
+                b = -_ops.log(_open_uniform(w))
+                if b + b > a * a:
+                    return ZIG_R + a if u >= 0.0 else -(ZIG_R + a)
+        w = _next_word(w)
+        y = ZIG_F[i] + _open_uniform(w) * (ZIG_F[i + 1] - ZIG_F[i])
+        if y < _density(x):
+            return x
+        w = _next_word(w)
+        i = w & 0xFF
+        u = (w >> 11) * 2.0 ** -52 - 1.0
+        x = u * ZIG_X[i]
+        if abs(u) < ZIG_RATIO[i]:
+            return x
+
+
+def ziggurat_of(w):
+    """The standard normal draw of the word ``w`` (a 64-bit Python int or a uint64 array)."""
+    if _ops.is_scalar(w):
+        w = int(w)
+        i = w & 0xFF
+        u = (w >> 11) * 2.0 ** -52 - 1.0
+        x = u * ZIG_X[i]
+        if abs(u) < ZIG_RATIO[i]:
+            return x
+        return _ziggurat_rest(w, i, u, x)
+    np = _ops._np()
+    i = (w & np.uint64(0xFF)).astype(np.intp)
+    u = (w >> np.uint64(11)).astype(np.float64) * 2.0 ** -52 - 1.0
+    x = u * np.asarray(ZIG_X)[i]
+    flat, wf, i, u = x.reshape(-1), w.reshape(-1), i.reshape(-1), u.reshape(-1)
+    for j in np.flatnonzero(~(np.abs(u) < np.asarray(ZIG_RATIO)[i])):
+        flat[j] = _ziggurat_rest(int(wf[j]), int(i[j]), float(u[j]), float(flat[j]))
+    return x
+
+
+def ziggurat(seed, stream, k):
+    """Standard normal draw for sample ``k`` of ``stream`` under ``seed`` by the ziggurat (the
+    slow errors' streams; :func:`normal` is the quantile's)."""
+    return ziggurat_of(bits(seed, stream, k))

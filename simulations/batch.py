@@ -292,9 +292,9 @@ def _error_draws(row, ks, ecfg):
     ``(n_rw, n_gm, (n_fl_0, ...))``, each ``(len(ks), runs)`` (0.0 for a process that is
     off), as :func:`driftfmu.models.errors.draws` gives them sample by sample."""
     zero = np.zeros((ks.shape[0], 1))
-    return (noise.normal(row, noise.STREAM_RANDOM_WALK, ks) if ecfg.rw != 0.0 else zero,
-            noise.normal(row, noise.STREAM_BIAS_GM, ks) if ecfg.gm_sigma != 0.0 else zero,
-            tuple(noise.normal(row, noise.STREAM_FLICKER + i, ks) for i in range(ecfg.fl_n)))
+    return (noise.ziggurat(row, noise.STREAM_RANDOM_WALK, ks) if ecfg.rw != 0.0 else zero,
+            noise.ziggurat(row, noise.STREAM_BIAS_GM, ks) if ecfg.gm_sigma != 0.0 else zero,
+            tuple(noise.ziggurat(row, noise.STREAM_FLICKER + i, ks) for i in range(ecfg.fl_n)))
 
 
 def _finals(runs, est, zbar, x2bar, hbar, quadratic, a0, a2, a3, a4, b=None):

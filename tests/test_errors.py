@@ -51,9 +51,9 @@ def series(n, runs, Ts, seed0=1, noise_on=False, x=0.0, **values):
     for k0 in range(1, n + 1, 1024):
         ks = np.arange(k0, min(k0 + 1024, n + 1), dtype=np.uint64)[:, None]
         zero = np.zeros((len(ks), 1))
-        n_rw = noise.normal(row, noise.STREAM_RANDOM_WALK, ks) if e.rw else zero
-        n_gm = noise.normal(row, noise.STREAM_BIAS_GM, ks) if e.gm_sigma else zero
-        n_fl = [noise.normal(row, noise.STREAM_FLICKER + i, ks) for i in range(e.fl_n)]
+        n_rw = noise.ziggurat(row, noise.STREAM_RANDOM_WALK, ks) if e.rw else zero
+        n_gm = noise.ziggurat(row, noise.STREAM_BIAS_GM, ks) if e.gm_sigma else zero
+        n_fl = [noise.ziggurat(row, noise.STREAM_FLICKER + i, ks) for i in range(e.fl_n)]
         v = noise.normal(row, noise.STREAM_MEASUREMENT, ks) if noise_on else zero
         for i in range(len(ks)):
             out[:, k0 + i - 1] = se.measure(x, v[i], k0 + i,
@@ -700,7 +700,7 @@ def test_draws_give_the_gauss_markov_draw_whenever_its_sigma_is_not_zero(bias_gm
     assert ecfg.gm_sigma == bias_gm
     for k in (1, 2, 17):
         n_gm = errors.draws(9, k, ecfg)[1]
-        assert n_gm == noise.normal(9, errors.STREAM_BIAS_GM, k) and n_gm != 0.0
+        assert n_gm == noise.ziggurat(9, errors.STREAM_BIAS_GM, k) and n_gm != 0.0
     assert errors.draws(9, 1, errors.config(seed=9, bias_gm=0.0))[1] == 0.0
 
 

@@ -978,17 +978,18 @@ def main(argv=None):
     if args.changed:
         print("survey: %d functions changed since %s: %d mutants" % (
             sum(len(v) for v in scope.values()), args.changed, len(found)))
+    if args.shuffle:
+        found.sort(key=lambda m: hashlib.sha256(("%s\0%r\0%d" % (args.shuffle, key(m),
+                                                                 m["nth"])).encode()).digest())
     if args.list:
-        for m in found:
+        # with --shuffle, in the order of the run; with --limit, the mutants the run would run
+        for m in found[:args.limit] if args.limit and args.limit > 0 else found:
             print("%5d %s:%s:%d %-8s %s -> %s" % (m["number"], m["file"], m["function"],
                                                   m["line"], m["operator"], m["original"],
                                                   m["mutated"]))
         print("%d mutants in %d functions" % (len(found), len({(m["file"], m["function"])
                                                                  for m in found})))
         return 0
-    if args.shuffle:
-        found.sort(key=lambda m: hashlib.sha256(("%s\0%r\0%d" % (args.shuffle, key(m),
-                                                                 m["nth"])).encode()).digest())
     if args.limit is not None:
         if args.limit < 1:
             print("survey: --limit %d: allowed: 1 or more" % args.limit, file=sys.stderr)

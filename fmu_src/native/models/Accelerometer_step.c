@@ -185,10 +185,10 @@ static void keyed_draws(const ModelInstance *comp, int64_t k, double *n_rw, doub
     const ErrorConfig *ecfg = &comp->h.ecfg;
     const ErrorKeys *keys = &comp->h.keys;
     int64_t i;
-    *n_rw = ecfg->rw != 0.0 ? noise_normal_keyed(keys->rw, (uint64_t)k) : 0.0;
-    *n_gm = ecfg->gm_sigma != 0.0 ? noise_normal_keyed(keys->gm, (uint64_t)k) : 0.0;
+    *n_rw = ecfg->rw != 0.0 ? noise_ziggurat_keyed(keys->rw, (uint64_t)k) : 0.0;
+    *n_gm = ecfg->gm_sigma != 0.0 ? noise_ziggurat_keyed(keys->gm, (uint64_t)k) : 0.0;
     for (i = 0; i < ecfg->fl_n; i++)
-        n_fl[i] = noise_normal_keyed(keys->fl[i], (uint64_t)k);
+        n_fl[i] = noise_ziggurat_keyed(keys->fl[i], (uint64_t)k);
 }
 
 /* Accelerometer._axis_errors: the first axis with the slow errors. */

@@ -18,7 +18,7 @@ static const double GM_SERIES[20] = {
 
 double errors_turn_on(double bias_on, int64_t seed)
 {
-    return bias_on * noise_normal((uint64_t)seed, NOISE_STREAM_TURN_ON, 0);
+    return bias_on * noise_ziggurat((uint64_t)seed, NOISE_STREAM_TURN_ON, 0);
 }
 
 double errors_random_walk(double b, double step, double n) { return b + step * n; }
@@ -203,11 +203,11 @@ ErrorState errors_initial_state(int64_t seed, const ErrorConfig *ecfg)
     int64_t i;
     s.rw = 0.0;
     s.gm = ecfg->gm_sigma != 0.0
-           ? ecfg->gm_sigma * noise_normal((uint64_t)seed, NOISE_STREAM_BIAS_GM, 0) : 0.0;
+           ? ecfg->gm_sigma * noise_ziggurat((uint64_t)seed, NOISE_STREAM_BIAS_GM, 0) : 0.0;
     s.E = 0.0;
     for (i = 0; i < ERRORS_FLICKER_MAX; i++)
         s.fl[i] = i < ecfg->fl_n
-                  ? ecfg->fl_sigma * noise_normal((uint64_t)seed,
+                  ? ecfg->fl_sigma * noise_ziggurat((uint64_t)seed,
                                                   (uint64_t)(NOISE_STREAM_FLICKER + i), 0)
                   : 0.0;
     return s;
@@ -218,19 +218,24 @@ void errors_draws(int64_t seed, int64_t k, const ErrorConfig *ecfg, double *n_rw
 {
     int64_t i;
     *n_rw = ecfg->rw != 0.0
-            ? noise_normal((uint64_t)seed, NOISE_STREAM_RANDOM_WALK, (uint64_t)k) : 0.0;
+            ? noise_ziggurat((uint64_t)seed, NOISE_STREAM_RANDOM_WALK, (uint64_t)k) : 0.0;
     *n_gm = ecfg->gm_sigma != 0.0
-            ? noise_normal((uint64_t)seed, NOISE_STREAM_BIAS_GM, (uint64_t)k) : 0.0;
+            ? noise_ziggurat((uint64_t)seed, NOISE_STREAM_BIAS_GM, (uint64_t)k) : 0.0;
     for (i = 0; i < ecfg->fl_n; i++)
-        n_fl[i] = noise_normal((uint64_t)seed, (uint64_t)(NOISE_STREAM_FLICKER + i),
+        n_fl[i] = noise_ziggurat((uint64_t)seed, (uint64_t)(NOISE_STREAM_FLICKER + i),
                                (uint64_t)k);
 }
 
 void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
                     const double *n_fl, const ErrorConfig *ecfg, ErrorState *out, double *b)
 {
-    double sum = 0.0;
+    double sum = 0.0, d = 0.0;
     if (out != state) *out = *state;
+    /* the exposure first (its exponential is the longest chain of dependent operations of the
+     * sample: begun before the other processes, which do not depend on it, it runs beside
+     * them); added last, as in errors.advance */
+    if (ecfg->d_inf != 0.0)
+        d = errors_exposure(out->E, x, ecfg->Ts, ecfg->d_inf, ecfg->E_tau, &out->E);
     if (ecfg->bias_on != 0.0)
         sum = sum + ecfg->b_on;
     if (ecfg->rw != 0.0) {
@@ -244,7 +249,7 @@ void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
     if (ecfg->fl_n)
         sum = sum + errors_flicker(out->fl, ecfg->fl_a, ecfg->fl_c, n_fl, ecfg->fl_n, out->fl);
     if (ecfg->d_inf != 0.0)
-        sum = sum + errors_exposure(out->E, x, ecfg->Ts, ecfg->d_inf, ecfg->E_tau, &out->E);
+        sum = sum + d;
     *b = sum;
 }
 

@@ -6,6 +6,11 @@
 extern inline uint64_t noise_mix(uint64_t z);
 extern inline double noise_central(double p);
 extern inline double noise_normal_keyed(uint64_t key, uint64_t k);
+extern inline double noise_ziggurat_of(uint64_t w);
+extern inline double noise_ziggurat_keyed(uint64_t key, uint64_t k);
+
+/* noise_zig_x, noise_zig_ratio, noise_zig_f */
+#include "ziggurat_table.h"
 
 uint64_t noise_key(uint64_t seed, uint64_t stream)
 {
@@ -51,3 +56,53 @@ double noise_normal(uint64_t seed, uint64_t stream, uint64_t k)
 }
 
 
+
+/* models.noise._density: exp(-x^2/2) */
+static double density(double x)
+{
+    return ops_exp(-0.5 * x * x);
+}
+
+/* models.noise._next_word, _open_uniform */
+static uint64_t next_word(uint64_t w)
+{
+    return noise_mix(w + NOISE_GOLDEN);
+}
+
+static double open_uniform(uint64_t w)
+{
+    return ((double)(w >> 12) + 0.5) * 2.220446049250313e-16;
+}
+
+double noise_ziggurat_rest(uint64_t w, unsigned i, double u, double x)
+{
+    for (;;) {
+        double y;
+        if (i == 0) {
+            for (;;) { /* the tail beyond NOISE_ZIG_R */
+                double a, b;
+                w = next_word(w);
+                a = -ops_log(open_uniform(w)) / NOISE_ZIG_R;
+                w = next_word(w);
+                b = -ops_log(open_uniform(w));
+                if (b + b > a * a)
+                    return u >= 0.0 ? NOISE_ZIG_R + a : -(NOISE_ZIG_R + a);
+            }
+        }
+        w = next_word(w);
+        y = noise_zig_f[i] + open_uniform(w) * (noise_zig_f[i + 1] - noise_zig_f[i]);
+        if (y < density(x))
+            return x;
+        w = next_word(w);
+        i = (unsigned)(w & 0xFF);
+        u = (double)(w >> 11) * 2.220446049250313e-16 - 1.0;
+        x = u * noise_zig_x[i];
+        if ((u < 0.0 ? -u : u) < noise_zig_ratio[i])
+            return x;
+    }
+}
+
+double noise_ziggurat(uint64_t seed, uint64_t stream, uint64_t k)
+{
+    return noise_ziggurat_of(noise_bits(seed, stream, k));
+}

@@ -24,7 +24,8 @@
 
 #define NOISE_P_LOW 0.02425
 
-/* SplitMix64 finaliser (models.noise._mix).  It, noise_central and noise_normal_keyed are C99
+/* SplitMix64 finaliser (models.noise._mix).  It, noise_central, noise_normal_keyed and the
+ * ziggurat's noise_ziggurat_of and noise_ziggurat_keyed are C99
  * inline definitions here (a native sensor draws several streams a sample: no call each), with
  * their external definitions in noise.c. */
 inline uint64_t noise_mix(uint64_t z)
@@ -69,6 +70,33 @@ inline double noise_normal_keyed(uint64_t key, uint64_t k)
     /* noise_inverse_normal_cdf, its central branch here and its tails out of line */
     return p < NOISE_P_LOW || p > 1.0 - NOISE_P_LOW ? noise_inverse_normal_cdf(p)
                                                     : noise_central(p);
+}
+
+/* The ziggurat (models.noise.ziggurat_of): the slow errors' draws.  Its tables (noise.ZIG_X,
+ * ZIG_RATIO, ZIG_F) are defined in noise.c from the generated ziggurat_table.h. */
+#define NOISE_ZIG_N 256
+#define NOISE_ZIG_R 3.6541528853610088
+extern const double noise_zig_x[NOISE_ZIG_N + 1];
+extern const double noise_zig_ratio[NOISE_ZIG_N];
+extern const double noise_zig_f[NOISE_ZIG_N + 1];
+/* The draw whose first try (word w: layer i, u, x) was not in its layer's fast region
+ * (noise._ziggurat_rest). */
+double noise_ziggurat_rest(uint64_t w, unsigned i, double u, double x);
+/* The standard normal draw of the 64-bit word w: its layer's fast region inline, the rest out
+ * of line. */
+inline double noise_ziggurat_of(uint64_t w)
+{
+    const unsigned i = (unsigned)(w & 0xFF);
+    const double u = (double)(w >> 11) * 2.220446049250313e-16 - 1.0;
+    const double x = u * noise_zig_x[i];
+    return (u < 0.0 ? -u : u) < noise_zig_ratio[i] ? x : noise_ziggurat_rest(w, i, u, x);
+}
+/* Standard normal draw for sample k of stream under seed by the ziggurat (noise.ziggurat). */
+double noise_ziggurat(uint64_t seed, uint64_t stream, uint64_t k);
+/* The same draw from the stream's key. */
+inline double noise_ziggurat_keyed(uint64_t key, uint64_t k)
+{
+    return noise_ziggurat_of(noise_mix(key + k * NOISE_GOLDEN));
 }
 
 #endif
