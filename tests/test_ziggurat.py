@@ -246,10 +246,17 @@ def branchy_words():
 
 
 def test_floats_and_arrays_give_the_same_bits_in_any_shape():
+    """An array's draws are its floats' draws: with more slow draws than noise._ZIG_ROUND (a
+    round of them at once, then the rest one by one) and with fewer (all one by one), in a
+    batch's runs x samples grid too."""
     w = branchy_words()
     floats = [noise.ziggurat_of(v) for v in w]
-    arr = noise.ziggurat_of(np.array(w, dtype=np.uint64))
-    assert all(same(a, b) for a, b in zip(floats, arr))
+    for part in (slice(0, 40), slice(0, 1000), slice(None)):
+        slow = sum(branch(v) != "fast" for v in w[part])
+        arr = noise.ziggurat_of(np.array(w[part], dtype=np.uint64))
+        assert all(same(a, b) for a, b in zip(floats[part], arr)), (part, slow)
+    assert sum(branch(v) != "fast" for v in w[:40]) <= noise._ZIG_ROUND
+    assert sum(branch(v) != "fast" for v in w) > noise._ZIG_ROUND
     # a batch's shape: runs x samples, broadcast from a column of seeds and a row of indices
     seeds = np.array([[1], [7], [2026]], dtype=np.uint64)
     ks = np.arange(1, 4001, dtype=np.uint64)

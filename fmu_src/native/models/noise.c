@@ -25,7 +25,7 @@ uint64_t noise_bits(uint64_t seed, uint64_t stream, uint64_t k)
 double noise_uniform(uint64_t seed, uint64_t stream, uint64_t k)
 {
     /* (bits >> 12) < 2^52: exact as a double, and so is + 0.5 */
-    return ((double)(noise_bits(seed, stream, k) >> 12) + 0.5) * 2.220446049250313e-16;
+    return ((double)(int64_t)(noise_bits(seed, stream, k) >> 12) + 0.5) * 2.220446049250313e-16;
 }
 
 static const double C_[6] = {-7.784894002430293e-03, -3.223964580411365e-01,
@@ -71,7 +71,7 @@ static uint64_t next_word(uint64_t w)
 
 static double open_uniform(uint64_t w)
 {
-    return ((double)(w >> 12) + 0.5) * 2.220446049250313e-16;
+    return ((double)(int64_t)(w >> 12) + 0.5) * 2.220446049250313e-16;
 }
 
 double noise_ziggurat_rest(uint64_t w, unsigned i, double u, double x)
@@ -95,9 +95,9 @@ double noise_ziggurat_rest(uint64_t w, unsigned i, double u, double x)
             return x;
         w = next_word(w);
         i = (unsigned)(w & 0xFF);
-        u = (double)(w >> 11) * 2.220446049250313e-16 - 1.0;
+        u = (double)(int64_t)(w >> 11) * 2.220446049250313e-16 - 1.0;
         x = u * noise_zig_x[i];
-        if ((u < 0.0 ? -u : u) < noise_zig_ratio[i])
+        if (fabs(u) < noise_zig_ratio[i])
             return x;
     }
 }

@@ -4,6 +4,7 @@
 #ifndef DRIFTFMU_NOISE_H
 #define DRIFTFMU_NOISE_H
 
+#include <math.h>
 #include <stdint.h>
 
 #define NOISE_MASK64 UINT64_C(0xFFFFFFFFFFFFFFFF)
@@ -66,7 +67,9 @@ double noise_normal(uint64_t seed, uint64_t stream, uint64_t k);
 inline double noise_normal_keyed(uint64_t key, uint64_t k)
 {
     const uint64_t bits = noise_mix(key + k * NOISE_GOLDEN);
-    const double p = ((double)(bits >> 12) + 0.5) * 2.220446049250313e-16;
+    /* (bits >> 12 < 2^52: the same double through int64_t, whose conversion is one
+     * instruction where uint64_t's is several) */
+    const double p = ((double)(int64_t)(bits >> 12) + 0.5) * 2.220446049250313e-16;
     /* noise_inverse_normal_cdf, its central branch here and its tails out of line */
     return p < NOISE_P_LOW || p > 1.0 - NOISE_P_LOW ? noise_inverse_normal_cdf(p)
                                                     : noise_central(p);
@@ -87,9 +90,10 @@ double noise_ziggurat_rest(uint64_t w, unsigned i, double u, double x);
 inline double noise_ziggurat_of(uint64_t w)
 {
     const unsigned i = (unsigned)(w & 0xFF);
-    const double u = (double)(w >> 11) * 2.220446049250313e-16 - 1.0;
+    /* (w >> 11 < 2^53: exact through int64_t, one conversion instruction) */
+    const double u = (double)(int64_t)(w >> 11) * 2.220446049250313e-16 - 1.0;
     const double x = u * noise_zig_x[i];
-    return (u < 0.0 ? -u : u) < noise_zig_ratio[i] ? x : noise_ziggurat_rest(w, i, u, x);
+    return fabs(u) < noise_zig_ratio[i] ? x : noise_ziggurat_rest(w, i, u, x);
 }
 /* Standard normal draw for sample k of stream under seed by the ziggurat (noise.ziggurat). */
 double noise_ziggurat(uint64_t seed, uint64_t stream, uint64_t k);
