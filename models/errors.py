@@ -50,8 +50,9 @@ Every process draws from a counter-based noise stream of its own
 (:data:`driftfmu.models.noise.STREAM_TURN_ON` ...), so turning one on changes no other draw;
 index 0 of a stream is the draw before sample 1.  The draws are standard normal by the ziggurat
 (:func:`driftfmu.models.noise.ziggurat`), which costs less than the quantile the letter's
-streams use: a sample with every process on draws up to ten of them.  Every term is off by default, and then the
-sensor is the one without them, the same bits (nothing here is evaluated).  All functions run
+streams use: a sample with every process on draws up to ten of them.  Every term is off by
+default, and then the sensor is the one without them, the same bits (nothing here is
+evaluated).  All functions run
 on floats (one FMU instance) and on arrays of runs (the batch engine) with the same bits; the
 coefficients are computed once, with the arithmetic-only ``exp``, ``log`` and ``sin`` of
 :mod:`driftfmu.models._ops`, so that the C twin (``fmu_src/native/models/errors.c``) gives them

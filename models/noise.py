@@ -184,13 +184,24 @@ ZIG_X, ZIG_RATIO, ZIG_F = _ziggurat_tables()
 
 
 def _next_word(w):
-    """The word after ``w`` in a draw that needs more than one (a Python int)."""
+    """The word after ``w`` in a draw that needs more than one (a Python int or a uint64
+    array)."""
     return _mix((w + GOLDEN) & MASK64)
 
 
 def _open_uniform(w):
-    """The uniform in (0, 1) of a word (as :func:`uniform`)."""
+    """The uniform in (0, 1) of a word (as :func:`uniform`; int or uint64 array)."""
     return ((w >> 12) + 0.5) * 2.0 ** -52
+
+
+def _layer(w):
+    """The layer of a try: the word's low 8 bits (int or uint64 array)."""
+    return w & 0xFF
+
+
+def _centred(w):
+    """The ``u`` of a try: the word's top 53 bits over [-1, 1) (exact: int or uint64 array)."""
+    return (w >> 11) * 2.0 ** -52 - 1.0
 
 
 def _ziggurat_rest(w, i, u, x):
@@ -210,8 +221,7 @@ def _ziggurat_rest(w, i, u, x):
         if y < _density(x):
             return x
         w = _next_word(w)
-        i = w & 0xFF
-        u = (w >> 11) * 2.0 ** -52 - 1.0
+        i, u = _layer(w), _centred(w)
         x = u * ZIG_X[i]
         if abs(u) < ZIG_RATIO[i]:
             return x
@@ -221,16 +231,14 @@ def ziggurat_of(w):
     """The standard normal draw of the word ``w`` (a 64-bit Python int or a uint64 array)."""
     if _ops.is_scalar(w):
         w = int(w)
-        i = w & 0xFF
-        u = (w >> 11) * 2.0 ** -52 - 1.0
+        i, u = _layer(w), _centred(w)
         x = u * ZIG_X[i]
         if abs(u) < ZIG_RATIO[i]:
             return x
         return _ziggurat_rest(w, i, u, x)
     np = _ops._np()
     X, RATIO, F = _ziggurat_arrays()
-    i = (w & np.uint64(0xFF)).astype(np.intp)
-    u = (w >> np.uint64(11)).astype(np.float64) * 2.0 ** -52 - 1.0
+    i, u = _layer(w), _centred(w)
     out = u * X[i]
     flat = out.reshape(-1)
     # the draws not in their layer's fast region (1.5 %): one round of them at once, as
@@ -241,17 +249,14 @@ def ziggurat_of(w):
     at = np.flatnonzero(~(np.abs(u) < RATIO[i]))
     w, i, u, x = w.reshape(-1)[at], i[at], u[at], flat[at]
     if at.size > _ZIG_ROUND:
-        golden = np.uint64(GOLDEN)
         wedge = i != 0
         rest = [(at[~wedge], w[~wedge], i[~wedge], u[~wedge], x[~wedge])]
-        at, w, i, x = at[wedge], _mix(w[wedge] + golden), i[wedge], x[wedge]
-        y = F[i] + ((w >> np.uint64(12)).astype(np.float64) + 0.5) * 2.0 ** -52 * (
-            F[i + 1] - F[i])
+        at, w, i, x = at[wedge], _next_word(w[wedge]), i[wedge], x[wedge]
+        y = F[i] + _open_uniform(w) * (F[i + 1] - F[i])
         kept = y < _density(x)
         flat[at[kept]] = x[kept]
-        at, w = at[~kept], _mix(w[~kept] + golden)
-        i = (w & np.uint64(0xFF)).astype(np.intp)
-        u = (w >> np.uint64(11)).astype(np.float64) * 2.0 ** -52 - 1.0
+        at, w = at[~kept], _next_word(w[~kept])
+        i, u = _layer(w), _centred(w)
         x = u * X[i]
         fast = np.abs(u) < RATIO[i]
         flat[at[fast]] = x[fast]

@@ -280,3 +280,73 @@ def test_the_c_draw_of_a_stream_and_of_its_key(c):
                 want = noise.ziggurat(seed, stream, k)
                 assert same(c.noise_ziggurat(seed, stream, k), want)
                 assert same(c.noise_ziggurat_keyed(key, k), want)
+
+
+# -- the algorithm as written down, against the code ------------------------------------------
+
+def reference_draw(w):
+    """The draw of the word ``w`` by the steps models/noise.py's comment gives, written anew
+    here with math.exp and math.log (the code's are arithmetic-only: a tail's draw may differ in
+    its last bits; a last-bit difference of f would change a path only where a height falls
+    within an ulp of the curve, which none of the words below does)."""
+    mask, golden = 2 ** 64 - 1, noise.GOLDEN
+
+    def next_word(v):
+        return noise._mix((v + golden) & mask)
+
+    def uniform(v):
+        return ((v >> 12) + 0.5) / 2.0 ** 52
+    while True:
+        i, u = w & 0xFF, (w >> 11) / 2.0 ** 52 - 1.0
+        x = u * noise.ZIG_X[i]
+        if abs(u) < noise.ZIG_X[i + 1] / noise.ZIG_X[i]:
+            return x
+        if i == 0:
+            while True:
+                w = next_word(w)
+                a = -math.log(uniform(w)) / noise.ZIG_R
+                w = next_word(w)
+                b = -math.log(uniform(w))
+                if 2.0 * b > a * a:
+                    return math.copysign(noise.ZIG_R + a, u)
+        w = next_word(w)
+        y = f(noise.ZIG_X[i]) + uniform(w) * (f(noise.ZIG_X[i + 1]) - f(noise.ZIG_X[i]))
+        if y < f(x):
+            return x
+        w = next_word(w)
+
+
+def restarts_into_the_base(n):
+    """Words of a stream whose first try is a wedge's, rejected, and whose new start falls in
+    the base layer's fast region (|x| < R): about one word in 90,000."""
+    w0 = words(2027, noise.STREAM_RANDOM_WALK, n)
+    X, RATIO, F = (np.asarray(t) for t in (noise.ZIG_X, noise.ZIG_RATIO, noise.ZIG_F))
+    i0 = (w0 & np.uint64(0xFF)).astype(np.intp)
+    u0 = (w0 >> np.uint64(11)).astype(np.float64) / 2.0 ** 52 - 1.0
+    x0 = u0 * X[i0]
+    w1 = noise._mix(w0 + np.uint64(noise.GOLDEN))
+    y = F[i0] + ((w1 >> np.uint64(12)).astype(np.float64) + 0.5) / 2.0 ** 52 * (
+        F[np.minimum(i0 + 1, noise.ZIG_N)] - F[i0])
+    w2 = noise._mix(w1 + np.uint64(noise.GOLDEN))
+    i2 = (w2 & np.uint64(0xFF)).astype(np.intp)
+    u2 = (w2 >> np.uint64(11)).astype(np.float64) / 2.0 ** 52 - 1.0
+    pick = ((np.abs(u0) >= RATIO[i0]) & (i0 != 0) & (y >= np.exp(-0.5 * x0 * x0))
+            & (i2 == 0) & (np.abs(u2) < RATIO[0]))
+    return [int(v) for v in w0[pick]]
+
+
+def test_every_branch_is_the_algorithm_as_written_down(impl):
+    """The draws of words of every branch (the fast region, wedges kept and rejected, tails,
+    new starts that land in the base layer's fast region) equal the algorithm written anew
+    with math.exp and math.log, in each twin: to the bit outside the tail, within 4 ulp in it
+    (a draw by another path differs by far more)."""
+    base = restarts_into_the_base(1 << 22)
+    assert len(base) >= 10
+    for v in branchy_words() + base:
+        got, want = impl[0](v), reference_draw(v)
+        if abs(want) > noise.ZIG_R:
+            assert abs(got - want) <= 4 * math.ulp(want), hex(v)
+        else:
+            assert same(got, want), hex(v)
+    for v in base:  # (their draw is the new start's x, under R)
+        assert abs(impl[0](v)) < noise.ZIG_R

@@ -208,7 +208,7 @@ ErrorState errors_initial_state(int64_t seed, const ErrorConfig *ecfg)
     for (i = 0; i < ERRORS_FLICKER_MAX; i++)
         s.fl[i] = i < ecfg->fl_n
                   ? ecfg->fl_sigma * noise_ziggurat((uint64_t)seed,
-                                                  (uint64_t)(NOISE_STREAM_FLICKER + i), 0)
+                                                    (uint64_t)(NOISE_STREAM_FLICKER + i), 0)
                   : 0.0;
     return s;
 }
@@ -223,7 +223,7 @@ void errors_draws(int64_t seed, int64_t k, const ErrorConfig *ecfg, double *n_rw
             ? noise_ziggurat((uint64_t)seed, NOISE_STREAM_BIAS_GM, (uint64_t)k) : 0.0;
     for (i = 0; i < ecfg->fl_n; i++)
         n_fl[i] = noise_ziggurat((uint64_t)seed, (uint64_t)(NOISE_STREAM_FLICKER + i),
-                               (uint64_t)k);
+                                 (uint64_t)k);
 }
 
 void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
@@ -232,8 +232,8 @@ void errors_advance(const ErrorState *state, double x, double n_rw, double n_gm,
     double sum = 0.0, d = 0.0;
     if (out != state) *out = *state;
     /* the exposure first (its exponential is the longest chain of dependent operations of the
-     * sample: begun before the other processes, which do not depend on it, it runs beside
-     * them); added last, as in errors.advance */
+     * sample: begun before the other processes, which do not depend on it, it can run beside
+     * them); added last, as in errors.advance (the same bits) */
     if (ecfg->d_inf != 0.0)
         d = errors_exposure(out->E, x, ecfg->Ts, ecfg->d_inf, ecfg->E_tau, &out->E);
     if (ecfg->bias_on != 0.0)
