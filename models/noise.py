@@ -240,14 +240,14 @@ def ziggurat_of(w):
     X, RATIO, F = _ziggurat_arrays()
     i, u = _layer(w), _centred(w)
     out = u * X[i]
-    flat = out.reshape(-1)
+    flat = out.ravel()  # (a view: out is a new C-ordered array)
     # the draws not in their layer's fast region (1.5 %): one round of them at once, as
     # _ziggurat_rest takes them (the same words, the same operations: a wedge's height, then a
     # new start), then what is left one by one in _ziggurat_rest (a wedge rejected again, a
     # tail; an array's exp costs as much as some twenty floats' do)
-    i, u = i.reshape(-1), u.reshape(-1)
+    i, u = i.ravel(), u.ravel()
     at = np.flatnonzero(~(np.abs(u) < RATIO[i]))
-    w, i, u, x = w.reshape(-1)[at], i[at], u[at], flat[at]
+    w, i, u, x = w.ravel()[at], i[at], u[at], flat[at]
     if at.size > _ZIG_ROUND:
         wedge = i != 0
         rest = [(at[~wedge], w[~wedge], i[~wedge], u[~wedge], x[~wedge])]
