@@ -22,10 +22,16 @@ uint64_t noise_bits(uint64_t seed, uint64_t stream, uint64_t k)
     return noise_mix(noise_key(seed, stream) + k * NOISE_GOLDEN);
 }
 
+/* The uniform in (0, 1) of a word (models.noise._open_uniform): (w >> 12) < 2^52, exact as a
+ * double through int64_t, and so is + 0.5. */
+static double open_uniform(uint64_t w)
+{
+    return ((double)(int64_t)(w >> 12) + 0.5) * 2.220446049250313e-16;
+}
+
 double noise_uniform(uint64_t seed, uint64_t stream, uint64_t k)
 {
-    /* (bits >> 12) < 2^52: exact as a double, and so is + 0.5 */
-    return ((double)(int64_t)(noise_bits(seed, stream, k) >> 12) + 0.5) * 2.220446049250313e-16;
+    return open_uniform(noise_bits(seed, stream, k));
 }
 
 static const double C_[6] = {-7.784894002430293e-03, -3.223964580411365e-01,
@@ -63,15 +69,10 @@ static double density(double x)
     return ops_exp(-0.5 * x * x);
 }
 
-/* models.noise._next_word, _open_uniform */
+/* models.noise._next_word */
 static uint64_t next_word(uint64_t w)
 {
     return noise_mix(w + NOISE_GOLDEN);
-}
-
-static double open_uniform(uint64_t w)
-{
-    return ((double)(int64_t)(w >> 12) + 0.5) * 2.220446049250313e-16;
 }
 
 double noise_ziggurat_rest(uint64_t w, unsigned i, double u, double x)
