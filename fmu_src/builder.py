@@ -43,6 +43,7 @@ from xml.etree import ElementTree as ET
 
 from driftfmu import __version__
 from driftfmu.simulations import folders, lifetime
+from driftfmu.fmu_src import schemas
 
 SRC_DIR = Path(__file__).resolve().parent
 NAMES = ("Excitation", "Accelerometer", "DriftEstimator", "DualDriftEstimator")
@@ -231,7 +232,7 @@ def rewrite_imports(source, package):
         For a project import that cannot be bundled (another ``driftfmu`` module) or that
         shares its line with other code.
     """
-    tree = ast.parse(source)
+    tree = schemas.parse_python(source)
     lines = source.splitlines(keepends=True)
     edits = []
     for node in ast.walk(tree):

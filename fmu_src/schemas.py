@@ -14,7 +14,17 @@ outside driftfmu).  fmpy parses the FMI schema on every validating
 done before any other parse.  Every path of driftfmu that reaches fmpy's schema parsing goes
 through :func:`read_model_description` or :func:`validate_fmu` here (which prime first), and every
 entry point that starts threads calls :func:`prime` before it starts them.
+
+Python's own parser has a race of its kind too.  CPython 3.11 counts the depth of the ``ast``
+objects it builds (``ast.parse``, ``ast.literal_eval``) in one counter per interpreter.  When a
+garbage collection inside one thread's build runs Python code (a ``__del__``), another thread may
+build meanwhile, and the first build then fails with "SystemError: AST constructor recursion
+depth mismatch".  fmpy's validation of an FMU with structured variable names builds ``ast``
+objects (lark loads its grammar with ``literal_eval``): CI saw DualDriftEstimator.fmu refused
+so while the native twins were zipped and validated in two threads.  Every build of ``ast``
+objects in driftfmu holds :data:`AST_LOCK`: :func:`validate_fmu` and :func:`parse_python`.
 """
+import ast
 import threading
 
 #: The smallest schema: parsing it runs libxml2's one-time set-up.
@@ -23,6 +33,9 @@ SMALL = (b'<xs:schema xmlns:xs="http://www.w3.org/2001/XMLSchema">'
 
 _LOCK = threading.Lock()
 _READY = False
+
+#: Held while driftfmu's code builds ``ast`` objects (see the module's description).
+AST_LOCK = threading.RLock()
 
 
 def prime():
@@ -46,7 +59,15 @@ def read_model_description(filename, validate=True):
 
 
 def validate_fmu(filename):
-    """``fmpy.validation.validate_fmu`` (a list of problems) after :func:`prime`."""
+    """``fmpy.validation.validate_fmu`` (a list of problems) after :func:`prime`, holding
+    :data:`AST_LOCK`."""
     prime()
     from fmpy.validation import validate_fmu as fmpy_validate_fmu
-    return fmpy_validate_fmu(str(filename))
+    with AST_LOCK:
+        return fmpy_validate_fmu(str(filename))
+
+
+def parse_python(source):
+    """``ast.parse(source)`` holding :data:`AST_LOCK`."""
+    with AST_LOCK:
+        return ast.parse(source)

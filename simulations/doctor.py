@@ -27,6 +27,7 @@ import sysconfig
 import zipfile
 from pathlib import Path
 
+from driftfmu.fmu_src import schemas
 from driftfmu.simulations import lifetime
 
 OK, WARN, FAIL = "ok", "warning", "problem"
@@ -90,7 +91,7 @@ def _imports(source):
             (lazy if inside_function else eager).update(names)
             visit(child, inside_function or isinstance(
                 child, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)))
-    visit(ast.parse(source), False)
+    visit(schemas.parse_python(source), False)
     return eager, lazy - eager
 
 
