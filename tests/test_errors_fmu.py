@@ -574,3 +574,17 @@ def test_an_exposure_that_overflows_is_refused_and_changes_nothing():
     messages(s)
     assert snapshot(s)[0] == before[0]
     assert s.do_step(0.03, 1e-3) is not False
+
+
+def test_a_state_restore_keeps_the_slow_errors_blocks_of_draws():
+    # a master that rolls back every step pays no new block of the streams' draws: after a
+    # restore each stream (walk, Gauss-Markov, every flicker component) has the same blocks,
+    # as the measurement noise's do
+    s = initialised(**ALL_ON)
+    streams = [s._n_rw, s._n_gm, *s._n_fl]
+    assert len(streams) >= 4 and len(set(map(id, streams))) == len(streams)
+    state = s._get_fmu_state()
+    s.do_step(0.0, 1e-3)
+    s._set_fmu_state(state)
+    assert [s._n_rw, s._n_gm, *s._n_fl] == streams
+    assert all(a is b for a, b in zip([s._n_rw, s._n_gm, *s._n_fl], streams))
