@@ -53,14 +53,16 @@ def remove_extracted():
 
 def new_extract_folder(prefix="driftfmu_fmu_"):
     """A new temporary folder, registered in :data:`EXTRACTED` before anything is written there
-    (SIGTERM held back until it is), so that a worker told to stop removes it.  It is locked for
-    as long as this process lives (:func:`driftfmu.simulations.folders.make`); the first call in
-    a process removes the temporary folders left by processes killed outright
-    (:data:`driftfmu.simulations.folders.TEMPORARY`)."""
-    mask = hasattr(signal, "pthread_sigmask")
-    if mask:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, {signal.SIGTERM})
-    try:
+    (Ctrl-C and SIGTERM held back until it is), so that a worker told to stop removes it.  It is
+    locked for as long as this process lives (:func:`driftfmu.simulations.folders.make`); the
+    first call in a process removes the temporary folders left by processes killed outright
+    (:data:`driftfmu.simulations.folders.TEMPORARY`).
+
+    The signals' handlers are held back (:func:`interrupts_deferred`), not the signals: a
+    signal blocked in this thread goes to another thread of the process (a pool worker runs
+    OpenBLAS's), whose C handler marks it, and Python then runs its handler in this thread all
+    the same, between ``mkdir`` and the registration (CI: a stopped worker left its folder)."""
+    with interrupts_deferred():
         if _REMOVED_AT_END[0] != os.getpid():
             # a multiprocessing finalizer: the interpreter's exit runs it (through atexit),
             # and so does a multiprocessing worker, which ends by os._exit without atexit
@@ -70,9 +72,6 @@ def new_extract_folder(prefix="driftfmu_fmu_"):
         folders.sweep(folders.TEMPORARY)
         unzipdir = folders.make(prefix)
         EXTRACTED[unzipdir] = os.getpid()
-    finally:
-        if mask:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
     return unzipdir
 
 

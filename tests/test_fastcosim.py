@@ -1,5 +1,6 @@
 """simulations/fastcosim.py: the compiled C loop is written whole or not at all, even by a
-worker stopped (SIGTERM) in the middle of writing it."""
+worker stopped (SIGTERM) in the middle of writing it; a worker stopped while it makes a folder
+leaves none."""
 import os
 import shutil
 import signal
@@ -49,6 +50,47 @@ def test_a_worker_stopped_while_writing_the_loop_library_leaves_no_file(tmp_path
     assert os.listdir(tmp) == [private]
     assert os.listdir(tmp / private) == ["libraries"]
     assert os.listdir(tmp / private / "libraries") == []
+
+
+# A pool worker (batch._worker_init: SIGTERM removes its registered folders, then os._exit) with
+# another thread that has SIGTERM unblocked (a real worker has OpenBLAS's, started by
+# _blas.set_threads) is sent SIGTERM while it makes an FMU folder, after the mkdir and before
+# the folder is registered; the other thread takes it (delivered to itself before pthread_kill
+# returns), and the worker goes on once it has.
+_STOPPED_WHILE_MAKING = textwrap.dedent("""
+    import signal, sys, threading
+    from driftfmu.simulations import batch, cosim, folders
+    batch._worker_init()
+    go, sent = threading.Event(), threading.Event()
+
+    def other():
+        go.wait()
+        signal.pthread_kill(threading.get_ident(), signal.SIGTERM)
+        sent.set()
+    threading.Thread(target=other, daemon=True).start()
+
+    def checkpoint(what):
+        if what == "make lock file":  # the folder is made, not yet locked nor registered
+            go.set()
+            sent.wait()
+    folders.checkpoint = checkpoint
+    cosim.new_extract_folder(prefix="driftfmu_fast_")
+    sys.exit("not stopped")
+""")
+
+
+def test_a_worker_stopped_while_it_makes_a_folder_leaves_no_folder(tmp_path):
+    # CI: SIGTERM to an experiment's command left an empty driftfmu_fast_* folder: blocking
+    # SIGTERM in the worker's thread held back neither the signal (another thread took it) nor
+    # the handler, which then ran between the folder's mkdir and its registration
+    tmp = tmp_path / "tmp"
+    tmp.mkdir()
+    env = dict(os.environ, TMPDIR=str(tmp), PYTHONPATH=str(ROOT))
+    p = subprocess.run([sys.executable, "-c", _STOPPED_WHILE_MAKING], env=env,
+                       capture_output=True, text=True, timeout=BOUND)
+    assert p.returncode == 128 + signal.SIGTERM, p.stderr
+    private = tmp / ("driftfmu-%d" % os.geteuid())
+    assert not private.exists() or os.listdir(private) == [], os.listdir(private)
 
 
 def test_the_loop_library_is_compiled_once_into_the_private_libraries_folder(tmp_path,
