@@ -196,9 +196,13 @@ static void axis_errors_sample(ModelInstance *comp, int64_t *set, double *lp, Er
                                int64_t k, double *z)
 {
     const ErrorConfig *ecfg = &comp->h.ecfg;
-    double v = comp->v.noise ? measurement_noise(comp, k, 1) : 0.0, n_rw, n_gm,
-           n_fl[ERRORS_FLICKER_MAX];
+    double v, n_rw, n_gm, n_fl[ERRORS_FLICKER_MAX];
+    /* the draws, then the measurement noise, then the sample (the exposure first): the noise's
+     * logarithm and the exposure's exponential, the two longest chains of dependent operations
+     * of the sample, close enough for the CPU to run them side by side (with the draws between
+     * them, they ran one after the other) */
     keyed_draws(comp, k, &n_rw, &n_gm, n_fl);
+    v = comp->v.noise ? measurement_noise(comp, k, 1) : 0.0;
     /* (every process off: the state stays 0.0, Python's None) */
     adxl203_measure_errors(*set, *lp, err, comp->v.x, comp->v.y, v, n_rw, n_gm, n_fl,
                            comp->v.theta, comp->v.T, &comp->h.cfg, ecfg, &comp->h.tilt, set, lp,
