@@ -8,7 +8,7 @@ and the batch engine runs the very same code on arrays of Monte-Carlo runs.  Eve
 is correctly rounded in IEEE 754 double precision (``sqrt`` included), so both paths give
 bit-identical results for the same inputs.  NumPy is imported lazily, only when an array arrives.
 
-``log``, ``exp``, ``sin2pi`` and ``sin`` are computed here by arithmetic only (libm's may differ in the
+``log``, ``exp`` (and ``exp_estrin``), ``sin2pi`` and ``sin`` are computed here by arithmetic only (libm's may differ in the
 last bit between platforms, and between ``math`` and ``numpy``); fmu_src/native/models/ops.c is
 their C port, operation for operation, and the native FMUs give the same bits.
 """
@@ -124,6 +124,56 @@ def exp(x, _floor=math.floor, _ldexp=math.ldexp):
                          + c[9]) * r + c[8]) * r + c[7]) * r + c[6]) * r + c[5]) * r + c[4])
                     * r + c[3]) * r + c[2]) * r + c[1]) * r + c[0]
         return _ldexp(poly, m)
+    return _exp_reduced(x, _horner)
+
+
+def exp_estrin(x, _floor=math.floor, _ldexp=math.ldexp):
+    """``e^x`` as :func:`exp` (the same reduction and Taylor polynomial, the same accuracy and
+    range), the polynomial evaluated by Estrin's scheme (:func:`_estrin`): its longest chain of
+    dependent operations is 4 multiply-adds after the powers ``r^2, r^4, r^8`` instead of
+    Horner's 14, so a CPU runs it in about a third of the time where nothing else waits on it.
+    Its last bits are its own (not :func:`exp`'s); the same on both paths and in C.  The
+    exposure drift's exponential (:func:`driftfmu.models.errors.exposure`), the one the sensor
+    computes at every sample."""
+    if type(x) is float and EXP_LOW <= x <= EXP_HIGH:  # one FMU instance: _estrin written out
+        m = _floor(x * INV_LN2 + 0.5)
+        n = float(m)
+        r = (x - n * LN2_HI) - n * LN2_LO
+        c = _EXP_COEFF
+        r2 = r * r
+        r4 = r2 * r2
+        q0 = (c[0] + c[1] * r) + (c[2] + c[3] * r) * r2
+        q1 = (c[4] + c[5] * r) + (c[6] + c[7] * r) * r2
+        q2 = (c[8] + c[9] * r) + (c[10] + c[11] * r) * r2
+        q3 = (c[12] + c[13] * r) + c[14] * r2
+        return _ldexp((q0 + q1 * r4) + (q2 + q3 * r4) * (r4 * r4), m)
+    return _exp_reduced(x, _estrin)
+
+
+def _horner(r):
+    """``sum r^k / k!`` for ``k = 0 .. 14`` in Horner form (:func:`exp`)."""
+    poly = _EXP_COEFF[14]
+    for c in _EXP_DOWN:
+        poly = poly * r + c
+    return poly
+
+
+def _estrin(r):
+    """``sum r^k / k!`` for ``k = 0 .. 14`` by Estrin's scheme (:func:`exp_estrin`): pairs
+    ``c_k + c_(k+1) r``, joined by ``r^2``, then ``r^4``, then ``r^8``."""
+    c = _EXP_COEFF
+    r2 = r * r
+    r4 = r2 * r2
+    q0 = (c[0] + c[1] * r) + (c[2] + c[3] * r) * r2
+    q1 = (c[4] + c[5] * r) + (c[6] + c[7] * r) * r2
+    q2 = (c[8] + c[9] * r) + (c[10] + c[11] * r) * r2
+    q3 = (c[12] + c[13] * r) + c[14] * r2
+    return (q0 + q1 * r4) + (q2 + q3 * r4) * (r4 * r4)
+
+
+def _exp_reduced(x, poly_of):
+    """``e^x`` of :func:`exp` and :func:`exp_estrin` for a float out of range, a NumPy scalar
+    or an array: ``poly_of(r) 2^n``, and ``inf``, ``0.0`` or ``nan`` out of the range."""
     big = x > EXP_HIGH
     tiny = x < EXP_LOW
     nan = x != x
@@ -134,10 +184,7 @@ def exp(x, _floor=math.floor, _ldexp=math.ldexp):
         x_in, x = x, where(big | tiny | nan, 0.0, x)
     n = floor(x * INV_LN2 + 0.5)
     r = (x - n * LN2_HI) - n * LN2_LO
-    poly = _EXP_COEFF[14]
-    for c in _EXP_DOWN:
-        poly = poly * r + c
-    y = ldexp(poly, n)
+    y = ldexp(poly_of(r), n)
     if is_scalar(y):
         return y
     y = where(big, math.inf, y)

@@ -227,7 +227,7 @@ def measure_errors(prev, state, own, other, v, draws, theta, T, cfg, ecfg):
     return e, state, quantise(V, cfg)
 
 
-def measure_errors_run(prev, state, row, own, other, v, theta, T, cfg, ecfg, _exp=_ops.exp,
+def measure_errors_run(prev, state, row, own, other, v, theta, T, cfg, ecfg, _exp=_ops.exp_estrin,
                        _sin=_ops.sin, _TILT=errors._TILT, _new_state=tuple.__new__,
                        _ErrorState=errors.ErrorState):
     """:func:`measure_errors` of one FMU instance (``own``, ``other``, ``v``, ``theta`` and ``T``

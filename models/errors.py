@@ -191,7 +191,7 @@ def exposure(E, x, Ts, d_inf, E_tau):
     """One step of the exposure drift: ``E = E + x^2 Ts`` and ``d = d_inf (1 - exp(-E /
     E_tau))``; ``(E, d)``."""
     E = E + x * x * Ts
-    return E, d_inf * (1.0 - _ops.exp(-E / E_tau))
+    return E, d_inf * (1.0 - _ops.exp_estrin(-E / E_tau))
 
 
 def tilt(x, theta):

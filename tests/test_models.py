@@ -22,17 +22,41 @@ def test_sin2pi_matches_libm():
         assert abs(_ops.sin2pi(float(c)) - math.sin(2 * math.pi * c)) < 1e-14
 
 
-def test_exp_matches_libm_to_a_few_ulp():
+@pytest.mark.parametrize("exp", [_ops.exp, _ops.exp_estrin])
+def test_exp_matches_libm_to_a_few_ulp(exp):
+    # Horner's and Estrin's evaluation of the same polynomial: each within 2 ulp of libm's
     xs = np.concatenate([np.random.default_rng(3).uniform(-708.0, 709.0, 5000),
-                         np.random.default_rng(4).uniform(-1.0, 1.0, 5000)])
+                         np.random.default_rng(4).uniform(-1.0, 1.0, 5000),
+                         -np.random.default_rng(6).exponential(2.0, 5000)])  # (the exposure's)
     for x in xs:
-        got, want = _ops.exp(float(x)), math.exp(x)
-        assert abs(got - want) <= 2 * math.ulp(want)
-    assert (_ops.exp(0.0), _ops.exp(800.0), _ops.exp(-800.0)) == (1.0, math.inf, 0.0)
-    assert math.isnan(_ops.exp(math.nan))
+        got, want = exp(float(x)), math.exp(x)
+        assert abs(got - want) <= 2 * math.ulp(want), (x, got, want)
+    assert (exp(0.0), exp(800.0), exp(-800.0)) == (1.0, math.inf, 0.0)
+    assert math.isnan(exp(math.nan))
 
 
-@pytest.mark.parametrize("fn", [_ops.log, _ops.sin2pi, _ops.exp])
+def test_exp_estrin_is_estrins_scheme_of_exps_polynomial():
+    # the same reduction and coefficients as _ops.exp, the terms grouped as Estrin's scheme
+    # does, written here from its definition (pairs c_k + c_(k+1) r, then joined by r^2, r^4,
+    # r^8), not from _ops; and it is not Horner's: many results differ from exp's in a bit
+    c = [1.0 / math.factorial(k) for k in range(15)]
+    xs = np.random.default_rng(7).uniform(-700.0, 700.0, 4000)
+    differ = 0
+    for x in map(float, xs):
+        m = math.floor(x * _ops.INV_LN2 + 0.5)
+        r = (x - m * _ops.LN2_HI) - m * _ops.LN2_LO
+        pairs = [c[k] + c[k + 1] * r for k in range(0, 14, 2)] + [c[14]]
+        r2 = r * r
+        quads = [pairs[j] + pairs[j + 1] * r2 for j in range(0, 8, 2)]
+        r4 = r2 * r2
+        octs = [quads[0] + quads[1] * r4, quads[2] + quads[3] * r4]
+        want = math.ldexp(octs[0] + octs[1] * (r4 * r4), m)
+        assert _ops.exp_estrin(x) == want, x
+        differ += _ops.exp(x) != want
+    assert differ > 400, differ
+
+
+@pytest.mark.parametrize("fn", [_ops.log, _ops.sin2pi, _ops.exp, _ops.exp_estrin])
 def test_special_functions_same_bits_on_floats_and_arrays(fn):
     xs = np.random.default_rng(2).uniform(1e-6, 0.999, 2000)
     assert np.array_equal(fn(xs), np.array([fn(float(x)) for x in xs]))
@@ -66,13 +90,15 @@ def test_floor_of_a_float_is_a_float():
     assert type(_ops.floor(math.nan)) is float and math.isnan(_ops.floor(math.nan))
 
 
-def test_exp_same_bits_on_floats_and_arrays_over_its_whole_range():
+@pytest.mark.parametrize("exp", [_ops.exp, _ops.exp_estrin])
+def test_exp_same_bits_on_floats_and_arrays_over_its_whole_range(exp):
     xs = np.concatenate([np.random.default_rng(5).uniform(-760.0, 720.0, 3000),
-                         [0.0, -0.0, _ops.EXP_HIGH, _ops.EXP_LOW, 1e4, -1e4, np.inf, -np.inf]])
-    got = _ops.exp(xs)
+                         [0.0, -0.0, _ops.EXP_HIGH, _ops.EXP_LOW, 1e4, -1e4, np.inf, -np.inf,
+                          np.nextafter(_ops.EXP_HIGH, np.inf), np.nextafter(_ops.EXP_LOW, -np.inf)]])
+    got = exp(xs)
     assert np.array_equal(got.view(np.uint64),
-                          np.array([_ops.exp(float(x)) for x in xs]).view(np.uint64))
-    assert np.isnan(_ops.exp(np.array([np.nan, 1.0])))[0]
+                          np.array([exp(float(x)) for x in xs]).view(np.uint64))
+    assert np.isnan(exp(np.array([np.nan, 1.0])))[0]
 
 
 # -- noise ------------------------------------------------------------------------------------
@@ -247,9 +273,10 @@ def test_good_parameters_have_no_problem():
     assert parameters.check(parameters.defaults(*parameters.PARAMETERS)) == []
 
 
-def test_exp_of_an_int_or_a_numpy_scalar_is_the_floats():
-    """_ops.exp takes its general path for an int and a NumPy float64 (not type float): the
-    same value as the float's."""
-    for x in (1, -3, 0):
-        assert _ops.exp(x) == _ops.exp(float(x))
-    assert _ops.exp(np.float64(0.5)) == _ops.exp(0.5) == pytest.approx(math.exp(0.5), rel=1e-15)
+@pytest.mark.parametrize("exp", [_ops.exp, _ops.exp_estrin])
+def test_exp_of_an_int_or_a_numpy_scalar_is_the_floats(exp):
+    """_ops.exp and exp_estrin take their general path for an int and a NumPy float64 (not type
+    float): the same value as the float's, out of the range too."""
+    for x in (1, -3, 0, 0.3, -2.7, 800, -800):
+        assert exp(x) == exp(float(x)) == exp(np.float64(x)), x
+    assert exp(np.float64(0.5)) == exp(0.5) == pytest.approx(math.exp(0.5), rel=1e-15)

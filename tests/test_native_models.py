@@ -110,7 +110,8 @@ SIGNATURES = {
     "dualaxis_estimator_step": (DualEstimator, DualEstimator, D, D, Axis, Axis,
                                 ctypes.POINTER(DualModel)),
     "ops_sqrt": (D, D), "ops_floor": (D, D), "ops_frexp": (None, D, PD, PI64),
-    "ops_ldexp": (D, D, I64), "ops_log": (D, D), "ops_exp": (D, D), "ops_sin2pi": (D, D),
+    "ops_ldexp": (D, D, I64), "ops_log": (D, D), "ops_exp": (D, D), "ops_exp_estrin": (D, D),
+    "ops_sin2pi": (D, D),
     "noise_mix": (U64, U64), "noise_key": (U64, U64, U64), "noise_bits": (U64, U64, U64, U64),
     "noise_uniform": (D, U64, U64, U64), "noise_inverse_normal_cdf": (D, D),
     "noise_normal": (D, U64, U64, U64), "noise_normal_keyed": (D, U64, U64),
@@ -380,7 +381,9 @@ def test_log_equals_models_bit_for_bit(c):
         assert same(_ops.log(x), c.ops_log(x)), x
 
 
-def test_exp_equals_models_bit_for_bit_and_is_close_to_math_exp(c):
+@pytest.mark.parametrize("name", ["exp", "exp_estrin"])
+def test_exp_equals_models_bit_for_bit_and_is_close_to_math_exp(c, name):
+    exp, c_exp = getattr(_ops, name), getattr(c, "ops_" + name)
     rng = random.Random(RNG_SEED + 1)
     xs = [rng.uniform(-745.2, 709.9) for _ in range(3000)] + signed(rng, 3000, 1.0)
     xs += [0.0, -0.0, 1.0, -1.0, _ops.EXP_HIGH, math.nextafter(_ops.EXP_HIGH, 1e3), _ops.EXP_LOW,
@@ -388,12 +391,12 @@ def test_exp_equals_models_bit_for_bit_and_is_close_to_math_exp(c):
            math.inf, -math.inf, math.nan, -2.0 * math.pi * 1063.829787 * 1e-3]
     worst = 0.0
     for x in xs:
-        py = _ops.exp(x)
-        assert same(py, c.ops_exp(x)), x
+        py = exp(x)
+        assert same(py, c_exp(x)), x
         ref = math.exp(x) if x <= _ops.EXP_HIGH else math.inf
         if 2.3e-308 < ref < math.inf:
             worst = max(worst, abs(py - ref) / math.ulp(ref))
-    assert worst <= 2.0, "models._ops.exp is %g ulp off math.exp" % worst
+    assert worst <= 2.0, "models._ops.%s is %g ulp off math.exp" % (name, worst)
 
 
 def test_sin2pi_equals_models_bit_for_bit_over_large_cycle_counts(c):

@@ -89,7 +89,7 @@ double errors_exposure(double E, double x, double Ts, double d_inf, double E_tau
 {
     E = E + x * x * Ts;
     *E_out = E;
-    return d_inf * (1.0 - ops_exp(-E / E_tau));
+    return d_inf * (1.0 - ops_exp_estrin(-E / E_tau));
 }
 
 double errors_tilt(double x, double theta, ErrorTilt *held)

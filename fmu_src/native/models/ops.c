@@ -125,6 +125,25 @@ double ops_exp(double x)
     return exp_scale(poly, (int64_t)n);
 }
 
+double ops_exp_estrin(double x)
+{
+    double n, r, r2, r4, q0, q1, q2, q3;
+    const double *c = INV_FACTORIAL;
+    if (x != x) return x;
+    if (x > OPS_EXP_HIGH) return HUGE_VAL;
+    if (x < OPS_EXP_LOW) return 0.0;
+    n = ops_floor(x * OPS_INV_LN2 + 0.5);
+    r = (x - n * OPS_LN2_HI) - n * OPS_LN2_LO;
+    /* _estrin: pairs joined by r^2, then r^4, then r^8 (the Python expressions as written) */
+    r2 = r * r;
+    r4 = r2 * r2;
+    q0 = (c[0] + c[1] * r) + (c[2] + c[3] * r) * r2;
+    q1 = (c[4] + c[5] * r) + (c[6] + c[7] * r) * r2;
+    q2 = (c[8] + c[9] * r) + (c[10] + c[11] * r) * r2;
+    q3 = (c[12] + c[13] * r) + c[14] * r2;
+    return exp_scale((q0 + q1 * r4) + (q2 + q3 * r4) * (r4 * r4), (int64_t)n);
+}
+
 /* (+-1) / n! for n = 1, 3, ..., 23 (Python: sign / math.factorial(n), printed with repr). */
 static const double SIN_COEFF[12] = {
     1.0, -0.16666666666666666, 0.008333333333333333, -0.0001984126984126984,

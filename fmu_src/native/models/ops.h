@@ -34,6 +34,8 @@ double ops_ldexp(double m, int64_t e);
 double ops_log(double x);
 /* e^x by arithmetic only (models._ops.exp). */
 double ops_exp(double x);
+/* e^x by arithmetic only, its polynomial by Estrin's scheme (models._ops.exp_estrin). */
+double ops_exp_estrin(double x);
 /* sin(2 pi c) by arithmetic only (models._ops.sin2pi). */
 double ops_sin2pi(double cycles);
 /* sin(x), x in radians, by arithmetic only: ops_sin2pi(x / (2 pi)) (models._ops.sin). */
