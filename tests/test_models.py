@@ -274,6 +274,19 @@ def test_good_parameters_have_no_problem():
 
 
 @pytest.mark.parametrize("exp", [_ops.exp, _ops.exp_estrin])
+def test_exp_of_an_array_out_of_its_range_warns_of_nothing(exp):
+    # the values out of the range (inf, nan, beyond EXP_HIGH and EXP_LOW) are set aside before
+    # the reduction, whose inf - inf would be NumPy's "invalid value" warning
+    import warnings
+    x = np.array([np.inf, -np.inf, np.nan, 1e4, -1e4, _ops.EXP_HIGH + 1.0, 0.5])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        y = exp(x)
+    assert y[:2].tolist() == [math.inf, 0.0] and math.isnan(y[2])
+    assert y[3:6].tolist() == [math.inf, 0.0, math.inf] and y[6] == exp(0.5)
+
+
+@pytest.mark.parametrize("exp", [_ops.exp, _ops.exp_estrin])
 def test_exp_of_an_int_or_a_numpy_scalar_is_the_floats(exp):
     """_ops.exp and exp_estrin take their general path for an int and a NumPy float64 (not type
     float): the same value as the float's, out of the range too."""
