@@ -308,6 +308,7 @@ def test_rewrite_imports_points_project_imports_at_the_bundle():
 
         def f():
             from driftfmu.models import late
+            import driftfmu.models.chain, json
             return late
         """)
     assert rewrite_imports(source, "drift_0123456789") == textwrap.dedent("""\
@@ -324,6 +325,9 @@ def test_rewrite_imports_points_project_imports_at_the_bundle():
 
         def f():
             from drift_0123456789.models import late
+            import drift_0123456789.models.chain
+            import drift_0123456789 as driftfmu
+            import json
             return late
         """)
 

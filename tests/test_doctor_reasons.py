@@ -204,3 +204,11 @@ def test_a_host_that_crashes_or_hangs_leaves_no_extracted_fmu(end, timeout, said
     status, text = doctor._run_instantiate(code, tmp_path / "x.fmu", timeout=timeout)
     assert status == doctor.FAIL and said in text, text
     assert list(tmp_path.iterdir()) == []
+
+
+def test_a_module_imported_at_import_time_is_not_also_counted_as_imported_later():
+    # doctor reads a slave's imports: those at import time, and those only inside functions
+    # (a module imported both ways is an import-time one)
+    source = ("import numpy\nimport json\n\n\ndef f():\n    import numpy\n    import scipy.signal\n"
+              "    from lxml import etree\n")
+    assert doctor._imports(source) == ({"numpy", "json"}, {"scipy", "lxml"})
