@@ -135,18 +135,10 @@ def exp_estrin(x, _floor=math.floor, _ldexp=math.ldexp):
     Its last bits are its own (not :func:`exp`'s); the same on both paths and in C.  The
     exposure drift's exponential (:func:`driftfmu.models.errors.exposure`), the one the sensor
     computes at every sample."""
-    if type(x) is float and EXP_LOW <= x <= EXP_HIGH:  # one FMU instance: _estrin written out
+    if type(x) is float and EXP_LOW <= x <= EXP_HIGH:  # one FMU instance: math's floor, ldexp
         m = _floor(x * INV_LN2 + 0.5)
         n = float(m)
-        r = (x - n * LN2_HI) - n * LN2_LO
-        c = _EXP_COEFF
-        r2 = r * r
-        r4 = r2 * r2
-        q0 = (c[0] + c[1] * r) + (c[2] + c[3] * r) * r2
-        q1 = (c[4] + c[5] * r) + (c[6] + c[7] * r) * r2
-        q2 = (c[8] + c[9] * r) + (c[10] + c[11] * r) * r2
-        q3 = (c[12] + c[13] * r) + c[14] * r2
-        return _ldexp((q0 + q1 * r4) + (q2 + q3 * r4) * (r4 * r4), m)
+        return _ldexp(_estrin((x - n * LN2_HI) - n * LN2_LO), m)
     return _exp_reduced(x, _estrin)
 
 
