@@ -98,17 +98,12 @@ static double exp_scale(double m, int64_t n)
     return ops_ldexp(m, n);
 }
 
-double ops_exp(double x)
+/* models._ops._horner: sum r^k / k! for k = 0 .. 14, Horner from 1/14! down to 1/0! (the
+ * loop's operations in its order, written out). */
+static inline double exp_poly_horner(double r)
 {
-    double n, r, poly;
     const double *c = INV_FACTORIAL;
-    if (x != x) return x;
-    if (x > OPS_EXP_HIGH) return HUGE_VAL;
-    if (x < OPS_EXP_LOW) return 0.0;
-    n = ops_floor(x * OPS_INV_LN2 + 0.5);
-    r = (x - n * OPS_LN2_HI) - n * OPS_LN2_LO;
-    /* Horner from 1/14! down to 1/0!, written out (the loop's operations in its order) */
-    poly = c[14] * r + c[13];
+    double poly = c[14] * r + c[13];
     poly = poly * r + c[12];
     poly = poly * r + c[11];
     poly = poly * r + c[10];
@@ -121,27 +116,43 @@ double ops_exp(double x)
     poly = poly * r + c[3];
     poly = poly * r + c[2];
     poly = poly * r + c[1];
-    poly = poly * r + c[0];
-    return exp_scale(poly, (int64_t)n);
+    return poly * r + c[0];
 }
 
-double ops_exp_estrin(double x)
+/* models._ops._estrin: the same sum, pairs joined by r^2, then r^4, then r^8 (the Python
+ * expressions as written). */
+static inline double exp_poly_estrin(double r)
 {
-    double n, r, r2, r4, q0, q1, q2, q3;
     const double *c = INV_FACTORIAL;
+    const double r2 = r * r, r4 = r2 * r2;
+    const double q0 = (c[0] + c[1] * r) + (c[2] + c[3] * r) * r2;
+    const double q1 = (c[4] + c[5] * r) + (c[6] + c[7] * r) * r2;
+    const double q2 = (c[8] + c[9] * r) + (c[10] + c[11] * r) * r2;
+    const double q3 = (c[12] + c[13] * r) + c[14] * r2;
+    return (q0 + q1 * r4) + (q2 + q3 * r4) * (r4 * r4);
+}
+
+/* models._ops._exp_reduced: e^x = poly_of(r) 2^n, inf, 0.0 or nan out of the range (inlined
+ * into each caller with its polynomial). */
+static inline double exp_reduced(double x, double (*poly_of)(double))
+{
+    double n, r;
     if (x != x) return x;
     if (x > OPS_EXP_HIGH) return HUGE_VAL;
     if (x < OPS_EXP_LOW) return 0.0;
     n = ops_floor(x * OPS_INV_LN2 + 0.5);
     r = (x - n * OPS_LN2_HI) - n * OPS_LN2_LO;
-    /* _estrin: pairs joined by r^2, then r^4, then r^8 (the Python expressions as written) */
-    r2 = r * r;
-    r4 = r2 * r2;
-    q0 = (c[0] + c[1] * r) + (c[2] + c[3] * r) * r2;
-    q1 = (c[4] + c[5] * r) + (c[6] + c[7] * r) * r2;
-    q2 = (c[8] + c[9] * r) + (c[10] + c[11] * r) * r2;
-    q3 = (c[12] + c[13] * r) + c[14] * r2;
-    return exp_scale((q0 + q1 * r4) + (q2 + q3 * r4) * (r4 * r4), (int64_t)n);
+    return exp_scale(poly_of(r), (int64_t)n);
+}
+
+double ops_exp(double x)
+{
+    return exp_reduced(x, exp_poly_horner);
+}
+
+double ops_exp_estrin(double x)
+{
+    return exp_reduced(x, exp_poly_estrin);
 }
 
 /* (+-1) / n! for n = 1, 3, ..., 23 (Python: sign / math.factorial(n), printed with repr). */
